@@ -1,0 +1,117 @@
+//! `poses.jsonl` records: one camera frame per line, with every representation a downstream tool may
+//! want (ENU camera-to-world, COLMAP world-to-camera, ECEF, WGS84, yaw/pitch/roll).
+//!
+//! The pose itself is [`PoseRecord::pose`]; all other fields are derived from it and the area's ENU
+//! frame by [`PoseRecord::new`] and are checked for consistency by the tests.
+
+use serde::{Deserialize, Serialize};
+
+use super::{Intrinsics, Pose};
+use crate::geo::EnuFrame;
+
+/// The kind of flight a frame belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Trajectory {
+    /// A uniform lattice of independent poses (cam2).
+    Grid,
+    /// Straight survey lines (cam3).
+    Regular,
+    /// Smooth random trajectories (cam1).
+    Irregular,
+}
+
+/// One line of `poses.jsonl` (schema: `schemas/poses.schema.json`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PoseRecord {
+    /// Unique frame name, also the stem of every per-frame output file.
+    pub name: String,
+    pub area: String,
+    /// Camera preset name (cam1, cam2, cam3 or a custom one).
+    pub preset: String,
+    pub trajectory: Trajectory,
+    /// Sequence (flight line/trajectory) id and the frame's index in it; grid frames are each their
+    /// own sequence of length 1.
+    pub sequence: u32,
+    pub index: u32,
+    pub intrinsics: Intrinsics,
+    /// Camera-to-world in the area's ENU frame (OpenCV camera axes), 4×4 row-major, metres.
+    pub cam_to_world_enu: [[f64; 4]; 4],
+    /// COLMAP world-to-camera quaternion (qw, qx, qy, qz) and translation, ENU world frame.
+    pub colmap_qvec: [f64; 4],
+    pub colmap_tvec: [f64; 3],
+    /// Camera centre in ECEF (EPSG:4978), metres.
+    pub ecef_m: [f64; 3],
+    /// Camera centre in WGS84 with ellipsoidal height.
+    pub lat_deg: f64,
+    pub lon_deg: f64,
+    pub h_m: f64,
+    /// Yaw (heading of the image top, clockwise from north), pitch (tilt from nadir), roll, in degrees;
+    /// see `camera::pose` for the exact convention.
+    pub yaw_deg: f64,
+    pub pitch_deg: f64,
+    pub roll_deg: f64,
+    /// Height of the camera above the area's ground level, metres.
+    pub height_above_ground_m: f64,
+}
+
+impl PoseRecord {
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        name: String,
+        area: &str,
+        preset: &str,
+        trajectory: Trajectory,
+        sequence: u32,
+        index: u32,
+        intrinsics: Intrinsics,
+        pose: &Pose,
+        enu: &EnuFrame,
+        ground_enu_m: f64,
+    ) -> Self {
+        let r = &pose.r_world_from_cam;
+        let c = pose.centre_m;
+        let cam_to_world_enu = [
+            [r[0][0], r[0][1], r[0][2], c[0]],
+            [r[1][0], r[1][1], r[1][2], c[1]],
+            [r[2][0], r[2][1], r[2][2], c[2]],
+            [0.0, 0.0, 0.0, 1.0],
+        ];
+        let ecef = enu.enu_to_ecef(c);
+        let g = enu.enu_to_geodetic(c);
+        let [yaw_deg, pitch_deg, roll_deg] = pose.ypr_deg();
+        PoseRecord {
+            name,
+            area: area.to_string(),
+            preset: preset.to_string(),
+            trajectory,
+            sequence,
+            index,
+            intrinsics,
+            cam_to_world_enu,
+            colmap_qvec: pose.colmap_qvec(),
+            colmap_tvec: pose.t_cam_from_world(),
+            ecef_m: ecef,
+            lat_deg: g.lat_deg,
+            lon_deg: g.lon_deg,
+            h_m: g.h_m,
+            yaw_deg,
+            pitch_deg,
+            roll_deg,
+            height_above_ground_m: c[2] - ground_enu_m,
+        }
+    }
+
+    /// The pose (from `cam_to_world_enu`, the authoritative field).
+    pub fn pose(&self) -> Pose {
+        let m = &self.cam_to_world_enu;
+        Pose {
+            r_world_from_cam: [
+                [m[0][0], m[0][1], m[0][2]],
+                [m[1][0], m[1][1], m[1][2]],
+                [m[2][0], m[2][1], m[2][2]],
+            ],
+            centre_m: [m[0][3], m[1][3], m[2][3]],
+        }
+    }
+}

@@ -1,0 +1,40 @@
+//! The per-frame instance list written beside each ID map (`<frame>.instances.json`, schema
+//! `schemas/instances.schema.json`).
+
+use serde::{Deserialize, Serialize};
+
+use super::Connectivity;
+
+/// One connected component of one building in one frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct InstanceEntry {
+    /// 24-bit building ID (as in the ID map and the building table).
+    pub building_id: u32,
+    /// Source identity of the building (gml:id, CityJSON key…).
+    pub source_id: String,
+    /// Index of this component among the building's components in this frame.
+    pub component: u32,
+    pub area_px: u64,
+    /// [x, y, w, h] in pixels.
+    pub bbox_px: [u32; 4],
+    /// Whether the component touches the image border.
+    pub truncated: bool,
+    /// All visible pixels of the building in this frame (all its components).
+    pub building_visible_px: u64,
+    /// Visible pixels / pixels of the building rendered alone (amodal), when computed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub visible_fraction: Option<f64>,
+}
+
+/// `<frame>.instances.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FrameInstances {
+    pub frame: String,
+    pub width: u32,
+    pub height: u32,
+    pub connectivity: Connectivity,
+    /// Components smaller than this were dropped.
+    pub min_component_area_px: u64,
+    /// Components in raster order of their first pixel.
+    pub instances: Vec<InstanceEntry>,
+}

@@ -1,0 +1,7 @@
+//! Labels from instance-ID maps: connected components and per-frame instance lists.
+
+pub mod components;
+pub mod instances;
+
+pub use components::{label_components, Component, Connectivity, Labelling};
+pub use instances::{FrameInstances, InstanceEntry};

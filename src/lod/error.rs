@@ -1,0 +1,30 @@
+//! Errors of the LoD readers: each names the file and, where known, the object and what is wrong.
+
+use std::path::PathBuf;
+
+#[derive(Debug, thiserror::Error)]
+pub enum LodError {
+    #[error(transparent)]
+    File(#[from] crate::util::FileError),
+
+    #[error("{}: cannot tell the format from the file name; set `format` (citygml, cityjson, obj, 3dtiles) in the scene file", path.display())]
+    UnknownFormat { path: PathBuf },
+
+    /// The file is not well-formed (truncated XML/JSON, bad binary header…).
+    #[error("{}: {what}", path.display())]
+    Malformed { path: PathBuf, what: String },
+
+    /// A specific object (building, geometry, tile) is invalid; `at` locates it (gml:id, JSON path,
+    /// line, tile URI).
+    #[error("{}: {at}: {what}", path.display())]
+    Invalid { path: PathBuf, at: String, what: String },
+}
+
+impl LodError {
+    pub fn malformed(path: impl Into<PathBuf>, what: impl Into<String>) -> Self {
+        LodError::Malformed { path: path.into(), what: what.into() }
+    }
+    pub fn invalid(path: impl Into<PathBuf>, at: impl Into<String>, what: impl Into<String>) -> Self {
+        LodError::Invalid { path: path.into(), at: at.into(), what: what.into() }
+    }
+}

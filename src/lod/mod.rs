@@ -1,0 +1,160 @@
+//! Readers for LoD building models, producing buildings in their *source* coordinates.
+//!
+//! Every reader turns one file (or one tileset) into a [`SourceModel`]: a list of [`SourceBuilding`]s,
+//! each keeping its source identity (gml:id, CityJSON key, batch-table `gml_id`) and its geometry either
+//! as planar polygons with holes (CityGML, CityJSON; triangulated later by [`crate::scene`]) or as a
+//! triangle mesh (OBJ, 3D Tiles). Coordinates stay f64 and stay in the frame the file declares
+//! ([`Frame`]); converting them to ECEF/ENU is the scene stage's job, with [`crate::geo`].
+//!
+//! Readers are streaming or memory-frugal: XML is read with quick-xml's pull parser (no DOM), JSON
+//! into typed structs; only the geometry that is kept is held in memory.
+//!
+//! Formats: [`citygml`] (CityGML 2.0 incl. PLATEAU), [`cityjson`] (CityJSON 1.1/2.0, CityJSONSeq),
+//! [`obj`] (Wavefront OBJ + sidecar), [`tiles3d`] (3D Tiles 1.0/1.1: b3dm, glb, Draco).
+
+pub mod citygml;
+pub mod cityjson;
+pub mod error;
+pub mod obj;
+pub mod tiles3d;
+
+pub use error::LodError;
+
+use std::path::{Path, PathBuf};
+
+/// A planar polygon: one exterior ring and any number of interior rings (holes).
+///
+/// Rings are stored *open* (the closing vertex equal to the first is removed by the reader) and hold
+/// at least 3 points; coordinates are in the model's [`Frame`], in the axis order the file uses.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Polygon {
+    pub exterior: Vec<[f64; 3]>,
+    pub interiors: Vec<Vec<[f64; 3]>>,
+}
+
+/// An indexed triangle mesh (f64 positions in the model's [`Frame`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TriMesh {
+    pub positions: Vec<[f64; 3]>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Geometry of one building as the source gives it.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Geometry {
+    /// Boundary surfaces to be triangulated (CityGML, CityJSON).
+    Polygons(Vec<Polygon>),
+    /// Already triangulated (OBJ, glTF, 3D Tiles).
+    Mesh(TriMesh),
+}
+
+/// One building read from a source.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SourceBuilding {
+    /// Source identity: gml:id of the `bldg:Building` (parts folded in), CityJSON key of the parent
+    /// `Building`, batch-table `gml_id`, or a synthesized `"<file>#cc<N>"` for ID-less meshes.
+    pub source_id: String,
+    /// The LoD the geometry was taken from, as the source names it ("1", "2", "1.2", "2.2").
+    pub lod: String,
+    /// `measuredHeight` or an equivalent attribute when the source gives one, in metres.
+    pub measured_height_m: Option<f64>,
+    pub geometry: Geometry,
+}
+
+/// Which frame a model's coordinates are in.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Frame {
+    /// A coordinate reference system as the file names it (e.g. `"EPSG:6697"`,
+    /// `"urn:ogc:def:crs:EPSG::7415"`, `"http://www.opengis.net/def/crs/EPSG/0/28992"`), or `None` when
+    /// the file declares none (the scene file must then give `crs`). Axis order: see [`AxisConvention`].
+    Crs { name: Option<String>, axes: AxisConvention },
+    /// Earth-centred, earth-fixed metres (EPSG:4978), as 3D Tiles use after tile transforms.
+    Ecef,
+}
+
+pub use crate::geo::AxisConvention;
+
+
+/// Counters a reader reports besides the buildings.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct ReadStats {
+    /// City objects seen that are not buildings (roads, water, …) and were skipped.
+    pub skipped_non_building: u64,
+    /// Buildings without any geometry at the chosen LoD (skipped, counted).
+    pub buildings_without_geometry: u64,
+    /// Faces dropped as degenerate by the reader (rings with < 3 distinct points, zero area).
+    pub degenerate_faces: u64,
+    /// Triangles or polygons read.
+    pub faces: u64,
+}
+
+/// What one reader produced from one source.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SourceModel {
+    /// The file (or tileset.json) that was read.
+    pub path: PathBuf,
+    pub frame: Frame,
+    pub buildings: Vec<SourceBuilding>,
+    pub stats: ReadStats,
+}
+
+/// The formats insgen reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Format {
+    CityGml,
+    CityJson,
+    Obj,
+    #[serde(rename = "3dtiles")]
+    Tiles3d,
+}
+
+impl Format {
+    /// Guesses the format from a file name: `.gml`/`.xml` → CityGML, `.json` (not `tileset.json`) and
+    /// `.jsonl` → CityJSON, `.obj` → OBJ, `tileset.json`/`.b3dm`/`.glb` → 3D Tiles.
+    pub fn from_path(path: &Path) -> Option<Format> {
+        let name = path.file_name()?.to_str()?.to_ascii_lowercase();
+        if name.ends_with(".gml") || name.ends_with(".xml") {
+            Some(Format::CityGml)
+        } else if name.starts_with("tileset") && name.ends_with(".json")
+            || name.ends_with(".b3dm")
+            || name.ends_with(".glb")
+        {
+            Some(Format::Tiles3d)
+        } else if name.ends_with(".json") || name.ends_with(".jsonl") {
+            Some(Format::CityJson)
+        } else if name.ends_with(".obj") {
+            Some(Format::Obj)
+        } else {
+            None
+        }
+    }
+}
+
+/// Reader options shared by all formats.
+#[derive(Debug, Clone, Default)]
+pub struct ReadOptions {
+    /// For meshes without building IDs (OBJ, ID-less glTF): weld vertices closer than this (metres)
+    /// before splitting the mesh into connected components; `None` = connect by shared indices only.
+    pub weld_tolerance_m: Option<f64>,
+    /// LoD to take (e.g. "2", "1.2"); `None` picks the format's default (the highest available LoD
+    /// that is ≤ 2.2 for CityJSON; LoD2 then LoD1 for CityGML).
+    pub lod: Option<String>,
+}
+
+/// Reads one source in the given (or guessed) format.
+///
+/// # Errors
+/// [`LodError`] naming the file and what is wrong with it.
+pub fn read_source(path: &Path, format: Option<Format>, opts: &ReadOptions) -> Result<SourceModel, LodError> {
+    let format = match format.or_else(|| Format::from_path(path)) {
+        Some(f) => f,
+        None => return Err(LodError::UnknownFormat { path: path.to_path_buf() }),
+    };
+    match format {
+        Format::CityGml => citygml::read(path, opts),
+        Format::CityJson => cityjson::read(path, opts),
+        Format::Obj => obj::read(path, opts),
+        Format::Tiles3d => tiles3d::read(path, opts),
+    }
+}

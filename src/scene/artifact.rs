@@ -1,0 +1,127 @@
+//! The prepared scene artifact, as later stages load it.
+//!
+//! `insgen prepare --area NAME` writes, under `<workdir>/<area>/scene/`:
+//! - `scene.glb`: the instanced model in the area's ENU frame (f32 positions relative to the origin,
+//!   glTF y-up axes as the format requires: glTF (x, y, z) = ENU (east, up, −north)), a per-vertex
+//!   `_FEATURE_ID_0` following `EXT_mesh_features` holding the building ID, and a flat colour per building;
+//! - `manifest.json`: origin, ENU↔ECEF transform, CRS chain, geoid, counts, source hashes, area
+//!   polygon ([`Manifest`]);
+//! - `buildings.json`: the building table ([`BuildingRecord`]s ordered by ID).
+//!
+//! Later stages (sample, render-masks, export-coco, render-rgb, eval-loc) only read these three files
+//! through [`PreparedScene::load`].
+
+use serde::{Deserialize, Serialize};
+
+use super::mesh::SceneMesh;
+
+/// File names inside a scene directory.
+pub const GLB_FILE: &str = "scene.glb";
+pub const MANIFEST_FILE: &str = "manifest.json";
+pub const BUILDINGS_FILE: &str = "buildings.json";
+
+/// One row of the building table.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BuildingRecord {
+    /// 24-bit instance ID (1..=2^24−1), assigned in order of `source_id`.
+    pub id: u32,
+    /// Source identity (gml:id, CityJSON key, batch-table gml_id, or `<file>#cc<N>`).
+    pub source_id: String,
+    /// The source file the building came from (as given in the scene file).
+    pub source_file: String,
+    /// LoD of the geometry used ("1", "2", "1.2", …).
+    pub lod: String,
+    /// Height from the lowest to the highest vertex, in metres.
+    pub height_m: f64,
+    /// `measuredHeight` (or equivalent) from the source when present, in metres.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub measured_height_m: Option<f64>,
+    /// Area of the footprint (union of the triangles' projections on the ground), in m².
+    pub footprint_area_m2: f64,
+    /// Footprint centroid, WGS84 degrees.
+    pub centroid_lat_deg: f64,
+    pub centroid_lon_deg: f64,
+    /// Bounds in the area's ENU frame, metres: [min_e, min_n, min_u], [max_e, max_n, max_u].
+    pub bbox_min_enu_m: [f64; 3],
+    pub bbox_max_enu_m: [f64; 3],
+    /// Triangles in the scene mesh.
+    pub triangles: u64,
+}
+
+/// The area's geodetic origin (WGS84, ellipsoidal height).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Origin {
+    pub lat_deg: f64,
+    pub lon_deg: f64,
+    pub h_m: f64,
+}
+
+/// Where a source came from, for provenance and reruns.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SourceEntry {
+    pub path: String,
+    pub format: String,
+    /// SHA-256 of the file (for a tileset: of tileset.json).
+    pub sha256: String,
+    /// The CRS chain applied, e.g. "EPSG:6697 (lat, lon, h; orthometric) → EPSG:4979 → EPSG:4978 → ENU".
+    pub crs_chain: String,
+    pub buildings: u64,
+    pub degenerate_faces: u64,
+    #[serde(default)]
+    pub attribution: Option<String>,
+}
+
+/// The geoid used to turn orthometric heights into ellipsoidal ones.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GeoidUsed {
+    /// "none" (heights already ellipsoidal), "egm96" (the EGM96 15' grid), or "constant".
+    pub model: String,
+    /// The grid file read, for grid models.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub grid: Option<String>,
+    /// Undulation at the origin (the constant for "constant"), metres.
+    pub undulation_at_origin_m: f64,
+}
+
+/// `manifest.json` of a prepared scene.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Manifest {
+    pub insgen_version: String,
+    pub area: String,
+    /// "train", "val" or "test": the geographic split this area belongs to.
+    pub split: String,
+    pub origin: Origin,
+    /// ECEF-from-ENU transform, 4×4 row-major, f64 (metres).
+    pub ecef_from_enu: [[f64; 4]; 4],
+    /// The area polygon in ENU metres (counter-clockwise, open ring).
+    pub area_polygon_enu_m: Vec<[f64; 2]>,
+    /// Estimated ground level of the area in ENU metres (see `scene::prepare` for how).
+    pub ground_enu_m: f64,
+    pub geoid: GeoidUsed,
+    pub sources: Vec<SourceEntry>,
+    pub buildings: u64,
+    pub triangles: u64,
+    pub degenerate_faces: u64,
+    /// Attribution lines to carry into datasets (e.g. PLATEAU's CC BY 4.0 notice).
+    pub attributions: Vec<String>,
+}
+
+/// A loaded scene: manifest, building table and mesh.
+#[derive(Debug, Clone)]
+pub struct PreparedScene {
+    pub manifest: Manifest,
+    pub buildings: Vec<BuildingRecord>,
+    pub mesh: SceneMesh,
+}
+
+impl PreparedScene {
+    /// Loads a prepared scene directory (`<workdir>/<area>/scene`).
+    ///
+    /// # Errors
+    /// [`super::SceneError::Artifact`] naming the file that is missing or inconsistent, with a hint to
+    /// run `insgen prepare`.
+    pub fn load(dir: &std::path::Path) -> Result<PreparedScene, super::SceneError> {
+        let _ = dir;
+        todo!("implemented by the lead in the scene stage")
+    }
+}
