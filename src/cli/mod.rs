@@ -5,6 +5,8 @@
 //!
 //! Exit codes: 0 success, 1 failure (the cause chain is printed on stderr), 2 usage error (clap).
 
+pub mod inspect;
+pub mod prepare;
 pub mod progress;
 
 use std::path::PathBuf;
@@ -53,9 +55,39 @@ impl Global {
 }
 
 #[derive(Debug, Subcommand)]
-pub enum Command {}
+pub enum Command {
+    /// Read an area's LoD models and write its instanced scene (GLB + manifest + building table).
+    Prepare(prepare::Args),
+    /// Summarise a building-model file or a prepared area.
+    Inspect(inspect::Args),
+}
 
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
-    match cli.command {}
+    let g = &cli.global;
+    match &cli.command {
+        Command::Prepare(a) => prepare::run(a, g),
+        Command::Inspect(a) => inspect::run(a, g),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    #[test]
+    fn cli_definition_is_consistent() {
+        Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn prepare_parses_areas() {
+        let cli = Cli::try_parse_from(["insgen", "prepare", "--area", "demo", "--area", "tokyo"]).unwrap();
+        match cli.command {
+            Command::Prepare(a) => assert_eq!(a.areas, ["demo", "tokyo"]),
+            _ => panic!("wrong command"),
+        }
+        assert!(Cli::try_parse_from(["insgen", "prepare"]).is_err());
+    }
 }

@@ -1,8 +1,19 @@
 //! Scenes: area definitions, triangulation, instancing, and the prepared scene artifact.
+//!
+//! - [`config`]: `scenes/<area>.toml`;
+//! - [`triangulate`]: planar polygons with holes → triangles;
+//! - [`prepare`]: the `prepare` stage (read → geo-reference → triangulate → instance → write);
+//! - [`artifact`]: the files it writes and [`PreparedScene::load`] for later stages;
+//! - [`mesh`]: the instanced [`SceneMesh`] renderers consume;
+//! - [`glb`]: the scene GLB (EXT_mesh_features) writer and reader;
+//! - [`procedural`]: the embedded demo city generator.
 
 pub mod artifact;
+pub mod config;
 pub mod error;
 pub mod mesh;
+pub mod prepare;
+pub mod triangulate;
 
 pub use artifact::{BuildingRecord, Manifest, PreparedScene};
 pub use error::SceneError;

@@ -1,0 +1,9 @@
+#!/usr/bin/env bash
+# The test command: idempotent setup, then the whole test suite (unit, integration, real data, Python
+# and Blender checks). Real-data tests use ../shared/data; under CI=true they fail instead of skipping.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh
+export INSGEN_PYTHON="${INSGEN_PYTHON:-$(pwd)/.venv/bin/python}"
+cargo fmt --check
+cargo test --no-fail-fast "$@"

@@ -1,0 +1,55 @@
+//! `insgen prepare`: build the instanced scene artifact of one or more areas.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+
+use super::Global;
+use crate::scene::{self, config::find_scene};
+
+/// Reads an area's building models (scenes/<area>.toml), geo-references them into the area's ENU frame
+/// and writes <workdir>/<area>/scene/{scene.glb, manifest.json, buildings.json}.
+#[derive(Debug, Clone, clap::Args)]
+#[command(after_long_help = "Examples:\n  insgen prepare --area demo\n  insgen prepare --area tokyo --area niiza\n  \
+insgen prepare --scene my/area.toml")]
+pub struct Args {
+    /// Area name (a file <scenes>/<NAME>.toml); repeat for several.
+    #[arg(long = "area", value_name = "NAME", required_unless_present = "scene")]
+    pub areas: Vec<String>,
+    /// A scene file given by path instead of by area name.
+    #[arg(long, value_name = "FILE", conflicts_with = "areas")]
+    pub scene: Option<PathBuf>,
+}
+
+pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
+    let mut files = Vec::new();
+    if let Some(s) = &args.scene {
+        files.push(s.clone());
+    }
+    for a in &args.areas {
+        files.push(find_scene(&global.scenes, a)?);
+    }
+    let progress = global.progress();
+    for file in files {
+        let area = file.file_stem().and_then(|s| s.to_str()).unwrap_or("area").to_string();
+        let out = global.workdir.join(&area).join("scene");
+        let report = scene::prepare::prepare(&file, &out, &progress)
+            .with_context(|| format!("preparing area {area} from {}", file.display()))?;
+        let m = &report.scene.manifest;
+        if !global.quiet {
+            println!(
+                "{area}: {} buildings, {} triangles, {} degenerate faces dropped, geoid {}, origin {:.6}° N {:.6}° E {:.2} m → {} ({:.1} s)",
+                m.buildings,
+                m.triangles,
+                m.degenerate_faces,
+                m.geoid.model,
+                m.origin.lat_deg,
+                m.origin.lon_deg,
+                m.origin.h_m,
+                report.out_dir.display(),
+                report.seconds
+            );
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,315 @@
+//! Area definitions: `scenes/<area>.toml` (schema: `schemas/scene.schema.json`).
+//!
+//! ```toml
+//! name = "tokyo"                 # must match the file stem
+//! split = "test"                 # train | val | test: the geographic split of this area
+//! description = "Shibuya, PLATEAU 3D Tiles"
+//! attribution = "3D city model (Project PLATEAU), MLIT — CC BY 4.0"
+//!
+//! [[sources]]
+//! path = "../../shared/data/jp_tokyo_shibuya_plateau_3dtiles/tileset.json"  # relative to this file
+//! format = "3dtiles"             # optional: citygml | cityjson | obj | 3dtiles | procedural
+//! crs = "EPSG:6697"              # optional override; required when the file declares none
+//! lod = "2"                      # optional LoD choice
+//! weld_tolerance_m = 0.01        # optional, ID-less meshes only
+//!
+//! [geoid]                        # orthometric → ellipsoidal heights, for sources with orthometric heights
+//! model = "egm96"                # egm96 (default) | constant | none
+//! undulation_m = 36.7            # with model = "constant"
+//!
+//! [origin]                       # optional; default: centre of the buildings, at the lowest ground
+//! lat_deg = 35.658
+//! lon_deg = 139.7016
+//! h_m = 40.0                     # ellipsoidal
+//!
+//! [area]                         # optional; default: bounding box of all buildings
+//! bbox_deg = [139.695, 35.653, 139.709, 35.663]   # lon_min, lat_min, lon_max, lat_max
+//! # polygon_deg = [[lon, lat], ...]
+//!
+//! [sampling]                     # camera sampling parameters, read by `insgen sample`
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use super::SceneError;
+
+/// One area definition.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneConfig {
+    pub name: String,
+    #[serde(default = "default_split")]
+    pub split: Split,
+    #[serde(default)]
+    pub description: Option<String>,
+    /// Attribution carried into datasets (e.g. PLATEAU requires CC BY 4.0 attribution).
+    #[serde(default)]
+    pub attribution: Option<String>,
+    pub sources: Vec<SourceConfig>,
+    #[serde(default)]
+    pub geoid: GeoidConfig,
+    #[serde(default)]
+    pub origin: Option<OriginConfig>,
+    #[serde(default)]
+    pub area: Option<AreaConfig>,
+    /// Camera sampling parameters; parsed by the camera stage.
+    #[serde(default)]
+    pub sampling: Option<toml::Table>,
+}
+
+/// The geographic split an area belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Split {
+    Train,
+    Val,
+    Test,
+}
+
+impl Split {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Split::Train => "train",
+            Split::Val => "val",
+            Split::Test => "test",
+        }
+    }
+}
+
+fn default_split() -> Split {
+    Split::Train
+}
+
+/// One source of building models.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SourceConfig {
+    /// Path of the file (or tileset.json), relative to the scene file's directory. Not used by
+    /// `format = "procedural"`.
+    #[serde(default)]
+    pub path: Option<PathBuf>,
+    #[serde(default)]
+    pub format: Option<String>,
+    #[serde(default)]
+    pub crs: Option<String>,
+    #[serde(default)]
+    pub lod: Option<String>,
+    #[serde(default)]
+    pub weld_tolerance_m: Option<f64>,
+    /// Parameters of the procedural generator (`format = "procedural"`).
+    #[serde(default)]
+    pub procedural: Option<toml::Table>,
+}
+
+/// Which geoid turns orthometric source heights into ellipsoidal ones.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GeoidConfig {
+    #[serde(default = "default_geoid_model")]
+    pub model: GeoidModel,
+    #[serde(default)]
+    pub undulation_m: Option<f64>,
+    /// Path of a .gtx grid to use instead of the EGM96 grid found in PROJ's data directory.
+    #[serde(default)]
+    pub grid: Option<PathBuf>,
+}
+
+impl Default for GeoidConfig {
+    fn default() -> Self {
+        GeoidConfig { model: GeoidModel::Egm96, undulation_m: None, grid: None }
+    }
+}
+
+fn default_geoid_model() -> GeoidModel {
+    GeoidModel::Egm96
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum GeoidModel {
+    Egm96,
+    Constant,
+    None,
+}
+
+/// An explicit area origin (WGS84, ellipsoidal height).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OriginConfig {
+    pub lat_deg: f64,
+    pub lon_deg: f64,
+    #[serde(default)]
+    pub h_m: Option<f64>,
+}
+
+/// The area's extent, in WGS84 degrees.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AreaConfig {
+    /// [lon_min, lat_min, lon_max, lat_max].
+    #[serde(default)]
+    pub bbox_deg: Option<[f64; 4]>,
+    /// [[lon, lat], ...], open or closed.
+    #[serde(default)]
+    pub polygon_deg: Option<Vec<[f64; 2]>>,
+}
+
+impl SceneConfig {
+    /// Reads and checks a scene file.
+    ///
+    /// # Errors
+    /// [`SceneError::Config`] naming the file: unreadable, not TOML, unknown keys, name mismatch,
+    /// no sources, a source without path, bad geoid settings, an invalid area.
+    pub fn load(path: &Path) -> Result<SceneConfig, SceneError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| SceneError::File(crate::util::FileError::new("reading", path, e)))?;
+        let cfg: SceneConfig =
+            toml::from_str(&text).map_err(|e| SceneError::Config { path: path.into(), what: e.to_string() })?;
+        cfg.validate(path)?;
+        Ok(cfg)
+    }
+
+    fn validate(&self, path: &Path) -> Result<(), SceneError> {
+        let err = |what: String| Err(SceneError::Config { path: path.into(), what });
+        if let Some(stem) = path.file_stem().and_then(|s| s.to_str()) {
+            if stem != self.name {
+                return err(format!("name = {:?} does not match the file name {stem:?}", self.name));
+            }
+        }
+        if self.sources.is_empty() {
+            return err("no [[sources]]: an area needs at least one source of building models".into());
+        }
+        for (i, s) in self.sources.iter().enumerate() {
+            let procedural = s.format.as_deref() == Some("procedural");
+            if !procedural && s.path.is_none() {
+                return err(format!("sources[{i}] has no `path`"));
+            }
+            if let Some(f) = &s.format {
+                if !["citygml", "cityjson", "obj", "3dtiles", "procedural"].contains(&f.as_str()) {
+                    return err(format!(
+                        "sources[{i}].format = {f:?}: expected one of citygml, cityjson, obj, 3dtiles, procedural"
+                    ));
+                }
+            }
+            if let Some(t) = s.weld_tolerance_m {
+                if !(t.is_finite() && t >= 0.0) {
+                    return err(format!("sources[{i}].weld_tolerance_m = {t}: must be a non-negative number"));
+                }
+            }
+        }
+        match (self.geoid.model, self.geoid.undulation_m) {
+            (GeoidModel::Constant, None) => {
+                return err("[geoid] model = \"constant\" needs `undulation_m`".into());
+            }
+            (GeoidModel::Constant, Some(n)) if !n.is_finite() || n.abs() > 200.0 => {
+                return err(format!("[geoid] undulation_m = {n}: geoid undulations lie within ±110 m"));
+            }
+            _ => {}
+        }
+        if let Some(o) = &self.origin {
+            if !(o.lat_deg.abs() <= 90.0 && o.lon_deg.abs() <= 180.0) {
+                return err(format!("[origin] lat_deg/lon_deg out of range: {}, {}", o.lat_deg, o.lon_deg));
+            }
+        }
+        if let Some(a) = &self.area {
+            match (&a.bbox_deg, &a.polygon_deg) {
+                (Some(_), Some(_)) => return err("[area] give either bbox_deg or polygon_deg, not both".into()),
+                (Some(b), None) => {
+                    if !(b[0] < b[2] && b[1] < b[3]) || b.iter().any(|v| !v.is_finite()) {
+                        return err(format!("[area] bbox_deg = {b:?}: expected [lon_min, lat_min, lon_max, lat_max]"));
+                    }
+                }
+                (None, Some(p)) => {
+                    if p.len() < 3 {
+                        return err("[area] polygon_deg needs at least 3 points".into());
+                    }
+                }
+                (None, None) => return err("[area] needs bbox_deg or polygon_deg".into()),
+            }
+        }
+        Ok(())
+    }
+
+    /// The absolute path of a source, resolved against the scene file's directory.
+    pub fn resolve(&self, scene_file: &Path, source: &SourceConfig) -> Option<PathBuf> {
+        let p = source.path.as_ref()?;
+        if p.is_absolute() {
+            Some(p.clone())
+        } else {
+            Some(scene_file.parent().unwrap_or(Path::new(".")).join(p))
+        }
+    }
+}
+
+/// Finds `<scenes>/<area>.toml`, or explains which areas exist.
+///
+/// # Errors
+/// [`SceneError::Config`] listing the available areas when the file does not exist.
+pub fn find_scene(scenes_dir: &Path, area: &str) -> Result<PathBuf, SceneError> {
+    let path = scenes_dir.join(format!("{area}.toml"));
+    if path.is_file() {
+        return Ok(path);
+    }
+    let mut names: Vec<String> = std::fs::read_dir(scenes_dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter_map(|e| {
+            let p = e.path();
+            (p.extension()? == "toml").then(|| p.file_stem()?.to_str().map(str::to_string))?
+        })
+        .collect();
+    names.sort();
+    Err(SceneError::Config {
+        path,
+        what: if names.is_empty() {
+            format!("no such area, and {} holds no scene files (--scenes DIR)", scenes_dir.display())
+        } else {
+            format!("no such area {area:?}; available: {}", names.join(", "))
+        },
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<SceneConfig, SceneError> {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("x.toml");
+        std::fs::write(&p, text).unwrap();
+        SceneConfig::load(&p)
+    }
+
+    #[test]
+    fn minimal_scene() {
+        let c = parse("name = \"x\"\n[[sources]]\npath = \"a.gml\"\n").unwrap();
+        assert_eq!(c.split, Split::Train);
+        assert_eq!(c.geoid.model, GeoidModel::Egm96);
+    }
+
+    #[test]
+    fn errors_name_the_problem() {
+        let e = parse("name = \"y\"\n[[sources]]\npath = \"a.gml\"\n").unwrap_err().to_string();
+        assert!(e.contains("does not match the file name"), "{e}");
+        let e = parse("name = \"x\"\nsources = []\n").unwrap_err().to_string();
+        assert!(e.contains("no [[sources]]"), "{e}");
+        let e = parse("name = \"x\"\n[[sources]]\npath = \"a\"\n[geoid]\nmodel = \"constant\"\n").unwrap_err().to_string();
+        assert!(e.contains("undulation_m"), "{e}");
+        let e = parse("name = \"x\"\n[[sources]]\npath = \"a\"\nfromat = \"x\"\n").unwrap_err().to_string();
+        assert!(e.contains("fromat"), "{e}");
+        let e = parse("name = \"x\"\n[[sources]]\npath = \"a\"\n[area]\nbbox_deg = [1, 1, 0, 0]\n").unwrap_err().to_string();
+        assert!(e.contains("bbox_deg"), "{e}");
+    }
+
+    #[test]
+    fn unknown_area_lists_available() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("demo.toml"), "").unwrap();
+        std::fs::write(dir.path().join("tokyo.toml"), "").unwrap();
+        let e = find_scene(dir.path(), "tokio").unwrap_err().to_string();
+        assert!(e.contains("available: demo, tokyo"), "{e}");
+    }
+}

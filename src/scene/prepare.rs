@@ -1,0 +1,611 @@
+//! `insgen prepare`: read an area's sources, geo-reference them into the area's ENU frame, triangulate,
+//! instance every building and write the scene artifact (see [`super::artifact`]).
+//!
+//! The chain per vertex, all f64: source CRS → WGS84 latitude/longitude (PROJ) → + geoid undulation for
+//! orthometric heights → ECEF (EPSG:4978) → ENU at the area origin. 3D Tiles are already ECEF.
+//!
+//! Defaults when the scene file is silent:
+//! - origin: centre of the buildings' latitude/longitude bounds, at the median building base height;
+//! - area: the bounding box of all buildings (no building is dropped);
+//! - ground level (`manifest.ground_enu_m`): the median of the buildings' lowest vertices — each LoD
+//!   building stands on the terrain, so its base samples the ground; the median ignores buildings on
+//!   bridges or in pits.
+//!
+//! Instancing: buildings are merged by source ID (BuildingParts already carry their parent's ID; a
+//! building split across tiles or files is one instance), sorted by source ID, and numbered 1, 2, …
+//! so reruns agree; more than 2^24 − 1 buildings is an error.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use crate::geo::{self, AxisConvention, Crs, EnuFrame, Geodetic, Geoid, HeightKind};
+use crate::lod::{self, Format, Frame, Geometry, ReadOptions, SourceModel};
+use crate::util::{self, Progress};
+
+use super::artifact::{self, BuildingRecord, GeoidUsed, Manifest, Origin, PreparedScene, SourceEntry};
+use super::config::{GeoidModel, SceneConfig, SourceConfig};
+use super::mesh::{SceneMesh, MAX_BUILDING_ID};
+use super::triangulate::triangulate_polygon;
+use super::SceneError;
+
+/// A building after geo-referencing: triangles in ECEF (f64), before the ENU frame is known.
+struct EcefBuilding {
+    source_id: String,
+    source_file: String,
+    lod: String,
+    measured_height_m: Option<f64>,
+    positions_ecef: Vec<[f64; 3]>,
+    triangles: Vec<[u32; 3]>,
+    /// Lowest ellipsoidal height of the building (its base), metres.
+    base_h_m: f64,
+    lat_range: [f64; 2],
+    lon_range: [f64; 2],
+}
+
+/// Summary of a `prepare` run.
+#[derive(Debug, Clone)]
+pub struct PrepareReport {
+    pub scene: PreparedScene,
+    pub out_dir: PathBuf,
+    pub seconds: f64,
+}
+
+/// Lazily built geoid (only sources with orthometric heights need it).
+struct GeoidSlot<'a> {
+    cfg: &'a SceneConfig,
+    scene_file: &'a Path,
+    geoid: Option<Geoid>,
+}
+
+impl GeoidSlot<'_> {
+    fn get(&mut self) -> Result<&Geoid, SceneError> {
+        if self.geoid.is_none() {
+            let g = match self.cfg.geoid.model {
+                GeoidModel::None => Geoid::None,
+                GeoidModel::Constant => Geoid::Constant(self.cfg.geoid.undulation_m.unwrap_or(0.0)),
+                GeoidModel::Egm96 => {
+                    let path = match &self.cfg.geoid.grid {
+                        Some(p) => self.scene_file.parent().unwrap_or(Path::new(".")).join(p),
+                        None => Geoid::find_egm96().ok_or_else(|| SceneError::Georef {
+                            path: self.scene_file.into(),
+                            what: "orthometric source heights need a geoid, but the EGM96 grid (egm96_15.gtx, \
+                                   Debian package proj-data) was not found: run scripts/setup.sh, or set \
+                                   [geoid] model = \"constant\" with undulation_m"
+                                .into(),
+                            source: None,
+                        })?,
+                    };
+                    Geoid::Grid(geo::geoid::GeoidGrid::load_gtx(&path).map_err(|e| SceneError::Georef {
+                        path: self.scene_file.into(),
+                        what: "loading the geoid grid".into(),
+                        source: Some(e),
+                    })?)
+                }
+            };
+            self.geoid = Some(g);
+        }
+        Ok(self.geoid.as_ref().expect("set just above"))
+    }
+}
+
+fn read_one(scene_file: &Path, cfg: &SceneConfig, src: &SourceConfig) -> Result<(SourceModel, String), SceneError> {
+    if src.format.as_deref() == Some("procedural") {
+        let table = src.procedural.clone().unwrap_or_default();
+        let model = super::procedural::generate_from_table(&table).map_err(|what| SceneError::Config {
+            path: scene_file.into(),
+            what: format!("[sources.procedural]: {what}"),
+        })?;
+        return Ok((model, "procedural".into()));
+    }
+    let path = cfg.resolve(scene_file, src).expect("validated: non-procedural sources have a path");
+    if !path.exists() {
+        return Err(SceneError::Config {
+            path: scene_file.into(),
+            what: format!("source {} does not exist", path.display()),
+        });
+    }
+    let format = match src.format.as_deref() {
+        Some("citygml") => Some(Format::CityGml),
+        Some("cityjson") => Some(Format::CityJson),
+        Some("obj") => Some(Format::Obj),
+        Some("3dtiles") => Some(Format::Tiles3d),
+        _ => None,
+    };
+    let opts = ReadOptions { lod: src.lod.clone(), weld_tolerance_m: src.weld_tolerance_m };
+    let model = lod::read_source(&path, format, &opts)?;
+    let fmt = format.or_else(|| Format::from_path(&path)).map(|f| format!("{f:?}").to_lowercase()).unwrap_or_default();
+    Ok((model, fmt))
+}
+
+/// Converts one source model's buildings to ECEF.
+fn georeference(
+    scene_file: &Path,
+    src: &SourceConfig,
+    model: SourceModel,
+    source_label: &str,
+    geoid: &mut GeoidSlot,
+    progress: &dyn Progress,
+) -> Result<(Vec<EcefBuilding>, String, u64), SceneError> {
+    let path = model.path.clone();
+    let mut dropped = 0u64;
+    let georef_err = |what: String, e: Option<geo::GeoError>| SceneError::Georef { path: path.clone(), what, source: e };
+
+    enum Conv {
+        Ecef,
+        Crs { tf: geo::CrsTransform, axes: AxisConvention, orthometric: bool },
+    }
+    let (conv, chain) = match &model.frame {
+        Frame::Ecef => (Conv::Ecef, "EPSG:4978 (ECEF, ellipsoidal) → ENU".to_string()),
+        Frame::Crs { name, axes } => {
+            let name = match (&src.crs, name) {
+                (Some(over), file) => {
+                    if let Some(f) = file {
+                        if f != over {
+                            log::warn!("{}: file declares CRS {f}, scene file overrides with {over}", path.display());
+                        }
+                    }
+                    over.clone()
+                }
+                (None, Some(f)) => f.clone(),
+                (None, None) => {
+                    return Err(georef_err(
+                        format!(
+                            "the file declares no CRS; set `crs = \"EPSG:NNNN\"` for this source in {}",
+                            scene_file.display()
+                        ),
+                        None,
+                    ))
+                }
+            };
+            let crs = Crs::parse(&name).map_err(|e| georef_err(format!("CRS {name:?}"), Some(e)))?;
+            let tf = crs.transform().map_err(|e| georef_err(format!("CRS {name:?}"), Some(e)))?;
+            let orthometric = crs.heights() == HeightKind::Orthometric;
+            let g = if orthometric { geoid.get()?.name() } else { "none" };
+            let axes_s = match axes {
+                AxisConvention::Authority => "authority axis order",
+                AxisConvention::EastNorth => "east/north axis order",
+            };
+            let chain = format!(
+                "{} ({axes_s}, {} heights) → WGS84 lat/lon (PROJ){} → EPSG:4978 → ENU",
+                crs.describe(),
+                if orthometric { "orthometric" } else { "ellipsoidal" },
+                if orthometric { format!(" + geoid {g}") } else { String::new() }
+            );
+            (Conv::Crs { tf, axes: *axes, orthometric }, chain)
+        }
+    };
+    let geoid_ref: Option<Geoid> = match &conv {
+        Conv::Crs { orthometric: true, .. } => Some(geoid.get()?.clone()),
+        _ => None,
+    };
+
+    let mut out = Vec::with_capacity(model.buildings.len());
+    progress.start(model.buildings.len() as u64, "buildings");
+    for b in model.buildings {
+        let to_ecef = |p: [f64; 3]| -> Result<[f64; 3], SceneError> {
+            match &conv {
+                Conv::Ecef => {
+                    if p.iter().all(|v| v.is_finite()) {
+                        Ok(p)
+                    } else {
+                        Err(georef_err(format!("building {}: non-finite coordinate {p:?}", b.source_id), None))
+                    }
+                }
+                Conv::Crs { tf, axes, .. } => {
+                    let mut g = tf
+                        .to_geodetic(p, *axes)
+                        .map_err(|e| georef_err(format!("building {}", b.source_id), Some(e)))?;
+                    if let Some(geoid) = &geoid_ref {
+                        g.h_m += geoid.undulation_m(g.lat_deg, g.lon_deg);
+                    }
+                    Ok(geo::geodetic_to_ecef(g))
+                }
+            }
+        };
+        let (positions_ecef, triangles) = match b.geometry {
+            Geometry::Mesh(m) => {
+                let pos = m.positions.iter().map(|&p| to_ecef(p)).collect::<Result<Vec<_>, _>>()?;
+                let n_before = m.triangles.len();
+                let tris: Vec<[u32; 3]> = m
+                    .triangles
+                    .into_iter()
+                    .filter(|t| t.iter().all(|&i| (i as usize) < pos.len()) && triangle_area_m2(&pos, *t) > 1e-9)
+                    .collect();
+                dropped += (n_before - tris.len()) as u64;
+                (pos, tris)
+            }
+            Geometry::Polygons(polys) => {
+                // Convert rings to ECEF first, then triangulate in ECEF (planarity is preserved by the
+                // affine ECEF → ENU step that follows, and the triangulation works relative to each
+                // polygon's first vertex, so magnitudes do not cost precision).
+                let mut pos = Vec::new();
+                let mut tris = Vec::new();
+                for poly in &polys {
+                    let ext = poly.exterior.iter().map(|&p| to_ecef(p)).collect::<Result<Vec<_>, _>>()?;
+                    let holes = poly
+                        .interiors
+                        .iter()
+                        .map(|r| r.iter().map(|&p| to_ecef(p)).collect::<Result<Vec<_>, _>>())
+                        .collect::<Result<Vec<_>, _>>()?;
+                    // Degenerate polygons (collinear, zero area) are dropped and counted.
+                    if !triangulate_polygon(&ext, &holes, &mut pos, &mut tris) {
+                        dropped += 1;
+                    }
+                }
+                (pos, tris)
+            }
+        };
+        progress.inc(1);
+        if triangles.is_empty() {
+            continue;
+        }
+        let mut base_h_m = f64::INFINITY;
+        let mut lat_range = [f64::INFINITY, f64::NEG_INFINITY];
+        let mut lon_range = [f64::INFINITY, f64::NEG_INFINITY];
+        for &p in &positions_ecef {
+            let g = geo::ecef_to_geodetic(p);
+            base_h_m = base_h_m.min(g.h_m);
+            lat_range = [lat_range[0].min(g.lat_deg), lat_range[1].max(g.lat_deg)];
+            lon_range = [lon_range[0].min(g.lon_deg), lon_range[1].max(g.lon_deg)];
+        }
+        out.push(EcefBuilding {
+            source_id: b.source_id,
+            source_file: source_label.to_string(),
+            lod: b.lod,
+            measured_height_m: b.measured_height_m,
+            positions_ecef,
+            triangles,
+            base_h_m,
+            lat_range,
+            lon_range,
+        });
+    }
+    progress.finish();
+    Ok((out, chain, dropped))
+}
+
+fn triangle_area_m2(p: &[[f64; 3]], t: [u32; 3]) -> f64 {
+    let [a, b, c] = t.map(|i| p[i as usize]);
+    // Relative to `a`, so ECEF magnitudes cost no precision.
+    let ab = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let ac = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+    let x = [ab[1] * ac[2] - ab[2] * ac[1], ab[2] * ac[0] - ab[0] * ac[2], ab[0] * ac[1] - ab[1] * ac[0]];
+    0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt()
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Point-in-polygon (even-odd) for a 2D polygon given as an open ring.
+pub fn point_in_polygon(p: [f64; 2], poly: &[[f64; 2]]) -> bool {
+    let mut inside = false;
+    let n = poly.len();
+    let mut j = n - 1;
+    for i in 0..n {
+        let (a, b) = (poly[i], poly[j]);
+        if (a[1] > p[1]) != (b[1] > p[1]) && p[0] < (b[0] - a[0]) * (p[1] - a[1]) / (b[1] - a[1]) + a[0] {
+            inside = !inside;
+        }
+        j = i;
+    }
+    inside
+}
+
+/// Signed area of a 2D ring (positive = counter-clockwise).
+fn signed_area(poly: &[[f64; 2]]) -> f64 {
+    let n = poly.len();
+    (0..n).map(|i| {
+        let (a, b) = (poly[i], poly[(i + 1) % n]);
+        a[0] * b[1] - b[0] * a[1]
+    }).sum::<f64>() * 0.5
+}
+
+/// Footprint of a triangle set: area (m²) and centroid (ENU) of the union of the triangles' ground
+/// projections, rasterised on a grid fine enough for ≤ 250 000 cells (at most 5 cm).
+pub fn footprint(positions: &[[f64; 3]], triangles: &[[u32; 3]]) -> (f64, [f64; 2]) {
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in positions {
+        lo = [lo[0].min(p[0]), lo[1].min(p[1])];
+        hi = [hi[0].max(p[0]), hi[1].max(p[1])];
+    }
+    if !(lo[0].is_finite() && hi[0].is_finite()) {
+        return (0.0, [0.0, 0.0]);
+    }
+    let (w_m, h_m) = (hi[0] - lo[0], hi[1] - lo[1]);
+    let cell = (w_m * h_m / 250_000.0).sqrt().max(0.05);
+    let nx = ((w_m / cell).ceil() as usize).max(1);
+    let ny = ((h_m / cell).ceil() as usize).max(1);
+    let mut covered = vec![false; nx * ny];
+    for t in triangles {
+        let [a, b, c] = t.map(|i| positions[i as usize]);
+        let area2 = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
+        if area2.abs() < 1e-12 {
+            continue; // vertical (wall) triangle: no footprint
+        }
+        let tx0 = ((a[0].min(b[0]).min(c[0]) - lo[0]) / cell).floor().max(0.0) as usize;
+        let tx1 = (((a[0].max(b[0]).max(c[0]) - lo[0]) / cell).ceil() as usize).min(nx);
+        let ty0 = ((a[1].min(b[1]).min(c[1]) - lo[1]) / cell).floor().max(0.0) as usize;
+        let ty1 = (((a[1].max(b[1]).max(c[1]) - lo[1]) / cell).ceil() as usize).min(ny);
+        let s = area2.signum();
+        for iy in ty0..ty1 {
+            let y = lo[1] + (iy as f64 + 0.5) * cell;
+            for ix in tx0..tx1 {
+                let x = lo[0] + (ix as f64 + 0.5) * cell;
+                let e0 = s * ((b[0] - a[0]) * (y - a[1]) - (b[1] - a[1]) * (x - a[0]));
+                let e1 = s * ((c[0] - b[0]) * (y - b[1]) - (c[1] - b[1]) * (x - b[0]));
+                let e2 = s * ((a[0] - c[0]) * (y - c[1]) - (a[1] - c[1]) * (x - c[0]));
+                if e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0 {
+                    covered[iy * nx + ix] = true;
+                }
+            }
+        }
+    }
+    let (mut n, mut sx, mut sy) = (0u64, 0.0, 0.0);
+    for iy in 0..ny {
+        for ix in 0..nx {
+            if covered[iy * nx + ix] {
+                n += 1;
+                sx += lo[0] + (ix as f64 + 0.5) * cell;
+                sy += lo[1] + (iy as f64 + 0.5) * cell;
+            }
+        }
+    }
+    if n == 0 {
+        let c = [(lo[0] + hi[0]) * 0.5, (lo[1] + hi[1]) * 0.5];
+        return (0.0, c);
+    }
+    (n as f64 * cell * cell, [sx / n as f64, sy / n as f64])
+}
+
+/// Runs `prepare` for one scene file, writing the artifact into `out_dir` (`<workdir>/<area>/scene`).
+///
+/// # Errors
+/// [`SceneError`] naming the scene file or source and what is wrong; nothing is written on error.
+pub fn prepare(scene_file: &Path, out_dir: &Path, progress: &dyn Progress) -> Result<PrepareReport, SceneError> {
+    let t0 = Instant::now();
+    let cfg = SceneConfig::load(scene_file)?;
+    let mut geoid = GeoidSlot { cfg: &cfg, scene_file, geoid: None };
+
+    let mut buildings: Vec<EcefBuilding> = Vec::new();
+    let mut sources: Vec<SourceEntry> = Vec::new();
+    let mut degenerate_total = 0u64;
+    for src in &cfg.sources {
+        let (model, fmt) = read_one(scene_file, &cfg, src)?;
+        let label = match &src.path {
+            Some(p) => p.display().to_string(),
+            None => "procedural".to_string(),
+        };
+        let sha256 = match cfg.resolve(scene_file, src) {
+            Some(p) => util::sha256_file(&p)?,
+            None => String::from("procedural"),
+        };
+        let stats = model.stats.clone();
+        let model_path = model.path.clone();
+        let (mut bs, chain, dropped_here) = georeference(scene_file, src, model, &label, &mut geoid, progress)?;
+        log::info!("{}: {} buildings ({chain})", model_path.display(), bs.len());
+        let dropped = stats.degenerate_faces + dropped_here;
+        degenerate_total += dropped;
+        sources.push(SourceEntry {
+            path: label,
+            format: fmt,
+            sha256,
+            crs_chain: chain,
+            buildings: bs.len() as u64,
+            degenerate_faces: dropped,
+            attribution: cfg.attribution.clone(),
+        });
+        buildings.append(&mut bs);
+    }
+    if buildings.is_empty() {
+        return Err(SceneError::Area { area: cfg.name.clone(), what: "no building with usable geometry in any source".into() });
+    }
+
+    // Origin and ENU frame.
+    let origin = match cfg.origin {
+        Some(o) => Geodetic::new(o.lat_deg, o.lon_deg, o.h_m.unwrap_or_else(|| median(buildings.iter().map(|b| b.base_h_m).collect()))),
+        None => {
+            let lat = [buildings.iter().map(|b| b.lat_range[0]).fold(f64::INFINITY, f64::min), buildings.iter().map(|b| b.lat_range[1]).fold(f64::NEG_INFINITY, f64::max)];
+            let lon = [buildings.iter().map(|b| b.lon_range[0]).fold(f64::INFINITY, f64::min), buildings.iter().map(|b| b.lon_range[1]).fold(f64::NEG_INFINITY, f64::max)];
+            Geodetic::new(0.5 * (lat[0] + lat[1]), 0.5 * (lon[0] + lon[1]), median(buildings.iter().map(|b| b.base_h_m).collect()))
+        }
+    };
+    let enu = EnuFrame::new(origin);
+
+    // Area polygon in ENU.
+    let area_polygon: Option<Vec<[f64; 2]>> = cfg.area.as_ref().map(|a| {
+        let pts: Vec<[f64; 2]> = match (&a.bbox_deg, &a.polygon_deg) {
+            (Some(b), _) => vec![[b[0], b[1]], [b[2], b[1]], [b[2], b[3]], [b[0], b[3]]],
+            (None, Some(p)) => p.clone(),
+            (None, None) => unreachable!("validated"),
+        };
+        let mut ring: Vec<[f64; 2]> = pts
+            .iter()
+            .map(|ll| {
+                let e = enu.geodetic_to_enu(Geodetic::new(ll[1], ll[0], origin.h_m));
+                [e[0], e[1]]
+            })
+            .collect();
+        if ring.len() > 3 && ring.first() == ring.last() {
+            ring.pop();
+        }
+        if signed_area(&ring) < 0.0 {
+            ring.reverse();
+        }
+        ring
+    });
+
+    // ENU conversion, area filter, merge by source id (sorted).
+    struct Merged {
+        source_file: String,
+        lod: String,
+        measured_height_m: Option<f64>,
+        positions: Vec<[f64; 3]>,
+        triangles: Vec<[u32; 3]>,
+    }
+    let mut merged: BTreeMap<String, Merged> = BTreeMap::new();
+    let mut outside = 0u64;
+    for b in buildings {
+        let positions: Vec<[f64; 3]> = b.positions_ecef.iter().map(|&p| enu.ecef_to_enu(p)).collect();
+        if let Some(poly) = &area_polygon {
+            let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+            for p in &positions {
+                lo = [lo[0].min(p[0]), lo[1].min(p[1])];
+                hi = [hi[0].max(p[0]), hi[1].max(p[1])];
+            }
+            if !point_in_polygon([0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])], poly) {
+                outside += 1;
+                continue;
+            }
+        }
+        let m = merged.entry(b.source_id).or_insert_with(|| Merged {
+            source_file: b.source_file.clone(),
+            lod: b.lod.clone(),
+            measured_height_m: b.measured_height_m,
+            positions: Vec::new(),
+            triangles: Vec::new(),
+        });
+        let base = m.positions.len() as u32;
+        m.positions.extend_from_slice(&positions);
+        m.triangles.extend(b.triangles.iter().map(|t| t.map(|i| i + base)));
+        if m.measured_height_m.is_none() {
+            m.measured_height_m = b.measured_height_m;
+        }
+    }
+    if outside > 0 {
+        log::info!("{outside} buildings lie outside the [area] polygon and were left out");
+    }
+    if merged.is_empty() {
+        return Err(SceneError::Area { area: cfg.name.clone(), what: "no building lies inside the [area] polygon".into() });
+    }
+    if merged.len() as u64 > MAX_BUILDING_ID as u64 {
+        return Err(SceneError::Area {
+            area: cfg.name.clone(),
+            what: format!(
+                "{} buildings exceed the 24-bit instance ID space (at most {MAX_BUILDING_ID}); split the area into smaller ones",
+                merged.len()
+            ),
+        });
+    }
+
+    // Scene mesh and building table.
+    let mut mesh = SceneMesh::default();
+    let mut records = Vec::with_capacity(merged.len());
+    let mut bases = Vec::with_capacity(merged.len());
+    for (k, (source_id, m)) in merged.into_iter().enumerate() {
+        let id = k as u32 + 1;
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for p in &m.positions {
+            for a in 0..3 {
+                lo[a] = lo[a].min(p[a]);
+                hi[a] = hi[a].max(p[a]);
+            }
+        }
+        let (area_m2, c) = footprint(&m.positions, &m.triangles);
+        let g = enu.enu_to_geodetic([c[0], c[1], lo[2]]);
+        bases.push(lo[2]);
+        let base = mesh.positions_m.len() as u32;
+        mesh.positions_m.extend(m.positions.iter().map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]));
+        mesh.building_ids.extend(std::iter::repeat_n(id, m.positions.len()));
+        mesh.indices.extend(m.triangles.iter().flat_map(|t| t.map(|i| i + base)));
+        records.push(BuildingRecord {
+            id,
+            source_id,
+            source_file: m.source_file,
+            lod: m.lod,
+            height_m: hi[2] - lo[2],
+            measured_height_m: m.measured_height_m,
+            footprint_area_m2: area_m2,
+            centroid_lat_deg: g.lat_deg,
+            centroid_lon_deg: g.lon_deg,
+            bbox_min_enu_m: lo,
+            bbox_max_enu_m: hi,
+            triangles: m.triangles.len() as u64,
+        });
+    }
+    let ground_enu_m = median(bases);
+    let area_polygon_enu_m = area_polygon.unwrap_or_else(|| {
+        let lo = records.iter().fold([f64::INFINITY; 2], |a, r| [a[0].min(r.bbox_min_enu_m[0]), a[1].min(r.bbox_min_enu_m[1])]);
+        let hi = records.iter().fold([f64::NEG_INFINITY; 2], |a, r| [a[0].max(r.bbox_max_enu_m[0]), a[1].max(r.bbox_max_enu_m[1])]);
+        vec![[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]]
+    });
+    let geoid_used = match &geoid.geoid {
+        None | Some(Geoid::None) => GeoidUsed { model: "none".into(), grid: None, undulation_at_origin_m: 0.0 },
+        Some(g @ Geoid::Constant(n)) => GeoidUsed { model: g.name().into(), grid: None, undulation_at_origin_m: *n },
+        Some(g @ Geoid::Grid(grid)) => GeoidUsed {
+            model: g.name().into(),
+            grid: Some(grid.path().display().to_string()),
+            undulation_at_origin_m: g.undulation_m(origin.lat_deg, origin.lon_deg),
+        },
+    };
+    let manifest = Manifest {
+        insgen_version: env!("CARGO_PKG_VERSION").to_string(),
+        area: cfg.name.clone(),
+        split: cfg.split.as_str().to_string(),
+        origin: Origin { lat_deg: origin.lat_deg, lon_deg: origin.lon_deg, h_m: origin.h_m },
+        ecef_from_enu: enu.ecef_from_enu_matrix(),
+        area_polygon_enu_m,
+        ground_enu_m,
+        geoid: geoid_used,
+        sources,
+        buildings: records.len() as u64,
+        triangles: mesh.triangle_count() as u64,
+        degenerate_faces: degenerate_total,
+        attributions: cfg.attribution.iter().cloned().collect(),
+    };
+
+    // Write: GLB and building table first, manifest last (its presence marks a complete artifact).
+    util::create_dir_all(out_dir)?;
+    super::glb::write_glb(&out_dir.join(artifact::GLB_FILE), &mesh, &records)
+        .map_err(|e| SceneError::Artifact { path: out_dir.join(artifact::GLB_FILE), what: e.to_string() })?;
+    util::write_json_atomic(&out_dir.join(artifact::BUILDINGS_FILE), &records)?;
+    util::write_json_atomic(&out_dir.join(artifact::MANIFEST_FILE), &manifest)?;
+    Ok(PrepareReport {
+        scene: PreparedScene { manifest, buildings: records, mesh },
+        out_dir: out_dir.to_path_buf(),
+        seconds: t0.elapsed().as_secs_f64(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn footprint_of_box_with_courtyard() {
+        // Two roof rectangles forming an L: 10×4 + 4×6 = 64 m² (hand computation).
+        let p = vec![
+            [0.0, 0.0, 5.0], [10.0, 0.0, 5.0], [10.0, 4.0, 5.0], [0.0, 4.0, 5.0],
+            [0.0, 4.0, 5.0], [4.0, 4.0, 5.0], [4.0, 10.0, 5.0], [0.0, 10.0, 5.0],
+        ];
+        let t = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
+        let (a, c) = footprint(&p, &t);
+        assert!((a - 64.0).abs() < 0.5, "{a}");
+        // Centroid: (10·4·(5, 2) + 4·6·(2, 7)) / 64 = (3.875, 3.875).
+        assert!((c[0] - 3.875).abs() < 0.05 && (c[1] - 3.875).abs() < 0.05, "{c:?}");
+    }
+
+    #[test]
+    fn point_in_polygon_square() {
+        let sq = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+        assert!(point_in_polygon([0.5, 0.5], &sq));
+        assert!(!point_in_polygon([1.5, 0.5], &sq));
+        assert!(signed_area(&sq) > 0.0);
+    }
+
+    #[test]
+    fn median_even_odd() {
+        assert_eq!(median(vec![3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(vec![4.0, 1.0, 2.0, 3.0]), 2.5);
+    }
+}
