@@ -1,0 +1,295 @@
+//! The cost of a pose hypothesis: how well the rendered building instances explain the query instances.
+//!
+//! Query instances M_q^j (predicted masks with scores s_j and box areas A_j) against the instances
+//! rendered at the hypothesis, M_hyp^k (../shared/SPEC.md, the paper's equations):
+//! - best-match Dice per query instance: d_j* = max_k 2|M_q^j ∩ M_hyp^k| / (|M_q^j| + |M_hyp^k| + ε);
+//! - confidence weighting: c = Σ_j (s_j / Σ_i s_i) d_j*; area weighting: c = Σ_j (A_j / Σ_i A_i) d_j*;
+//! - the LoD-Loc v2 semantic baseline: IoU of the union of the query masks with the union of the rendered
+//!   buildings;
+//! - the paper's ablation "merged": the query instances merged into one mask before instance scoring.
+//!
+//! All intersections come from one pass over the query pixels, accumulating a joint histogram of
+//! (query instance, rendered instance). Rendered IDs must be *dense* (1..=K, 0 = background): the
+//! localizer renders a culled sub-scene renumbered that way, so the histogram is a flat array.
+
+use serde::{Deserialize, Serialize};
+
+/// ε in the Dice denominator.
+pub const DICE_EPS: f64 = 1e-6;
+
+/// How per-instance Dice scores are combined.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Weighting {
+    /// By the instance's confidence score.
+    #[default]
+    Conf,
+    /// By the instance's bounding-box area.
+    Area,
+}
+
+/// Which cost to use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum CostKind {
+    /// Best-match Dice per query instance (InsLoD-Loc).
+    #[default]
+    Instance,
+    /// IoU of the merged query mask with all rendered buildings (LoD-Loc v2 baseline).
+    Semantic,
+    /// Query instances merged into one mask, then instance scoring (the paper's ablation).
+    Merged,
+}
+
+/// One query instance: its pixels (row-major indices into the query image), score and box area.
+#[derive(Debug, Clone, PartialEq)]
+pub struct QueryInstance {
+    pub pixels: Vec<u32>,
+    pub score: f64,
+    /// Bounding-box area in pixels (w × h).
+    pub bbox_area_px: f64,
+}
+
+/// The query: instances at a fixed resolution.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Query {
+    pub width: u32,
+    pub height: u32,
+    pub instances: Vec<QueryInstance>,
+}
+
+impl Query {
+    /// Builds a query from a label image (0 = background, j ≥ 1 = instance j − 1) and per-instance
+    /// scores (`scores[j]` for label j + 1). Box areas are computed from the pixels.
+    pub fn from_labels(width: u32, height: u32, labels: &[u32], scores: &[f64]) -> Query {
+        let mut instances: Vec<QueryInstance> =
+            scores.iter().map(|&s| QueryInstance { pixels: Vec::new(), score: s, bbox_area_px: 0.0 }).collect();
+        for (i, &l) in labels.iter().enumerate() {
+            if l > 0 && (l as usize) <= instances.len() {
+                instances[l as usize - 1].pixels.push(i as u32);
+            }
+        }
+        for inst in &mut instances {
+            inst.bbox_area_px = bbox_area(&inst.pixels, width);
+        }
+        instances.retain(|i| !i.pixels.is_empty());
+        Query { width, height, instances }
+    }
+
+    /// All query instances merged into one (score = mean score) — the "merged" ablation's query.
+    pub fn merged(&self) -> Query {
+        let mut seen = vec![false; (self.width * self.height) as usize];
+        let mut pixels = Vec::new();
+        for inst in &self.instances {
+            for &p in &inst.pixels {
+                if !seen[p as usize] {
+                    seen[p as usize] = true;
+                    pixels.push(p);
+                }
+            }
+        }
+        pixels.sort_unstable();
+        if pixels.is_empty() {
+            return Query { width: self.width, height: self.height, instances: Vec::new() };
+        }
+        let score = self.instances.iter().map(|i| i.score).sum::<f64>() / self.instances.len() as f64;
+        let bbox_area_px = bbox_area(&pixels, self.width);
+        Query { width: self.width, height: self.height, instances: vec![QueryInstance { pixels, score, bbox_area_px }] }
+    }
+}
+
+/// Bounding-box area (pixels) of a pixel-index list.
+pub fn bbox_area(pixels: &[u32], width: u32) -> f64 {
+    if pixels.is_empty() {
+        return 0.0;
+    }
+    let (mut x0, mut y0, mut x1, mut y1) = (u32::MAX, u32::MAX, 0, 0);
+    for &p in pixels {
+        let (x, y) = (p % width, p / width);
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        y0 = y0.min(y);
+        y1 = y1.max(y);
+    }
+    ((x1 - x0 + 1) as f64) * ((y1 - y0 + 1) as f64)
+}
+
+/// Reusable buffers for scoring many hypotheses against one query.
+#[derive(Debug, Default)]
+pub struct Scorer {
+    hist: Vec<u32>,
+    render_area: Vec<u32>,
+}
+
+impl Scorer {
+    /// Instance cost (higher is better, in [0, 1]) of a rendered dense-ID image with `k_max` instances.
+    /// An empty query scores 0.
+    pub fn instance_cost(&mut self, q: &Query, rendered: &[u32], k_max: u32, weighting: Weighting) -> f64 {
+        debug_assert_eq!(rendered.len(), (q.width * q.height) as usize);
+        let k1 = k_max as usize + 1;
+        self.render_area.clear();
+        self.render_area.resize(k1, 0);
+        for &r in rendered {
+            // IDs above k_max (should not happen) count as background.
+            if (r as usize) < k1 {
+                self.render_area[r as usize] += 1;
+            }
+        }
+        let n = q.instances.len();
+        self.hist.clear();
+        self.hist.resize(n * k1, 0);
+        for (j, inst) in q.instances.iter().enumerate() {
+            let row = &mut self.hist[j * k1..(j + 1) * k1];
+            for &p in &inst.pixels {
+                let r = rendered[p as usize] as usize;
+                if r < k1 {
+                    row[r] += 1;
+                }
+            }
+        }
+        let total_w: f64 = q
+            .instances
+            .iter()
+            .map(|i| match weighting {
+                Weighting::Conf => i.score,
+                Weighting::Area => i.bbox_area_px,
+            })
+            .sum();
+        if n == 0 || total_w <= 0.0 {
+            return 0.0;
+        }
+        let mut c = 0.0;
+        for (j, inst) in q.instances.iter().enumerate() {
+            let row = &self.hist[j * k1..(j + 1) * k1];
+            let qa = inst.pixels.len() as f64;
+            let mut best = 0.0f64;
+            for k in 1..k1 {
+                if row[k] == 0 {
+                    continue;
+                }
+                let d = 2.0 * row[k] as f64 / (qa + self.render_area[k] as f64 + DICE_EPS);
+                best = best.max(d);
+            }
+            let w = match weighting {
+                Weighting::Conf => inst.score,
+                Weighting::Area => inst.bbox_area_px,
+            };
+            c += w / total_w * best;
+        }
+        c
+    }
+
+    /// Semantic IoU of the union of the query masks with the union of rendered buildings; 0 when both
+    /// are empty.
+    pub fn semantic_iou(&mut self, q: &Query, rendered: &[u32]) -> f64 {
+        let mut query_mask = vec![false; rendered.len()];
+        for inst in &q.instances {
+            for &p in &inst.pixels {
+                query_mask[p as usize] = true;
+            }
+        }
+        let (mut inter, mut uni) = (0u64, 0u64);
+        for (i, &r) in rendered.iter().enumerate() {
+            let a = query_mask[i];
+            let b = r != 0;
+            inter += (a && b) as u64;
+            uni += (a || b) as u64;
+        }
+        if uni == 0 {
+            0.0
+        } else {
+            inter as f64 / uni as f64
+        }
+    }
+
+    /// The cost of `kind` (the merged ablation expects `q` already merged with [`Query::merged`]).
+    pub fn cost(&mut self, kind: CostKind, q: &Query, rendered: &[u32], k_max: u32, weighting: Weighting) -> f64 {
+        match kind {
+            CostKind::Instance | CostKind::Merged => self.instance_cost(q, rendered, k_max, weighting),
+            CostKind::Semantic => self.semantic_iou(q, rendered),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // A 4×2 image; query instances: A = pixels {0, 1} (score 0.9), B = pixels {6, 7} (score 0.1).
+    fn query() -> Query {
+        let labels = [1, 1, 0, 0, 0, 0, 2, 2];
+        Query::from_labels(4, 2, &labels, &[0.9, 0.1])
+    }
+
+    #[test]
+    fn perfect_render_scores_one() {
+        let q = query();
+        let r = [1, 1, 0, 0, 0, 0, 2, 2];
+        let mut s = Scorer::default();
+        for w in [Weighting::Conf, Weighting::Area] {
+            let c = s.instance_cost(&q, &r, 2, w);
+            // d = 2·2 / (2 + 2 + ε) for both instances.
+            assert!((c - 4.0 / (4.0 + DICE_EPS)).abs() < 1e-12, "{c}");
+        }
+        assert_eq!(s.semantic_iou(&q, &r), 1.0);
+    }
+
+    #[test]
+    fn hand_computed_partial_overlap() {
+        let q = query();
+        // Rendered building 1 covers pixels 1, 2 (overlaps A in 1 pixel); building 2 covers 5, 6, 7.
+        let r = [0, 1, 1, 0, 0, 2, 2, 2];
+        let mut s = Scorer::default();
+        let d_a = 2.0 * 1.0 / (2.0 + 2.0 + DICE_EPS);
+        let d_b = 2.0 * 2.0 / (2.0 + 3.0 + DICE_EPS);
+        let conf = s.instance_cost(&q, &r, 2, Weighting::Conf);
+        assert!((conf - (0.9 * d_a + 0.1 * d_b)).abs() < 1e-12, "{conf}");
+        // Box areas: A = 2×1, B = 2×1 → equal weights.
+        let area = s.instance_cost(&q, &r, 2, Weighting::Area);
+        assert!((area - 0.5 * (d_a + d_b)).abs() < 1e-12, "{area}");
+        // Union of query {0,1,6,7}, rendered {1,2,5,6,7}: ∩ = {1,6,7} = 3, ∪ = {0,1,2,5,6,7} = 6.
+        assert!((s.semantic_iou(&q, &r) - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn best_match_takes_the_maximum() {
+        // Query instance covers pixels 0..4; building 1 covers 0..1, building 2 covers 0..4 exactly.
+        let q = Query::from_labels(4, 1, &[1, 1, 1, 1], &[1.0]);
+        let r = [1, 2, 2, 2];
+        let mut s = Scorer::default();
+        let d1 = 2.0 * 1.0 / (4.0 + 1.0 + DICE_EPS);
+        let d2 = 2.0 * 3.0 / (4.0 + 3.0 + DICE_EPS);
+        assert!((s.instance_cost(&q, &r, 2, Weighting::Conf) - d1.max(d2)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn empty_cases() {
+        let mut s = Scorer::default();
+        let empty = Query::from_labels(2, 2, &[0; 4], &[]);
+        assert_eq!(s.instance_cost(&empty, &[1, 1, 0, 0], 1, Weighting::Conf), 0.0);
+        assert_eq!(s.semantic_iou(&empty, &[0; 4]), 0.0);
+        // No building rendered: every instance scores 0.
+        let q = Query::from_labels(2, 2, &[1, 0, 0, 0], &[0.5]);
+        assert_eq!(s.instance_cost(&q, &[0; 4], 0, Weighting::Area), 0.0);
+    }
+
+    #[test]
+    fn merged_query_is_the_union() {
+        let q = query().merged();
+        assert_eq!(q.instances.len(), 1);
+        assert_eq!(q.instances[0].pixels, vec![0, 1, 6, 7]);
+        assert_eq!(q.instances[0].bbox_area_px, 8.0);
+    }
+
+    #[test]
+    fn instance_cost_separates_what_semantic_cannot() {
+        // Two adjacent buildings; the query sees them as two instances. A hypothesis that renders one
+        // building over both has the same semantic IoU but a lower instance cost.
+        let q = Query::from_labels(4, 1, &[1, 1, 2, 2], &[1.0, 1.0]);
+        let right = [1, 1, 2, 2];
+        let merged = [1, 1, 1, 1];
+        let mut s = Scorer::default();
+        assert_eq!(s.semantic_iou(&q, &right), s.semantic_iou(&q, &merged));
+        assert!(s.instance_cost(&q, &right, 2, Weighting::Conf) > s.instance_cost(&q, &merged, 1, Weighting::Conf) + 0.2);
+    }
+}

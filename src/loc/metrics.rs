@@ -1,0 +1,96 @@
+//! Localization metrics: translation and rotation errors, recall at thresholds, medians, and the
+//! paper-style summary table.
+//!
+//! Translation error = distance between camera centres (m); rotation error = arccos((tr(R_gtᵀ R) − 1)/2)
+//! in degrees (../shared/SPEC.md). A query counts at (t m, r°) when both errors are strictly below.
+
+use serde::{Deserialize, Serialize};
+
+/// The paper's thresholds: (2 m, 2°), (3 m, 3°), (5 m, 5°).
+pub const THRESHOLDS: [(f64, f64); 3] = [(2.0, 2.0), (3.0, 3.0), (5.0, 5.0)];
+
+/// One row of the summary table.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Row {
+    pub method: String,
+    pub group: String,
+    pub queries: usize,
+    /// Recall (percent) at each of [`THRESHOLDS`].
+    pub recall_pct: [f64; 3],
+    pub median_translation_m: f64,
+    pub median_rotation_deg: f64,
+}
+
+/// Median of a list (NaN for an empty list).
+pub fn median(values: &[f64]) -> f64 {
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Builds a row from (translation m, rotation °) errors.
+pub fn row(method: &str, group: &str, errors: &[(f64, f64)]) -> Row {
+    let n = errors.len();
+    let recall = |t: f64, r: f64| {
+        if n == 0 {
+            f64::NAN
+        } else {
+            100.0 * errors.iter().filter(|e| e.0 < t && e.1 < r).count() as f64 / n as f64
+        }
+    };
+    Row {
+        method: method.to_string(),
+        group: group.to_string(),
+        queries: n,
+        recall_pct: THRESHOLDS.map(|(t, r)| recall(t, r)),
+        median_translation_m: median(&errors.iter().map(|e| e.0).collect::<Vec<_>>()),
+        median_rotation_deg: median(&errors.iter().map(|e| e.1).collect::<Vec<_>>()),
+    }
+}
+
+/// The table as Markdown, in the paper's layout.
+pub fn markdown(rows: &[Row]) -> String {
+    let mut s = String::from(
+        "| method | queries | group | 2m-2° | 3m-3° | 5m-5° | T.e. (m) | R.e. (°) |\n|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        s.push_str(&format!(
+            "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.2} | {:.2} |\n",
+            r.method, r.queries, r.group, r.recall_pct[0], r.recall_pct[1], r.recall_pct[2], r.median_translation_m, r.median_rotation_deg
+        ));
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::Pose;
+
+    #[test]
+    fn recall_is_strict_and_joint() {
+        let e = [(1.0, 1.0), (2.0, 1.0), (1.0, 2.5), (4.0, 4.0)];
+        let r = row("x", "all", &e);
+        // (2, 2): only (1, 1) — (2, 1) is not strictly below 2 m. (3, 3): (1,1), (2,1), (1,2.5). (5, 5): all.
+        assert_eq!(r.recall_pct, [25.0, 75.0, 100.0]);
+        assert_eq!(r.median_translation_m, 1.5);
+        assert_eq!(r.median_rotation_deg, 1.75);
+    }
+
+    #[test]
+    fn errors_match_hand_computation() {
+        let gt = Pose::from_ypr_deg(30.0, 45.0, 0.0, [0.0, 0.0, 300.0]);
+        let est = Pose::from_ypr_deg(31.5, 45.0, 0.0, [3.0, 4.0, 300.0]);
+        assert!((gt.translation_error_m(&est) - 5.0).abs() < 1e-12);
+        // A pure yaw difference about the vertical: the rotation angle is the yaw difference.
+        assert!((gt.rotation_error_deg(&est) - 1.5).abs() < 1e-9);
+    }
+}

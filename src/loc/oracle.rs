@@ -1,0 +1,271 @@
+//! Oracle queries: ground-truth instance masks with seeded degradations that mimic a real segmenter
+//! (`eval-loc --oracle`): erode/dilate by k px, drop a fraction of instances, merge touching
+//! instances, split instances, add false positives, jitter scores.
+//!
+//! Degradations apply in a fixed order (morphology → merge → split → drop → false positives → scores)
+//! on a label image (0 = background, j ≥ 1 = instance j − 1), and the result is a [`Query`].
+
+use rand::seq::SliceRandom;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use super::cost::Query;
+
+/// The degradations to apply (all off by default: a perfect oracle).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Degradation {
+    /// Positive: dilate by this many pixels; negative: erode (square structuring element).
+    pub morph_px: i32,
+    /// Fraction of instances dropped.
+    pub drop_fraction: f64,
+    /// Fraction of instances merged with a touching neighbour.
+    pub merge_fraction: f64,
+    /// Fraction of instances split in two (along their longer box side).
+    pub split_fraction: f64,
+    /// Number of false-positive blobs added.
+    pub false_positives: u32,
+    /// Scores are 1 − |N(0, σ)| clamped to [0.05, 1].
+    pub score_jitter: f64,
+}
+
+impl Degradation {
+    pub fn is_perfect(&self) -> bool {
+        *self == Degradation::default()
+    }
+}
+
+/// 0/1 morphology of each instance separately (instances never grow into each other's pixels when
+/// dilating: the first label to claim a background pixel keeps it, scanning labels in order).
+fn morph(labels: &[u32], w: usize, h: usize, k: i32) -> Vec<u32> {
+    if k == 0 {
+        return labels.to_vec();
+    }
+    let r = k.unsigned_abs() as i64;
+    let mut out = if k > 0 { labels.to_vec() } else { vec![0; labels.len()] };
+    for y in 0..h as i64 {
+        for x in 0..w as i64 {
+            let i = (y as usize) * w + x as usize;
+            let l = labels[i];
+            if k < 0 {
+                if l == 0 {
+                    continue;
+                }
+                // Erode: keep when the whole (2r+1)² window (clipped to the image) has the same label.
+                let mut keep = true;
+                'win: for dy in -r..=r {
+                    for dx in -r..=r {
+                        let (xx, yy) = (x + dx, y + dy);
+                        if xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
+                            continue;
+                        }
+                        if labels[yy as usize * w + xx as usize] != l {
+                            keep = false;
+                            break 'win;
+                        }
+                    }
+                }
+                if keep {
+                    out[i] = l;
+                }
+            } else if l == 0 {
+                // Dilate: take the smallest label in the window.
+                let mut best = 0u32;
+                for dy in -r..=r {
+                    for dx in -r..=r {
+                        let (xx, yy) = (x + dx, y + dy);
+                        if xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
+                            continue;
+                        }
+                        let n = labels[yy as usize * w + xx as usize];
+                        if n != 0 && (best == 0 || n < best) {
+                            best = n;
+                        }
+                    }
+                }
+                out[i] = best;
+            }
+        }
+    }
+    out
+}
+
+/// Applies `d` to a ground-truth label image with `n` instances, seeded.
+pub fn degrade(width: u32, height: u32, labels: &[u32], n: u32, d: &Degradation, seed: u64) -> Query {
+    let (w, h) = (width as usize, height as usize);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut lab = morph(labels, w, h, d.morph_px);
+    let mut n = n;
+
+    // Merge: relabel a chosen instance to a touching neighbour's label.
+    if d.merge_fraction > 0.0 {
+        let mut touching: Vec<std::collections::BTreeSet<u32>> = vec![Default::default(); n as usize + 1];
+        for y in 0..h {
+            for x in 0..w {
+                let a = lab[y * w + x];
+                if a == 0 {
+                    continue;
+                }
+                for (xx, yy) in [(x + 1, y), (x, y + 1)] {
+                    if xx < w && yy < h {
+                        let b = lab[yy * w + xx];
+                        if b != 0 && b != a {
+                            touching[a as usize].insert(b);
+                            touching[b as usize].insert(a);
+                        }
+                    }
+                }
+            }
+        }
+        let mut target: Vec<u32> = (0..=n).collect();
+        let mut order: Vec<u32> = (1..=n).collect();
+        order.shuffle(&mut rng);
+        let count = (d.merge_fraction * n as f64).round() as usize;
+        let mut merged = 0;
+        for a in order {
+            if merged >= count {
+                break;
+            }
+            if target[a as usize] != a {
+                continue;
+            }
+            if let Some(&b) = touching[a as usize].iter().find(|&&b| target[b as usize] == b) {
+                target[a as usize] = b;
+                merged += 1;
+            }
+        }
+        for l in lab.iter_mut() {
+            *l = target[*l as usize];
+        }
+    }
+
+    // Split: pixels beyond the box midline (of the longer side) get a new label.
+    if d.split_fraction > 0.0 {
+        let mut boxes = vec![[usize::MAX, usize::MAX, 0usize, 0usize]; n as usize + 1];
+        for y in 0..h {
+            for x in 0..w {
+                let l = lab[y * w + x] as usize;
+                if l != 0 {
+                    let b = &mut boxes[l];
+                    *b = [b[0].min(x), b[1].min(y), b[2].max(x), b[3].max(y)];
+                }
+            }
+        }
+        let mut order: Vec<u32> = (1..=n).filter(|&l| boxes[l as usize][0] != usize::MAX).collect();
+        order.shuffle(&mut rng);
+        let count = (d.split_fraction * n as f64).round() as usize;
+        for &l in order.iter().take(count) {
+            let b = boxes[l as usize];
+            let vertical = b[2] - b[0] >= b[3] - b[1];
+            let mid = if vertical { (b[0] + b[2]) / 2 } else { (b[1] + b[3]) / 2 };
+            n += 1;
+            for y in b[1]..=b[3] {
+                for x in b[0]..=b[2] {
+                    let i = y * w + x;
+                    if lab[i] == l && (if vertical { x > mid } else { y > mid }) {
+                        lab[i] = n;
+                    }
+                }
+            }
+        }
+    }
+
+    // Drop.
+    if d.drop_fraction > 0.0 {
+        let mut order: Vec<u32> = (1..=n).collect();
+        order.shuffle(&mut rng);
+        let count = (d.drop_fraction * n as f64).round() as usize;
+        let mut dropped = vec![false; n as usize + 1];
+        for &l in order.iter().take(count) {
+            dropped[l as usize] = true;
+        }
+        for l in lab.iter_mut() {
+            if dropped[*l as usize] {
+                *l = 0;
+            }
+        }
+    }
+
+    // False positives: rectangles of 2–6 % of the image side on background.
+    for _ in 0..d.false_positives {
+        let bw = ((w as f64) * rng.gen_range(0.02..0.06)).max(2.0) as usize;
+        let bh = ((h as f64) * rng.gen_range(0.02..0.06)).max(2.0) as usize;
+        let x0 = rng.gen_range(0..w.saturating_sub(bw).max(1));
+        let y0 = rng.gen_range(0..h.saturating_sub(bh).max(1));
+        n += 1;
+        for y in y0..(y0 + bh).min(h) {
+            for x in x0..(x0 + bw).min(w) {
+                if lab[y * w + x] == 0 {
+                    lab[y * w + x] = n;
+                }
+            }
+        }
+    }
+
+    let scores: Vec<f64> = (0..n)
+        .map(|_| {
+            if d.score_jitter > 0.0 {
+                let z: f64 = rand_distr::Distribution::sample(&rand_distr::StandardNormal, &mut rng);
+                (1.0 - (z * d.score_jitter).abs()).clamp(0.05, 1.0)
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    Query::from_labels(width, height, &lab, &scores)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // 8×4 image, two touching 4×4 instances side by side.
+    fn two_blocks() -> Vec<u32> {
+        (0..32).map(|i| if i % 8 < 4 { 1 } else { 2 }).collect()
+    }
+
+    #[test]
+    fn perfect_oracle_is_identity() {
+        let q = degrade(8, 4, &two_blocks(), 2, &Degradation::default(), 0);
+        assert_eq!(q.instances.len(), 2);
+        assert_eq!(q.instances[0].pixels.len(), 16);
+        assert!(q.instances.iter().all(|i| i.score == 1.0));
+    }
+
+    #[test]
+    fn erosion_by_one_pixel() {
+        // A 5×5 block in a 7×7 image erodes to its 3×3 core.
+        let mut lab = vec![0u32; 49];
+        for y in 1..6 {
+            for x in 1..6 {
+                lab[y * 7 + x] = 1;
+            }
+        }
+        let q = degrade(7, 7, &lab, 1, &Degradation { morph_px: -1, ..Default::default() }, 0);
+        assert_eq!(q.instances[0].pixels.len(), 9);
+        let q = degrade(7, 7, &lab, 1, &Degradation { morph_px: 1, ..Default::default() }, 0);
+        assert_eq!(q.instances[0].pixels.len(), 49);
+    }
+
+    #[test]
+    fn merge_split_drop_fp() {
+        let merged = degrade(8, 4, &two_blocks(), 2, &Degradation { merge_fraction: 0.5, ..Default::default() }, 3);
+        assert_eq!(merged.instances.len(), 1);
+        assert_eq!(merged.instances[0].pixels.len(), 32);
+        let split = degrade(8, 4, &two_blocks(), 2, &Degradation { split_fraction: 0.5, ..Default::default() }, 3);
+        assert_eq!(split.instances.len(), 3);
+        let dropped = degrade(8, 4, &two_blocks(), 2, &Degradation { drop_fraction: 0.5, ..Default::default() }, 3);
+        assert_eq!(dropped.instances.len(), 1);
+        let mut bg = vec![0u32; 100 * 100];
+        bg[0] = 1;
+        let fp = degrade(100, 100, &bg, 1, &Degradation { false_positives: 3, ..Default::default() }, 3);
+        assert_eq!(fp.instances.len(), 4);
+    }
+
+    #[test]
+    fn seeded() {
+        let d = Degradation { drop_fraction: 0.5, score_jitter: 0.2, ..Default::default() };
+        assert_eq!(degrade(8, 4, &two_blocks(), 2, &d, 9), degrade(8, 4, &two_blocks(), 2, &d, 9));
+    }
+}
