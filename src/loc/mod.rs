@@ -7,4 +7,5 @@
 pub mod cost;
 pub mod metrics;
 pub mod oracle;
+pub mod raster;
 pub mod search;

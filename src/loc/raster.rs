@@ -1,0 +1,282 @@
+//! A specialised CPU rasteriser for instance-ID images, for the localizer's many small frames.
+//!
+//! It follows the GPU conventions of `render` exactly where they matter for agreement: pinhole
+//! projection u = fx·x/z + cx, v = fy·y/z + cy in pixel units; a pixel is covered when its centre
+//! (i + 0.5, j + 0.5) is inside the triangle, with the top-left rule deciding centres exactly on an
+//! edge (as Vulkan implementations do); the nearest surface wins (depth interpolated as 1/z, which is
+//! linear in screen space); no back-face culling; triangles are clipped at the near plane.
+//!
+//! Geometry is transformed to the camera frame in f64 relative to the camera centre and only then
+//! rounded to f32 screen coordinates, so nothing jitters at any magnitude.
+
+use crate::camera::{Intrinsics, Pose};
+use crate::scene::SceneMesh;
+
+/// Near clipping distance in metres (as the GPU renderer's default).
+pub const NEAR_M: f64 = 0.1;
+
+/// A mesh prepared for repeated CPU rasterisation: positions relative to an anchor (f64 → f32 after
+/// subtracting), per-triangle IDs.
+#[derive(Debug, Clone)]
+pub struct CpuScene {
+    anchor_m: [f64; 3],
+    /// Positions relative to `anchor_m`, metres.
+    positions: Vec<[f32; 3]>,
+    triangles: Vec<[u32; 3]>,
+    tri_ids: Vec<u32>,
+}
+
+impl CpuScene {
+    /// Builds a CPU scene from a mesh; `anchor_m` should be near the cameras (e.g. the prior centre).
+    pub fn new(mesh: &SceneMesh, anchor_m: [f64; 3]) -> CpuScene {
+        let positions = mesh
+            .positions_m
+            .iter()
+            .map(|p| {
+                [
+                    (p[0] as f64 - anchor_m[0]) as f32,
+                    (p[1] as f64 - anchor_m[1]) as f32,
+                    (p[2] as f64 - anchor_m[2]) as f32,
+                ]
+            })
+            .collect();
+        let triangles: Vec<[u32; 3]> = mesh.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+        let tri_ids = triangles.iter().map(|t| mesh.building_ids[t[0] as usize]).collect();
+        CpuScene { anchor_m, positions, triangles, tri_ids }
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+}
+
+/// Reusable per-thread buffers.
+#[derive(Debug, Default)]
+pub struct Frame {
+    pub ids: Vec<u32>,
+    inv_z: Vec<f32>,
+    cam: Vec<[f32; 3]>,
+}
+
+#[derive(Clone, Copy)]
+struct ClipVert {
+    x: f64,
+    y: f64,
+    z: f64,
+}
+
+/// Renders building IDs of `scene` seen by `pose`/`k` into `frame.ids` (row-major, 0 = background).
+pub fn render_ids(scene: &CpuScene, pose: &Pose, k: &Intrinsics, frame: &mut Frame) {
+    let (w, h) = (k.width_px as usize, k.height_px as usize);
+    frame.ids.clear();
+    frame.ids.resize(w * h, 0);
+    frame.inv_z.clear();
+    frame.inv_z.resize(w * h, 0.0);
+    // Camera-frame vertices: R_cw (p + anchor − C), with (anchor − C) computed in f64.
+    let r = pose.r_cam_from_world();
+    let t = [
+        scene.anchor_m[0] - pose.centre_m[0],
+        scene.anchor_m[1] - pose.centre_m[1],
+        scene.anchor_m[2] - pose.centre_m[2],
+    ];
+    let rt = [
+        r[0][0] * t[0] + r[0][1] * t[1] + r[0][2] * t[2],
+        r[1][0] * t[0] + r[1][1] * t[1] + r[1][2] * t[2],
+        r[2][0] * t[0] + r[2][1] * t[1] + r[2][2] * t[2],
+    ];
+    let rf = r.map(|row| row.map(|v| v as f32));
+    let rtf = rt.map(|v| v as f32);
+    frame.cam.clear();
+    frame.cam.extend(scene.positions.iter().map(|p| {
+        [
+            rf[0][0] * p[0] + rf[0][1] * p[1] + rf[0][2] * p[2] + rtf[0],
+            rf[1][0] * p[0] + rf[1][1] * p[1] + rf[1][2] * p[2] + rtf[1],
+            rf[2][0] * p[0] + rf[2][1] * p[1] + rf[2][2] * p[2] + rtf[2],
+        ]
+    }));
+    let near = NEAR_M as f32;
+    let mut poly: Vec<ClipVert> = Vec::with_capacity(4);
+    for (ti, tri) in scene.triangles.iter().enumerate() {
+        let v = tri.map(|i| frame.cam[i as usize]);
+        let behind = v.iter().filter(|p| p[2] < near).count();
+        if behind == 3 {
+            continue;
+        }
+        let id = scene.tri_ids[ti];
+        if behind == 0 {
+            let a = v.map(|p| ClipVert { x: p[0] as f64, y: p[1] as f64, z: p[2] as f64 });
+            raster_triangle(k, a[0], a[1], a[2], id, &mut frame.ids, &mut frame.inv_z, w, h);
+            continue;
+        }
+        // Clip against z = near (Sutherland–Hodgman) and fan-triangulate.
+        poly.clear();
+        for e in 0..3 {
+            let (p, q) = (v[e], v[(e + 1) % 3]);
+            let (pin, qin) = (p[2] >= near, q[2] >= near);
+            if pin {
+                poly.push(ClipVert { x: p[0] as f64, y: p[1] as f64, z: p[2] as f64 });
+            }
+            if pin != qin {
+                let s = (NEAR_M - p[2] as f64) / (q[2] as f64 - p[2] as f64);
+                poly.push(ClipVert {
+                    x: p[0] as f64 + s * (q[0] as f64 - p[0] as f64),
+                    y: p[1] as f64 + s * (q[1] as f64 - p[1] as f64),
+                    z: NEAR_M,
+                });
+            }
+        }
+        for i in 1..poly.len().saturating_sub(1) {
+            raster_triangle(k, poly[0], poly[i], poly[i + 1], id, &mut frame.ids, &mut frame.inv_z, w, h);
+        }
+    }
+}
+
+/// Sub-pixel precision of the snapped screen coordinates (8 bits, as Mesa's rasterisers use).
+const SUBPIXEL_BITS: u32 = 8;
+const SUBPIXEL: f64 = (1 << SUBPIXEL_BITS) as f64;
+
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn raster_triangle(
+    k: &Intrinsics,
+    a: ClipVert,
+    b: ClipVert,
+    c: ClipVert,
+    id: u32,
+    ids: &mut [u32],
+    inv_z: &mut [f32],
+    w: usize,
+    h: usize,
+) {
+    // Screen positions snapped to 1/256 px in integers: edge functions are then exact, so a shared
+    // edge is decided identically for both triangles (watertight, no double coverage).
+    let proj = |p: ClipVert| {
+        let u = k.fx_px * p.x / p.z + k.cx_px;
+        let v = k.fy_px * p.y / p.z + k.cy_px;
+        ((u * SUBPIXEL).round() as i64, (v * SUBPIXEL).round() as i64, 1.0 / p.z)
+    };
+    let (ax, ay, az) = proj(a);
+    let (mut bx, mut by, mut bz) = proj(b);
+    let (mut cx, mut cy, mut cz) = proj(c);
+    // Reject absurd projections (points grazing the near plane far off-screen) before integer maths.
+    let lim = 1i64 << 40;
+    if [ax, ay, bx, by, cx, cy].iter().any(|v| v.abs() > lim) {
+        return;
+    }
+    let mut area = (bx - ax) as i128 * (cy - ay) as i128 - (cx - ax) as i128 * (by - ay) as i128;
+    if area == 0 {
+        return;
+    }
+    if area < 0 {
+        std::mem::swap(&mut bx, &mut cx);
+        std::mem::swap(&mut by, &mut cy);
+        std::mem::swap(&mut bz, &mut cz);
+        area = -area;
+    }
+    let half = (1i64 << SUBPIXEL_BITS) / 2;
+    let one = 1i64 << SUBPIXEL_BITS;
+    // Pixel xi's centre is xi·one + half; covered range of centres within the bounding box.
+    let first = |lo: i64| ((lo - half) as f64 / one as f64).ceil().max(0.0) as i64;
+    let last = |hi: i64, n: usize| ((hi - half) as f64 / one as f64).floor().min(n as f64 - 1.0) as i64;
+    let (x0, x1) = (first(ax.min(bx).min(cx)), last(ax.max(bx).max(cx), w));
+    let (y0, y1) = (first(ay.min(by).min(cy)), last(ay.max(by).max(cy), h));
+    if x0 > x1 || y0 > y1 {
+        return;
+    }
+    // Edge e(p) = d × (p − q0) with d = q1 − q0; the interior is e > 0. Its normal (−dy, dx) points
+    // inside, so an edge is "left" when dy < 0 and "top" when dy = 0 and dx > 0 (y down). Centres
+    // exactly on an edge are covered only for top and left edges (the top-left rule).
+    let edge = |x0: i64, y0: i64, x1: i64, y1: i64| {
+        let (dx, dy) = (x1 - x0, y1 - y0);
+        let top_left = dy < 0 || (dy == 0 && dx > 0);
+        (dx as i128, dy as i128, x0 as i128, y0 as i128, if top_left { 0i128 } else { 1i128 })
+    };
+    let e = [edge(bx, by, cx, cy), edge(cx, cy, ax, ay), edge(ax, ay, bx, by)];
+    let inv_area = 1.0 / area as f64;
+    for yi in y0..=y1 {
+        let py = (yi * one + half) as i128;
+        let row = yi as usize * w;
+        for xi in x0..=x1 {
+            let px = (xi * one + half) as i128;
+            let mut wts = [0i128; 3];
+            let mut inside = true;
+            for (n, &(dx, dy, ex, ey, bias)) in e.iter().enumerate() {
+                let v = dx * (py - ey) - dy * (px - ex);
+                if v < bias {
+                    inside = false;
+                    break;
+                }
+                wts[n] = v;
+            }
+            if !inside {
+                continue;
+            }
+            let z = ((wts[0] as f64 * az + wts[1] as f64 * bz + wts[2] as f64 * cz) * inv_area) as f32;
+            let i = row + xi as usize;
+            if z > inv_z[i] {
+                inv_z[i] = z;
+                ids[i] = id;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn quad(mesh: &mut SceneMesh, corners: [[f32; 3]; 4], id: u32) {
+        let base = mesh.positions_m.len() as u32;
+        mesh.positions_m.extend_from_slice(&corners);
+        mesh.building_ids.extend([id; 4]);
+        mesh.indices.extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+    }
+
+    #[test]
+    fn nadir_square_has_exact_pixel_count() {
+        // A 20 m × 20 m roof at z = 0 seen from 100 m at nadir with f = 100 px: it spans 20 px × 20 px
+        // centred on the principal point (32, 24) → exactly 400 pixel centres inside.
+        let mut m = SceneMesh::default();
+        quad(&mut m, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]], 7);
+        let k = Intrinsics { width_px: 64, height_px: 48, fx_px: 100.0, fy_px: 100.0, cx_px: 32.0, cy_px: 24.0 };
+        let pose = Pose::from_ypr_deg(0.0, 0.0, 0.0, [0.0, 0.0, 100.0]);
+        let scene = CpuScene::new(&m, [0.0, 0.0, 50.0]);
+        let mut f = Frame::default();
+        render_ids(&scene, &pose, &k, &mut f);
+        assert_eq!(f.ids.iter().filter(|&&i| i == 7).count(), 400);
+        // Columns 22..42 and rows 14..34 (pixel centres 22.5 … 41.5 lie inside [22, 42]).
+        assert_eq!(f.ids[14 * 64 + 22], 7);
+        assert_eq!(f.ids[13 * 64 + 22], 0);
+        assert_eq!(f.ids[33 * 64 + 41], 7);
+        assert_eq!(f.ids[34 * 64 + 41], 0);
+    }
+
+    #[test]
+    fn nearer_surface_wins_and_shared_edges_cover_once() {
+        let mut m = SceneMesh::default();
+        quad(&mut m, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]], 1);
+        quad(&mut m, [[-5.0, -5.0, 30.0], [5.0, -5.0, 30.0], [5.0, 5.0, 30.0], [-5.0, 5.0, 30.0]], 2);
+        let k = Intrinsics { width_px: 64, height_px: 48, fx_px: 100.0, fy_px: 100.0, cx_px: 32.0, cy_px: 24.0 };
+        let pose = Pose::from_ypr_deg(0.0, 0.0, 0.0, [0.0, 0.0, 100.0]);
+        let mut f = Frame::default();
+        render_ids(&CpuScene::new(&m, [0.0; 3]), &pose, &k, &mut f);
+        // The upper square (70 m away, half-width 5 m) projects to 5/70·100 ≈ 7.14 px half-width:
+        // centres with |u − 32| < 7.14 → 14 columns × 14 rows = 196, its diagonal (through pixel
+        // centres) covered exactly once. The lower one keeps 400 − 196 pixels.
+        assert_eq!(f.ids.iter().filter(|&&i| i == 2).count(), 196);
+        assert_eq!(f.ids.iter().filter(|&&i| i == 1).count(), 400 - 196);
+    }
+
+    #[test]
+    fn geometry_behind_the_camera_is_clipped() {
+        // A wall crossing the camera plane: half in front, half behind; nothing wraps around.
+        let mut m = SceneMesh::default();
+        quad(&mut m, [[-50.0, 10.0, -50.0], [50.0, 10.0, -50.0], [50.0, 10.0, 50.0], [-50.0, 10.0, 50.0]], 3);
+        let k = Intrinsics { width_px: 32, height_px: 32, fx_px: 16.0, fy_px: 16.0, cx_px: 16.0, cy_px: 16.0 };
+        // Looking north, horizontal: the wall at y = 10 fills the view.
+        let pose = Pose::from_ypr_deg(0.0, 90.0, 0.0, [0.0, 0.0, 0.0]);
+        let mut f = Frame::default();
+        render_ids(&CpuScene::new(&m, [0.0; 3]), &pose, &k, &mut f);
+        assert!(f.ids.iter().all(|&i| i == 3), "the wall covers the whole view");
+    }
+}

@@ -1,0 +1,86 @@
+//! Shared helpers for the integration tests: real-data lookup with the CI rule, running the binary,
+//! JSON Schema validation.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The repository root.
+pub fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Whether we run under CI, where real-data tests must not skip.
+pub fn under_ci() -> bool {
+    std::env::var("CI").map(|v| v == "true").unwrap_or(false)
+}
+
+/// A path under `../shared/data`, or `None` (with a printed reason) when it is absent. Under `CI=true`
+/// a missing file is a failure, not a skip.
+pub fn shared_data(rel: &str) -> Option<PathBuf> {
+    let p = repo().join("../shared/data").join(rel);
+    if p.exists() {
+        return Some(p);
+    }
+    if under_ci() {
+        panic!("CI=true but the real data {} is missing", p.display());
+    }
+    eprintln!("skipping: {} is absent", p.display());
+    None
+}
+
+/// Runs `insgen` with `args` in `cwd`; returns its output.
+pub fn insgen(cwd: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_insgen"))
+        .args(args)
+        .current_dir(cwd)
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("the insgen binary runs")
+}
+
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+pub fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// Validates a JSON value against a schema file in `schemas/`, panicking with every error.
+pub fn assert_schema(schema_file: &str, value: &serde_json::Value) {
+    let schema: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(repo().join("schemas").join(schema_file)).expect("schema exists"))
+            .expect("schema is JSON");
+    let validator = jsonschema::validator_for(&schema).expect("schema compiles");
+    let errors: Vec<String> = validator.iter_errors(value).map(|e| format!("{} at {}", e, e.instance_path)).collect();
+    assert!(errors.is_empty(), "{schema_file}: {} errors:\n{}", errors.len(), errors.join("\n"));
+}
+
+/// A scratch directory with `scenes/` holding the given scene files (name, TOML text).
+pub fn scratch_with_scenes(scenes: &[(&str, String)]) -> tempfile::TempDir {
+    let dir = tempfile::tempdir().expect("temp dir");
+    std::fs::create_dir_all(dir.path().join("scenes")).unwrap();
+    for (name, text) in scenes {
+        std::fs::write(dir.path().join("scenes").join(format!("{name}.toml")), text).unwrap();
+    }
+    dir
+}
+
+/// The repository's `scenes/<name>.toml` with its relative source paths made absolute, so it can be
+/// prepared from a scratch directory.
+pub fn repo_scene(name: &str) -> String {
+    let text = std::fs::read_to_string(repo().join("scenes").join(format!("{name}.toml"))).expect("scene exists");
+    let base = repo().join("scenes");
+    text.lines()
+        .map(|l| {
+            if let Some(rest) = l.strip_prefix("path = \"") {
+                let rel = rest.trim_end_matches('"');
+                format!("path = \"{}\"", base.join(rel).display())
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
