@@ -5,6 +5,7 @@
 //! - [`metrics`]: errors, recall at (2 m, 2°)/(3 m, 3°)/(5 m, 5°), medians, the summary table.
 
 pub mod cost;
+pub mod eval;
 pub mod metrics;
 pub mod oracle;
 pub mod raster;

@@ -125,11 +125,14 @@ fn rank(mut scored: Vec<(Hypothesis, f64)>) -> Vec<(Hypothesis, f64)> {
 }
 
 /// Runs the search. `select = false` skips the coarse stage (fine stage from the raw prior);
-/// `refine = false` returns the coarse result.
+/// `refine = false` returns the coarse result. The coarse stage scores with `coarse_eval` (typically
+/// at a lower resolution), the fine stage with `eval`.
 ///
 /// # Errors
-/// Whatever the evaluator returns.
+/// Whatever the evaluators return.
+#[allow(clippy::too_many_arguments)]
 pub fn search<E: Evaluate>(
+    coarse_eval: &mut E,
     eval: &mut E,
     prior: Hypothesis,
     coarse: &CoarseParams,
@@ -143,11 +146,11 @@ pub fn search<E: Evaluate>(
     // Coarse stage.
     let mut pool: Vec<(Hypothesis, f64)> = if select {
         let grid = coarse_grid(&prior, coarse);
-        let s = eval.evaluate(&grid)?;
+        let s = coarse_eval.evaluate(&grid)?;
         scored_count += grid.len() as u64;
         rank(grid.into_iter().zip(s).collect())
     } else {
-        let s = eval.evaluate(&[prior])?;
+        let s = coarse_eval.evaluate(&[prior])?;
         scored_count += 1;
         vec![(prior, s[0])]
     };
@@ -221,13 +224,14 @@ mod tests {
         let target = Hypothesis { centre_m: [10.0, -5.0, 300.0], yaw_deg: 45.0 };
         let prior = Hypothesis { centre_m: [18.0, 2.0, 304.0], yaw_deg: 48.0 };
         let mut bowl = Bowl { target, calls: 0 };
-        let r = search(&mut bowl, prior, &CoarseParams::default(), &FineParams::default(), true, true, 7).unwrap();
+        let mut coarse = Bowl { target, calls: 0 };
+        let r = search(&mut coarse, &mut bowl, prior, &CoarseParams::default(), &FineParams::default(), true, true, 7).unwrap();
         let dt: f64 = (0..3).map(|k| (r.best.centre_m[k] - target.centre_m[k]).powi(2)).sum::<f64>().sqrt();
         assert!(dt < 0.5, "translation error {dt} m");
         assert!((r.best.yaw_deg - target.yaw_deg).abs() < 0.3, "yaw {}", r.best.yaw_deg);
         let grid = coarse_grid(&prior, &CoarseParams::default()).len() as u64;
         assert_eq!(r.hypotheses_scored, grid + 40 * 48);
-        assert_eq!(bowl.calls, r.hypotheses_scored);
+        assert_eq!(coarse.calls + bowl.calls, r.hypotheses_scored);
     }
 
     #[test]
@@ -235,7 +239,8 @@ mod tests {
         let target = Hypothesis { centre_m: [0.0, 0.0, 200.0], yaw_deg: 0.0 };
         let prior = Hypothesis { centre_m: [3.0, 3.0, 203.0], yaw_deg: 1.0 };
         let run = |seed| {
-            search(&mut Bowl { target, calls: 0 }, prior, &CoarseParams::default(), &FineParams::default(), false, true, seed).unwrap()
+            let b = || Bowl { target, calls: 0 };
+            search(&mut b(), &mut b(), prior, &CoarseParams::default(), &FineParams::default(), false, true, seed).unwrap()
         };
         assert_eq!(run(1), run(1));
         assert_ne!(run(1).best, run(2).best);
@@ -245,12 +250,12 @@ mod tests {
     fn ablations() {
         let target = Hypothesis { centre_m: [0.0, 0.0, 200.0], yaw_deg: 0.0 };
         let prior = Hypothesis { centre_m: [9.0, 0.0, 200.0], yaw_deg: 0.0 };
-        let mut bowl = Bowl { target, calls: 0 };
-        let r = search(&mut bowl, prior, &CoarseParams::default(), &FineParams::default(), true, false, 0).unwrap();
+        let b = || Bowl { target, calls: 0 };
+        let r = search(&mut b(), &mut b(), prior, &CoarseParams::default(), &FineParams::default(), true, false, 0).unwrap();
         // No refine: the coarse best is on the 5 m grid: x = 9 − 10 = −1.
         assert_eq!(r.best, r.coarse_best);
         assert!((r.best.centre_m[0] + 1.0).abs() < 1e-12, "{:?}", r.best);
-        let r = search(&mut Bowl { target, calls: 0 }, prior, &CoarseParams::default(), &FineParams::default(), false, true, 0).unwrap();
+        let r = search(&mut b(), &mut b(), prior, &CoarseParams::default(), &FineParams::default(), false, true, 0).unwrap();
         assert_eq!(r.coarse_best, prior);
     }
 

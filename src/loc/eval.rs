@@ -1,0 +1,463 @@
+//! The `eval-loc` stage: localize every query of an area/camera from its prior and report the paper's
+//! table.
+//!
+//! Per query: the query instances (oracle ground-truth masks with degradations, or predictions) at the
+//! render resolution; the scene culled to the buildings the prior could see (with a margin covering the
+//! search range) and renumbered densely; hypotheses rendered by the CPU rasteriser ([`super::raster`]) in
+//! parallel and scored with [`super::cost`]; the search of [`super::search`]; errors against the ground
+//! truth.
+//!
+//! Outputs in `<workdir>/<area>/<camera>/loc/<tag>/`: `results.jsonl` (one line per query and cost),
+//! `est_poses_<cost>.txt` (COLMAP `NAME qw qx qy qz tx ty tz`), `summary.md` / `summary.json` (recall at
+//! (2 m, 2°), (3 m, 3°), (5 m, 5°), median errors; the prior's own row first; per trajectory group),
+//! and `overlays/<frame>.png` for the first queries (query outlines over the renders at the prior, the
+//! estimate and the ground truth).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::cost::{CostKind, Query, Scorer, Weighting};
+use super::metrics::{self, Row};
+use super::oracle::{self, Degradation};
+use super::raster::{self, CpuScene, Frame};
+use super::search::{self, CoarseParams, Evaluate, FineParams, Hypothesis, SearchResult};
+use crate::camera::{Intrinsics, Pose, PoseRecord, Trajectory};
+use crate::label::{label_components, Connectivity};
+use crate::scene::{BuildingRecord, PreparedScene, SceneMesh};
+use crate::util::{self, Progress};
+
+/// Errors of the eval-loc stage.
+#[derive(Debug, thiserror::Error)]
+pub enum EvalError {
+    #[error(transparent)]
+    File(#[from] util::FileError),
+    #[error("{}: {what}", path.display())]
+    Input { path: PathBuf, what: String },
+}
+
+/// Options of an evaluation run.
+#[derive(Debug, Clone)]
+pub struct EvalOptions {
+    /// `<workdir>/<area>/<camera>`.
+    pub camera_dir: PathBuf,
+    /// Costs to evaluate (each gives a row of the table).
+    pub costs: Vec<CostKind>,
+    pub weighting: Weighting,
+    pub degradation: Degradation,
+    pub coarse: CoarseParams,
+    pub fine: FineParams,
+    pub select: bool,
+    pub refine: bool,
+    pub seed: u64,
+    /// Width of the fine-stage renders and query masks (height keeps the aspect ratio).
+    pub render_width_px: u32,
+    /// Width of the coarse-stage renders.
+    pub coarse_width_px: u32,
+    pub limit: Option<usize>,
+    pub overlays: usize,
+    /// Output sub-directory name under `loc/`.
+    pub tag: String,
+}
+
+/// One line of `results.jsonl`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct QueryResult {
+    pub name: String,
+    pub cost: CostKind,
+    pub trajectory: Trajectory,
+    pub estimate: [f64; 4],
+    pub prior_translation_error_m: f64,
+    pub prior_rotation_error_deg: f64,
+    pub translation_error_m: f64,
+    pub rotation_error_deg: f64,
+    pub best_cost: f64,
+    pub hypotheses: u64,
+    pub seconds: f64,
+    pub query_instances: usize,
+    pub buildings_considered: usize,
+}
+
+/// The run's summary.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Summary {
+    pub rows: Vec<Row>,
+    pub queries: usize,
+    pub median_seconds_per_query: f64,
+    pub hypotheses_per_second: f64,
+}
+
+fn read_jsonl(path: &Path) -> Result<Vec<PoseRecord>, EvalError> {
+    let text = std::fs::read_to_string(path).map_err(|e| util::FileError::new("reading", path, e))?;
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(i, l)| {
+            serde_json::from_str(l)
+                .map_err(|e| EvalError::Input { path: path.into(), what: format!("line {}: {e}", i + 1) })
+        })
+        .collect()
+}
+
+/// Intrinsics scaled to `width_px` (height rounded to keep the aspect ratio).
+pub fn at_width(k: &Intrinsics, width_px: u32) -> Intrinsics {
+    let h = ((k.height_px as f64) * width_px as f64 / k.width_px as f64).round().max(1.0) as u32;
+    k.scaled_to(width_px, h)
+}
+
+/// Nearest-neighbour resize of an ID map (sampling the source at the target pixel centres).
+pub fn resize_nearest(ids: &[u32], w: u32, h: u32, tw: u32, th: u32) -> Vec<u32> {
+    let mut out = vec![0u32; (tw * th) as usize];
+    for y in 0..th {
+        let sy = (((y as f64 + 0.5) * h as f64 / th as f64) as u32).min(h - 1);
+        for x in 0..tw {
+            let sx = (((x as f64 + 0.5) * w as f64 / tw as f64) as u32).min(w - 1);
+            out[(y * tw + x) as usize] = ids[(sy * w + sx) as usize];
+        }
+    }
+    out
+}
+
+/// Buildings whose bounding box may be seen from `pose` with a margin of `margin` image widths on each
+/// side (to cover the search range); conservative for boxes that straddle the camera plane.
+pub fn cull(buildings: &[BuildingRecord], pose: &Pose, k: &Intrinsics, margin: f64) -> Vec<u32> {
+    let (w, h) = (k.width_px as f64, k.height_px as f64);
+    let (x0, x1, y0, y1) = (-margin * w, (1.0 + margin) * w, -margin * h, (1.0 + margin) * h);
+    buildings
+        .iter()
+        .filter(|b| {
+            let (lo, hi) = (b.bbox_min_enu_m, b.bbox_max_enu_m);
+            let mut front = 0;
+            let (mut u0, mut u1, mut v0, mut v1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+            for c in 0..8 {
+                let p = [if c & 1 == 0 { lo[0] } else { hi[0] }, if c & 2 == 0 { lo[1] } else { hi[1] }, if c & 4 == 0 { lo[2] } else { hi[2] }];
+                let q = pose.world_to_cam(p);
+                if q[2] > raster::NEAR_M {
+                    front += 1;
+                    let uv = k.project(q).expect("in front");
+                    u0 = u0.min(uv[0]);
+                    u1 = u1.max(uv[0]);
+                    v0 = v0.min(uv[1]);
+                    v1 = v1.max(uv[1]);
+                }
+            }
+            match front {
+                0 => false,
+                8 => u1 >= x0 && u0 <= x1 && v1 >= y0 && v0 <= y1,
+                _ => true,
+            }
+        })
+        .map(|b| b.id)
+        .collect()
+}
+
+/// The culled scene with dense IDs 1..=K (K = `kept.len()`).
+pub fn dense_subscene(mesh: &SceneMesh, kept: &[u32]) -> SceneMesh {
+    let max = kept.iter().copied().max().unwrap_or(0) as usize;
+    let mut dense = vec![0u32; max + 1];
+    for (i, &id) in kept.iter().enumerate() {
+        dense[id as usize] = i as u32 + 1;
+    }
+    let mut sub = mesh.filter_buildings(|id| (id as usize) <= max && dense[id as usize] != 0);
+    for id in &mut sub.building_ids {
+        *id = dense[*id as usize];
+    }
+    sub
+}
+
+/// Scores hypotheses by rendering them on the CPU in parallel.
+pub struct CpuEvaluator<'a> {
+    pub scene: &'a CpuScene,
+    pub k: Intrinsics,
+    pub pitch_deg: f64,
+    pub roll_deg: f64,
+    pub query: &'a Query,
+    pub kind: CostKind,
+    pub weighting: Weighting,
+    pub k_max: u32,
+}
+
+impl Evaluate for CpuEvaluator<'_> {
+    type Error = std::convert::Infallible;
+    fn evaluate(&mut self, hyps: &[Hypothesis]) -> Result<Vec<f64>, Self::Error> {
+        let this = &*self;
+        Ok(hyps
+            .par_iter()
+            .map_init(
+                || (Frame::default(), Scorer::default()),
+                |(frame, scorer), h| {
+                    let pose = h.pose(this.pitch_deg, this.roll_deg);
+                    raster::render_ids(this.scene, &pose, &this.k, frame);
+                    scorer.cost(this.kind, this.query, &frame.ids, this.k_max, this.weighting)
+                },
+            )
+            .collect())
+    }
+}
+
+/// Loads the oracle query of a frame (ground-truth components, degraded) at intrinsics `k`.
+fn oracle_query(masks_dir: &Path, frame: &str, k: &Intrinsics, d: &Degradation, seed: u64) -> Result<Query, EvalError> {
+    let path = masks_dir.join(format!("{frame}.png"));
+    let map = crate::label::idpng::read_id_png(&path).map_err(|e| EvalError::Input {
+        path: path.clone(),
+        what: format!("{e}; run `insgen render-masks` for this camera first"),
+    })?;
+    let ids = resize_nearest(&map.ids, map.width, map.height, k.width_px, k.height_px);
+    let lab = label_components(&ids, k.width_px, k.height_px, Connectivity::Eight);
+    Ok(oracle::degrade(k.width_px, k.height_px, &lab.labels, lab.components.len() as u32, d, seed))
+}
+
+fn frame_seed(seed: u64, name: &str) -> u64 {
+    // FNV-1a of the frame name mixed with the run seed: stable across runs and platforms.
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325 ^ seed;
+    for b in name.bytes() {
+        h ^= b as u64;
+        h = h.wrapping_mul(0x100_0000_01b3);
+    }
+    h
+}
+
+fn group_of(t: Trajectory) -> &'static str {
+    match t {
+        Trajectory::Grid => "grid",
+        Trajectory::Regular | Trajectory::Irregular => "sequence",
+    }
+}
+
+/// Runs the evaluation.
+///
+/// # Errors
+/// Missing or malformed inputs (poses, priors, masks), naming the file.
+pub fn evaluate(scene: &PreparedScene, opts: &EvalOptions, progress: &dyn Progress) -> Result<Summary, EvalError> {
+    let gt_path = opts.camera_dir.join("poses.jsonl");
+    let prior_path = opts.camera_dir.join("priors.jsonl");
+    let gts = read_jsonl(&gt_path)?;
+    let priors: BTreeMap<String, PoseRecord> = read_jsonl(&prior_path)?.into_iter().map(|p| (p.name.clone(), p)).collect();
+    let masks_dir = opts.camera_dir.join("masks");
+    let out_dir = opts.camera_dir.join("loc").join(&opts.tag);
+    let mut queries: Vec<&PoseRecord> = gts.iter().collect();
+    if let Some(n) = opts.limit {
+        queries.truncate(n);
+    }
+    if queries.is_empty() {
+        return Err(EvalError::Input { path: gt_path, what: "no queries".into() });
+    }
+
+    let mut results: Vec<QueryResult> = Vec::new();
+    let mut est_lines: BTreeMap<CostKind, String> = BTreeMap::new();
+    let mut prior_errors: Vec<(f64, f64, Trajectory)> = Vec::new();
+    let mut total_hyp = 0u64;
+    let mut total_s = 0.0;
+    progress.start((queries.len() * opts.costs.len()) as u64, "queries");
+    for (qi, gt) in queries.iter().enumerate() {
+        let prior = priors.get(&gt.name).ok_or_else(|| EvalError::Input {
+            path: prior_path.clone(),
+            what: format!("no prior for query {}", gt.name),
+        })?;
+        let gt_pose = gt.pose();
+        let prior_pose = prior.pose();
+        prior_errors.push((gt_pose.translation_error_m(&prior_pose), gt_pose.rotation_error_deg(&prior_pose), gt.trajectory));
+        let k_fine = at_width(&gt.intrinsics, opts.render_width_px);
+        let k_coarse = at_width(&gt.intrinsics, opts.coarse_width_px);
+        let seed = frame_seed(opts.seed, &gt.name);
+        let q_fine = oracle_query(&masks_dir, &gt.name, &k_fine, &opts.degradation, seed)?;
+        let q_coarse = oracle_query(&masks_dir, &gt.name, &k_coarse, &opts.degradation, seed)?;
+        let kept = cull(&scene.buildings, &prior_pose, &k_fine, 0.5);
+        let sub = dense_subscene(&scene.mesh, &kept);
+        let cpu = CpuScene::new(&sub, prior_pose.centre_m);
+        let [prior_yaw, pitch, roll] = prior.pose().ypr_deg();
+        let prior_h = Hypothesis { centre_m: prior_pose.centre_m, yaw_deg: prior_yaw };
+        for &kind in &opts.costs {
+            let t0 = Instant::now();
+            let (qf, qc) = if kind == CostKind::Merged { (q_fine.merged(), q_coarse.merged()) } else { (q_fine.clone(), q_coarse.clone()) };
+            let mk = |k: Intrinsics, q| CpuEvaluator { scene: &cpu, k, pitch_deg: pitch, roll_deg: roll, query: q, kind, weighting: opts.weighting, k_max: kept.len() as u32 };
+            let mut fine_eval = mk(k_fine, &qf);
+            let mut coarse_eval = mk(k_coarse, &qc);
+            let r: SearchResult = match search::search(&mut coarse_eval, &mut fine_eval, prior_h, &opts.coarse, &opts.fine, opts.select, opts.refine, seed) {
+                Ok(r) => r,
+                Err(never) => match never {},
+            };
+            let est = r.best.pose(pitch, roll);
+            let secs = t0.elapsed().as_secs_f64();
+            total_hyp += r.hypotheses_scored;
+            total_s += secs;
+            let q = est.colmap_qvec();
+            let t = est.t_cam_from_world();
+            est_lines.entry(kind).or_default().push_str(&format!(
+                "{} {} {} {} {} {} {} {}\n",
+                gt.name, q[0], q[1], q[2], q[3], t[0], t[1], t[2]
+            ));
+            results.push(QueryResult {
+                name: gt.name.clone(),
+                cost: kind,
+                trajectory: gt.trajectory,
+                estimate: [r.best.centre_m[0], r.best.centre_m[1], r.best.centre_m[2], r.best.yaw_deg],
+                prior_translation_error_m: gt_pose.translation_error_m(&prior_pose),
+                prior_rotation_error_deg: gt_pose.rotation_error_deg(&prior_pose),
+                translation_error_m: gt_pose.translation_error_m(&est),
+                rotation_error_deg: gt_pose.rotation_error_deg(&est),
+                best_cost: r.best_score,
+                hypotheses: r.hypotheses_scored,
+                seconds: secs,
+                query_instances: qf.instances.len(),
+                buildings_considered: kept.len(),
+            });
+            progress.inc(1);
+            let done: Vec<&QueryResult> = results.iter().filter(|r| r.cost == opts.costs[0]).collect();
+            let ok = done.iter().filter(|r| r.translation_error_m < 2.0 && r.rotation_error_deg < 2.0).count();
+            progress.message(&format!("recall@2m2° {:.1}%", 100.0 * ok as f64 / done.len().max(1) as f64));
+            if qi < opts.overlays && kind == opts.costs[0] {
+                write_overlay(&out_dir, &gt.name, &cpu, &k_fine, &qf, [&prior_pose, &est, &gt_pose], pitch, roll)?;
+            }
+        }
+    }
+    progress.finish();
+
+    // Table: the prior first, then each cost; per group and overall.
+    let mut rows = Vec::new();
+    let groups: Vec<&str> = {
+        let mut g: Vec<&str> = queries.iter().map(|q| group_of(q.trajectory)).collect();
+        g.sort();
+        g.dedup();
+        g
+    };
+    let mut push_rows = |method: &str, errs: &[(f64, f64, Trajectory)]| {
+        for g in &groups {
+            let e: Vec<(f64, f64)> = errs.iter().filter(|e| group_of(e.2) == *g).map(|e| (e.0, e.1)).collect();
+            rows.push(metrics::row(method, g, &e));
+        }
+        if groups.len() > 1 {
+            let e: Vec<(f64, f64)> = errs.iter().map(|e| (e.0, e.1)).collect();
+            rows.push(metrics::row(method, "all", &e));
+        }
+    };
+    push_rows("prior", &prior_errors);
+    for &kind in &opts.costs {
+        let errs: Vec<(f64, f64, Trajectory)> =
+            results.iter().filter(|r| r.cost == kind).map(|r| (r.translation_error_m, r.rotation_error_deg, r.trajectory)).collect();
+        let name = match kind {
+            CostKind::Instance => format!("instance ({:?})", opts.weighting).to_lowercase(),
+            CostKind::Semantic => "semantic IoU (LoD-Loc v2)".to_string(),
+            CostKind::Merged => "merged instances".to_string(),
+        };
+        push_rows(&name, &errs);
+    }
+    let secs: Vec<f64> = results.iter().map(|r| r.seconds).collect();
+    let summary = Summary {
+        rows,
+        queries: queries.len(),
+        median_seconds_per_query: metrics::median(&secs),
+        hypotheses_per_second: if total_s > 0.0 { total_hyp as f64 / total_s } else { 0.0 },
+    };
+
+    // Write outputs.
+    let mut jsonl = String::new();
+    for r in &results {
+        jsonl.push_str(&serde_json::to_string(r).map_err(|e| EvalError::Input { path: out_dir.clone(), what: e.to_string() })?);
+        jsonl.push('\n');
+    }
+    util::write_bytes_atomic(&out_dir.join("results.jsonl"), jsonl.as_bytes())?;
+    for (kind, text) in &est_lines {
+        let name = format!("est_poses_{}.txt", format!("{kind:?}").to_lowercase());
+        util::write_bytes_atomic(&out_dir.join(name), text.as_bytes())?;
+    }
+    util::write_json_atomic(&out_dir.join("summary.json"), &summary)?;
+    let md = format!(
+        "# Localization on {}\n\n{} queries; median {:.2} s per query; {:.0} hypotheses/s.\n\n{}",
+        opts.camera_dir.display(),
+        summary.queries,
+        summary.median_seconds_per_query,
+        summary.hypotheses_per_second,
+        metrics::markdown(&summary.rows)
+    );
+    util::write_bytes_atomic(&out_dir.join("summary.md"), md.as_bytes())?;
+    Ok(summary)
+}
+
+fn palette(id: u32) -> [u8; 3] {
+    if id == 0 {
+        return [20, 20, 24];
+    }
+    let h = id.wrapping_mul(2_654_435_761);
+    [(h >> 24) as u8 | 0x40, (h >> 16) as u8 | 0x40, (h >> 8) as u8 | 0x40]
+}
+
+/// Three panels (render at the prior, the estimate, the ground truth), each with the query instances'
+/// outlines drawn in white.
+#[allow(clippy::too_many_arguments)]
+fn write_overlay(
+    out_dir: &Path,
+    name: &str,
+    scene: &CpuScene,
+    k: &Intrinsics,
+    q: &Query,
+    poses: [&Pose; 3],
+    _pitch: f64,
+    _roll: f64,
+) -> Result<(), EvalError> {
+    let (w, h) = (k.width_px as usize, k.height_px as usize);
+    let mut qlab = vec![0u32; w * h];
+    for (j, inst) in q.instances.iter().enumerate() {
+        for &p in &inst.pixels {
+            qlab[p as usize] = j as u32 + 1;
+        }
+    }
+    let gap = 4;
+    let total_w = 3 * w + 2 * gap;
+    let mut rgb = vec![255u8; total_w * h * 3];
+    let mut frame = Frame::default();
+    for (panel, pose) in poses.iter().enumerate() {
+        raster::render_ids(scene, pose, k, &mut frame);
+        for y in 0..h {
+            for x in 0..w {
+                let i = y * w + x;
+                let l = qlab[i];
+                let edge = l != 0
+                    && ((x > 0 && qlab[i - 1] != l) || (x + 1 < w && qlab[i + 1] != l) || (y > 0 && qlab[i - w] != l) || (y + 1 < h && qlab[i + w] != l));
+                let c = if edge { [255, 255, 255] } else { palette(frame.ids[i]) };
+                let o = (y * total_w + panel * (w + gap) + x) * 3;
+                rgb[o..o + 3].copy_from_slice(&c);
+            }
+        }
+    }
+    let path = out_dir.join("overlays").join(format!("{name}.png"));
+    util::write_atomic(&path, |wr| {
+        let mut enc = png::Encoder::new(wr, total_w as u32, h as u32);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut writer = enc.write_header().map_err(|e| util::FileError::new("encoding PNG", &path, std::io::Error::other(e)))?;
+        writer.write_image_data(&rgb).map_err(|e| util::FileError::new("encoding PNG", &path, std::io::Error::other(e)))?;
+        writer.finish().map_err(|e| util::FileError::new("encoding PNG", &path, std::io::Error::other(e)))?;
+        Ok::<(), EvalError>(())
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nearest_resize_samples_pixel_centres() {
+        // 4×2 → 2×1: target pixel centres map to source x = 1, 3 (row 1).
+        let ids = [1, 2, 3, 4, 5, 6, 7, 8];
+        assert_eq!(resize_nearest(&ids, 4, 2, 2, 1), vec![6, 8]);
+        assert_eq!(resize_nearest(&ids, 4, 2, 4, 2), ids.to_vec());
+    }
+
+    #[test]
+    fn dense_ids_are_contiguous() {
+        let mut m = SceneMesh::default();
+        for (i, id) in [5u32, 9, 12].iter().enumerate() {
+            let o = i as f32 * 10.0;
+            m.positions_m.extend([[o, 0.0, 0.0], [o + 1.0, 0.0, 0.0], [o, 1.0, 0.0]]);
+            m.building_ids.extend([*id; 3]);
+            m.indices.extend([3 * i as u32, 3 * i as u32 + 1, 3 * i as u32 + 2]);
+        }
+        let sub = dense_subscene(&m, &[5, 12]);
+        assert_eq!(sub.triangle_count(), 2);
+        assert_eq!(sub.building_ids, vec![1, 1, 1, 2, 2, 2]);
+    }
+}
