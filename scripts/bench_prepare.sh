@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Benchmark of `insgen prepare` on the real areas: wall time and peak memory (max RSS) per area, written
 # to bench/prepare_report.md. Needs ../shared/data. Uses the optimised release build.
+# Usage: scripts/bench_prepare.sh tokyo niiza
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release --quiet
@@ -21,9 +22,7 @@ for area in "$@"; do
     /usr/bin/time -f '%e %M' -o "$work/time" "$BIN" --workdir "$work/runs" prepare --area "$area" -q
     read -r wall kb < "$work/time"
     m="$work/runs/$area/scene/manifest.json"
-    b=$(python3 -c "import json,sys; d=json.load(open('$m')); print(d['buildings'], d['triangles'])")
-    set -- $b "$@"
-    echo "| $area | $1 | $2 | $wall | $((kb / 1024)) |" >> "$out"
-    shift 2
+    read -r nb nt < <(python3 -c "import json; d=json.load(open('$m')); print(d['buildings'], d['triangles'])")
+    echo "| $area | $nb | $nt | $wall | $((kb / 1024)) |" >> "$out"
 done
 cat "$out"
