@@ -91,11 +91,7 @@ impl GeoidSlot<'_> {
 
 fn read_one(scene_file: &Path, cfg: &SceneConfig, src: &SourceConfig) -> Result<(SourceModel, String), SceneError> {
     if src.format.as_deref() == Some("procedural") {
-        let table = src.procedural.clone().unwrap_or_default();
-        let model = super::procedural::generate_from_table(&table).map_err(|what| SceneError::Config {
-            path: scene_file.into(),
-            what: format!("[sources.procedural]: {what}"),
-        })?;
+        let model = procedural_source(scene_file, src.procedural.clone().unwrap_or_default())?;
         return Ok((model, "procedural".into()));
     }
     let path = cfg.resolve(scene_file, src).expect("validated: non-procedural sources have a path");
@@ -116,6 +112,20 @@ fn read_one(scene_file: &Path, cfg: &SceneConfig, src: &SourceConfig) -> Result<
     let model = lod::read_source(&path, format, &opts)?;
     let fmt = format.or_else(|| Format::from_path(&path)).map(|f| format!("{f:?}").to_lowercase()).unwrap_or_default();
     Ok((model, fmt))
+}
+
+/// Generates the procedural city of a `format = "procedural"` source: the `[sources.procedural]` table
+/// holds any [`ProceduralSpec`](super::procedural::ProceduralSpec) fields plus an optional
+/// `origin = { easting_m, northing_m }` in the generator's CRS.
+fn procedural_source(scene_file: &Path, mut table: toml::Table) -> Result<SourceModel, SceneError> {
+    use super::procedural::{generate, PlaneOrigin, ProceduralSpec};
+    let cfg_err = |what: String| SceneError::Config { path: scene_file.into(), what: format!("[sources.procedural] {what}") };
+    let origin: PlaneOrigin = match table.remove("origin") {
+        Some(v) => v.try_into().map_err(|e: toml::de::Error| cfg_err(format!("origin: {e}")))?,
+        None => PlaneOrigin::default(),
+    };
+    let spec: ProceduralSpec = toml::Value::Table(table).try_into().map_err(|e: toml::de::Error| cfg_err(e.to_string()))?;
+    Ok(generate(&spec, origin)?)
 }
 
 /// Converts one source model's buildings to ECEF.
