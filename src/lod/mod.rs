@@ -16,6 +16,7 @@ pub mod citygml;
 pub mod cityjson;
 pub mod error;
 pub mod obj;
+pub mod split;
 pub mod tiles3d;
 
 pub use error::LodError;

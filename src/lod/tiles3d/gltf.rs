@@ -1,0 +1,937 @@
+//! The glTF 2.0 subset that 3D Tiles content needs, parsed in f64, and its triangles in the tile frame.
+//!
+//! The GLB container is split with the `gltf` crate ([`gltf::Glb`]); the JSON is then read into the
+//! small spec-mirroring types below rather than into `gltf::Document`, for two reasons: `gltf-json`
+//! stores node matrices and translations as f32 (an ECEF translation of 6.4e6 m would lose half a
+//! metre), and it drops the extension objects 3D Tiles depends on (`CESIUM_RTC`,
+//! `KHR_draco_mesh_compression`, `EXT_mesh_features`, `EXT_structural_metadata`) unless its
+//! `extensions` feature is on. [`Root::validate`] checks every cross-reference and byte range before
+//! anything is read, reporting all problems with their JSON path.
+//!
+//! # Frames
+//! A vertex `p` of a primitive instanced by a node with global matrix `N` ends up at
+//! `outer · U · N · p`, where `U` is the glTF up-axis correction (y-up → z-up:
+//! `(x, y, z) ↦ (x, −z, y)`, as 3D Tiles specifies) and `outer` is given by the caller (tile
+//! transform · RTC translations). All of it is f64.
+
+use std::borrow::Cow;
+use std::collections::BTreeMap;
+
+use glam::{DMat4, DQuat, DVec3, DVec4};
+use serde::Deserialize;
+use serde_json::Value;
+
+use super::draco;
+
+/// Required extensions this reader implements or that do not affect geometry.
+const HANDLED_EXTENSIONS: &[&str] = &[
+    "CESIUM_RTC",
+    "KHR_draco_mesh_compression",
+    "KHR_mesh_quantization",
+    "EXT_mesh_features",
+    "EXT_structural_metadata",
+    "KHR_lights_punctual",
+    "CESIUM_primitive_outline",
+];
+/// Prefixes of geometry-neutral (material/texture) extensions that may be required without harm.
+const HANDLED_PREFIXES: &[&str] = &["KHR_materials_", "KHR_texture_", "EXT_texture_", "MSFT_texture_"];
+
+/// The glTF up axis of a tileset's content (`asset.gltfUpAxis`, default Y as 3D Tiles specifies).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum UpAxis {
+    X,
+    Y,
+    Z,
+}
+
+impl UpAxis {
+    /// The rotation taking glTF coordinates with this up axis to z-up.
+    ///
+    /// Y: `(x, y, z) ↦ (x, −z, y)` (a +90° rotation about x). X: `(x, y, z) ↦ (−z, y, x)` (−90° about
+    /// y), as CesiumJS's `Axis.X_UP_TO_Z_UP`. Z: identity.
+    pub(crate) fn to_z_up(self) -> DMat4 {
+        match self {
+            UpAxis::Y => DMat4::from_cols(
+                DVec4::new(1.0, 0.0, 0.0, 0.0),
+                DVec4::new(0.0, 0.0, 1.0, 0.0),
+                DVec4::new(0.0, -1.0, 0.0, 0.0),
+                DVec4::W,
+            ),
+            UpAxis::X => DMat4::from_cols(
+                DVec4::new(0.0, 0.0, 1.0, 0.0),
+                DVec4::new(0.0, 1.0, 0.0, 0.0),
+                DVec4::new(-1.0, 0.0, 0.0, 0.0),
+                DVec4::W,
+            ),
+            UpAxis::Z => DMat4::IDENTITY,
+        }
+    }
+}
+
+/// The glTF root object (the parts geometry extraction needs).
+#[derive(Debug, Deserialize)]
+#[serde(rename_all = "camelCase")]
+pub(crate) struct Root {
+    pub asset: Option<Asset>,
+    #[serde(default)]
+    pub accessors: Vec<Accessor>,
+    #[serde(default)]
+    pub buffer_views: Vec<BufferView>,
+    #[serde(default)]
+    pub buffers: Vec<Buffer>,
+    #[serde(default)]
+    pub meshes: Vec<Mesh>,
+    #[serde(default)]
+    pub nodes: Vec<Node>,
+    #[serde(default)]
+    pub scenes: Vec<Scene>,
+    /// Index of the scene to show; `None` = the first scene, or all root nodes when there is none.
+    pub scene: Option<usize>,
+    #[serde(default)]
+    pub extensions_required: Vec<String>,
+    #[serde(default)]
+    pub extensions: BTreeMap<String, Value>,
+}
+
+/// `asset`: the glTF version (`"2.0"`).
+#[derive(Debug, Deserialize)]
+pub(crate) struct Asset {
+    pub version: String,
+}
+
+/// `accessors[i]`: a typed view into a buffer view.
+#[derive(Debug, Deserialize)]
+#[serde(rename_all = "camelCase")]
+pub(crate) struct Accessor {
+    /// `None` for all-zero accessors and for Draco-compressed attributes.
+    pub buffer_view: Option<usize>,
+    #[serde(default)]
+    pub byte_offset: usize,
+    /// 5120 BYTE, 5121 UNSIGNED_BYTE, 5122 SHORT, 5123 UNSIGNED_SHORT, 5125 UNSIGNED_INT, 5126 FLOAT.
+    pub component_type: u32,
+    /// Integer values map to [0, 1] (unsigned) or [−1, 1] (signed).
+    #[serde(default)]
+    pub normalized: bool,
+    pub count: usize,
+    /// `"SCALAR"`, `"VEC2"`, `"VEC3"`, `"VEC4"`, `"MAT2"`, `"MAT3"`, `"MAT4"`.
+    #[serde(rename = "type")]
+    pub kind: String,
+    pub sparse: Option<Sparse>,
+}
+
+/// `accessors[i].sparse`: values that replace some elements of the base accessor.
+#[derive(Debug, Deserialize)]
+pub(crate) struct Sparse {
+    pub count: usize,
+    pub indices: SparseIndices,
+    pub values: SparseValues,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(rename_all = "camelCase")]
+pub(crate) struct SparseIndices {
+    pub buffer_view: usize,
+    #[serde(default)]
+    pub byte_offset: usize,
+    pub component_type: u32,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(rename_all = "camelCase")]
+pub(crate) struct SparseValues {
+    pub buffer_view: usize,
+    #[serde(default)]
+    pub byte_offset: usize,
+}
+
+/// `bufferViews[i]`: a byte range of a buffer.
+#[derive(Debug, Deserialize)]
+#[serde(rename_all = "camelCase")]
+pub(crate) struct BufferView {
+    pub buffer: usize,
+    #[serde(default)]
+    pub byte_offset: usize,
+    pub byte_length: usize,
+    /// Bytes between the starts of consecutive elements; `None` = tightly packed.
+    pub byte_stride: Option<usize>,
+}
+
+/// `buffers[i]`: the GLB BIN chunk (no `uri`), a file next to the glTF, or a `data:` URI.
+#[derive(Debug, Deserialize)]
+#[serde(rename_all = "camelCase")]
+pub(crate) struct Buffer {
+    pub byte_length: usize,
+    pub uri: Option<String>,
+}
+
+/// `meshes[i]`.
+#[derive(Debug, Deserialize)]
+pub(crate) struct Mesh {
+    #[serde(default)]
+    pub primitives: Vec<Primitive>,
+}
+
+/// `meshes[i].primitives[j]`.
+#[derive(Debug, Deserialize)]
+pub(crate) struct Primitive {
+    /// Attribute semantic (`POSITION`, `_BATCHID`, `_FEATURE_ID_0`…) → accessor index.
+    #[serde(default)]
+    pub attributes: BTreeMap<String, usize>,
+    pub indices: Option<usize>,
+    /// 0 POINTS, 1 LINES, 2 LINE_LOOP, 3 LINE_STRIP, 4 TRIANGLES (default), 5 TRIANGLE_STRIP,
+    /// 6 TRIANGLE_FAN.
+    #[serde(default = "triangles_mode")]
+    pub mode: u32,
+    #[serde(default)]
+    pub extensions: BTreeMap<String, Value>,
+}
+
+fn triangles_mode() -> u32 {
+    4
+}
+
+/// `nodes[i]`: a transform (matrix, or translation · rotation · scale) with children and a mesh.
+#[derive(Debug, Deserialize)]
+pub(crate) struct Node {
+    #[serde(default)]
+    pub children: Vec<usize>,
+    pub mesh: Option<usize>,
+    /// Column-major 4×4.
+    pub matrix: Option<[f64; 16]>,
+    pub translation: Option<[f64; 3]>,
+    /// Unit quaternion `[x, y, z, w]`.
+    pub rotation: Option<[f64; 4]>,
+    pub scale: Option<[f64; 3]>,
+}
+
+/// `scenes[i]`.
+#[derive(Debug, Deserialize)]
+pub(crate) struct Scene {
+    #[serde(default)]
+    pub nodes: Vec<usize>,
+}
+
+/// `KHR_draco_mesh_compression` on a primitive.
+#[derive(Debug, Deserialize)]
+#[serde(rename_all = "camelCase")]
+struct DracoExtension {
+    buffer_view: usize,
+    /// Attribute semantic → Draco attribute unique id.
+    attributes: BTreeMap<String, u32>,
+}
+
+/// `EXT_mesh_features` on a primitive.
+#[derive(Debug, Deserialize)]
+#[serde(rename_all = "camelCase")]
+struct MeshFeatures {
+    #[serde(default)]
+    feature_ids: Vec<FeatureIdSet>,
+}
+
+/// One entry of `EXT_mesh_features.featureIds`.
+#[derive(Debug, Deserialize)]
+#[serde(rename_all = "camelCase")]
+struct FeatureIdSet {
+    feature_count: u64,
+    /// `n` for the vertex attribute `_FEATURE_ID_n`; `None` for texture or implicit IDs.
+    attribute: Option<u32>,
+    property_table: Option<usize>,
+    null_feature_id: Option<u64>,
+}
+
+/// `CESIUM_RTC` on the root: positions are relative to `center` (in the z-up tile frame).
+#[derive(Debug, Deserialize)]
+struct CesiumRtc {
+    center: [f64; 3],
+}
+
+/// Which table gives a primitive's feature IDs their meaning.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub(crate) enum TableKey {
+    /// The b3dm batch table (`_BATCHID`).
+    Batch,
+    /// `EXT_structural_metadata.propertyTables[i]`.
+    Property(usize),
+    /// `EXT_mesh_features` IDs without a property table (set index, feature count).
+    Anonymous(usize, u64),
+}
+
+/// Per-vertex feature IDs of one primitive; `None` marks the set's `nullFeatureId`.
+#[derive(Debug, Clone)]
+pub(crate) struct FeatureIds {
+    pub table: TableKey,
+    pub ids: Vec<Option<u32>>,
+}
+
+/// A primitive's triangles in its mesh's local frame.
+#[derive(Debug, Clone)]
+struct LocalPrimitive {
+    positions: Vec<[f64; 3]>,
+    triangles: Vec<[u32; 3]>,
+    features: Option<FeatureIds>,
+}
+
+/// A primitive instance with positions in the caller's frame (`outer · U · node · p`).
+#[derive(Debug, Clone)]
+pub(crate) struct WorldPrimitive {
+    pub positions: Vec<[f64; 3]>,
+    pub triangles: Vec<[u32; 3]>,
+    pub features: Option<FeatureIds>,
+}
+
+/// A parsed glTF asset with its buffers' bytes.
+pub(crate) struct Gltf<'a> {
+    pub root: Root,
+    pub buffers: Vec<Cow<'a, [u8]>>,
+}
+
+/// Splits a GLB and parses its JSON. `load_uri` loads buffers that have a `uri`.
+///
+/// # Errors
+/// A message saying what is wrong (the caller adds the file name).
+pub(crate) fn parse_glb<'a>(
+    bytes: &'a [u8],
+    load_uri: &dyn Fn(&str) -> Result<Vec<u8>, String>,
+) -> Result<Gltf<'a>, String> {
+    if bytes.len() >= 8 && &bytes[0..4] == b"glTF" {
+        let version = u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]);
+        if version != 2 {
+            return Err(format!(
+                "glTF version {version} content is not supported; only glTF 2.0 is (upgrade the tileset, \
+                 e.g. with `npx 3d-tiles-tools upgrade`)"
+            ));
+        }
+    }
+    let glb = gltf::Glb::from_slice(bytes).map_err(|e| format!("not a valid GLB: {e}"))?;
+    let root = parse_json(&glb.json)?;
+    let bin = glb.bin;
+    let mut buffers = Vec::with_capacity(root.buffers.len());
+    for (i, b) in root.buffers.iter().enumerate() {
+        match (&b.uri, i) {
+            (None, 0) => match &bin {
+                Some(bin) => buffers.push(bin.clone()),
+                None => return Err("buffers[0] has no uri but the GLB has no BIN chunk".into()),
+            },
+            (None, _) => return Err(format!("buffers[{i}] has no uri (only buffers[0] may use the BIN chunk)")),
+            (Some(uri), _) => buffers.push(Cow::Owned(load_buffer_uri(uri, load_uri)?)),
+        }
+    }
+    finish(root, buffers)
+}
+
+/// Parses a `.gltf` JSON asset; every buffer needs a `uri`.
+pub(crate) fn parse_gltf_json<'a>(
+    bytes: &[u8],
+    load_uri: &dyn Fn(&str) -> Result<Vec<u8>, String>,
+) -> Result<Gltf<'a>, String> {
+    let root = parse_json(bytes)?;
+    let mut buffers = Vec::with_capacity(root.buffers.len());
+    for (i, b) in root.buffers.iter().enumerate() {
+        match &b.uri {
+            Some(uri) => buffers.push(Cow::Owned(load_buffer_uri(uri, load_uri)?)),
+            None => return Err(format!("buffers[{i}] has no uri in a .gltf JSON asset")),
+        }
+    }
+    finish(root, buffers)
+}
+
+fn parse_json(json: &[u8]) -> Result<Root, String> {
+    // GLB pads the JSON chunk with spaces; some writers pad with NULs.
+    let end = json.iter().rposition(|&b| b != 0 && b != b' ').map_or(0, |i| i + 1);
+    let root: Root = serde_json::from_slice(&json[..end]).map_err(|e| format!("invalid glTF JSON: {e}"))?;
+    if let Some(asset) = &root.asset {
+        if !asset.version.starts_with("2.") {
+            return Err(format!("glTF asset.version {:?} is not supported; only glTF 2.0 is", asset.version));
+        }
+    }
+    Ok(root)
+}
+
+fn finish<'a>(root: Root, buffers: Vec<Cow<'a, [u8]>>) -> Result<Gltf<'a>, String> {
+    let unsupported: Vec<&str> = root
+        .extensions_required
+        .iter()
+        .map(String::as_str)
+        .filter(|e| !HANDLED_EXTENSIONS.contains(e) && !HANDLED_PREFIXES.iter().any(|p| e.starts_with(p)))
+        .collect();
+    if !unsupported.is_empty() {
+        return Err(format!(
+            "the glTF requires extension(s) {} that insgen cannot decode (supported: {})",
+            unsupported.join(", "),
+            HANDLED_EXTENSIONS.join(", ")
+        ));
+    }
+    let gltf = Gltf { root, buffers };
+    let problems = gltf.validate();
+    if !problems.is_empty() {
+        return Err(format!("invalid glTF ({} problem(s)): {}", problems.len(), problems.join("; ")));
+    }
+    Ok(gltf)
+}
+
+fn load_buffer_uri(uri: &str, load_uri: &dyn Fn(&str) -> Result<Vec<u8>, String>) -> Result<Vec<u8>, String> {
+    if let Some(rest) = uri.strip_prefix("data:") {
+        let (_, data) =
+            rest.split_once(";base64,").ok_or_else(|| format!("data URI buffer is not base64: {uri:.40}…"))?;
+        return base64_decode(data).ok_or_else(|| "data URI buffer holds invalid base64".to_string());
+    }
+    load_uri(uri)
+}
+
+/// Decodes standard base64 (with or without padding).
+fn base64_decode(s: &str) -> Option<Vec<u8>> {
+    let mut out = Vec::with_capacity(s.len() * 3 / 4);
+    let (mut acc, mut bits) = (0u32, 0u32);
+    for c in s.bytes().filter(|&c| c != b'=' && !c.is_ascii_whitespace()) {
+        let v = match c {
+            b'A'..=b'Z' => c - b'A',
+            b'a'..=b'z' => c - b'a' + 26,
+            b'0'..=b'9' => c - b'0' + 52,
+            b'+' | b'-' => 62,
+            b'/' | b'_' => 63,
+            _ => return None,
+        } as u32;
+        acc = (acc << 6) | v;
+        bits += 6;
+        if bits >= 8 {
+            bits -= 8;
+            out.push((acc >> bits) as u8);
+        }
+    }
+    Some(out)
+}
+
+/// Number of components of an accessor type.
+fn components(kind: &str) -> Option<usize> {
+    Some(match kind {
+        "SCALAR" => 1,
+        "VEC2" => 2,
+        "VEC3" => 3,
+        "VEC4" | "MAT2" => 4,
+        "MAT3" => 9,
+        "MAT4" => 16,
+        _ => return None,
+    })
+}
+
+/// Byte size of an accessor component type.
+fn component_size(component_type: u32) -> Option<usize> {
+    Some(match component_type {
+        5120 | 5121 => 1,
+        5122 | 5123 => 2,
+        5125 | 5126 => 4,
+        _ => return None,
+    })
+}
+
+/// Reads one component of type `component_type` at `bytes[0..size]`, normalising integers if asked.
+fn read_component(bytes: &[u8], component_type: u32, normalized: bool) -> f64 {
+    match component_type {
+        5120 => {
+            let v = bytes[0] as i8 as f64;
+            if normalized {
+                (v / 127.0).max(-1.0)
+            } else {
+                v
+            }
+        }
+        5121 => {
+            let v = bytes[0] as f64;
+            if normalized {
+                v / 255.0
+            } else {
+                v
+            }
+        }
+        5122 => {
+            let v = i16::from_le_bytes([bytes[0], bytes[1]]) as f64;
+            if normalized {
+                (v / 32767.0).max(-1.0)
+            } else {
+                v
+            }
+        }
+        5123 => {
+            let v = u16::from_le_bytes([bytes[0], bytes[1]]) as f64;
+            if normalized {
+                v / 65535.0
+            } else {
+                v
+            }
+        }
+        5125 => u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]]) as f64,
+        _ => f32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]]) as f64,
+    }
+}
+
+impl<'a> Gltf<'a> {
+    /// Checks every index and byte range; returns all problems, each prefixed by its JSON path.
+    fn validate(&self) -> Vec<String> {
+        let r = &self.root;
+        let mut p = Vec::new();
+        for (i, b) in r.buffers.iter().enumerate() {
+            let have = self.buffers[i].len();
+            if have < b.byte_length {
+                p.push(format!("buffers[{i}]: byteLength {} but only {have} bytes available", b.byte_length));
+            }
+        }
+        for (i, v) in r.buffer_views.iter().enumerate() {
+            match self.buffers.get(v.buffer) {
+                None => p.push(format!("bufferViews[{i}].buffer: buffer {} does not exist", v.buffer)),
+                Some(buf) => {
+                    if v.byte_offset.checked_add(v.byte_length).is_none_or(|end| end > buf.len()) {
+                        p.push(format!(
+                            "bufferViews[{i}]: bytes {}..+{} exceed buffer {} ({} bytes)",
+                            v.byte_offset,
+                            v.byte_length,
+                            v.buffer,
+                            buf.len()
+                        ));
+                    }
+                }
+            }
+            if let Some(s) = v.byte_stride {
+                if !(4..=252).contains(&s) || s % 4 != 0 {
+                    p.push(format!("bufferViews[{i}].byteStride: {s} is not a multiple of 4 in 4..=252"));
+                }
+            }
+        }
+        for (i, a) in r.accessors.iter().enumerate() {
+            let at = format!("accessors[{i}]");
+            let (Some(n), Some(size)) = (components(&a.kind), component_size(a.component_type)) else {
+                p.push(format!("{at}: unknown type {:?} / componentType {}", a.kind, a.component_type));
+                continue;
+            };
+            if let Some(bv) = a.buffer_view {
+                match r.buffer_views.get(bv) {
+                    None => p.push(format!("{at}.bufferView: bufferView {bv} does not exist")),
+                    Some(view) => {
+                        let stride = view.byte_stride.unwrap_or(n * size);
+                        let need = if a.count == 0 {
+                            Some(0)
+                        } else {
+                            (a.count - 1)
+                                .checked_mul(stride)
+                                .and_then(|x| x.checked_add(n * size))
+                                .and_then(|x| x.checked_add(a.byte_offset))
+                        };
+                        if need.is_none_or(|need| need > view.byte_length) {
+                            p.push(format!(
+                                "{at}: {} elements of {} bytes (stride {stride}) from offset {} exceed \
+                                 bufferView {bv} ({} bytes)",
+                                a.count,
+                                n * size,
+                                a.byte_offset,
+                                view.byte_length
+                            ));
+                        }
+                    }
+                }
+            }
+            if let Some(s) = &a.sparse {
+                let isize = match s.indices.component_type {
+                    5121 => 1,
+                    5123 => 2,
+                    5125 => 4,
+                    t => {
+                        p.push(format!("{at}.sparse.indices.componentType: {t} is not an unsigned integer"));
+                        continue;
+                    }
+                };
+                for (what, bv, off, len) in [
+                    ("indices", s.indices.buffer_view, s.indices.byte_offset, isize),
+                    ("values", s.values.buffer_view, s.values.byte_offset, n * size),
+                ] {
+                    match r.buffer_views.get(bv) {
+                        None => p.push(format!("{at}.sparse.{what}.bufferView: {bv} does not exist")),
+                        Some(view) => {
+                            if s.count.checked_mul(len).and_then(|x| x.checked_add(off)).is_none_or(|e| e > view.byte_length)
+                            {
+                                p.push(format!("{at}.sparse.{what}: {} entries exceed bufferView {bv}", s.count));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        for (m, mesh) in r.meshes.iter().enumerate() {
+            for (k, prim) in mesh.primitives.iter().enumerate() {
+                let at = format!("meshes[{m}].primitives[{k}]");
+                for (sem, &acc) in &prim.attributes {
+                    if acc >= r.accessors.len() {
+                        p.push(format!("{at}.attributes[\"{sem}\"]: accessor {acc} does not exist"));
+                    }
+                }
+                if let Some(acc) = prim.indices {
+                    if acc >= r.accessors.len() {
+                        p.push(format!("{at}.indices: accessor {acc} does not exist"));
+                    }
+                }
+            }
+        }
+        for (i, node) in r.nodes.iter().enumerate() {
+            for &c in &node.children {
+                if c >= r.nodes.len() {
+                    p.push(format!("nodes[{i}].children: node {c} does not exist"));
+                }
+            }
+            if let Some(m) = node.mesh {
+                if m >= r.meshes.len() {
+                    p.push(format!("nodes[{i}].mesh: mesh {m} does not exist"));
+                }
+            }
+            let finite = node.matrix.iter().flatten().all(|v| v.is_finite())
+                && node.translation.iter().flatten().all(|v| v.is_finite())
+                && node.rotation.iter().flatten().all(|v| v.is_finite())
+                && node.scale.iter().flatten().all(|v| v.is_finite());
+            if !finite {
+                p.push(format!("nodes[{i}]: transform has non-finite values"));
+            }
+        }
+        for (s, scene) in r.scenes.iter().enumerate() {
+            for &n in &scene.nodes {
+                if n >= r.nodes.len() {
+                    p.push(format!("scenes[{s}].nodes: node {n} does not exist"));
+                }
+            }
+        }
+        if let Some(s) = r.scene {
+            if s >= r.scenes.len() {
+                p.push(format!("scene: scene {s} does not exist"));
+            }
+        }
+        p
+    }
+
+    /// The `CESIUM_RTC.center` translation, if any.
+    pub(crate) fn cesium_rtc(&self) -> Result<Option<[f64; 3]>, String> {
+        match self.root.extensions.get("CESIUM_RTC") {
+            None => Ok(None),
+            Some(v) => {
+                let rtc: CesiumRtc = serde_json::from_value(v.clone())
+                    .map_err(|e| format!("extensions.CESIUM_RTC: expected {{\"center\": [x, y, z]}}: {e}"))?;
+                if rtc.center.iter().any(|c| !c.is_finite()) {
+                    return Err("extensions.CESIUM_RTC.center is not finite".into());
+                }
+                Ok(Some(rtc.center))
+            }
+        }
+    }
+
+    /// The bytes of `bufferViews[i]` (validated to lie inside its buffer).
+    pub(crate) fn view_bytes(&self, i: usize) -> Result<&[u8], String> {
+        let v = self.root.buffer_views.get(i).ok_or_else(|| format!("bufferView {i} does not exist"))?;
+        let buf = self.buffers.get(v.buffer).ok_or_else(|| format!("buffer {} does not exist", v.buffer))?;
+        buf.get(v.byte_offset..v.byte_offset + v.byte_length)
+            .ok_or_else(|| format!("bufferView {i} exceeds buffer {}", v.buffer))
+    }
+
+    /// Reads accessor `i` as `count × components` f64 values (normalised integers mapped to [0, 1] or
+    /// [−1, 1]; sparse substitutions applied). Byte ranges were checked by `validate`.
+    fn read_accessor(&self, i: usize) -> Result<(usize, Vec<f64>), String> {
+        let r = &self.root;
+        let a = r.accessors.get(i).ok_or_else(|| format!("accessor {i} does not exist"))?;
+        let n = components(&a.kind).ok_or_else(|| format!("accessors[{i}]: unknown type {:?}", a.kind))?;
+        let size = component_size(a.component_type)
+            .ok_or_else(|| format!("accessors[{i}]: unknown componentType {}", a.component_type))?;
+        let mut out = vec![0.0; a.count * n];
+        if let Some(bv) = a.buffer_view {
+            let stride = r.buffer_views[bv].byte_stride.unwrap_or(n * size);
+            let bytes = self.view_bytes(bv)?;
+            for (e, chunk) in out.chunks_exact_mut(n).enumerate() {
+                let start = a.byte_offset + e * stride;
+                for (c, slot) in chunk.iter_mut().enumerate() {
+                    let at = start + c * size;
+                    *slot = read_component(&bytes[at..at + size], a.component_type, a.normalized);
+                }
+            }
+        }
+        if let Some(s) = &a.sparse {
+            let idx_bytes = self.view_bytes(s.indices.buffer_view)?;
+            let val_bytes = self.view_bytes(s.values.buffer_view)?;
+            let isize = component_size(s.indices.component_type).unwrap_or(4);
+            for k in 0..s.count {
+                let at = s.indices.byte_offset + k * isize;
+                let e = read_component(&idx_bytes[at..at + isize], s.indices.component_type, false) as usize;
+                if e >= a.count {
+                    return Err(format!("accessors[{i}].sparse: index {e} ≥ count {}", a.count));
+                }
+                for c in 0..n {
+                    let at = s.values.byte_offset + (k * n + c) * size;
+                    out[e * n + c] = read_component(&val_bytes[at..at + size], a.component_type, a.normalized);
+                }
+            }
+        }
+        Ok((n, out))
+    }
+
+    /// All primitive instances of the default scene, with positions in `outer · up · node` frame.
+    /// Returns them with the number of primitives skipped because they are points or lines.
+    ///
+    /// # Errors
+    /// A message naming the glTF object that is wrong.
+    pub(crate) fn world_primitives(&self, outer: DMat4, up: UpAxis) -> Result<(Vec<WorldPrimitive>, u64), String> {
+        let r = &self.root;
+        let roots: Vec<usize> = match r.scene.or(if r.scenes.is_empty() { None } else { Some(0) }) {
+            Some(s) => r.scenes[s].nodes.clone(),
+            None => {
+                let mut is_child = vec![false; r.nodes.len()];
+                for n in &r.nodes {
+                    for &c in &n.children {
+                        is_child[c] = true;
+                    }
+                }
+                (0..r.nodes.len()).filter(|&i| !is_child[i]).collect()
+            }
+        };
+        let base = outer * up.to_z_up();
+        // Decoded primitives, by (mesh, primitive), shared by every node that instances the mesh.
+        let mut local: BTreeMap<(usize, usize), Option<LocalPrimitive>> = BTreeMap::new();
+        let mut out = Vec::new();
+        let mut skipped = 0u64;
+        // Depth-first over the node tree; `path` detects cycles.
+        let mut stack: Vec<(usize, DMat4, usize)> = roots.iter().rev().map(|&n| (n, base, 0)).collect();
+        while let Some((n, parent, depth)) = stack.pop() {
+            if depth > r.nodes.len() {
+                return Err(format!("nodes[{n}]: the node hierarchy has a cycle"));
+            }
+            let node = &r.nodes[n];
+            let world = parent * node_matrix(node);
+            if let Some(m) = node.mesh {
+                for k in 0..r.meshes[m].primitives.len() {
+                    if !local.contains_key(&(m, k)) {
+                        let decoded = self
+                            .local_primitive(m, k)
+                            .map_err(|e| format!("meshes[{m}].primitives[{k}]: {e}"))?;
+                        if decoded.is_none() {
+                            skipped += 1;
+                        }
+                        local.insert((m, k), decoded);
+                    }
+                    if let Some(Some(lp)) = local.get(&(m, k)) {
+                        let positions = lp
+                            .positions
+                            .iter()
+                            .map(|p| world.transform_point3(DVec3::from_array(*p)).to_array())
+                            .collect();
+                        out.push(WorldPrimitive {
+                            positions,
+                            triangles: lp.triangles.clone(),
+                            features: lp.features.clone(),
+                        });
+                    }
+                }
+            }
+            for &c in node.children.iter().rev() {
+                stack.push((c, world, depth + 1));
+            }
+        }
+        Ok((out, skipped))
+    }
+
+    /// Decodes one primitive in its local frame; `None` for points and lines.
+    fn local_primitive(&self, m: usize, k: usize) -> Result<Option<LocalPrimitive>, String> {
+        let prim = &self.root.meshes[m].primitives[k];
+        if !(4..=6).contains(&prim.mode) {
+            return Ok(None);
+        }
+        let feature_set = self.feature_set(prim)?;
+        let draco_ext = match prim.extensions.get("KHR_draco_mesh_compression") {
+            None => None,
+            Some(v) => Some(
+                serde_json::from_value::<DracoExtension>(v.clone())
+                    .map_err(|e| format!("extensions.KHR_draco_mesh_compression: {e}"))?,
+            ),
+        };
+
+        let (positions, triangles, mut feature_values) = match &draco_ext {
+            Some(ext) => {
+                let pos_id = *ext
+                    .attributes
+                    .get("POSITION")
+                    .ok_or("KHR_draco_mesh_compression.attributes has no POSITION")?;
+                let feature_attr = feature_set.as_ref().and_then(|(name, _, _)| ext.attributes.get(name).copied());
+                let bytes = self.view_bytes(ext.buffer_view)?;
+                let d = draco::decode(bytes, pos_id, feature_attr).map_err(|e| format!("Draco: {e}"))?;
+                (d.positions, d.triangles, d.scalar)
+            }
+            None => {
+                let acc = *prim.attributes.get("POSITION").ok_or("the primitive has no POSITION attribute")?;
+                let (n, flat) = self.read_accessor(acc)?;
+                if n != 3 {
+                    return Err(format!("POSITION accessor {acc} is not VEC3"));
+                }
+                let positions: Vec<[f64; 3]> = flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+                let indices: Vec<u32> = match prim.indices {
+                    Some(acc) => {
+                        let (n, flat) = self.read_accessor(acc)?;
+                        if n != 1 {
+                            return Err(format!("indices accessor {acc} is not SCALAR"));
+                        }
+                        flat.into_iter().map(|v| v as u32).collect()
+                    }
+                    None => (0..positions.len() as u32).collect(),
+                };
+                let triangles = assemble(&indices, prim.mode);
+                (positions, triangles, None)
+            }
+        };
+        if let Some(bad) = positions.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
+            return Err(format!("vertex {bad} has a non-finite position {:?}", positions[bad]));
+        }
+        let n_vertices = positions.len();
+        if let Some(t) = triangles.iter().find(|t| t.iter().any(|&i| i as usize >= n_vertices)) {
+            return Err(format!("triangle {t:?} refers past the {n_vertices} vertices"));
+        }
+
+        let features = match feature_set {
+            None => None,
+            Some((name, table, null_id)) => {
+                let values = match feature_values.take() {
+                    Some(v) => v,
+                    None => {
+                        let acc = prim.attributes[&name];
+                        let (n, flat) = self.read_accessor(acc)?;
+                        if n != 1 {
+                            return Err(format!("{name} accessor {acc} is not SCALAR"));
+                        }
+                        flat
+                    }
+                };
+                if values.len() != n_vertices {
+                    return Err(format!("{name} has {} values for {n_vertices} vertices", values.len()));
+                }
+                let mut ids = Vec::with_capacity(values.len());
+                for v in values {
+                    let id = v.round();
+                    if !(v.is_finite() && (v - id).abs() < 1e-3 && (0.0..=u32::MAX as f64).contains(&id)) {
+                        return Err(format!("{name} value {v} is not a feature ID (a non-negative integer)"));
+                    }
+                    ids.push(if Some(id as u64) == null_id { None } else { Some(id as u32) });
+                }
+                Some(FeatureIds { table, ids })
+            }
+        };
+        Ok(Some(LocalPrimitive { positions, triangles, features }))
+    }
+
+    /// Which attribute holds the primitive's feature IDs: the first `EXT_mesh_features` set stored in
+    /// a vertex attribute, else `_BATCHID` (or the pre-1.0 `BATCHID`).
+    /// Returns (attribute name, table, nullFeatureId).
+    fn feature_set(&self, prim: &Primitive) -> Result<Option<(String, TableKey, Option<u64>)>, String> {
+        if let Some(v) = prim.extensions.get("EXT_mesh_features") {
+            let mf: MeshFeatures =
+                serde_json::from_value(v.clone()).map_err(|e| format!("extensions.EXT_mesh_features: {e}"))?;
+            for (s, set) in mf.feature_ids.iter().enumerate() {
+                let Some(a) = set.attribute else { continue };
+                let name = format!("_FEATURE_ID_{a}");
+                let in_draco = prim
+                    .extensions
+                    .get("KHR_draco_mesh_compression")
+                    .and_then(|d| d.get("attributes"))
+                    .and_then(|a| a.get(&name))
+                    .is_some();
+                if !prim.attributes.contains_key(&name) && !in_draco {
+                    return Err(format!("EXT_mesh_features.featureIds[{s}] names attribute {name}, which is missing"));
+                }
+                let table = match set.property_table {
+                    Some(t) => TableKey::Property(t),
+                    None => TableKey::Anonymous(s, set.feature_count),
+                };
+                return Ok(Some((name, table, set.null_feature_id)));
+            }
+        }
+        for name in ["_BATCHID", "BATCHID"] {
+            if prim.attributes.contains_key(name) {
+                return Ok(Some((name.to_string(), TableKey::Batch, None)));
+            }
+        }
+        Ok(None)
+    }
+}
+
+/// A node's local matrix: `matrix`, or `T · R · S`.
+fn node_matrix(node: &Node) -> DMat4 {
+    if let Some(m) = node.matrix {
+        return DMat4::from_cols_array(&m);
+    }
+    let t = node.translation.map_or(DVec3::ZERO, DVec3::from_array);
+    let s = node.scale.map_or(DVec3::ONE, DVec3::from_array);
+    let r = node.rotation.map_or(DQuat::IDENTITY, |q| {
+        let q = DQuat::from_xyzw(q[0], q[1], q[2], q[3]);
+        if q.length_squared() > 0.0 {
+            q.normalize()
+        } else {
+            DQuat::IDENTITY
+        }
+    });
+    DMat4::from_scale_rotation_translation(s, r, t)
+}
+
+/// Turns an index list into triangles according to the primitive mode (4, 5 or 6).
+fn assemble(indices: &[u32], mode: u32) -> Vec<[u32; 3]> {
+    match mode {
+        5 => (0..indices.len().saturating_sub(2))
+            .map(|i| {
+                if i % 2 == 0 {
+                    [indices[i], indices[i + 1], indices[i + 2]]
+                } else {
+                    [indices[i + 1], indices[i], indices[i + 2]]
+                }
+            })
+            .collect(),
+        6 => (1..indices.len().saturating_sub(1)).map(|i| [indices[0], indices[i], indices[i + 1]]).collect(),
+        _ => indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn y_up_to_z_up() {
+        let p = UpAxis::Y.to_z_up().transform_point3(DVec3::new(1.0, 2.0, 3.0));
+        assert_eq!(p, DVec3::new(1.0, -3.0, 2.0));
+        let p = UpAxis::X.to_z_up().transform_point3(DVec3::new(1.0, 2.0, 3.0));
+        assert_eq!(p, DVec3::new(-3.0, 2.0, 1.0));
+    }
+
+    #[test]
+    fn strips_and_fans() {
+        assert_eq!(assemble(&[0, 1, 2, 3], 5), vec![[0, 1, 2], [2, 1, 3]]);
+        assert_eq!(assemble(&[0, 1, 2, 3], 6), vec![[0, 1, 2], [0, 2, 3]]);
+        assert_eq!(assemble(&[0, 1, 2, 3, 4], 4), vec![[0, 1, 2]]);
+    }
+
+    #[test]
+    fn base64() {
+        assert_eq!(base64_decode("aGVsbG8=").unwrap(), b"hello");
+        assert_eq!(base64_decode("aGVsbG8").unwrap(), b"hello");
+        assert!(base64_decode("a*b").is_none());
+    }
+
+    #[test]
+    fn trs_order() {
+        // Scale 2, rotate +90° about z, translate (10, 0, 0): (1, 0, 0) → (2, 0, 0) → (0, 2, 0) → (10, 2, 0).
+        let s = std::f64::consts::FRAC_1_SQRT_2;
+        let node = Node {
+            children: vec![],
+            mesh: None,
+            matrix: None,
+            translation: Some([10.0, 0.0, 0.0]),
+            rotation: Some([0.0, 0.0, s, s]),
+            scale: Some([2.0, 2.0, 2.0]),
+        };
+        let p = node_matrix(&node).transform_point3(DVec3::X);
+        assert!((p - DVec3::new(10.0, 2.0, 0.0)).length() < 1e-12, "{p}");
+    }
+
+    #[test]
+    fn normalized_components() {
+        assert_eq!(read_component(&[255], 5121, true), 1.0);
+        assert_eq!(read_component(&[0x80], 5120, true), -1.0);
+        assert_eq!(read_component(&[0xff, 0x7f], 5122, true), 1.0);
+        assert_eq!(read_component(&[7, 0], 5123, false), 7.0);
+    }
+}

@@ -1,0 +1,203 @@
+//! 3D Tiles 1.0/1.1 reader: a `tileset.json` (or one `.b3dm`/`.glb` content) → buildings in ECEF.
+//!
+//! Pipeline: [`tileset`] walks the tile tree (transforms, ADD/REPLACE, external tilesets) and lists
+//! the contents to read; [`content`] decodes each one — [`b3dm`] containers (feature and batch
+//! tables, `RTC_CENTER`), cmpt composites, GLB/glTF via [`gltf`] (node transforms, `CESIUM_RTC`,
+//! y-up → z-up, [`draco`] for `KHR_draco_mesh_compression`, `EXT_mesh_features` and
+//! [`metadata`] for `EXT_structural_metadata`) — and groups triangles per feature. Contents are
+//! decoded in parallel and assembled in traversal order, so the output does not depend on thread
+//! timing.
+//!
+//! # Buildings
+//! One [`SourceBuilding`] per feature: the feature ID (`_BATCHID`, or `_FEATURE_ID_n` of
+//! `EXT_mesh_features`) selects a row of the batch/property table whose `gml_id` (see
+//! [`features::ID_PROPERTIES`]) is the building's `source_id`. Features with the same id in several
+//! contents are merged into one building. LoD comes from `_lod`/`lod` (else `"unknown"`), the
+//! measured height from `bldg:measuredHeight`/`measuredHeight`/`height`. A feature without an id gets
+//! `"<content>#batch<N>"`; geometry without feature IDs is split into connected components
+//! ([`crate::lod::split::split_connected`], honouring [`ReadOptions::weld_tolerance_m`]) with ids
+//! `"<content>#cc<N>"`, where `<content>` is the content's path relative to the root tileset.
+//!
+//! # Frame
+//! Positions are ECEF metres ([`Frame::Ecef`]): for a vertex `p` of a node with global matrix `N`,
+//! `tile transforms · RTC_CENTER · CESIUM_RTC · (y-up → z-up) · N · p`, all in f64. A `.b3dm`/`.glb`
+//! read on its own has an identity tile transform.
+//!
+//! i3dm and pnts contents (instanced models, point clouds) are skipped and counted in
+//! [`TilesReport::unsupported_contents`].
+
+pub(crate) mod b3dm;
+pub(crate) mod content;
+pub(crate) mod draco;
+pub mod features;
+pub(crate) mod gltf;
+pub(crate) mod metadata;
+pub(crate) mod tileset;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use glam::DMat4;
+use rayon::prelude::*;
+
+use super::split::split_connected;
+use super::{Frame, Geometry, LodError, ReadOptions, ReadStats, SourceBuilding, SourceModel};
+use content::append;
+use tileset::ContentJob;
+
+/// What a tileset read did besides producing buildings (logged by [`read`]).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct TilesReport {
+    /// Tileset JSON files read (the root and any external tilesets).
+    pub tilesets_read: u64,
+    /// Tile contents decoded (cmpt inner tiles counted individually).
+    pub contents_read: u64,
+    /// Contents of REPLACE tiles with children, superseded by their children and not read.
+    pub contents_refined_away: u64,
+    /// i3dm/pnts contents skipped.
+    pub unsupported_contents: u64,
+    /// glTF primitives skipped because they are points or lines.
+    pub skipped_primitives: u64,
+    /// Triangles whose three vertices carry different feature IDs (assigned by the first vertex).
+    pub mixed_feature_triangles: u64,
+    /// Triangles on the `nullFeatureId` of `EXT_mesh_features` (dropped).
+    pub null_feature_triangles: u64,
+    /// Features whose id had already been seen in an earlier content and were merged into it.
+    pub merged_features: u64,
+    /// Buildings obtained by splitting ID-less geometry into connected components.
+    pub connected_component_buildings: u64,
+}
+
+/// Reads a tileset (`tileset.json`, following external tilesets) or a single `.b3dm`/`.glb`/`.cmpt`
+/// content into buildings in ECEF (see the module docs); the [`TilesReport`] is logged.
+///
+/// # Errors
+/// [`LodError`] naming the tileset or content file and what is wrong; nothing is returned when any
+/// content fails.
+pub fn read(path: &Path, opts: &ReadOptions) -> Result<SourceModel, LodError> {
+    let (model, report) = read_with_report(path, opts)?;
+    log::info!(
+        "{}: {} buildings from {} contents ({} tileset files, {} refined-away contents skipped)",
+        path.display(),
+        model.buildings.len(),
+        report.contents_read,
+        report.tilesets_read,
+        report.contents_refined_away
+    );
+    if report.mixed_feature_triangles > 0 {
+        log::warn!(
+            "{}: {} triangles have vertices of different features; each was given to its first vertex's",
+            path.display(),
+            report.mixed_feature_triangles
+        );
+    }
+    if report.unsupported_contents > 0 {
+        log::warn!("{}: skipped {} i3dm/pnts contents", path.display(), report.unsupported_contents);
+    }
+    Ok(model)
+}
+
+/// As [`read`], also returning the [`TilesReport`].
+///
+/// # Errors
+/// As [`read`].
+pub fn read_with_report(path: &Path, opts: &ReadOptions) -> Result<(SourceModel, TilesReport), LodError> {
+    if let Some(t) = opts.weld_tolerance_m {
+        if !(t.is_finite() && t >= 0.0) {
+            return Err(LodError::invalid(
+                path,
+                "weld_tolerance_m",
+                format!("weld tolerance {t} m must be a finite number ≥ 0"),
+            ));
+        }
+    }
+    let is_json = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    let mut report = TilesReport::default();
+    let jobs = if is_json {
+        let t = tileset::traverse(path)?;
+        report.tilesets_read = t.tilesets_read;
+        report.contents_refined_away = t.contents_skipped;
+        t.jobs
+    } else {
+        let label = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        vec![ContentJob {
+            file: path.to_path_buf(),
+            label,
+            at: path.display().to_string(),
+            world_from_tile: DMat4::IDENTITY,
+            up: gltf::UpAxis::Y,
+        }]
+    };
+
+    // Decode in parallel; keep traversal order and report the first failure in that order.
+    let decoded: Vec<Result<content::DecodedContent, LodError>> = jobs
+        .par_iter()
+        .map(|job| {
+            let bytes = crate::util::read_file(&job.file)?;
+            content::decode(&bytes, &job.file, &job.label, job.world_from_tile, job.up).map_err(|what| {
+                let what = if is_json { format!("{what} (tile content of {})", job.at) } else { what };
+                LodError::malformed(&job.file, what)
+            })
+        })
+        .collect();
+
+    let mut buildings: Vec<SourceBuilding> = Vec::new();
+    let mut index_of: BTreeMap<String, usize> = BTreeMap::new();
+    let mut counters = content::Counters::default();
+    for (job, result) in jobs.iter().zip(decoded) {
+        let c = result?;
+        counters.add(&c.counters);
+        for f in c.features {
+            match index_of.get(&f.source_id) {
+                Some(&k) => {
+                    report.merged_features += 1;
+                    let b = &mut buildings[k];
+                    if b.lod == "unknown" {
+                        if let Some(lod) = f.lod {
+                            b.lod = lod;
+                        }
+                    }
+                    b.measured_height_m = b.measured_height_m.or(f.measured_height_m);
+                    if let Geometry::Mesh(m) = &mut b.geometry {
+                        append(m, &f.mesh);
+                    }
+                }
+                None => {
+                    index_of.insert(f.source_id.clone(), buildings.len());
+                    buildings.push(SourceBuilding {
+                        source_id: f.source_id,
+                        lod: f.lod.unwrap_or_else(|| "unknown".to_string()),
+                        measured_height_m: f.measured_height_m,
+                        geometry: Geometry::Mesh(f.mesh),
+                    });
+                }
+            }
+        }
+        if !c.idless.triangles.is_empty() {
+            for (n, part) in split_connected(&c.idless, opts.weld_tolerance_m).into_iter().enumerate() {
+                report.connected_component_buildings += 1;
+                let id = format!("{}#cc{n}", job.label);
+                index_of.insert(id.clone(), buildings.len());
+                buildings.push(SourceBuilding {
+                    source_id: id,
+                    lod: "unknown".to_string(),
+                    measured_height_m: None,
+                    geometry: Geometry::Mesh(part),
+                });
+            }
+        }
+    }
+    report.contents_read = counters.contents_read;
+    report.unsupported_contents = counters.unsupported_contents;
+    report.skipped_primitives = counters.skipped_primitives;
+    report.mixed_feature_triangles = counters.mixed_feature_triangles;
+    report.null_feature_triangles = counters.null_feature_triangles;
+    let stats = ReadStats {
+        buildings_without_geometry: counters.features_without_geometry,
+        degenerate_faces: counters.degenerate_triangles,
+        faces: counters.triangles,
+        ..Default::default()
+    };
+    let model = SourceModel { path: path.to_path_buf(), frame: Frame::Ecef, buildings, stats };
+    Ok((model, report))
+}
