@@ -18,3 +18,5 @@ pub mod triangulate;
 pub use artifact::{BuildingRecord, Manifest, PreparedScene};
 pub use error::SceneError;
 pub use mesh::{SceneMesh, MAX_BUILDING_ID};
+pub mod glb;
+pub mod procedural;

@@ -1,0 +1,835 @@
+//! `scene.glb`: the instanced scene mesh as binary glTF 2.0, written and read back.
+//!
+//! # Frame and axes
+//! Positions are f32 metres in the area's ENU frame, relative to the area origin. glTF is y-up and
+//! right-handed, so the file stores glTF (x, y, z) = ENU (east, up, −north); [`read_glb`] undoes this
+//! (ENU = (x, −z, y)). Negation is exact in f32, so a write/read round trip is bit-exact.
+//!
+//! # Layout written by [`write_glb`]
+//! - one node (no transform) → one mesh → one triangle primitive with `u32` indices;
+//! - `POSITION` (VEC3 FLOAT, with the `min`/`max` glTF requires);
+//! - `_FEATURE_ID_0` (SCALAR FLOAT): the 24-bit building ID of each vertex. `EXT_mesh_features`
+//!   allows any component type for a feature ID attribute but core glTF has no 32-bit integer vertex
+//!   attributes; FLOAT holds every integer up to 2^24 exactly, i.e. every building ID
+//!   ([`MAX_BUILDING_ID`] = 2^24 − 1). The primitive declares it with
+//!   `EXT_mesh_features: {featureIds: [{featureCount, attribute: 0, nullFeatureId: 0, label: "building",
+//!   propertyTable: 0}]}`;
+//! - `EXT_structural_metadata`: a schema with class `building` (one STRING property `source_id`) and a
+//!   property table with one row per ID `0..=max ID` (row = building ID; rows of IDs without a
+//!   building, including the background row 0, hold the empty string), so a viewer that understands
+//!   the extension (CesiumJS, for one) shows the source identity of a picked building;
+//! - `COLOR_0` (VEC4 UNSIGNED_BYTE normalized): a flat colour per building from a hash of its ID
+//!   ([`building_colour`]), with an unlit (`KHR_materials_unlit`), double-sided material, so any glTF
+//!   viewer shows the instances.
+//!
+//! The JSON is serialised with sorted keys and the binary chunk is written in a fixed order, so
+//! identical input gives a byte-identical file.
+//!
+//! # References
+//! glTF 2.0 specification (Khronos), GLB container and accessor rules; `EXT_mesh_features` and
+//! `EXT_structural_metadata` (Cesium vendor extensions, glTF extension registry).
+
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use serde_json::{json, Value};
+
+use super::artifact::BuildingRecord;
+use super::mesh::{SceneMesh, MAX_BUILDING_ID};
+use crate::util::FileError;
+
+/// Errors of the GLB writer and reader; every variant names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum GlbError {
+    #[error(transparent)]
+    File(#[from] FileError),
+    /// The mesh or building table handed to [`write_glb`] cannot be written (inconsistent lengths,
+    /// out-of-range indices or IDs, non-finite coordinates, an ID missing from the table).
+    #[error("{}: cannot write the scene: {what}", path.display())]
+    BadInput { path: PathBuf, what: String },
+    /// The data does not fit the GLB container (32-bit lengths).
+    #[error("{}: the scene needs {bytes} bytes, more than a GLB file can hold (4 GiB); split the area", path.display())]
+    TooLarge { path: PathBuf, bytes: u64 },
+    /// The file is not a valid GLB/glTF document.
+    #[error("{}: not a valid binary glTF file", path.display())]
+    Parse {
+        path: PathBuf,
+        #[source]
+        source: gltf::Error,
+    },
+    /// The document is valid glTF but not an instanced scene insgen can read; `at` is a JSON path.
+    #[error("{}: {at}: {what}", path.display())]
+    Invalid { path: PathBuf, at: String, what: String },
+}
+
+/// glTF `componentType` codes (glTF 2.0, accessor.componentType).
+const COMPONENT_UNSIGNED_BYTE: u32 = 5121;
+const COMPONENT_UNSIGNED_INT: u32 = 5125;
+const COMPONENT_FLOAT: u32 = 5126;
+/// glTF bufferView `target` codes.
+const TARGET_ARRAY_BUFFER: u32 = 34962;
+const TARGET_ELEMENT_ARRAY_BUFFER: u32 = 34963;
+/// glTF primitive mode TRIANGLES.
+const MODE_TRIANGLES: u32 = 4;
+/// GLB chunk types and magic (glTF 2.0, "Binary glTF Layout").
+const GLB_MAGIC: &[u8; 4] = b"glTF";
+const CHUNK_JSON: u32 = 0x4E4F_534A;
+const CHUNK_BIN: u32 = 0x004E_4942;
+/// Alignment of buffer views: 4 bytes for vertex data (glTF), 8 bytes for property tables
+/// (`EXT_structural_metadata`, "Binary Data Storage"); 8 serves both.
+const VIEW_ALIGN: u64 = 8;
+
+/// Semantic of the feature ID attribute (`EXT_mesh_features`: `_FEATURE_ID_n`, set index 0).
+pub const FEATURE_ID_ATTRIBUTE: &str = "_FEATURE_ID_0";
+/// Label of the feature ID set and name of the metadata class.
+pub const FEATURE_LABEL: &str = "building";
+
+/// The flat display colour of a building (sRGB bytes), a deterministic hash of its ID.
+///
+/// Channels are kept in 56..=255 so that no building is near-black against a dark background.
+pub fn building_colour(id: u32) -> [u8; 3] {
+    // splitmix64 finaliser: neighbouring IDs get unrelated colours.
+    let mut z = u64::from(id).wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^= z >> 31;
+    let ch = |shift: u32| (56 + ((z >> shift) & 0xFF) * 199 / 255) as u8;
+    [ch(0), ch(8), ch(16)]
+}
+
+/// ENU metres → glTF y-up axes.
+#[inline]
+fn enu_to_gltf(p: [f32; 3]) -> [f32; 3] {
+    [p[0], p[2], -p[1]]
+}
+
+/// glTF y-up axes → ENU metres.
+#[inline]
+fn gltf_to_enu(p: [f32; 3]) -> [f32; 3] {
+    [p[0], -p[2], p[1]]
+}
+
+fn align_up(n: u64, a: u64) -> u64 {
+    n.div_ceil(a) * a
+}
+
+/// One buffer view of the binary chunk: where it goes and how it is filled.
+struct ViewPlan {
+    offset: u64,
+    length: u64,
+    target: Option<u32>,
+}
+
+/// Plans consecutive, aligned buffer views of the given lengths; returns them and the total length.
+fn plan_views(specs: &[(u64, Option<u32>)]) -> (Vec<ViewPlan>, u64) {
+    let mut offset = 0u64;
+    let mut out = Vec::with_capacity(specs.len());
+    for &(length, target) in specs {
+        offset = align_up(offset, VIEW_ALIGN);
+        out.push(ViewPlan { offset, length, target });
+        offset += length;
+    }
+    (out, align_up(offset, 4))
+}
+
+/// Checks the mesh and the building table before anything is written.
+fn check_input(path: &Path, mesh: &SceneMesh, buildings: &[BuildingRecord]) -> Result<(), GlbError> {
+    let bad = |what: String| GlbError::BadInput { path: path.to_path_buf(), what };
+    let n = mesh.positions_m.len();
+    if mesh.building_ids.len() != n {
+        return Err(bad(format!("{} positions but {} building IDs", n, mesh.building_ids.len())));
+    }
+    if mesh.indices.is_empty() {
+        return Err(bad("the mesh has no triangles".into()));
+    }
+    if mesh.indices.len() % 3 != 0 {
+        return Err(bad(format!("{} indices is not a multiple of 3", mesh.indices.len())));
+    }
+    // glTF forbids the largest index value (primitive restart), so at most u32::MAX vertices.
+    if n >= u32::MAX as usize {
+        return Err(bad(format!("{n} vertices: a u32-indexed primitive holds at most {}", u32::MAX - 1)));
+    }
+    if let Some((k, &i)) = mesh.indices.iter().enumerate().find(|(_, &i)| i as usize >= n) {
+        return Err(bad(format!("index {k} is {i}, but there are only {n} vertices")));
+    }
+    if let Some((k, p)) = mesh.positions_m.iter().enumerate().find(|(_, p)| !p.iter().all(|c| c.is_finite())) {
+        return Err(bad(format!("vertex {k} has a non-finite coordinate {p:?}")));
+    }
+    let mut known = BTreeMap::new();
+    for b in buildings {
+        if b.id == 0 || b.id > MAX_BUILDING_ID {
+            return Err(bad(format!(
+                "building {:?} has ID {}, outside 1..={MAX_BUILDING_ID}",
+                b.source_id, b.id
+            )));
+        }
+        if let Some(prev) = known.insert(b.id, &b.source_id) {
+            return Err(bad(format!("ID {} is used by both {prev:?} and {:?}", b.id, b.source_id)));
+        }
+    }
+    let mut last = u32::MAX;
+    for (k, &id) in mesh.building_ids.iter().enumerate() {
+        if id != last && !known.contains_key(&id) {
+            return Err(bad(format!("vertex {k} has building ID {id}, which is not in the building table")));
+        }
+        last = id;
+    }
+    Ok(())
+}
+
+/// Writes the instanced scene mesh as `scene.glb` (atomically).
+///
+/// `buildings` is the building table: every ID in `mesh.building_ids` must be in it; it fills the
+/// `EXT_structural_metadata` property table (ID → `source_id`). See the module doc for the layout.
+///
+/// # Units
+/// `mesh.positions_m` are ENU metres relative to the area origin; they are stored as glTF (x, y, z) =
+/// (east, up, −north).
+///
+/// # Errors
+/// [`GlbError::BadInput`] when the mesh is empty or inconsistent or an ID is not in `buildings`;
+/// [`GlbError::TooLarge`] past the 4 GiB GLB limit; [`GlbError::File`] on I/O failure (then `path` is
+/// left as it was).
+pub fn write_glb(path: &Path, mesh: &SceneMesh, buildings: &[BuildingRecord]) -> Result<(), GlbError> {
+    check_input(path, mesh, buildings)?;
+    let n_vertices = mesh.positions_m.len() as u64;
+    let n_indices = mesh.indices.len() as u64;
+
+    // Property table: row = building ID, rows 0..=max ID.
+    let source_ids: BTreeMap<u32, &str> = buildings.iter().map(|b| (b.id, b.source_id.as_str())).collect();
+    let max_id = mesh.building_ids.iter().copied().max().unwrap_or(0);
+    let table_rows = u64::from(max_id) + 1;
+    let string_bytes: u64 = (0..=max_id).map(|id| source_ids.get(&id).map_or(0, |s| s.len() as u64)).sum();
+    if string_bytes > u64::from(u32::MAX) {
+        return Err(GlbError::TooLarge { path: path.to_path_buf(), bytes: string_bytes });
+    }
+
+    let (views, bin_len) = plan_views(&[
+        (n_vertices * 12, Some(TARGET_ARRAY_BUFFER)),         // 0: POSITION
+        (n_vertices * 4, Some(TARGET_ARRAY_BUFFER)),          // 1: _FEATURE_ID_0
+        (n_vertices * 4, Some(TARGET_ARRAY_BUFFER)),          // 2: COLOR_0
+        (n_indices * 4, Some(TARGET_ELEMENT_ARRAY_BUFFER)),   // 3: indices
+        (string_bytes, None),                                 // 4: source_id string values
+        ((table_rows + 1) * 4, None),                         // 5: source_id string offsets (UINT32)
+    ]);
+
+    // Bounds in the glTF frame, as the validator recomputes them from the stored f32 values.
+    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+    for &p in &mesh.positions_m {
+        let g = enu_to_gltf(p);
+        for k in 0..3 {
+            lo[k] = lo[k].min(g[k]);
+            hi[k] = hi[k].max(g[k]);
+        }
+    }
+    let mut distinct: Vec<u32> = mesh.building_ids.clone();
+    distinct.sort_unstable();
+    distinct.dedup();
+    let feature_count = distinct.len() as u64;
+
+    let json = document_json(&views, bin_len, n_vertices, n_indices, table_rows, feature_count, lo, hi);
+    let mut json_bytes =
+        serde_json::to_vec(&json).map_err(|e| FileError::new("serialising glTF JSON for", path, e.into()))?;
+    while json_bytes.len() % 4 != 0 {
+        json_bytes.push(b' ');
+    }
+    let total = 12 + 8 + json_bytes.len() as u64 + 8 + bin_len;
+    if total > u64::from(u32::MAX) {
+        return Err(GlbError::TooLarge { path: path.to_path_buf(), bytes: total });
+    }
+
+    crate::util::write_atomic(path, |w| {
+        let io = |e: std::io::Error| GlbError::File(FileError::new("writing", path, e));
+        let mut written = 0u64;
+        w.write_all(GLB_MAGIC).map_err(io)?;
+        w.write_all(&2u32.to_le_bytes()).map_err(io)?;
+        w.write_all(&(total as u32).to_le_bytes()).map_err(io)?;
+        w.write_all(&(json_bytes.len() as u32).to_le_bytes()).map_err(io)?;
+        w.write_all(&CHUNK_JSON.to_le_bytes()).map_err(io)?;
+        w.write_all(&json_bytes).map_err(io)?;
+        w.write_all(&(bin_len as u32).to_le_bytes()).map_err(io)?;
+        w.write_all(&CHUNK_BIN.to_le_bytes()).map_err(io)?;
+
+        pad_to(w, &mut written, views[0].offset).map_err(io)?;
+        for &p in &mesh.positions_m {
+            for c in enu_to_gltf(p) {
+                w.write_all(&c.to_le_bytes()).map_err(io)?;
+            }
+        }
+        written += views[0].length;
+        pad_to(w, &mut written, views[1].offset).map_err(io)?;
+        for &id in &mesh.building_ids {
+            // Exact: id ≤ 2^24 − 1 (checked above).
+            w.write_all(&(id as f32).to_le_bytes()).map_err(io)?;
+        }
+        written += views[1].length;
+        pad_to(w, &mut written, views[2].offset).map_err(io)?;
+        let mut colour_of = (u32::MAX, [0u8; 4]);
+        for &id in &mesh.building_ids {
+            if id != colour_of.0 {
+                let [r, g, b] = building_colour(id);
+                colour_of = (id, [r, g, b, 255]);
+            }
+            w.write_all(&colour_of.1).map_err(io)?;
+        }
+        written += views[2].length;
+        pad_to(w, &mut written, views[3].offset).map_err(io)?;
+        for &i in &mesh.indices {
+            w.write_all(&i.to_le_bytes()).map_err(io)?;
+        }
+        written += views[3].length;
+        pad_to(w, &mut written, views[4].offset).map_err(io)?;
+        for id in 0..=max_id {
+            if let Some(s) = source_ids.get(&id) {
+                w.write_all(s.as_bytes()).map_err(io)?;
+            }
+        }
+        written += views[4].length;
+        pad_to(w, &mut written, views[5].offset).map_err(io)?;
+        let mut offset = 0u32;
+        w.write_all(&offset.to_le_bytes()).map_err(io)?;
+        for id in 0..=max_id {
+            // Cannot overflow: the sum of all lengths was checked against u32::MAX.
+            offset += source_ids.get(&id).map_or(0, |s| s.len() as u32);
+            w.write_all(&offset.to_le_bytes()).map_err(io)?;
+        }
+        written += views[5].length;
+        pad_to(w, &mut written, bin_len).map_err(io)?;
+        Ok(())
+    })
+}
+
+/// Writes zero bytes until `written` reaches `target` (alignment padding inside the BIN chunk).
+fn pad_to(w: &mut dyn Write, written: &mut u64, target: u64) -> std::io::Result<()> {
+    while *written < target {
+        w.write_all(&[0])?;
+        *written += 1;
+    }
+    Ok(())
+}
+
+/// The glTF JSON document for the planned binary chunk.
+#[allow(clippy::too_many_arguments)]
+fn document_json(
+    views: &[ViewPlan],
+    bin_len: u64,
+    n_vertices: u64,
+    n_indices: u64,
+    table_rows: u64,
+    feature_count: u64,
+    lo: [f32; 3],
+    hi: [f32; 3],
+) -> Value {
+    let buffer_views: Vec<Value> = views
+        .iter()
+        .map(|v| {
+            let mut o = json!({"buffer": 0, "byteOffset": v.offset, "byteLength": v.length});
+            if let Some(t) = v.target {
+                o["target"] = json!(t);
+            }
+            o
+        })
+        .collect();
+    // min/max as the f64 value of each f32, so they equal the stored data exactly whichever
+    // precision the reader compares in.
+    let f64s = |a: [f32; 3]| a.map(f64::from).to_vec();
+    json!({
+        "asset": {
+            "version": "2.0",
+            "generator": concat!("insgen ", env!("CARGO_PKG_VERSION")),
+            "extras": {
+                "frame": "area ENU metres relative to the origin in manifest.json; \
+                          glTF (x, y, z) = (east, up, -north)"
+            }
+        },
+        "extensionsUsed": ["EXT_mesh_features", "EXT_structural_metadata", "KHR_materials_unlit"],
+        "extensions": {
+            "EXT_structural_metadata": {
+                "schema": {
+                    "id": "insgen",
+                    "classes": {
+                        FEATURE_LABEL: {
+                            "description": "One building instance; the row index is its 24-bit ID",
+                            "properties": {
+                                "source_id": {
+                                    "type": "STRING",
+                                    "description": "gml:id, CityJSON key or other identity in the source"
+                                }
+                            }
+                        }
+                    }
+                },
+                "propertyTables": [{
+                    "name": "buildings",
+                    "class": FEATURE_LABEL,
+                    "count": table_rows,
+                    "properties": {
+                        "source_id": {"values": 4, "stringOffsets": 5, "stringOffsetType": "UINT32"}
+                    }
+                }]
+            }
+        },
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"name": "buildings", "mesh": 0}],
+        "meshes": [{
+            "name": "buildings",
+            "primitives": [{
+                "attributes": {"POSITION": 0, FEATURE_ID_ATTRIBUTE: 1, "COLOR_0": 2},
+                "indices": 3,
+                "material": 0,
+                "mode": MODE_TRIANGLES,
+                "extensions": {
+                    "EXT_mesh_features": {
+                        "featureIds": [{
+                            "featureCount": feature_count,
+                            "attribute": 0,
+                            "nullFeatureId": 0,
+                            "label": FEATURE_LABEL,
+                            "propertyTable": 0
+                        }]
+                    }
+                }
+            }]
+        }],
+        "materials": [{
+            "name": "building_ids_unlit",
+            "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0,
+                                     "roughnessFactor": 1.0},
+            "doubleSided": true,
+            "extensions": {"KHR_materials_unlit": {}}
+        }],
+        "accessors": [
+            {"bufferView": 0, "componentType": COMPONENT_FLOAT, "count": n_vertices, "type": "VEC3",
+             "min": f64s(lo), "max": f64s(hi)},
+            {"bufferView": 1, "componentType": COMPONENT_FLOAT, "count": n_vertices, "type": "SCALAR"},
+            {"bufferView": 2, "componentType": COMPONENT_UNSIGNED_BYTE, "normalized": true,
+             "count": n_vertices, "type": "VEC4"},
+            {"bufferView": 3, "componentType": COMPONENT_UNSIGNED_INT, "count": n_indices, "type": "SCALAR"}
+        ],
+        "bufferViews": buffer_views,
+        "buffers": [{"byteLength": bin_len}]
+    })
+}
+
+/// The part of a primitive's JSON that the `gltf` crate does not keep (extensions it does not know).
+#[derive(serde::Deserialize, Default)]
+struct RawRoot {
+    #[serde(default)]
+    meshes: Vec<RawMesh>,
+}
+#[derive(serde::Deserialize, Default)]
+struct RawMesh {
+    #[serde(default)]
+    primitives: Vec<RawPrimitive>,
+}
+#[derive(serde::Deserialize, Default)]
+struct RawPrimitive {
+    #[serde(default)]
+    extensions: Option<RawPrimitiveExtensions>,
+}
+#[derive(serde::Deserialize, Default)]
+struct RawPrimitiveExtensions {
+    #[serde(rename = "EXT_mesh_features")]
+    mesh_features: Option<RawMeshFeatures>,
+}
+/// `EXT_mesh_features` on a primitive (only the fields the reader uses).
+#[derive(serde::Deserialize, Default)]
+struct RawMeshFeatures {
+    #[serde(rename = "featureIds", default)]
+    feature_ids: Vec<RawFeatureId>,
+}
+#[derive(serde::Deserialize, Default)]
+struct RawFeatureId {
+    /// Set index `n` of the `_FEATURE_ID_n` attribute.
+    attribute: Option<u32>,
+    label: Option<String>,
+    #[serde(rename = "nullFeatureId")]
+    null_feature_id: Option<u64>,
+}
+
+/// A located accessor: its bytes in the binary chunk.
+struct AccessorBytes<'a> {
+    data: &'a [u8],
+    stride: usize,
+    count: usize,
+}
+
+/// Resolves an accessor to a byte range of the BIN chunk, checking every bound.
+fn accessor_bytes<'a>(
+    path: &Path,
+    at: &str,
+    acc: &gltf::Accessor<'_>,
+    bin: &'a [u8],
+    elem_size: usize,
+) -> Result<AccessorBytes<'a>, GlbError> {
+    let invalid = |what: String| GlbError::Invalid { path: path.to_path_buf(), at: at.to_string(), what };
+    if acc.sparse().is_some() {
+        return Err(invalid("sparse accessors are not supported".into()));
+    }
+    let view = acc.view().ok_or_else(|| invalid("accessor has no bufferView".into()))?;
+    if !matches!(view.buffer().source(), gltf::buffer::Source::Bin) {
+        return Err(invalid("data in an external buffer; scene.glb must be self-contained".into()));
+    }
+    let stride = view.stride().unwrap_or(elem_size);
+    if stride < elem_size {
+        return Err(invalid(format!("byteStride {stride} is smaller than the element size {elem_size}")));
+    }
+    let count = acc.count();
+    let start = view.offset() as u64 + acc.offset() as u64;
+    let need = if count == 0 { 0 } else { (count as u64 - 1) * stride as u64 + elem_size as u64 };
+    let view_end = view.offset() as u64 + view.length() as u64;
+    if start + need > view_end || view_end > bin.len() as u64 {
+        return Err(invalid(format!(
+            "{count} elements of {elem_size} bytes (stride {stride}) at byte {start} overrun the buffer view \
+             (ends at {view_end}) or the binary chunk ({} bytes)",
+            bin.len()
+        )));
+    }
+    let data = &bin[start as usize..(start + need) as usize];
+    Ok(AccessorBytes { data, stride, count })
+}
+
+fn le_f32(b: &[u8]) -> f32 {
+    f32::from_le_bytes([b[0], b[1], b[2], b[3]])
+}
+
+/// Decodes a VEC3 FLOAT position accessor, converting to ENU.
+fn read_positions(
+    path: &Path,
+    at: &str,
+    acc: &gltf::Accessor<'_>,
+    bin: &[u8],
+    transform: Option<&[[f64; 4]; 4]>,
+    out: &mut Vec<[f32; 3]>,
+) -> Result<(), GlbError> {
+    use gltf::accessor::{DataType, Dimensions};
+    if acc.data_type() != DataType::F32 || acc.dimensions() != Dimensions::Vec3 || acc.normalized() {
+        return Err(GlbError::Invalid {
+            path: path.to_path_buf(),
+            at: at.to_string(),
+            what: format!(
+                "POSITION must be VEC3 FLOAT (quantized positions are not supported), found {:?} {:?}",
+                acc.dimensions(),
+                acc.data_type()
+            ),
+        });
+    }
+    let a = accessor_bytes(path, at, acc, bin, 12)?;
+    out.reserve(a.count);
+    let elems = (0..a.count).map(|k| &a.data[k * a.stride..k * a.stride + 12]);
+    match transform {
+        None => out.extend(elems.map(|e| gltf_to_enu([le_f32(&e[0..4]), le_f32(&e[4..8]), le_f32(&e[8..12])]))),
+        Some(m) => out.extend(elems.map(|e| {
+            let p = [le_f32(&e[0..4]), le_f32(&e[4..8]), le_f32(&e[8..12])].map(f64::from);
+            // Column-major 4×4 (glTF): world = M · [p, 1].
+            let g: [f64; 3] =
+                std::array::from_fn(|r| m[0][r] * p[0] + m[1][r] * p[1] + m[2][r] * p[2] + m[3][r]);
+            gltf_to_enu(g.map(|c| c as f32))
+        })),
+    }
+    Ok(())
+}
+
+/// Decodes a SCALAR feature ID accessor into building IDs (1..=MAX_BUILDING_ID).
+fn read_feature_ids(
+    path: &Path,
+    at: &str,
+    acc: &gltf::Accessor<'_>,
+    bin: &[u8],
+    null_id: Option<u64>,
+    out: &mut Vec<u32>,
+) -> Result<(), GlbError> {
+    use gltf::accessor::{DataType, Dimensions};
+    let invalid = |what: String| GlbError::Invalid { path: path.to_path_buf(), at: at.to_string(), what };
+    if acc.dimensions() != Dimensions::Scalar || acc.normalized() {
+        return Err(invalid("a feature ID attribute must be SCALAR and not normalized".into()));
+    }
+    let size = match acc.data_type() {
+        DataType::U8 => 1,
+        DataType::U16 => 2,
+        DataType::U32 | DataType::F32 => 4,
+        other => return Err(invalid(format!("feature IDs of component type {other:?} are not supported"))),
+    };
+    let a = accessor_bytes(path, at, acc, bin, size)?;
+    let first = out.len();
+    out.reserve(a.count);
+    let elems = (0..a.count).map(|k| &a.data[k * a.stride..k * a.stride + size]);
+    match acc.data_type() {
+        DataType::U8 => out.extend(elems.map(|e| u32::from(e[0]))),
+        DataType::U16 => out.extend(elems.map(|e| u32::from(u16::from_le_bytes([e[0], e[1]])))),
+        DataType::U32 => out.extend(elems.map(|e| u32::from_le_bytes([e[0], e[1], e[2], e[3]]))),
+        _ => {
+            for (k, e) in elems.enumerate() {
+                let v = le_f32(e);
+                if !(v >= 1.0 && v <= MAX_BUILDING_ID as f32 && v.fract() == 0.0) {
+                    return Err(invalid(format!(
+                        "vertex {k}: feature ID {v} is not a building ID (an integer in 1..={MAX_BUILDING_ID})"
+                    )));
+                }
+                out.push(v as u32);
+            }
+        }
+    }
+    if let Some((k, &id)) =
+        out[first..].iter().enumerate().find(|(_, &id)| id == 0 || id > MAX_BUILDING_ID || Some(u64::from(id)) == null_id)
+    {
+        return Err(invalid(format!(
+            "vertex {k}: feature ID {id} is not a building ID (1..={MAX_BUILDING_ID}, not the null ID)"
+        )));
+    }
+    Ok(())
+}
+
+/// Decodes an index accessor (u8/u16/u32), offset by `base`, checking each index against `n_vertices`.
+fn read_indices(
+    path: &Path,
+    at: &str,
+    acc: &gltf::Accessor<'_>,
+    bin: &[u8],
+    base: u32,
+    n_vertices: usize,
+    out: &mut Vec<u32>,
+) -> Result<(), GlbError> {
+    use gltf::accessor::{DataType, Dimensions};
+    let invalid = |what: String| GlbError::Invalid { path: path.to_path_buf(), at: at.to_string(), what };
+    let size = match (acc.dimensions(), acc.data_type()) {
+        (Dimensions::Scalar, DataType::U8) => 1,
+        (Dimensions::Scalar, DataType::U16) => 2,
+        (Dimensions::Scalar, DataType::U32) => 4,
+        (d, t) => return Err(invalid(format!("indices must be SCALAR unsigned integers, found {d:?} {t:?}"))),
+    };
+    let a = accessor_bytes(path, at, acc, bin, size)?;
+    if a.count % 3 != 0 {
+        return Err(invalid(format!("{} indices is not a multiple of 3 (TRIANGLES)", a.count)));
+    }
+    let first = out.len();
+    out.reserve(a.count);
+    let elems = (0..a.count).map(|k| &a.data[k * a.stride..k * a.stride + size]);
+    match size {
+        1 => out.extend(elems.map(|e| u32::from(e[0]))),
+        2 => out.extend(elems.map(|e| u32::from(u16::from_le_bytes([e[0], e[1]])))),
+        _ => out.extend(elems.map(|e| u32::from_le_bytes([e[0], e[1], e[2], e[3]]))),
+    }
+    if let Some((k, &i)) = out[first..].iter().enumerate().find(|(_, &i)| i as usize >= n_vertices) {
+        return Err(invalid(format!("index {k} is {i}, but the primitive has {n_vertices} vertices")));
+    }
+    if base != 0 {
+        for i in &mut out[first..] {
+            *i += base;
+        }
+    }
+    Ok(())
+}
+
+/// Product of two column-major 4×4 matrices.
+fn mat_mul(a: &[[f64; 4]; 4], b: &[[f64; 4]; 4]) -> [[f64; 4]; 4] {
+    std::array::from_fn(|c| std::array::from_fn(|r| (0..4).map(|k| a[k][r] * b[c][k]).sum()))
+}
+
+const IDENTITY: [[f64; 4]; 4] =
+    [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
+
+/// Reads `scene.glb` back into a [`SceneMesh`] (ENU metres, per-vertex building IDs).
+///
+/// Reads what [`write_glb`] writes, and more generally any self-contained GLB whose triangle
+/// primitives carry an `EXT_mesh_features` feature ID attribute (the set labelled `building`, else the
+/// first attribute-based set) with IDs in 1..=2^24−1: all meshes of the default scene are
+/// concatenated, node transforms applied. Decoding is a straight pass over the binary chunk.
+///
+/// # Units
+/// Positions come back as ENU metres relative to the area origin (glTF (x, y, z) → (x, −z, y)).
+///
+/// # Errors
+/// [`GlbError::File`] if the file cannot be read, [`GlbError::Parse`] if it is not valid GLB/glTF,
+/// [`GlbError::Invalid`] (with the JSON path) if a primitive is not triangles, has no feature IDs,
+/// uses unsupported encodings (sparse, quantized, Draco, external buffers) or has out-of-range data.
+pub fn read_glb(path: &Path) -> Result<SceneMesh, GlbError> {
+    let bytes = crate::util::read_file(path)?;
+    let parse = |source: gltf::Error| GlbError::Parse { path: path.to_path_buf(), source };
+    let glb = gltf::Glb::from_slice(&bytes).map_err(parse)?;
+    let root: gltf::json::Root =
+        gltf::json::deserialize::from_slice(&glb.json).map_err(|e| parse(gltf::Error::Deserialize(e)))?;
+    let doc = gltf::Document::from_json(root).map_err(parse)?;
+    let raw: RawRoot = serde_json::from_slice(&glb.json).map_err(|e| GlbError::Invalid {
+        path: path.to_path_buf(),
+        at: "meshes[*].primitives[*].extensions".into(),
+        what: format!("unexpected EXT_mesh_features content: {e}"),
+    })?;
+    let bin: &[u8] = glb.bin.as_deref().unwrap_or(&[]);
+    let invalid =
+        |at: String, what: String| GlbError::Invalid { path: path.to_path_buf(), at, what };
+
+    let scene = doc
+        .default_scene()
+        .or_else(|| doc.scenes().next())
+        .ok_or_else(|| invalid("scenes".into(), "the file has no scene".into()))?;
+    // Depth-first over the scene graph, with world transforms (None = identity, kept exact).
+    let mut stack: Vec<(gltf::Node<'_>, [[f64; 4]; 4])> = scene.nodes().map(|n| (n, IDENTITY)).collect();
+    stack.reverse();
+    let mut mesh = SceneMesh::default();
+    while let Some((node, parent)) = stack.pop() {
+        let local = node.transform().matrix().map(|c| c.map(f64::from));
+        let world = if local == IDENTITY { parent } else { mat_mul(&parent, &local) };
+        for child in node.children().collect::<Vec<_>>().into_iter().rev() {
+            stack.push((child, world));
+        }
+        let Some(m) = node.mesh() else { continue };
+        let transform = if world == IDENTITY { None } else { Some(&world) };
+        for prim in m.primitives() {
+            let at = format!("meshes[{}].primitives[{}]", m.index(), prim.index());
+            if prim.mode() != gltf::mesh::Mode::Triangles {
+                return Err(invalid(at, format!("mode {:?}: only TRIANGLES are supported", prim.mode())));
+            }
+            let features = raw
+                .meshes
+                .get(m.index())
+                .and_then(|rm| rm.primitives.get(prim.index()))
+                .and_then(|rp| rp.extensions.as_ref())
+                .and_then(|e| e.mesh_features.as_ref());
+            let set = features.and_then(|f| {
+                let with_attr = || f.feature_ids.iter().filter(|s| s.attribute.is_some());
+                with_attr().find(|s| s.label.as_deref() == Some(FEATURE_LABEL)).or_else(|| with_attr().next())
+            });
+            let Some(set) = set else {
+                return Err(invalid(
+                    at,
+                    "no EXT_mesh_features feature ID attribute: building IDs are missing (was this file \
+                     written by `insgen prepare`?)"
+                        .into(),
+                ));
+            };
+            // Checked above: the set has an attribute.
+            let attr_name = format!("_FEATURE_ID_{}", set.attribute.unwrap_or(0));
+            let mut pos_acc = None;
+            let mut id_acc = None;
+            for (sem, acc) in prim.attributes() {
+                match sem {
+                    gltf::Semantic::Positions => pos_acc = Some(acc),
+                    gltf::Semantic::Extras(name) if format!("_{name}") == attr_name => id_acc = Some(acc),
+                    _ => {}
+                }
+            }
+            let pos_acc =
+                pos_acc.ok_or_else(|| invalid(format!("{at}.attributes"), "no POSITION attribute".into()))?;
+            let id_acc = id_acc.ok_or_else(|| {
+                invalid(format!("{at}.attributes"), format!("EXT_mesh_features names {attr_name}, which is absent"))
+            })?;
+            if pos_acc.count() != id_acc.count() {
+                return Err(invalid(
+                    format!("{at}.attributes"),
+                    format!("{} positions but {} feature IDs", pos_acc.count(), id_acc.count()),
+                ));
+            }
+            let base = mesh.positions_m.len();
+            if base + pos_acc.count() >= u32::MAX as usize {
+                return Err(invalid(at, "more than 2^32 − 1 vertices in total".into()));
+            }
+            read_positions(
+                path,
+                &format!("{at}.attributes[\"POSITION\"]"),
+                &pos_acc,
+                bin,
+                transform,
+                &mut mesh.positions_m,
+            )?;
+            read_feature_ids(
+                path,
+                &format!("{at}.attributes[\"{attr_name}\"]"),
+                &id_acc,
+                bin,
+                set.null_feature_id,
+                &mut mesh.building_ids,
+            )?;
+            let n = pos_acc.count();
+            match prim.indices() {
+                Some(acc) => {
+                    read_indices(path, &format!("{at}.indices"), &acc, bin, base as u32, n, &mut mesh.indices)?
+                }
+                None => {
+                    if n % 3 != 0 {
+                        return Err(invalid(at, format!("{n} vertices without indices is not whole triangles")));
+                    }
+                    mesh.indices.extend(base as u32..(base + n) as u32);
+                }
+            }
+        }
+    }
+    if mesh.indices.is_empty() {
+        return Err(invalid("meshes".into(), "the scene has no triangles".into()));
+    }
+    Ok(mesh)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    mod axes {
+        use super::*;
+
+        #[test]
+        fn enu_to_gltf_is_y_up_and_right_handed() {
+            // East stays x, up becomes y, north becomes −z (glTF's "forward" is +z toward the viewer).
+            assert_eq!(enu_to_gltf([1.0, 0.0, 0.0]), [1.0, 0.0, 0.0]);
+            assert_eq!(enu_to_gltf([0.0, 1.0, 0.0]), [0.0, 0.0, -1.0]);
+            assert_eq!(enu_to_gltf([0.0, 0.0, 1.0]), [0.0, 1.0, 0.0]);
+            // A rotation (determinant +1): handedness is preserved, so no triangle flips its winding.
+            let m = [enu_to_gltf([1.0, 0.0, 0.0]), enu_to_gltf([0.0, 1.0, 0.0]), enu_to_gltf([0.0, 0.0, 1.0])];
+            let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+                - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+                + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+            assert_eq!(det, 1.0);
+        }
+
+        #[test]
+        fn gltf_to_enu_inverts_exactly() {
+            for p in [[1.5f32, -2.25, 1e6], [-0.0, 0.0, 3.3], [f32::MIN_POSITIVE, -7.1, 123.456]] {
+                let back = gltf_to_enu(enu_to_gltf(p));
+                assert_eq!(back.map(f32::to_bits), p.map(f32::to_bits));
+            }
+        }
+    }
+
+    mod colour {
+        use super::*;
+
+        #[test]
+        fn deterministic_and_not_dark() {
+            assert_eq!(building_colour(17), building_colour(17));
+            for id in 1..2000 {
+                let c = building_colour(id);
+                assert!(c.iter().all(|&v| v >= 56), "id {id}: {c:?}");
+            }
+        }
+
+        #[test]
+        fn neighbours_differ() {
+            let distinct: std::collections::BTreeSet<[u8; 3]> = (1..=1000).map(building_colour).collect();
+            assert!(distinct.len() > 990, "{} distinct colours for 1000 IDs", distinct.len());
+        }
+    }
+
+    mod layout {
+        use super::*;
+
+        #[test]
+        fn views_are_8_byte_aligned_and_disjoint() {
+            let (v, total) = plan_views(&[(12 * 3, None), (4 * 3, None), (5, None), (4, None)]);
+            assert_eq!(v.iter().map(|v| v.offset).collect::<Vec<_>>(), vec![0, 40, 56, 64]);
+            assert_eq!(total, 68);
+        }
+
+        #[test]
+        fn matrix_product_column_major() {
+            // Translation by (1, 2, 3) then scale 2: T·S maps (1, 1, 1) to (3, 4, 5).
+            let t = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [1.0, 2.0, 3.0, 1.0]];
+            let s = [[2.0, 0.0, 0.0, 0.0], [0.0, 2.0, 0.0, 0.0], [0.0, 0.0, 2.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
+            let m = mat_mul(&t, &s);
+            let p = [1.0, 1.0, 1.0];
+            let out: [f64; 3] = std::array::from_fn(|r| m[0][r] * p[0] + m[1][r] * p[1] + m[2][r] * p[2] + m[3][r]);
+            assert_eq!(out, [3.0, 4.0, 5.0]);
+        }
+    }
+}
