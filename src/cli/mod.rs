@@ -8,6 +8,7 @@
 pub mod inspect;
 pub mod prepare;
 pub mod progress;
+pub mod render_masks;
 
 use std::path::PathBuf;
 

@@ -2,6 +2,9 @@
 
 pub mod components;
 pub mod instances;
+pub mod idpng;
+pub mod overlay;
+pub mod stage;
 
 pub use components::{label_components, Component, Connectivity, Labelling};
 pub use instances::{FrameInstances, InstanceEntry};

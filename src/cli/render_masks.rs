@@ -1,0 +1,232 @@
+//! `insgen render-masks`: instance-ID maps and instance lists for every sampled frame.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Context};
+
+use crate::label::stage::{self, MaskPlan, Shard, DEFAULT_MIN_AREA_PX};
+use crate::label::Connectivity;
+use crate::render::{DepthRange, Renderer};
+use crate::scene::PreparedScene;
+
+/// Render instance masks: reads <workdir>/<area>/scene and <camera>/poses.jsonl, writes
+/// <camera>/masks/<frame>.png (24-bit RGB building IDs) and <frame>.instances.json.
+///
+/// Every frame is rendered with exactly its intrinsics and pose (wgpu; a software Vulkan rasteriser
+/// such as lavapipe is enough). The ID map stores the building ID losslessly: R = bits 16–23,
+/// G = bits 8–15, B = bits 0–7, 0 = background. Connected components of each building give the
+/// instances (box, area, truncation at the border, visible pixels of the building).
+///
+/// Frames whose outputs already exist and verify are skipped, so an interrupted run can simply be
+/// started again; --shard splits the work across processes or machines.
+#[derive(Debug, Clone, clap::Args)]
+#[command(after_long_help = "Examples:\n  insgen render-masks --area tokyo --camera cam2\n  \
+insgen render-masks --area tokyo --camera cam2 --shard 0/4 --depth\n  \
+insgen render-masks --area tokyo --camera cam1 --limit 20 --preview 12 --force")]
+pub struct Args {
+    /// Area name (a prepared scene under <workdir>/<area>/scene).
+    #[arg(long, value_name = "NAME")]
+    pub area: String,
+
+    /// Camera preset whose poses to render (<workdir>/<area>/<camera>/poses.jsonl).
+    #[arg(long, value_name = "PRESET")]
+    pub camera: String,
+
+    /// Render only frames whose line index in poses.jsonl is ≡ I (mod N).
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<Shard>,
+
+    /// Pixel connectivity of instances (8 keeps diagonal-touching pixels together).
+    #[arg(long, value_name = "4|8", value_enum, default_value = "8")]
+    pub connectivity: Connectivity,
+
+    /// Leave components smaller than this out of the instance lists.
+    ///
+    /// They stay in the ID map. The default drops one-to-few-pixel slivers along silhouettes.
+    #[arg(long, value_name = "PIXELS", default_value_t = DEFAULT_MIN_AREA_PX)]
+    pub min_area: u64,
+
+    /// Add visible_fraction per instance (one extra render per visible building).
+    ///
+    /// visible_fraction = visible pixels of the building / pixels it covers in the frame when rendered
+    /// alone.
+    #[arg(long)]
+    pub visible_fraction: bool,
+
+    /// Also write <frame>.depth.exr (float32 Z, metres along the optical axis, 0 = no building).
+    #[arg(long)]
+    pub depth: bool,
+
+    /// Write contact sheets masks/preview_XX.png showing K frames.
+    ///
+    /// Building colours are blended over rgb/<frame>.png when it exists, else over a shading of the
+    /// rendered depth.
+    #[arg(long, value_name = "K", default_value_t = 0)]
+    pub preview: usize,
+
+    /// Re-render frames whose outputs already exist.
+    #[arg(long)]
+    pub force: bool,
+
+    /// Render at most N frames (of this shard).
+    #[arg(long, value_name = "N")]
+    pub limit: Option<usize>,
+
+    /// Near clipping plane.
+    #[arg(long, value_name = "METERS", default_value_t = 0.1, hide_short_help = true)]
+    pub near: f64,
+
+    /// Far clipping plane.
+    #[arg(long, value_name = "METERS", default_value_t = 10_000.0, hide_short_help = true)]
+    pub far: f64,
+}
+
+/// The plan and the scene directory, resolved from the arguments (no I/O).
+fn plan(args: &Args, global: &super::Global) -> anyhow::Result<(MaskPlan, PathBuf)> {
+    if !(args.near > 0.0 && args.far > args.near && args.far.is_finite()) {
+        bail!("--near and --far must satisfy 0 < near < far, got near={} m far={} m", args.near, args.far);
+    }
+    let area_dir = global.workdir.join(&args.area);
+    let mut plan = MaskPlan::new(area_dir.join(&args.camera));
+    plan.connectivity = args.connectivity;
+    plan.min_area_px = args.min_area;
+    plan.visible_fraction = args.visible_fraction;
+    plan.depth = args.depth;
+    plan.preview = args.preview;
+    plan.force = args.force;
+    plan.shard = args.shard.unwrap_or_default();
+    plan.limit = args.limit;
+    plan.range = DepthRange { near_m: args.near, far_m: args.far };
+    Ok((plan, area_dir.join("scene")))
+}
+
+/// Runs `insgen render-masks`.
+///
+/// # Errors
+/// Missing inputs (with the command that makes them), GPU problems, and — after all other frames were
+/// written — the list of frames that failed.
+pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
+    let (plan, scene_dir) = plan(args, global)?;
+    if !scene_dir.is_dir() {
+        bail!(
+            "no prepared scene at {}; run `insgen prepare --area {}` first",
+            scene_dir.display(),
+            args.area
+        );
+    }
+    let poses = plan.poses_path();
+    if !poses.is_file() {
+        bail!(
+            "no poses at {}; run `insgen sample --area {} --camera {}` first",
+            poses.display(),
+            args.area,
+            args.camera
+        );
+    }
+    let scene =
+        PreparedScene::load(&scene_dir).with_context(|| format!("loading {}", scene_dir.display()))?;
+    let renderer = Renderer::new().context("setting up the GPU renderer")?;
+    let progress = global.progress();
+    let report = stage::render_masks(&plan, &scene, &renderer, &progress)
+        .with_context(|| format!("rendering masks for {}", plan.camera_dir.display()))?;
+    log::info!(
+        "{} frames in shard {} of {}: {} rendered ({:.2} frames/s), {} already done, {} failed; {} instances; \
+         outputs in {}",
+        report.frames_selected,
+        plan.shard,
+        report.frames_total,
+        report.rendered,
+        report.frames_per_s,
+        report.skipped,
+        report.failed.len(),
+        report.instances,
+        plan.masks_dir().display()
+    );
+    for p in &report.previews {
+        log::info!("preview: {}", p.display());
+    }
+    if !report.failed.is_empty() {
+        for f in &report.failed {
+            eprintln!("error: frame {}: {}", f.frame, f.error);
+        }
+        bail!("{} of {} frames failed (see above)", report.failed.len(), report.frames_selected);
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Debug, Parser)]
+    struct Cli {
+        #[command(flatten)]
+        global: super::super::Global,
+        #[command(flatten)]
+        args: Args,
+    }
+
+    fn parse(extra: &[&str]) -> Result<Cli, clap::Error> {
+        let mut argv = vec!["insgen", "--area", "tokyo", "--camera", "cam2"];
+        argv.extend_from_slice(extra);
+        Cli::try_parse_from(argv)
+    }
+
+    mod flags {
+        use super::*;
+
+        #[test]
+        fn defaults() {
+            let c = parse(&[]).unwrap();
+            let a = &c.args;
+            assert_eq!((a.area.as_str(), a.camera.as_str()), ("tokyo", "cam2"));
+            assert_eq!(a.connectivity, Connectivity::Eight);
+            assert_eq!(a.min_area, DEFAULT_MIN_AREA_PX);
+            assert!(!a.visible_fraction && !a.depth && !a.force);
+            assert_eq!((a.preview, a.limit, a.shard), (0, None, None));
+        }
+
+        #[test]
+        fn area_and_camera_are_required() {
+            assert!(Cli::try_parse_from(["insgen", "--area", "x"]).is_err());
+            assert!(Cli::try_parse_from(["insgen", "--camera", "cam1"]).is_err());
+        }
+
+        #[test]
+        fn shard() {
+            assert_eq!(parse(&["--shard", "2/5"]).unwrap().args.shard, Some(Shard { index: 2, count: 5 }));
+            let e = parse(&["--shard", "5/5"]).unwrap_err().to_string();
+            assert!(e.contains("below the count"), "{e}");
+        }
+
+        #[test]
+        fn connectivity() {
+            assert_eq!(parse(&["--connectivity", "4"]).unwrap().args.connectivity, Connectivity::Four);
+            assert!(parse(&["--connectivity", "6"]).is_err());
+        }
+
+        #[test]
+        fn min_area_preview_limit() {
+            let a = parse(&["--min-area", "1", "--preview", "8", "--limit", "20"]).unwrap().args;
+            assert_eq!((a.min_area, a.preview, a.limit), (1, 8, Some(20)));
+        }
+
+        #[test]
+        fn switches() {
+            let a = parse(&["--visible-fraction", "--depth", "--force"]).unwrap().args;
+            assert!(a.visible_fraction && a.depth && a.force);
+        }
+
+        #[test]
+        fn near_far() {
+            let c = parse(&["--near", "1", "--far", "500"]).unwrap();
+            let (p, scene) = plan(&c.args, &c.global).unwrap();
+            assert_eq!(p.range, DepthRange { near_m: 1.0, far_m: 500.0 });
+            assert_eq!(scene, PathBuf::from("runs/tokyo/scene"));
+            assert_eq!(p.camera_dir, PathBuf::from("runs/tokyo/cam2"));
+            let c = parse(&["--near", "5", "--far", "1"]).unwrap();
+            assert!(plan(&c.args, &c.global).unwrap_err().to_string().contains("0 < near < far"));
+        }
+    }
+}

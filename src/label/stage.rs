@@ -1,0 +1,695 @@
+//! The `render-masks` stage: reads the prepared scene and `<camera>/poses.jsonl`, renders every
+//! frame's instance-ID map with exactly the frame's intrinsics and pose, and writes per frame
+//! (each file atomically):
+//!
+//! - `masks/<frame>.png`: the 24-bit RGB ID map ([`super::idpng`]);
+//! - `masks/<frame>.instances.json`: one entry per connected component ([`FrameInstances`]);
+//! - `masks/<frame>.depth.exr` (with `depth`): float32 channel `Z`, metres along the optical axis,
+//!   0 where no building was hit;
+//!
+//! and, with `preview = K`, contact sheets `masks/preview_XX.png` of K frames ([`super::overlay`]).
+//!
+//! # Instances
+//! Components come from [`label_components`] with the chosen connectivity (default 8). Components
+//! smaller than `min_area_px` are left out of the instance list (they stay in the PNG). The default,
+//! [`DEFAULT_MIN_AREA_PX`] = 16 px (a 4 × 4 patch), drops the one-to-few-pixel slivers that appear where
+//! a roof edge peeks between two towers or along silhouettes at grazing angles: they are too small to
+//! annotate or learn, and at 1920 × 1080 they would otherwise outnumber real instances in dense areas.
+//! `component` keeps the index among *all* the building's components in the frame, so a gap means a
+//! dropped fragment. `building_visible_px` counts every visible pixel of the building, dropped
+//! fragments included. `visible_fraction` (optional, one extra render per visible building) is
+//! `building_visible_px` divided by the pixels the building covers in the frame when rendered alone.
+//!
+//! # Throughput and resumption
+//! Rendering runs on the calling thread with several frames in flight; labelling, PNG encoding and
+//! writing run on the rayon pool, fed through a bounded channel, so CPU work overlaps the GPU. A frame
+//! whose PNG and JSON exist and verify (PNG header and IEND, JSON parses and matches the frame, size and
+//! settings) is skipped unless `force`. `shard = i/N` takes the frames whose line index in poses.jsonl
+//! is ≡ i (mod N); `limit` keeps the first frames of the shard.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+use std::sync::mpsc;
+use std::sync::Mutex;
+use std::time::Instant;
+
+use rayon::iter::{ParallelBridge, ParallelIterator};
+
+use super::idpng::{self, IdPngError};
+use super::overlay::{self, OverlayError};
+use super::{label_components, Connectivity, FrameInstances, InstanceEntry};
+use crate::camera::PoseRecord;
+use crate::render::{DepthRange, GpuScene, IdImage, RenderError, RenderOptions, Renderer, View};
+use crate::scene::PreparedScene;
+use crate::util::{FileError, Progress};
+
+/// Default minimum component area kept in the instance lists, pixels (see the module doc).
+pub const DEFAULT_MIN_AREA_PX: u64 = 16;
+
+/// File names inside `<workdir>/<area>/<camera>/`.
+pub const POSES_FILE: &str = "poses.jsonl";
+pub const MASKS_DIR: &str = "masks";
+pub const RGB_DIR: &str = "rgb";
+
+/// Frames per contact sheet (4 columns × 3 rows) and the width of one tile.
+const SHEET_COLUMNS: u32 = 4;
+const SHEET_TILES: usize = 12;
+const TILE_WIDTH_PX: u32 = 480;
+
+/// Errors of the render-masks stage.
+#[derive(Debug, thiserror::Error)]
+pub enum StageError {
+    #[error(transparent)]
+    File(#[from] FileError),
+    /// poses.jsonl is malformed.
+    #[error("{}:{line}: {what}", path.display())]
+    Poses { path: PathBuf, line: usize, what: String },
+    /// The scene and its building table disagree.
+    #[error("scene: {what}")]
+    Scene { what: String },
+    #[error(transparent)]
+    Render(#[from] RenderError),
+    #[error(transparent)]
+    IdPng(#[from] IdPngError),
+    #[error(transparent)]
+    Overlay(#[from] OverlayError),
+    /// Writing the depth EXR failed.
+    #[error("{}: writing the depth EXR failed", path.display())]
+    Exr {
+        path: PathBuf,
+        #[source]
+        source: exr::error::Error,
+    },
+}
+
+/// `--shard i/N`: frames whose index in poses.jsonl is ≡ i (mod N).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    pub index: u32,
+    pub count: u32,
+}
+
+impl Default for Shard {
+    /// All frames (0/1).
+    fn default() -> Self {
+        Shard { index: 0, count: 1 }
+    }
+}
+
+impl Shard {
+    /// Whether the frame at line index `i` belongs to this shard.
+    pub fn contains(&self, i: usize) -> bool {
+        i % self.count as usize == self.index as usize
+    }
+}
+
+impl FromStr for Shard {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let (i, n) = s.split_once('/').ok_or_else(|| format!("expected I/N (e.g. 0/4), got {s:?}"))?;
+        let index: u32 =
+            i.trim().parse().map_err(|_| format!("shard index {i:?} is not a non-negative integer"))?;
+        let count: u32 =
+            n.trim().parse().map_err(|_| format!("shard count {n:?} is not a positive integer"))?;
+        if count == 0 {
+            return Err("shard count must be at least 1".into());
+        }
+        if index >= count {
+            return Err(format!("shard index must be below the count (0..{count}), got {index}/{count}"));
+        }
+        Ok(Shard { index, count })
+    }
+}
+
+impl std::fmt::Display for Shard {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}/{}", self.index, self.count)
+    }
+}
+
+/// What the stage does, resolved from the command line (STYLE rule 2).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MaskPlan {
+    /// `<workdir>/<area>/<camera>`: holds poses.jsonl, receives masks/.
+    pub camera_dir: PathBuf,
+    pub connectivity: Connectivity,
+    /// Components below this many pixels are left out of the instance lists.
+    pub min_area_px: u64,
+    pub visible_fraction: bool,
+    pub depth: bool,
+    /// Frames shown in contact sheets (0 = none).
+    pub preview: usize,
+    pub force: bool,
+    pub shard: Shard,
+    pub limit: Option<usize>,
+    pub range: DepthRange,
+}
+
+impl MaskPlan {
+    /// A plan with the defaults for everything but the directory.
+    pub fn new(camera_dir: PathBuf) -> Self {
+        MaskPlan {
+            camera_dir,
+            connectivity: Connectivity::Eight,
+            min_area_px: DEFAULT_MIN_AREA_PX,
+            visible_fraction: false,
+            depth: false,
+            preview: 0,
+            force: false,
+            shard: Shard::default(),
+            limit: None,
+            range: DepthRange::default(),
+        }
+    }
+
+    pub fn poses_path(&self) -> PathBuf {
+        self.camera_dir.join(POSES_FILE)
+    }
+
+    pub fn masks_dir(&self) -> PathBuf {
+        self.camera_dir.join(MASKS_DIR)
+    }
+
+    /// `masks/<frame>.png`.
+    pub fn png_path(&self, frame: &str) -> PathBuf {
+        self.masks_dir().join(format!("{frame}.png"))
+    }
+
+    /// `masks/<frame>.instances.json`.
+    pub fn instances_path(&self, frame: &str) -> PathBuf {
+        self.masks_dir().join(format!("{frame}.instances.json"))
+    }
+
+    /// `masks/<frame>.depth.exr`.
+    pub fn depth_path(&self, frame: &str) -> PathBuf {
+        self.masks_dir().join(format!("{frame}.depth.exr"))
+    }
+
+    /// `rgb/<frame>.png` (written by the RGB stage, used as the preview backdrop).
+    pub fn rgb_path(&self, frame: &str) -> PathBuf {
+        self.camera_dir.join(RGB_DIR).join(format!("{frame}.png"))
+    }
+}
+
+/// A frame that could not be written; the others went on.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameFailure {
+    pub frame: String,
+    /// The error with its causes, `: `-separated.
+    pub error: String,
+}
+
+/// What the stage did.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct MaskReport {
+    /// Frames in poses.jsonl.
+    pub frames_total: usize,
+    /// Frames in this shard (after `limit`).
+    pub frames_selected: usize,
+    pub rendered: usize,
+    /// Frames whose outputs already existed and verified.
+    pub skipped: usize,
+    pub failed: Vec<FrameFailure>,
+    /// Instances (components above the minimum area) written.
+    pub instances: u64,
+    pub seconds: f64,
+    /// Rendered frames per second of wall time, including labelling and writing.
+    pub frames_per_s: f64,
+    pub previews: Vec<PathBuf>,
+}
+
+/// The error and its causes on one line (`a: b: c`), for per-frame failure lists.
+pub fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut s = e.to_string();
+    let mut cur = e.source();
+    while let Some(c) = cur {
+        s.push_str(": ");
+        s.push_str(&c.to_string());
+        cur = c.source();
+    }
+    s
+}
+
+/// Checks that a frame name can be a file stem (no path separators, not empty, not `.`/`..`).
+fn check_frame_name(name: &str) -> Result<(), String> {
+    if name.is_empty() || name == "." || name == ".." {
+        return Err(format!("frame name {name:?} cannot be a file name"));
+    }
+    if let Some(c) = name.chars().find(|&c| c == '/' || c == '\\' || c == '\0' || c.is_control()) {
+        return Err(format!("frame name {name:?} contains {c:?}, which cannot be in a file name"));
+    }
+    Ok(())
+}
+
+/// Reads `poses.jsonl`: one [`PoseRecord`] per non-blank line, frame names unique and usable as file
+/// names.
+///
+/// # Errors
+/// [`StageError::File`] when it cannot be read; [`StageError::Poses`] naming the line otherwise.
+pub fn read_poses(path: &Path) -> Result<Vec<PoseRecord>, StageError> {
+    let bytes = crate::util::read_file(path)?;
+    let text = String::from_utf8(bytes).map_err(|e| StageError::Poses {
+        path: path.to_path_buf(),
+        line: 0,
+        what: format!("not UTF-8: {e}"),
+    })?;
+    let mut out: Vec<PoseRecord> = Vec::new();
+    let mut seen: BTreeMap<String, usize> = BTreeMap::new();
+    for (n, line) in text.lines().enumerate() {
+        let line_no = n + 1;
+        if line.trim().is_empty() {
+            continue;
+        }
+        let bad = |what: String| StageError::Poses { path: path.to_path_buf(), line: line_no, what };
+        let rec: PoseRecord =
+            serde_json::from_str(line).map_err(|e| bad(format!("not a pose record: {e}")))?;
+        check_frame_name(&rec.name).map_err(bad)?;
+        if let Some(first) = seen.insert(rec.name.clone(), line_no) {
+            return Err(bad(format!("frame name {:?} was already used on line {first}", rec.name)));
+        }
+        out.push(rec);
+    }
+    Ok(out)
+}
+
+/// Whether a frame's outputs exist and match what this plan would write.
+fn outputs_verify(plan: &MaskPlan, rec: &PoseRecord) -> bool {
+    let k = &rec.intrinsics;
+    match idpng::read_id_png_size(&plan.png_path(&rec.name)) {
+        Ok(size) if size == (k.width_px, k.height_px) => {}
+        _ => return false,
+    }
+    let Ok(bytes) = std::fs::read(plan.instances_path(&rec.name)) else { return false };
+    let Ok(fi) = serde_json::from_slice::<FrameInstances>(&bytes) else { return false };
+    let settings_match = fi.frame == rec.name
+        && (fi.width, fi.height) == (k.width_px, k.height_px)
+        && fi.connectivity == plan.connectivity
+        && fi.min_component_area_px == plan.min_area_px
+        && (!plan.visible_fraction || fi.instances.iter().all(|e| e.visible_fraction.is_some()));
+    if !settings_match {
+        return false;
+    }
+    if plan.depth {
+        match exr::meta::MetaData::read_from_file(plan.depth_path(&rec.name), false) {
+            Ok(meta) => {
+                let ok = meta.headers.first().is_some_and(|h| {
+                    h.layer_size.width() == k.width_px as usize
+                        && h.layer_size.height() == k.height_px as usize
+                });
+                if !ok {
+                    return false;
+                }
+            }
+            Err(_) => return false,
+        }
+    }
+    true
+}
+
+/// Writes a single-channel float32 EXR (`Z`, metres) atomically.
+///
+/// # Errors
+/// [`StageError::Exr`] or [`StageError::File`], naming `path`.
+pub fn write_depth_exr(path: &Path, depth_m: &[f32], width: u32, height: u32) -> Result<(), StageError> {
+    use exr::prelude::*;
+    let channel = AnyChannel::new("Z", FlatSamples::F32(depth_m.to_vec()));
+    let layer = Layer::new(
+        (width as usize, height as usize),
+        LayerAttributes::default(),
+        Encoding::FAST_LOSSLESS,
+        AnyChannels::sort(SmallVec::from_vec(vec![channel])),
+    );
+    let image = Image::from_layer(layer);
+    let mut buf = std::io::Cursor::new(Vec::new());
+    image
+        .write()
+        .to_buffered(&mut buf)
+        .map_err(|source| StageError::Exr { path: path.to_path_buf(), source })?;
+    crate::util::write_bytes_atomic(path, buf.get_ref())?;
+    Ok(())
+}
+
+/// The instance list of one rendered frame.
+pub fn frame_instances(
+    frame: &str,
+    image: &IdImage,
+    connectivity: Connectivity,
+    min_area_px: u64,
+    source_ids: &BTreeMap<u32, String>,
+    amodal_px: Option<&BTreeMap<u32, u64>>,
+) -> FrameInstances {
+    let labelling = label_components(&image.ids, image.width, image.height, connectivity);
+    let mut visible: BTreeMap<u32, u64> = BTreeMap::new();
+    for c in &labelling.components {
+        *visible.entry(c.building_id).or_insert(0) += c.area_px;
+    }
+    let instances = labelling
+        .components
+        .iter()
+        .filter(|c| c.area_px >= min_area_px)
+        .map(|c| {
+            let building_visible_px = visible[&c.building_id];
+            InstanceEntry {
+                building_id: c.building_id,
+                source_id: source_ids.get(&c.building_id).cloned().unwrap_or_default(),
+                component: c.index,
+                area_px: c.area_px,
+                bbox_px: c.bbox_px,
+                truncated: c.touches_border,
+                building_visible_px,
+                visible_fraction: amodal_px.map(|m| match m.get(&c.building_id) {
+                    Some(&a) if a > 0 => building_visible_px as f64 / a as f64,
+                    _ => 1.0,
+                }),
+            }
+        })
+        .collect();
+    FrameInstances {
+        frame: frame.to_string(),
+        width: image.width,
+        height: image.height,
+        connectivity,
+        min_component_area_px: min_area_px,
+        instances,
+    }
+}
+
+/// The distinct non-zero IDs of an image, ascending.
+fn visible_ids(ids: &[u32]) -> Vec<u32> {
+    let mut set = BTreeSet::new();
+    let mut last = 0u32;
+    for &id in ids {
+        // Runs of equal IDs are the common case: skip the set lookup for them.
+        if id != last {
+            if id != 0 {
+                set.insert(id);
+            }
+            last = id;
+        }
+    }
+    set.into_iter().collect()
+}
+
+/// One rendered frame travelling from the render thread to the writers.
+struct Job {
+    record: usize,
+    image: IdImage,
+    amodal_px: Option<BTreeMap<u32, u64>>,
+}
+
+/// Runs the stage (see the module doc).
+///
+/// # Errors
+/// [`StageError::File`]/[`StageError::Poses`] for unreadable poses, [`StageError::Scene`] when the mesh
+/// holds IDs absent from the building table, [`StageError::Render`] when the GPU fails (fatal). A frame
+/// whose outputs cannot be written is reported in [`MaskReport::failed`] and the others go on.
+pub fn render_masks(
+    plan: &MaskPlan,
+    scene: &PreparedScene,
+    renderer: &Renderer,
+    progress: &dyn Progress,
+) -> Result<MaskReport, StageError> {
+    let started = Instant::now();
+    let records = read_poses(&plan.poses_path())?;
+    let mut selected: Vec<usize> = (0..records.len()).filter(|&i| plan.shard.contains(i)).collect();
+    if let Some(limit) = plan.limit {
+        selected.truncate(limit);
+    }
+    let source_ids: BTreeMap<u32, String> =
+        scene.buildings.iter().map(|b| (b.id, b.source_id.clone())).collect();
+    let gpu_scene = renderer.upload(&scene.mesh)?;
+    if let Some(b) = gpu_scene.buildings().iter().find(|b| !source_ids.contains_key(&b.building_id)) {
+        return Err(StageError::Scene {
+            what: format!(
+                "the mesh holds building ID {} but buildings.json has no such row; re-run `insgen prepare`",
+                b.building_id
+            ),
+        });
+    }
+    let todo: Vec<usize> =
+        selected.iter().copied().filter(|&i| plan.force || !outputs_verify(plan, &records[i])).collect();
+    let skipped = selected.len() - todo.len();
+    if skipped > 0 {
+        log::info!("{skipped} frames already rendered (use --force to redo them)");
+    }
+    crate::util::create_dir_all(&plan.masks_dir())?;
+    let views: Vec<View> =
+        todo.iter().map(|&i| View { intrinsics: records[i].intrinsics, pose: records[i].pose() }).collect();
+    let options = RenderOptions { range: plan.range, linear_depth: plan.depth };
+
+    progress.start(todo.len() as u64, "frames");
+    let failures: Mutex<Vec<FrameFailure>> = Mutex::new(Vec::new());
+    let instance_count = std::sync::atomic::AtomicU64::new(0);
+    let done = std::sync::atomic::AtomicU64::new(0);
+    let render_started = Instant::now();
+    let render_result: Result<(), StageError> = std::thread::scope(|s| {
+        let (tx, rx) = mpsc::sync_channel::<Job>(2 * crate::render::FRAMES_IN_FLIGHT);
+        let writer = s.spawn(|| {
+            rx.into_iter().par_bridge().for_each(|job| {
+                let rec = &records[job.record];
+                match write_frame(plan, rec, &job, &source_ids) {
+                    Ok(n) => {
+                        instance_count.fetch_add(n, std::sync::atomic::Ordering::Relaxed);
+                    }
+                    Err(e) => {
+                        log::error!("frame {}: {}", rec.name, error_chain(&e));
+                        failures
+                            .lock()
+                            .unwrap_or_else(|p| p.into_inner())
+                            .push(FrameFailure { frame: rec.name.clone(), error: error_chain(&e) });
+                    }
+                }
+                let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                progress.inc(1);
+                let secs = render_started.elapsed().as_secs_f64();
+                if secs > 0.0 {
+                    progress.message(&format!("{:.2} frames/s", n as f64 / secs));
+                }
+            });
+        });
+        let result =
+            renderer.render_each(&gpu_scene, &views, &options, |k, image| -> Result<(), StageError> {
+                let amodal_px = if plan.visible_fraction {
+                    let ids = visible_ids(&image.ids);
+                    let counts = renderer.isolated_coverage_px(&gpu_scene, &views[k], &ids, &plan.range)?;
+                    Some(ids.into_iter().zip(counts).collect())
+                } else {
+                    None
+                };
+                // The writer only stops receiving if it panicked; the join below reports that.
+                let _ = tx.send(Job { record: todo[k], image, amodal_px });
+                Ok(())
+            });
+        drop(tx);
+        if writer.join().is_err() {
+            return Err(StageError::Scene { what: "a frame writer thread panicked".into() });
+        }
+        result
+    });
+    progress.finish();
+    render_result?;
+    let rendered_secs = render_started.elapsed().as_secs_f64();
+    let mut failed = failures.into_inner().unwrap_or_else(|p| p.into_inner());
+    failed.sort_by(|a, b| a.frame.cmp(&b.frame));
+
+    let previews = if plan.preview > 0 {
+        let failed_names: BTreeSet<&str> = failed.iter().map(|f| f.frame.as_str()).collect();
+        let candidates: Vec<usize> =
+            selected.iter().copied().filter(|&i| !failed_names.contains(records[i].name.as_str())).collect();
+        write_previews(plan, &records, &candidates, renderer, &gpu_scene)?
+    } else {
+        Vec::new()
+    };
+    let rendered = todo.len() - failed.len();
+    Ok(MaskReport {
+        frames_total: records.len(),
+        frames_selected: selected.len(),
+        rendered,
+        skipped,
+        failed,
+        instances: instance_count.into_inner(),
+        seconds: started.elapsed().as_secs_f64(),
+        frames_per_s: if rendered_secs > 0.0 { todo.len() as f64 / rendered_secs } else { 0.0 },
+        previews,
+    })
+}
+
+/// Labels one frame and writes its files (depth, PNG, then the JSON last: a frame counts as done only
+/// when its JSON exists). Returns the number of instances written.
+fn write_frame(
+    plan: &MaskPlan,
+    rec: &PoseRecord,
+    job: &Job,
+    source_ids: &BTreeMap<u32, String>,
+) -> Result<u64, StageError> {
+    let image = &job.image;
+    let instances = frame_instances(
+        &rec.name,
+        image,
+        plan.connectivity,
+        plan.min_area_px,
+        source_ids,
+        job.amodal_px.as_ref(),
+    );
+    if let Some(depth) = &image.depth_m {
+        write_depth_exr(&plan.depth_path(&rec.name), depth, image.width, image.height)?;
+    }
+    idpng::write_id_png(&plan.png_path(&rec.name), &image.ids, image.width, image.height)?;
+    crate::util::write_json_atomic(&plan.instances_path(&rec.name), &instances)?;
+    Ok(instances.instances.len() as u64)
+}
+
+/// Picks `k` of `n` items evenly (first and last included when k ≥ 2).
+fn evenly_spaced(n: usize, k: usize) -> Vec<usize> {
+    let k = k.min(n);
+    match k {
+        0 => Vec::new(),
+        1 => vec![0],
+        _ => (0..k).map(|j| j * (n - 1) / (k - 1)).collect(),
+    }
+}
+
+/// Writes contact sheets of `plan.preview` frames chosen evenly among `candidates`.
+fn write_previews(
+    plan: &MaskPlan,
+    records: &[PoseRecord],
+    candidates: &[usize],
+    renderer: &Renderer,
+    gpu_scene: &GpuScene,
+) -> Result<Vec<PathBuf>, StageError> {
+    let chosen: Vec<usize> =
+        evenly_spaced(candidates.len(), plan.preview).into_iter().map(|j| candidates[j]).collect();
+    let mut tiles = Vec::with_capacity(chosen.len());
+    for &i in &chosen {
+        let rec = &records[i];
+        let ids = idpng::read_id_png(&plan.png_path(&rec.name))?;
+        let rgb_path = plan.rgb_path(&rec.name);
+        let backdrop = if rgb_path.exists() {
+            overlay::read_rgb_png(&rgb_path)?
+        } else {
+            let view = View { intrinsics: rec.intrinsics, pose: rec.pose() };
+            let options = RenderOptions { range: plan.range, linear_depth: true };
+            let img = renderer.render(gpu_scene, &view, &options)?;
+            // `linear_depth: true` always yields depth; an empty one would only shade as background.
+            overlay::shade_depth(img.depth_m.as_deref().unwrap_or(&[]), &rec.intrinsics)
+        };
+        tiles.push(overlay::overlay_ids(&ids.ids, ids.width, ids.height, &backdrop, 0.45));
+    }
+    let prefix = if plan.shard.count > 1 {
+        format!("preview_{}of{}_", plan.shard.index, plan.shard.count)
+    } else {
+        "preview_".to_string()
+    };
+    let mut written = Vec::new();
+    for (n, chunk) in tiles.chunks(SHEET_TILES).enumerate() {
+        let sheet = overlay::contact_sheet(chunk, SHEET_COLUMNS, TILE_WIDTH_PX);
+        let path = plan.masks_dir().join(format!("{prefix}{n:02}.png"));
+        overlay::write_rgb_png(&path, &sheet)?;
+        written.push(path);
+    }
+    Ok(written)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    mod shard {
+        use super::*;
+
+        #[test]
+        fn parses_and_validates() {
+            assert_eq!("1/4".parse::<Shard>().unwrap(), Shard { index: 1, count: 4 });
+            assert_eq!(" 0 / 1 ".parse::<Shard>().unwrap(), Shard::default());
+            assert!("4/4".parse::<Shard>().unwrap_err().contains("below the count"));
+            assert!("0/0".parse::<Shard>().unwrap_err().contains("at least 1"));
+            assert!("x".parse::<Shard>().unwrap_err().contains("expected I/N"));
+            assert!("-1/3".parse::<Shard>().is_err());
+        }
+
+        #[test]
+        fn shards_partition_the_frames() {
+            let n = 23;
+            let mut hits = vec![0; n];
+            for index in 0..4 {
+                let s = Shard { index, count: 4 };
+                for (i, h) in hits.iter_mut().enumerate() {
+                    *h += s.contains(i) as u32;
+                }
+            }
+            assert!(hits.iter().all(|&h| h == 1));
+        }
+    }
+
+    mod names {
+        use super::*;
+
+        #[test]
+        fn frame_names_must_be_file_stems() {
+            assert!(check_frame_name("cam2_s0003_i0012").is_ok());
+            for bad in ["", ".", "..", "a/b", "a\\b", "a\nb"] {
+                assert!(check_frame_name(bad).is_err(), "{bad:?}");
+            }
+        }
+    }
+
+    mod instances {
+        use super::*;
+
+        fn image(rows: &[&str]) -> IdImage {
+            let height = rows.len() as u32;
+            let width = rows[0].len() as u32;
+            let ids = rows
+                .iter()
+                .flat_map(|r| r.bytes().map(|b| if b == b'.' { 0 } else { (b - b'0') as u32 }))
+                .collect();
+            IdImage { width, height, ids, depth_m: None }
+        }
+
+        #[test]
+        fn small_fragments_are_dropped_but_counted_as_visible() {
+            // Building 1: a 3×2 block (6 px) and a 1 px fragment; building 2: 2 px.
+            let img = image(&["111..", "111.1", ".....", "22..."]);
+            let names: BTreeMap<u32, String> = [(1, "gml_a".to_string()), (2, "gml_b".to_string())].into();
+            let fi = frame_instances("f", &img, Connectivity::Four, 2, &names, None);
+            assert_eq!(fi.instances.len(), 2);
+            let a = &fi.instances[0];
+            assert_eq!((a.building_id, a.source_id.as_str(), a.component, a.area_px), (1, "gml_a", 0, 6));
+            assert_eq!(a.building_visible_px, 7, "the dropped 1 px fragment still counts as visible");
+            assert_eq!(a.bbox_px, [0, 0, 3, 2]);
+            assert!(a.truncated);
+            assert_eq!(a.visible_fraction, None);
+            let b = &fi.instances[1];
+            assert_eq!((b.building_id, b.area_px, b.building_visible_px), (2, 2, 2));
+        }
+
+        #[test]
+        fn visible_fraction_divides_by_amodal_pixels() {
+            let img = image(&["11..", "11..", "...."]);
+            let names: BTreeMap<u32, String> = [(1, "x".to_string())].into();
+            let amodal: BTreeMap<u32, u64> = [(1, 8)].into();
+            let fi = frame_instances("f", &img, Connectivity::Eight, 1, &names, Some(&amodal));
+            assert_eq!(fi.instances[0].visible_fraction, Some(0.5));
+        }
+
+        #[test]
+        fn visible_ids_are_distinct_and_sorted() {
+            assert_eq!(visible_ids(&[0, 5, 5, 3, 0, 5, 9, 9, 3]), vec![3, 5, 9]);
+            assert!(visible_ids(&[0, 0]).is_empty());
+        }
+    }
+
+    mod preview_choice {
+        use super::*;
+
+        #[test]
+        fn evenly_spaced_includes_both_ends() {
+            assert_eq!(evenly_spaced(10, 3), vec![0, 4, 9]);
+            assert_eq!(evenly_spaced(2, 5), vec![0, 1]);
+            assert_eq!(evenly_spaced(7, 1), vec![0]);
+            assert!(evenly_spaced(0, 3).is_empty());
+        }
+    }
+}

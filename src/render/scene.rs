@@ -1,0 +1,187 @@
+//! The scene mesh on the GPU: one vertex buffer (f32 ENU position + building ID) and one index buffer
+//! whose triangles are grouped by building, so one building can be drawn alone (the amodal coverage
+//! behind `visible_fraction`) without uploading a filtered copy of the mesh.
+
+use bytemuck::{Pod, Zeroable};
+use wgpu::util::DeviceExt;
+
+use super::RenderError;
+use crate::scene::{SceneMesh, MAX_BUILDING_ID};
+
+/// One vertex as the shader reads it: `@location(0)` position, `@location(1)` building ID.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct GpuVertex {
+    /// ENU metres relative to the area origin.
+    pub position_m: [f32; 3],
+    pub building_id: u32,
+}
+
+impl GpuVertex {
+    /// The vertex buffer layout matching `vs_main` in `ids.wgsl`.
+    pub const LAYOUT: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferLayout {
+        array_stride: std::mem::size_of::<GpuVertex>() as wgpu::BufferAddress,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Uint32],
+    };
+}
+
+/// Where one building's triangles sit in the index buffer, and its bounds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BuildingRange {
+    pub building_id: u32,
+    /// First index and number of indices (3 per triangle) in the index buffer.
+    pub first_index: u32,
+    pub index_count: u32,
+    /// Axis-aligned bounds of its vertices, ENU metres relative to the area origin.
+    pub min_m: [f32; 3],
+    pub max_m: [f32; 3],
+}
+
+/// A [`SceneMesh`] uploaded once and drawn by every frame.
+#[derive(Debug)]
+pub struct GpuScene {
+    pub(crate) vertices: wgpu::Buffer,
+    pub(crate) indices: wgpu::Buffer,
+    pub(crate) index_count: u32,
+    /// Ordered by building ID.
+    buildings: Vec<BuildingRange>,
+}
+
+impl GpuScene {
+    /// Validates `mesh` and uploads it. Triangles are reordered by building ID (stable, so the draw order
+    /// and therefore the winner of exact depth ties — coplanar shared walls — is the lower building ID,
+    /// deterministically).
+    ///
+    /// # Errors
+    /// [`RenderError::InvalidMesh`] when buffers disagree in length, an index is out of range, a
+    /// coordinate is not finite, a building ID is 0 or above 2²⁴ − 1, or a triangle's vertices carry
+    /// different building IDs (the flat-interpolated ID would then depend on the provoking vertex).
+    pub fn new(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        mesh: &SceneMesh,
+    ) -> Result<GpuScene, RenderError> {
+        let _ = queue; // buffers are created initialised; the queue is taken for symmetry with the rest
+        let bad = |what: String| Err(RenderError::InvalidMesh { what });
+        if mesh.positions_m.len() != mesh.building_ids.len() {
+            return bad(format!(
+                "{} positions but {} building IDs",
+                mesh.positions_m.len(),
+                mesh.building_ids.len()
+            ));
+        }
+        if mesh.indices.len() % 3 != 0 {
+            return bad(format!("{} indices is not a multiple of 3", mesh.indices.len()));
+        }
+        if mesh.indices.len() > u32::MAX as usize || mesh.positions_m.len() > u32::MAX as usize {
+            return bad(format!(
+                "too large: {} indices, {} vertices",
+                mesh.indices.len(),
+                mesh.positions_m.len()
+            ));
+        }
+        if let Some((v, p)) =
+            mesh.positions_m.iter().enumerate().find(|(_, p)| !p.iter().all(|c| c.is_finite()))
+        {
+            return bad(format!("vertex {v} has a non-finite position {p:?}"));
+        }
+        if let Some((v, id)) =
+            mesh.building_ids.iter().enumerate().find(|(_, &id)| id == 0 || id > MAX_BUILDING_ID)
+        {
+            return bad(format!("vertex {v} has building ID {id}, outside 1..={MAX_BUILDING_ID}"));
+        }
+        let n_vertices = mesh.positions_m.len();
+        let mut tri_ids = Vec::with_capacity(mesh.triangle_count());
+        for (t, tri) in mesh.indices.chunks_exact(3).enumerate() {
+            if let Some(&i) = tri.iter().find(|&&i| i as usize >= n_vertices) {
+                return bad(format!(
+                    "triangle {t} refers to vertex {i}, but there are {n_vertices} vertices"
+                ));
+            }
+            let ids = [tri[0], tri[1], tri[2]].map(|i| mesh.building_ids[i as usize]);
+            if ids[0] != ids[1] || ids[0] != ids[2] {
+                return bad(format!("triangle {t} joins vertices of buildings {ids:?}"));
+            }
+            tri_ids.push(ids[0]);
+        }
+        // Stable sort of triangles by building ID.
+        let mut order: Vec<u32> = (0..tri_ids.len() as u32).collect();
+        order.sort_by_key(|&t| tri_ids[t as usize]);
+        let mut indices = Vec::with_capacity(mesh.indices.len());
+        let mut buildings: Vec<BuildingRange> = Vec::new();
+        for &t in &order {
+            let id = tri_ids[t as usize];
+            let tri = &mesh.indices[3 * t as usize..3 * t as usize + 3];
+            if buildings.last().map(|b| b.building_id) != Some(id) {
+                let p = mesh.positions_m[tri[0] as usize];
+                buildings.push(BuildingRange {
+                    building_id: id,
+                    first_index: indices.len() as u32,
+                    index_count: 0,
+                    min_m: p,
+                    max_m: p,
+                });
+            }
+            // The last entry exists: it was pushed just above when the ID changed.
+            let b = buildings.last_mut().expect("a range was pushed for this building");
+            for &i in tri {
+                let p = mesh.positions_m[i as usize];
+                for k in 0..3 {
+                    b.min_m[k] = b.min_m[k].min(p[k]);
+                    b.max_m[k] = b.max_m[k].max(p[k]);
+                }
+            }
+            b.index_count += 3;
+            indices.extend_from_slice(tri);
+        }
+        let vertices: Vec<GpuVertex> = mesh
+            .positions_m
+            .iter()
+            .zip(&mesh.building_ids)
+            .map(|(&position_m, &building_id)| GpuVertex { position_m, building_id })
+            .collect();
+        // wgpu buffers may not be empty-bound; an empty scene still gets a (never drawn) 16-byte buffer.
+        let mut vertex_bytes = bytemuck::cast_slice::<GpuVertex, u8>(&vertices).to_vec();
+        vertex_bytes.resize(vertex_bytes.len().max(16), 0);
+        let mut index_bytes = bytemuck::cast_slice::<u32, u8>(&indices).to_vec();
+        index_bytes.resize(index_bytes.len().max(16), 0);
+        let vertex_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("scene vertices (ENU m f32 + building id)"),
+            contents: &vertex_bytes,
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+        let index_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("scene indices (grouped by building)"),
+            contents: &index_bytes,
+            usage: wgpu::BufferUsages::INDEX,
+        });
+        log::debug!(
+            "uploaded scene: {} vertices, {} triangles, {} buildings",
+            n_vertices,
+            indices.len() / 3,
+            buildings.len()
+        );
+        Ok(GpuScene {
+            vertices: vertex_buffer,
+            indices: index_buffer,
+            index_count: indices.len() as u32,
+            buildings,
+        })
+    }
+
+    /// Number of triangles uploaded.
+    pub fn triangle_count(&self) -> u32 {
+        self.index_count / 3
+    }
+
+    /// The buildings in the scene, ordered by ID.
+    pub fn buildings(&self) -> &[BuildingRange] {
+        &self.buildings
+    }
+
+    /// The index range and bounds of one building, if it is in the scene.
+    pub fn building(&self, building_id: u32) -> Option<&BuildingRange> {
+        self.buildings.binary_search_by_key(&building_id, |b| b.building_id).ok().map(|i| &self.buildings[i])
+    }
+}
