@@ -6,6 +6,8 @@
 //! Exit codes: 0 success, 1 failure (the cause chain is printed on stderr), 2 usage error (clap).
 
 pub mod progress;
+pub mod export_coco;
+pub mod stats;
 
 use std::path::PathBuf;
 
