@@ -8,7 +8,9 @@
 pub mod inspect;
 pub mod prepare;
 pub mod progress;
+pub mod export_coco;
 pub mod render_masks;
+pub mod stats;
 
 use std::path::PathBuf;
 

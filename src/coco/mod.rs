@@ -1,1 +1,31 @@
-//! (Skeleton: being implemented.)
+//! COCO export: instance annotations from the rendered ID maps, RLE exactly as pycocotools writes it.
+//!
+//! Takes in what `render-masks` left in the workdir — per frame an ID map `masks/<frame>.png` and its
+//! `masks/<frame>.instances.json` — plus each area's scene manifest and building table and each
+//! camera's `poses.jsonl`. Hands on COCO instance files per geographic split (`instances_train.json`,
+//! `instances_val.json`, `instances_test.json`), a statistics report, and a reader for prediction
+//! files (`results`) that the localizer consumes.
+//!
+//! - [`rle`]: run-length encoding, byte-identical to `pycocotools.mask` (encode, string form, decode,
+//!   area, bbox, merge), with a one-pass encoder for all components of a frame;
+//! - [`format`]: the COCO file types with insgen's extension keys;
+//! - [`export`]: the `export-coco` stage;
+//! - [`stats`]: per-split statistics, histograms and a contact sheet;
+//! - [`results`]: reading and validating COCO results (predictions);
+//! - [`polygon`]: outer-boundary polygons for `--polygons`;
+//! - [`idmap`], [`raster`]: PNG decoding of ID maps and a tiny raster for figures.
+
+pub mod error;
+pub mod export;
+pub mod format;
+pub mod idmap;
+pub mod polygon;
+pub mod raster;
+pub mod results;
+pub mod rle;
+pub mod stats;
+
+pub use error::CocoError;
+pub use export::{ExportPlan, Split};
+pub use format::{Annotation, AnnotationUnit, Dataset, Filters, Image, TruncatedPolicy};
+pub use rle::{encode, encode_labels, Rle, RleError};

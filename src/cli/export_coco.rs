@@ -1,0 +1,234 @@
+//! `insgen export-coco`: COCO instance files per geographic split, plus the statistics report.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+
+use crate::coco::export::{export, ExportPlan};
+use crate::coco::format::{AnnotationUnit, Filters, TruncatedPolicy};
+use crate::coco::stats::{self, ReportOptions};
+
+/// What to do with instances that touch the image border.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum TruncatedArg {
+    /// Export them as ordinary annotations.
+    #[default]
+    Keep,
+    /// Export them with iscrowd = 1 (ignored by COCOeval and most trainers).
+    Flag,
+    /// Leave them out.
+    Drop,
+}
+
+impl From<TruncatedArg> for TruncatedPolicy {
+    fn from(t: TruncatedArg) -> Self {
+        match t {
+            TruncatedArg::Keep => TruncatedPolicy::Keep,
+            TruncatedArg::Flag => TruncatedPolicy::Flag,
+            TruncatedArg::Drop => TruncatedPolicy::Drop,
+        }
+    }
+}
+
+/// Export COCO instance annotations for every rendered area.
+///
+/// Reads <workdir>/<area>/scene/{manifest,buildings}.json and, for each camera directory,
+/// poses.jsonl, masks/<frame>.png (24-bit ID maps) and masks/<frame>.instances.json. Every ID map is
+/// decoded and its connected components checked against the instance file.
+///
+/// Writes instances_train.json, instances_val.json and instances_test.json (splits come from the
+/// areas' manifests, never from frames), stats.md, stats.json, hist_*.png and contact_sheet.png.
+/// Image file names are relative to the workdir (`info.image_root`, normally `..`). Segmentations are
+/// compressed RLE exactly as pycocotools writes them; one annotation per connected component unless
+/// --per-building.
+#[derive(Debug, Clone, clap::Args)]
+#[command(after_long_help = "Examples:\n  insgen export-coco\n  \
+insgen export-coco --holdout shibuya --min-area 64 --truncated flag\n  \
+insgen --workdir runs export-coco --out runs/coco-buildings --per-building")]
+pub struct Args {
+    /// Output directory [default: <workdir>/coco].
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Move an area to the test split (repeatable).
+    #[arg(long, value_name = "AREA")]
+    pub holdout: Vec<String>,
+    /// One annotation per building (all its visible parts) instead of per component.
+    #[arg(long)]
+    pub per_building: bool,
+    /// Write polygons instead of RLE in `segmentation` (holes are lost; exact RLE kept in `mask_rle`).
+    #[arg(long)]
+    pub polygons: bool,
+    /// Drop annotations smaller than this many pixels.
+    #[arg(long, value_name = "PX", default_value_t = 1)]
+    pub min_area: u64,
+    /// Drop buildings less visible than this (visible / unoccluded pixels, 0–1).
+    ///
+    /// Needs instance files written by `insgen render-masks --visible-fraction`.
+    #[arg(long, value_name = "FRACTION", value_parser = parse_fraction)]
+    pub min_visible_fraction: Option<f64>,
+    /// Instances touching the image border: keep, flag (iscrowd = 1) or drop.
+    #[arg(long, value_enum, value_name = "POLICY", default_value_t = TruncatedArg::Keep)]
+    pub truncated: TruncatedArg,
+    /// Keep images without annotations (negatives) [default].
+    #[arg(long, overrides_with = "drop_empty_images", hide_short_help = true)]
+    pub keep_empty_images: bool,
+    /// Leave out images without annotations.
+    #[arg(long, overrides_with = "keep_empty_images")]
+    pub drop_empty_images: bool,
+    /// Skip the statistics report.
+    #[arg(long)]
+    pub no_stats: bool,
+    /// Frames on the contact sheet (0 = none).
+    #[arg(long, value_name = "N", default_value_t = 12, hide_short_help = true)]
+    pub contact_sheet: usize,
+}
+
+fn parse_fraction(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|_| format!("\"{s}\" is not a number"))?;
+    if (0.0..=1.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{v} is outside 0..=1"))
+    }
+}
+
+impl Args {
+    /// The validated plan for `global.workdir`.
+    pub fn plan(&self, global: &super::Global) -> ExportPlan {
+        ExportPlan {
+            workdir: global.workdir.clone(),
+            out_dir: self.out.clone().unwrap_or_else(|| global.workdir.join("coco")),
+            holdout: self.holdout.clone(),
+            unit: if self.per_building { AnnotationUnit::Building } else { AnnotationUnit::Component },
+            polygons: self.polygons,
+            filters: Filters {
+                min_area_px: self.min_area,
+                min_visible_fraction: self.min_visible_fraction,
+                truncated: self.truncated.into(),
+                keep_empty_images: !self.drop_empty_images,
+            },
+        }
+    }
+}
+
+/// Runs `export-coco`.
+pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
+    let plan = args.plan(global);
+    let progress = global.progress();
+    let (ex, mut written) = export(&plan, &progress)
+        .with_context(|| format!("exporting COCO from {}", plan.workdir.display()))?;
+    if ex.frames_without_masks > 0 {
+        log::warn!(
+            "{} frame(s) in poses.jsonl have no ID map or instance file yet and were skipped; run \
+             `insgen render-masks` for them",
+            ex.frames_without_masks
+        );
+    }
+    let d = ex.dropped;
+    if d.small + d.low_visibility + d.truncated + d.empty_images > 0 {
+        log::info!(
+            "filtered out: {} small, {} barely visible, {} truncated annotations; {} empty images",
+            d.small,
+            d.low_visibility,
+            d.truncated,
+            d.empty_images
+        );
+    }
+    for (split, ds) in &ex.datasets {
+        log::info!("{split}: {} images, {} annotations", ds.images.len(), ds.annotations.len());
+    }
+    if !args.no_stats {
+        let refs: Vec<_> = ex.datasets.iter().map(|(s, d)| (*s, d)).collect();
+        let st = stats::compute(&refs);
+        let files = stats::write_report(
+            &st,
+            &refs,
+            &plan.out_dir,
+            &plan.workdir,
+            ReportOptions { contact_sheet_images: args.contact_sheet },
+        )
+        .with_context(|| format!("writing the statistics report in {}", plan.out_dir.display()))?;
+        written.extend(files);
+    }
+    for f in &written {
+        log::info!("wrote {}", f.display());
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Debug, Parser)]
+    struct T {
+        #[command(flatten)]
+        global: super::super::Global,
+        #[command(flatten)]
+        args: Args,
+    }
+
+    fn parse(argv: &[&str]) -> Result<T, clap::Error> {
+        T::try_parse_from(std::iter::once("t").chain(argv.iter().copied()))
+    }
+
+    #[test]
+    fn defaults() {
+        let t = parse(&[]).unwrap();
+        let plan = t.args.plan(&t.global);
+        assert_eq!(plan.out_dir, PathBuf::from("runs/coco"));
+        assert_eq!(plan.unit, AnnotationUnit::Component);
+        assert_eq!(plan.filters, Filters::default());
+        assert!(plan.holdout.is_empty() && !plan.polygons);
+    }
+
+    #[test]
+    fn holdout_repeats_and_filters_parse() {
+        let t = parse(&[
+            "--holdout",
+            "a",
+            "--holdout",
+            "b",
+            "--per-building",
+            "--min-area",
+            "64",
+            "--min-visible-fraction",
+            "0.25",
+            "--truncated",
+            "flag",
+            "--drop-empty-images",
+            "--out",
+            "x",
+        ])
+        .unwrap();
+        let plan = t.args.plan(&t.global);
+        assert_eq!(plan.holdout, ["a", "b"]);
+        assert_eq!(plan.unit, AnnotationUnit::Building);
+        assert_eq!(plan.out_dir, PathBuf::from("x"));
+        assert_eq!(
+            plan.filters,
+            Filters {
+                min_area_px: 64,
+                min_visible_fraction: Some(0.25),
+                truncated: TruncatedPolicy::Flag,
+                keep_empty_images: false
+            }
+        );
+    }
+
+    #[test]
+    fn last_of_keep_and_drop_empty_images_wins() {
+        let t = parse(&["--drop-empty-images", "--keep-empty-images"]).unwrap();
+        assert!(t.args.plan(&t.global).filters.keep_empty_images);
+        let t = parse(&["--keep-empty-images", "--drop-empty-images"]).unwrap();
+        assert!(!t.args.plan(&t.global).filters.keep_empty_images);
+    }
+
+    #[test]
+    fn bad_values_are_usage_errors() {
+        assert!(parse(&["--min-visible-fraction", "1.5"]).is_err());
+        assert!(parse(&["--truncated", "maybe"]).is_err());
+        assert!(parse(&["--min-area", "-3"]).is_err());
+    }
+}

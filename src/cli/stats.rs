@@ -1,0 +1,69 @@
+//! `insgen stats`: the statistics report of an existing COCO export.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+
+use crate::coco::export::{read_json, Split};
+use crate::coco::format::Dataset;
+use crate::coco::stats::{self, ReportOptions};
+
+/// Summarise a COCO export: images, instances per image, size classes, buildings seen per area.
+///
+/// Reads instances_{train,val,test}.json from the COCO directory (those present) and the images they
+/// name (for the contact sheet, found through `info.image_root`). Writes stats.md, stats.json,
+/// hist_instances_per_image.png, hist_sizes.png and contact_sheet.png into the same directory.
+#[derive(Debug, Clone, clap::Args)]
+#[command(after_long_help = "Example:\n  insgen stats --coco runs/coco")]
+pub struct Args {
+    /// COCO directory [default: <workdir>/coco].
+    #[arg(long, value_name = "DIR")]
+    pub coco: Option<PathBuf>,
+    /// Frames on the contact sheet (0 = none).
+    #[arg(long, value_name = "N", default_value_t = 12)]
+    pub contact_sheet: usize,
+}
+
+/// Runs `stats`.
+pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
+    let dir = args.coco.clone().unwrap_or_else(|| global.workdir.join("coco"));
+    let mut datasets: Vec<(Split, Dataset)> = Vec::new();
+    for split in Split::ALL {
+        let path = dir.join(split.file_name());
+        if path.is_file() {
+            let ds: Dataset = read_json(&path).with_context(|| format!("reading {}", path.display()))?;
+            datasets.push((split, ds));
+        }
+    }
+    if datasets.is_empty() {
+        anyhow::bail!(
+            "{}: no instances_train.json, instances_val.json or instances_test.json here; run `insgen \
+             export-coco` first or pass --coco DIR",
+            dir.display()
+        );
+    }
+    // All files of one export share the image root; it is relative to the COCO directory.
+    let root = &datasets[0].1.info.image_root;
+    let image_root =
+        if std::path::Path::new(root).is_absolute() { PathBuf::from(root) } else { dir.join(root) };
+    let refs: Vec<_> = datasets.iter().map(|(s, d)| (*s, d)).collect();
+    let st = stats::compute(&refs);
+    let files = stats::write_report(
+        &st,
+        &refs,
+        &dir,
+        &image_root,
+        ReportOptions { contact_sheet_images: args.contact_sheet },
+    )
+    .with_context(|| format!("writing the statistics report in {}", dir.display()))?;
+    for sp in &st.splits {
+        println!(
+            "{}: {} images, {} annotations ({} small, {} medium, {} large)",
+            sp.split, sp.images, sp.annotations, sp.sizes.small, sp.sizes.medium, sp.sizes.large
+        );
+    }
+    for f in files {
+        log::info!("wrote {}", f.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,108 @@
+//! Errors of the COCO stage. Every variant names the file concerned; causes stay in `#[source]`.
+
+use std::path::PathBuf;
+
+use crate::util::FileError;
+
+use super::rle::RleError;
+
+/// What can go wrong while exporting, reading or summarising COCO files.
+#[derive(Debug, thiserror::Error)]
+pub enum CocoError {
+    /// Reading, writing or listing a file failed.
+    #[error(transparent)]
+    File(#[from] FileError),
+    /// A JSON file does not parse into the expected structure.
+    #[error("{}: invalid JSON{}", path.display(), line.map(|l| format!(" at line {l}")).unwrap_or_default())]
+    Json {
+        path: PathBuf,
+        /// 1-based line of a JSON-lines file, when the file is one.
+        line: Option<usize>,
+        #[source]
+        source: serde_json::Error,
+    },
+    /// A PNG could not be decoded.
+    #[error("{}: cannot decode PNG", path.display())]
+    PngDecode {
+        path: PathBuf,
+        #[source]
+        source: png::DecodingError,
+    },
+    /// A PNG could not be encoded.
+    #[error("{}: cannot encode PNG", path.display())]
+    PngEncode {
+        path: PathBuf,
+        #[source]
+        source: png::EncodingError,
+    },
+    /// An instance-ID map is not a 24-bit RGB PNG of the expected size.
+    #[error("{}: {reason}", path.display())]
+    IdMap { path: PathBuf, reason: String },
+    /// The components recomputed from an ID map disagree with its `<frame>.instances.json`.
+    #[error("{}: does not match its ID map {}: {reason}", instances.display(), id_map.display())]
+    Mismatch { instances: PathBuf, id_map: PathBuf, reason: String },
+    /// The working directory does not have the layout the export expects.
+    #[error("{}: {reason}", path.display())]
+    Layout { path: PathBuf, reason: String },
+    /// A file has the right syntax but wrong content; each problem carries its JSON path.
+    #[error("{}: {} problem(s):\n  {}", path.display(), problems.len(), problems.join("\n  "))]
+    Invalid { path: PathBuf, problems: Vec<String> },
+    /// An RLE could not be built or parsed.
+    #[error("{}: {context}", path.display())]
+    Rle {
+        path: PathBuf,
+        /// Where in the file (JSON path or frame) the RLE comes from.
+        context: String,
+        #[source]
+        source: RleError,
+    },
+    /// `--holdout` names an area that is not in the working directory.
+    #[error("--holdout {area}: no such area under {}; areas found: {}", workdir.display(), available.join(", "))]
+    UnknownHoldout { area: String, workdir: PathBuf, available: Vec<String> },
+    /// Some frames failed; nothing was written. The first failure is the source, the others are listed.
+    #[error(
+        "{failed} of {total} frames could not be exported, so nothing was written{}\nfirst failure",
+        list_others(others)
+    )]
+    Frames {
+        failed: usize,
+        total: usize,
+        #[source]
+        first: Box<CocoError>,
+        /// The other failures, each with its cause chain.
+        others: Vec<String>,
+    },
+    /// A filter needs data the instance files do not have.
+    #[error("{}: {reason}", path.display())]
+    MissingData { path: PathBuf, reason: String },
+}
+
+impl CocoError {
+    pub(crate) fn json(path: &std::path::Path, source: serde_json::Error) -> Self {
+        CocoError::Json { path: path.to_path_buf(), line: None, source }
+    }
+}
+
+/// An error and its causes on one line (`a: b: c`), for lists of failures that cannot all be sources.
+pub(crate) fn chain_string(e: &dyn std::error::Error) -> String {
+    let mut s = e.to_string();
+    let mut cur = e.source();
+    while let Some(c) = cur {
+        s.push_str(": ");
+        s.push_str(&c.to_string());
+        cur = c.source();
+    }
+    s
+}
+
+fn list_others(others: &[String]) -> String {
+    const SHOWN: usize = 20;
+    let mut s: String = others.iter().take(SHOWN).map(|o| format!("\n  - {o}")).collect();
+    if others.len() > SHOWN {
+        s.push_str(&format!("\n  - … and {} more", others.len() - SHOWN));
+    }
+    if !s.is_empty() {
+        s.insert_str(0, "; other failures:");
+    }
+    s
+}

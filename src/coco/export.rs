@@ -1,0 +1,713 @@
+//! `export-coco`: rendered ID maps → COCO instance files, one per geographic split.
+//!
+//! Reads, for every area directory `<workdir>/<area>/` that has a `scene/manifest.json`:
+//! - `scene/manifest.json` (the area's split, attributions, provenance) and `scene/buildings.json`;
+//! - every camera directory `<area>/<camera>/` holding a `poses.jsonl`, and for each frame listed there
+//!   `masks/<frame>.png` (24-bit ID map) and `masks/<frame>.instances.json` (optional `rgb/<frame>.png`).
+//!
+//! Every ID map is decoded and its connected components recomputed with the connectivity its instance
+//! file records; the export stops with an error naming both files if they disagree (count, building,
+//! area, box, truncation), so a COCO file never describes masks other than the ones on disk.
+//!
+//! Writes `instances_train.json`, `instances_val.json` and `instances_test.json` (see [`super::format`])
+//! into the output directory — always all three, possibly empty, so that downstream tools find the same
+//! layout. Splits are by area, never by frame; `--holdout` moves whole areas to `test`. The output is
+//! deterministic: areas, cameras and frames are sorted by name, ids are assigned in that order, no dates.
+//! Frames are processed in parallel (rayon); files are written atomically and only when every frame
+//! succeeded.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+
+use crate::camera::PoseRecord;
+use crate::label::{label_components, FrameInstances};
+use crate::scene::{BuildingRecord, Manifest};
+use crate::util::{FileError, Progress};
+
+use super::error::chain_string;
+use super::format::{
+    licence_url, Annotation, AnnotationUnit, AreaInfo, Category, Dataset, Filters, Image, Info, License,
+    RleJson, Segmentation, SourceInfo, TruncatedPolicy, BUILDING_CATEGORY_ID,
+};
+use super::idmap::read_id_png;
+use super::rle::{encode_labels, Rle};
+use super::CocoError;
+
+/// A geographic split.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Split {
+    Train,
+    Val,
+    Test,
+}
+
+impl Split {
+    /// All splits in file order.
+    pub const ALL: [Split; 3] = [Split::Train, Split::Val, Split::Test];
+
+    /// `train`, `val` or `test`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Split::Train => "train",
+            Split::Val => "val",
+            Split::Test => "test",
+        }
+    }
+
+    /// Parses `train`, `val` or `test`.
+    pub fn parse(s: &str) -> Option<Split> {
+        Split::ALL.into_iter().find(|x| x.as_str() == s)
+    }
+
+    /// The file name of this split's COCO file: `instances_<split>.json`.
+    pub fn file_name(self) -> String {
+        format!("instances_{}.json", self.as_str())
+    }
+}
+
+impl fmt::Display for Split {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// Everything the export needs, resolved from the command line.
+#[derive(Debug, Clone)]
+pub struct ExportPlan {
+    /// The insgen workdir holding the area directories (and the image root of the COCO files).
+    pub workdir: PathBuf,
+    /// Where the COCO files go (default `<workdir>/coco`).
+    pub out_dir: PathBuf,
+    /// Areas moved to the test split whatever their manifests say.
+    pub holdout: Vec<String>,
+    pub unit: AnnotationUnit,
+    /// Write polygons (outer boundaries; holes are lost) in `segmentation`, keeping the exact RLE in
+    /// the `mask_rle` extension key.
+    pub polygons: bool,
+    pub filters: Filters,
+}
+
+/// Counts of what the filters removed.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct DropCounts {
+    /// Annotations below `--min-area`.
+    pub small: u64,
+    /// Annotations below `--min-visible-fraction`.
+    pub low_visibility: u64,
+    /// Truncated annotations under `--truncated drop`.
+    pub truncated: u64,
+    /// Images left without annotations under `--drop-empty-images`.
+    pub empty_images: u64,
+}
+
+impl DropCounts {
+    fn add(&mut self, o: &DropCounts) {
+        self.small += o.small;
+        self.low_visibility += o.low_visibility;
+        self.truncated += o.truncated;
+        self.empty_images += o.empty_images;
+    }
+}
+
+/// The result of building the datasets.
+#[derive(Debug, Clone)]
+pub struct Export {
+    /// One dataset per split, in [`Split::ALL`] order.
+    pub datasets: Vec<(Split, Dataset)>,
+    /// Frames listed in `poses.jsonl` whose ID map or instance file does not exist (not rendered yet).
+    pub frames_without_masks: u64,
+    pub dropped: DropCounts,
+}
+
+struct AreaInput {
+    name: String,
+    manifest: Manifest,
+    manifest_split: Split,
+    split: Split,
+    buildings_path: PathBuf,
+    source_ids: BTreeMap<u32, String>,
+    cameras: Vec<CameraInput>,
+}
+
+struct CameraInput {
+    name: String,
+    frames: Vec<FrameInput>,
+}
+
+struct FrameInput {
+    pose: PoseRecord,
+    mask: PathBuf,
+    instances: PathBuf,
+    has_rgb: bool,
+}
+
+/// Reads a JSON file into `T`, naming the file in errors.
+pub(crate) fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, CocoError> {
+    let bytes = crate::util::read_file(path)?;
+    serde_json::from_slice(&bytes).map_err(|e| CocoError::json(path, e))
+}
+
+fn list_dirs(dir: &Path) -> Result<Vec<(String, PathBuf)>, CocoError> {
+    let rd = std::fs::read_dir(dir).map_err(|e| FileError::new("listing", dir, e))?;
+    let mut out = Vec::new();
+    for entry in rd {
+        let entry = entry.map_err(|e| FileError::new("listing", dir, e))?;
+        let path = entry.path();
+        if path.is_dir() {
+            if let Some(name) = entry.file_name().to_str() {
+                out.push((name.to_string(), path));
+            }
+        }
+    }
+    out.sort();
+    Ok(out)
+}
+
+fn read_poses(path: &Path) -> Result<Vec<PoseRecord>, CocoError> {
+    let bytes = crate::util::read_file(path)?;
+    let text = String::from_utf8_lossy(&bytes);
+    let mut out = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let rec: PoseRecord = serde_json::from_str(line).map_err(|source| CocoError::Json {
+            path: path.to_path_buf(),
+            line: Some(i + 1),
+            source,
+        })?;
+        out.push(rec);
+    }
+    Ok(out)
+}
+
+/// Finds the prepared areas, their cameras and rendered frames under `workdir`.
+fn discover(workdir: &Path) -> Result<(Vec<AreaInput>, u64), CocoError> {
+    let mut areas = Vec::new();
+    let mut missing = 0u64;
+    for (name, dir) in list_dirs(workdir)? {
+        let manifest_path = dir.join("scene").join(crate::scene::artifact::MANIFEST_FILE);
+        if !manifest_path.is_file() {
+            continue;
+        }
+        let manifest: Manifest = read_json(&manifest_path)?;
+        if manifest.area != name {
+            return Err(CocoError::Layout {
+                path: manifest_path,
+                reason: format!("names area \"{}\" but lives in directory \"{name}\"", manifest.area),
+            });
+        }
+        let Some(split) = Split::parse(&manifest.split) else {
+            return Err(CocoError::Layout {
+                path: manifest_path,
+                reason: format!("split \"{}\" is not one of train, val, test", manifest.split),
+            });
+        };
+        let buildings_path = dir.join("scene").join(crate::scene::artifact::BUILDINGS_FILE);
+        let buildings: Vec<BuildingRecord> = read_json(&buildings_path)?;
+        let source_ids = buildings.into_iter().map(|b| (b.id, b.source_id)).collect();
+        let mut cameras = Vec::new();
+        for (cam_name, cam_dir) in list_dirs(&dir)? {
+            let poses_path = cam_dir.join("poses.jsonl");
+            if cam_name == "scene" || !poses_path.is_file() {
+                continue;
+            }
+            let mut poses = read_poses(&poses_path)?;
+            poses.sort_by(|a, b| a.name.cmp(&b.name));
+            if let Some(w) = poses.windows(2).find(|w| w[0].name == w[1].name) {
+                return Err(CocoError::Layout {
+                    path: poses_path,
+                    reason: format!("frame name \"{}\" appears more than once", w[0].name),
+                });
+            }
+            let mut frames = Vec::new();
+            for pose in poses {
+                if pose.area != name {
+                    return Err(CocoError::Layout {
+                        path: poses_path,
+                        reason: format!(
+                            "frame \"{}\" belongs to area \"{}\", not \"{name}\"",
+                            pose.name, pose.area
+                        ),
+                    });
+                }
+                let mask = cam_dir.join("masks").join(format!("{}.png", pose.name));
+                let instances = cam_dir.join("masks").join(format!("{}.instances.json", pose.name));
+                if !mask.is_file() || !instances.is_file() {
+                    missing += 1;
+                    continue;
+                }
+                let has_rgb = cam_dir.join("rgb").join(format!("{}.png", pose.name)).is_file();
+                frames.push(FrameInput { pose, mask, instances, has_rgb });
+            }
+            cameras.push(CameraInput { name: cam_name, frames });
+        }
+        areas.push(AreaInput {
+            name,
+            manifest,
+            manifest_split: split,
+            split,
+            buildings_path,
+            source_ids,
+            cameras,
+        });
+    }
+    Ok((areas, missing))
+}
+
+/// One annotation before filtering and id assignment.
+struct Draft {
+    rle: Rle,
+    building_id: u32,
+    source_id: String,
+    component: Option<u32>,
+    num_components: Option<u32>,
+    visible_fraction: Option<f64>,
+    truncated: bool,
+}
+
+struct FrameResult {
+    image: Image,
+    annotations: Vec<Annotation>,
+    dropped: DropCounts,
+}
+
+/// Decodes, verifies and annotates one frame (ids are assigned later).
+fn process_frame(
+    area: &AreaInput,
+    camera: &CameraInput,
+    frame: &FrameInput,
+    plan: &ExportPlan,
+    licence: Option<u32>,
+) -> Result<FrameResult, CocoError> {
+    let inst: FrameInstances = read_json(&frame.instances)?;
+    let map = read_id_png(&frame.mask)?;
+    let mismatch = |reason: String| CocoError::Mismatch {
+        instances: frame.instances.clone(),
+        id_map: frame.mask.clone(),
+        reason,
+    };
+    let pose = &frame.pose;
+    if inst.frame != pose.name {
+        return Err(mismatch(format!("it is for frame \"{}\", expected \"{}\"", inst.frame, pose.name)));
+    }
+    if (inst.width, inst.height) != (map.width, map.height) {
+        return Err(mismatch(format!(
+            "it gives {}×{} px, the ID map is {}×{} px",
+            inst.width, inst.height, map.width, map.height
+        )));
+    }
+    let k = &pose.intrinsics;
+    if (k.width_px, k.height_px) != (map.width, map.height) {
+        return Err(mismatch(format!(
+            "poses.jsonl gives {}×{} px for this frame, the ID map is {}×{} px",
+            k.width_px, k.height_px, map.width, map.height
+        )));
+    }
+    let (w, h) = (map.width, map.height);
+    let lab = label_components(&map.ids, w, h, inst.connectivity);
+    let kept: Vec<usize> = (0..lab.components.len())
+        .filter(|&i| lab.components[i].area_px >= inst.min_component_area_px)
+        .collect();
+    if kept.len() != inst.instances.len() {
+        return Err(mismatch(format!(
+            "it lists {} instances, the ID map has {} components of at least {} px ({:?}-connectivity)",
+            inst.instances.len(),
+            kept.len(),
+            inst.min_component_area_px,
+            inst.connectivity
+        )));
+    }
+    for (n, (&ci, e)) in kept.iter().zip(&inst.instances).enumerate() {
+        let c = &lab.components[ci];
+        if (c.building_id, c.area_px, c.bbox_px, c.touches_border)
+            != (e.building_id, e.area_px, e.bbox_px, e.truncated)
+        {
+            return Err(mismatch(format!(
+                "instances[{n}] is building {} with {} px, bbox {:?}, truncated {}; the ID map's component #{n} \
+                 is building {} with {} px, bbox {:?}, truncated {}",
+                e.building_id, e.area_px, e.bbox_px, e.truncated, c.building_id, c.area_px, c.bbox_px,
+                c.touches_border
+            )));
+        }
+        match area.source_ids.get(&e.building_id) {
+            None => {
+                return Err(mismatch(format!(
+                    "instances[{n}]: building {} is not in {}",
+                    e.building_id,
+                    area.buildings_path.display()
+                )))
+            }
+            Some(s) if *s != e.source_id => {
+                return Err(mismatch(format!(
+                    "instances[{n}]: building {} has source_id \"{}\" here but \"{s}\" in {}",
+                    e.building_id,
+                    e.source_id,
+                    area.buildings_path.display()
+                )))
+            }
+            Some(_) => {}
+        }
+        if plan.filters.min_visible_fraction.is_some() && e.visible_fraction.is_none() {
+            return Err(CocoError::MissingData {
+                path: frame.instances.clone(),
+                reason: format!(
+                    "instances[{n}] has no visible_fraction, which --min-visible-fraction needs; rerun \
+                     `insgen render-masks --area {} --camera {} --visible-fraction --force`",
+                    area.name, camera.name
+                ),
+            });
+        }
+    }
+    let rles = encode_labels(&lab.labels, h, w, lab.components.len()).map_err(|source| CocoError::Rle {
+        path: frame.mask.clone(),
+        context: "encoding the connected components".into(),
+        source,
+    })?;
+    let drafts: Vec<Draft> = match plan.unit {
+        AnnotationUnit::Component => kept
+            .iter()
+            .zip(&inst.instances)
+            .map(|(&ci, e)| Draft {
+                rle: rles[ci].clone(),
+                building_id: e.building_id,
+                source_id: e.source_id.clone(),
+                component: Some(e.component),
+                num_components: None,
+                visible_fraction: e.visible_fraction,
+                truncated: e.truncated,
+            })
+            .collect(),
+        AnnotationUnit::Building => {
+            let mut groups: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
+            for (n, e) in inst.instances.iter().enumerate() {
+                groups.entry(e.building_id).or_default().push(n);
+            }
+            let mut out = Vec::with_capacity(groups.len());
+            for (bid, members) in groups {
+                let parts: Vec<Rle> = members.iter().map(|&n| rles[kept[n]].clone()).collect();
+                let rle = Rle::union(&parts).map_err(|source| CocoError::Rle {
+                    path: frame.mask.clone(),
+                    context: format!("merging the components of building {bid}"),
+                    source,
+                })?;
+                let first = &inst.instances[members[0]];
+                out.push(Draft {
+                    rle,
+                    building_id: bid,
+                    source_id: first.source_id.clone(),
+                    component: None,
+                    num_components: Some(members.len() as u32),
+                    visible_fraction: first.visible_fraction,
+                    truncated: members.iter().any(|&n| inst.instances[n].truncated),
+                });
+            }
+            out
+        }
+    };
+
+    let f = &plan.filters;
+    let mut dropped = DropCounts::default();
+    let mut annotations = Vec::with_capacity(drafts.len());
+    for d in drafts {
+        let area_px = d.rle.area();
+        if area_px < f.min_area_px {
+            dropped.small += 1;
+            continue;
+        }
+        if let (Some(min), Some(v)) = (f.min_visible_fraction, d.visible_fraction) {
+            if v < min {
+                dropped.low_visibility += 1;
+                continue;
+            }
+        }
+        if d.truncated && f.truncated == TruncatedPolicy::Drop {
+            dropped.truncated += 1;
+            continue;
+        }
+        let iscrowd = (d.truncated && f.truncated == TruncatedPolicy::Flag) as u8;
+        let rle_json = RleJson::from(&d.rle);
+        let (segmentation, mask_rle) = if plan.polygons {
+            let mask = d.rle.decode();
+            let polys = super::polygon::mask_to_polygons(&mask, w, h);
+            if polys.is_empty() {
+                (Segmentation::Rle(rle_json), None)
+            } else {
+                (Segmentation::Polygons(polys), Some(rle_json))
+            }
+        } else {
+            (Segmentation::Rle(rle_json), None)
+        };
+        annotations.push(Annotation {
+            id: 0,
+            image_id: 0,
+            category_id: BUILDING_CATEGORY_ID,
+            segmentation,
+            area: area_px,
+            bbox: d.rle.to_bbox(),
+            iscrowd,
+            building_id: d.building_id,
+            source_id: d.source_id,
+            component: d.component,
+            num_components: d.num_components,
+            visible_fraction: d.visible_fraction,
+            truncated: d.truncated,
+            area_name: area.name.clone(),
+            mask_rle,
+        });
+    }
+
+    let base = format!("{}/{}", area.name, camera.name);
+    let mask_file = format!("{base}/masks/{}.png", pose.name);
+    let file_name = if frame.has_rgb { format!("{base}/rgb/{}.png", pose.name) } else { mask_file.clone() };
+    let image = Image {
+        id: 0,
+        file_name,
+        width: w,
+        height: h,
+        license: licence,
+        area_name: area.name.clone(),
+        camera: camera.name.clone(),
+        preset: pose.preset.clone(),
+        frame: pose.name.clone(),
+        mask_file,
+        connectivity: inst.connectivity,
+        intrinsics: pose.intrinsics,
+        cam_to_world_enu: pose.cam_to_world_enu,
+        colmap_qvec: pose.colmap_qvec,
+        colmap_tvec: pose.colmap_tvec,
+        lat_deg: pose.lat_deg,
+        lon_deg: pose.lon_deg,
+        h_m: pose.h_m,
+        yaw_deg: pose.yaw_deg,
+        pitch_deg: pose.pitch_deg,
+        roll_deg: pose.roll_deg,
+    };
+    Ok(FrameResult { image, annotations, dropped })
+}
+
+/// `image_root` for files in `out_dir`: the relative path from `out_dir` to `workdir` when the output
+/// lies inside the workdir (`..` by default), else the workdir's absolute path.
+fn image_root(workdir: &Path, out_dir: &Path) -> String {
+    let (Ok(wd), Ok(out)) = (workdir.canonicalize(), out_dir.canonicalize()) else {
+        return workdir.display().to_string();
+    };
+    match out.strip_prefix(&wd) {
+        Ok(rel) => {
+            let n = rel.components().count();
+            if n == 0 {
+                ".".to_string()
+            } else {
+                vec![".."; n].join("/")
+            }
+        }
+        Err(_) => wd.display().to_string(),
+    }
+}
+
+/// Builds the three datasets without writing anything.
+///
+/// # Errors
+/// [`CocoError::Layout`] when there is no prepared area, for an unknown split or inconsistent names;
+/// [`CocoError::UnknownHoldout`]; [`CocoError::Frames`] when frames fail (ID map and instance file
+/// disagree, unreadable files, …), listing every failing frame.
+pub fn build(plan: &ExportPlan, image_root: &str, progress: &dyn Progress) -> Result<Export, CocoError> {
+    let (mut areas, frames_without_masks) = discover(&plan.workdir)?;
+    if areas.is_empty() {
+        return Err(CocoError::Layout {
+            path: plan.workdir.clone(),
+            reason:
+                "no prepared area here (no <area>/scene/manifest.json); run `insgen prepare --area NAME`, \
+                     `insgen sample` and `insgen render-masks` first, or pass --workdir"
+                    .into(),
+        });
+    }
+    for h in &plan.holdout {
+        match areas.iter_mut().find(|a| &a.name == h) {
+            Some(a) => a.split = Split::Test,
+            None => {
+                return Err(CocoError::UnknownHoldout {
+                    area: h.clone(),
+                    workdir: plan.workdir.clone(),
+                    available: areas.iter().map(|a| a.name.clone()).collect(),
+                })
+            }
+        }
+    }
+    // Licences: one per distinct attribution over all areas, ids in sorted order of the text.
+    let attributions: BTreeSet<&str> =
+        areas.iter().flat_map(|a| a.manifest.attributions.iter().map(String::as_str)).collect();
+    let licence_id: BTreeMap<&str, u32> =
+        attributions.iter().enumerate().map(|(i, &s)| (s, i as u32 + 1)).collect();
+
+    let jobs: Vec<(&AreaInput, &CameraInput, &FrameInput)> = areas
+        .iter()
+        .flat_map(|a| a.cameras.iter().flat_map(move |c| c.frames.iter().map(move |f| (a, c, f))))
+        .collect();
+    progress.start(jobs.len() as u64, "frames");
+    let results: Vec<Result<FrameResult, CocoError>> = jobs
+        .par_iter()
+        .map(|&(a, c, f)| {
+            let licence = a.manifest.attributions.first().and_then(|s| licence_id.get(s.as_str()).copied());
+            let r = process_frame(a, c, f, plan, licence);
+            progress.inc(1);
+            r
+        })
+        .collect();
+    progress.finish();
+
+    let total = results.len();
+    let mut frames = Vec::with_capacity(total);
+    let mut errors = Vec::new();
+    for r in results {
+        match r {
+            Ok(f) => frames.push(f),
+            Err(e) => errors.push(e),
+        }
+    }
+    if !errors.is_empty() {
+        let failed = errors.len();
+        let mut it = errors.into_iter();
+        let first = Box::new(it.next().expect("errors is not empty"));
+        let others = it.map(|e| chain_string(&e)).collect();
+        return Err(CocoError::Frames { failed, total, first, others });
+    }
+
+    let mut dropped = DropCounts::default();
+    let mut datasets: Vec<(Split, Dataset)> = Split::ALL
+        .into_iter()
+        .map(|split| {
+            let split_areas: Vec<&AreaInput> = areas.iter().filter(|a| a.split == split).collect();
+            let used: BTreeSet<&str> =
+                split_areas.iter().flat_map(|a| a.manifest.attributions.iter().map(String::as_str)).collect();
+            let licenses = used
+                .into_iter()
+                .map(|s| License { id: licence_id[s], name: s.to_string(), url: licence_url(s) })
+                .collect();
+            let info = Info {
+                description: format!(
+                    "insgen synthetic building instances ({} split) for UAV localization against LoD models",
+                    split
+                ),
+                version: env!("CARGO_PKG_VERSION").to_string(),
+                contributor: "insgen".into(),
+                url: String::new(),
+                split: split.as_str().into(),
+                image_root: image_root.to_string(),
+                annotation_unit: plan.unit,
+                filters: plan.filters,
+                areas: split_areas
+                    .iter()
+                    .map(|a| AreaInfo {
+                        name: a.name.clone(),
+                        manifest_split: a.manifest_split.as_str().into(),
+                        held_out: a.split != a.manifest_split,
+                        buildings: a.source_ids.len() as u64,
+                        sources: a
+                            .manifest
+                            .sources
+                            .iter()
+                            .map(|s| SourceInfo { path: s.path.clone(), sha256: s.sha256.clone() })
+                            .collect(),
+                        attributions: a.manifest.attributions.clone(),
+                    })
+                    .collect(),
+            };
+            let ds = Dataset {
+                info,
+                licenses,
+                images: Vec::new(),
+                annotations: Vec::new(),
+                categories: vec![Category::building()],
+            };
+            (split, ds)
+        })
+        .collect();
+    // Frames are in job order: areas, cameras, frames sorted by name.
+    let mut frame_iter = frames.into_iter();
+    for a in &areas {
+        let ds = &mut datasets.iter_mut().find(|(s, _)| *s == a.split).expect("every split has a dataset").1;
+        for c in &a.cameras {
+            for _ in &c.frames {
+                let f = frame_iter.next().expect("one result per frame");
+                dropped.add(&f.dropped);
+                if f.annotations.is_empty() && !plan.filters.keep_empty_images {
+                    dropped.empty_images += 1;
+                    continue;
+                }
+                let image_id = ds.images.len() as u64 + 1;
+                let mut image = f.image;
+                image.id = image_id;
+                ds.images.push(image);
+                for mut ann in f.annotations {
+                    ann.id = ds.annotations.len() as u64 + 1;
+                    ann.image_id = image_id;
+                    ds.annotations.push(ann);
+                }
+            }
+        }
+    }
+    Ok(Export { datasets, frames_without_masks, dropped })
+}
+
+/// Builds the datasets and writes `instances_{train,val,test}.json` into `plan.out_dir` (atomically,
+/// compact JSON with a trailing newline). Returns the export and the files written.
+///
+/// # Errors
+/// As [`build`], plus I/O errors naming the file.
+pub fn export(plan: &ExportPlan, progress: &dyn Progress) -> Result<(Export, Vec<PathBuf>), CocoError> {
+    crate::util::create_dir_all(&plan.out_dir)?;
+    let root = image_root(&plan.workdir, &plan.out_dir);
+    let ex = build(plan, &root, progress)?;
+    let mut written = Vec::new();
+    for (split, ds) in &ex.datasets {
+        let path = plan.out_dir.join(split.file_name());
+        write_dataset(&path, ds)?;
+        written.push(path);
+    }
+    Ok((ex, written))
+}
+
+/// Writes a dataset as compact JSON atomically.
+///
+/// # Errors
+/// I/O or serialisation errors naming `path`.
+pub fn write_dataset(path: &Path, ds: &Dataset) -> Result<(), CocoError> {
+    let mut bytes = serde_json::to_vec(ds).map_err(|e| CocoError::json(path, e))?;
+    bytes.push(b'\n');
+    crate::util::write_bytes_atomic(path, &bytes)?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn split_names_round_trip() {
+        for s in Split::ALL {
+            assert_eq!(Split::parse(s.as_str()), Some(s));
+        }
+        assert_eq!(Split::parse("validation"), None);
+        assert_eq!(Split::Val.file_name(), "instances_val.json");
+    }
+
+    #[test]
+    fn image_root_is_relative_inside_the_workdir() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("coco");
+        std::fs::create_dir_all(&out).unwrap();
+        assert_eq!(image_root(dir.path(), &out), "..");
+        let deep = dir.path().join("a/b");
+        std::fs::create_dir_all(&deep).unwrap();
+        assert_eq!(image_root(dir.path(), &deep), "../..");
+        let other = tempfile::tempdir().unwrap();
+        assert_eq!(
+            image_root(dir.path(), other.path()),
+            dir.path().canonicalize().unwrap().display().to_string()
+        );
+    }
+}

@@ -1,0 +1,521 @@
+//! Dataset statistics: per split images, instances, instances per image, COCO size classes, buildings
+//! seen per area — written as `stats.md` + `stats.json`, bar charts (`hist_*.png`) and a contact sheet
+//! of annotated frames (`contact_sheet.png`).
+//!
+//! Size classes follow the brief of COCOeval's area ranges: small = area < 32² px, medium = 32² ≤ area
+//! < 96² px, large = area ≥ 96² px. (COCOeval's own ranges are closed at both ends, so an instance of
+//! exactly 1024 px counts as both small and medium there; here it is medium.)
+//!
+//! Everything is computed from the COCO files alone (the extension keys `area_name` and `building_id`,
+//! and `info.areas` for the building totals), so `insgen stats` can summarise any export.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+
+use super::export::Split;
+use super::format::{Dataset, Segmentation};
+use super::raster::{bar_chart, palette, read_png_rgb, RgbImage, Series};
+use super::CocoError;
+
+/// Upper bound (exclusive) of COCO's "small" class, px.
+pub const SMALL_MAX_PX: u64 = 32 * 32;
+/// Upper bound (exclusive) of COCO's "medium" class, px.
+pub const MEDIUM_MAX_PX: u64 = 96 * 96;
+
+/// Counts per COCO size class.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct SizeCounts {
+    pub small: u64,
+    pub medium: u64,
+    pub large: u64,
+}
+
+/// One bin of the instances-per-image histogram.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct PerImageBin {
+    /// Annotations in the image.
+    pub instances: u64,
+    /// Images with exactly that many.
+    pub images: u64,
+}
+
+/// Statistics of one split.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SplitStats {
+    pub split: String,
+    pub areas: Vec<String>,
+    pub images: u64,
+    pub images_without_annotations: u64,
+    pub annotations: u64,
+    /// Annotations with `iscrowd = 1`.
+    pub crowd: u64,
+    /// Annotations touching the image border.
+    pub truncated: u64,
+    pub mean_instances_per_image: f64,
+    pub max_instances_per_image: u64,
+    pub instances_per_image: Vec<PerImageBin>,
+    pub sizes: SizeCounts,
+    /// Median annotation area, px (0 without annotations).
+    pub median_area_px: u64,
+}
+
+/// Statistics of one area.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AreaStats {
+    pub area: String,
+    pub split: String,
+    pub images: u64,
+    pub annotations: u64,
+    /// Distinct buildings with at least one annotation.
+    pub buildings_seen: u64,
+    /// Buildings in the area's building table.
+    pub buildings_total: u64,
+    /// `buildings_seen / buildings_total` (0 when the table is empty).
+    pub coverage: f64,
+}
+
+/// The whole report (`stats.json`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Stats {
+    pub insgen_version: String,
+    pub splits: Vec<SplitStats>,
+    pub areas: Vec<AreaStats>,
+}
+
+/// Computes the statistics of the given splits.
+pub fn compute(datasets: &[(Split, &Dataset)]) -> Stats {
+    let mut splits = Vec::new();
+    let mut areas = Vec::new();
+    for &(split, ds) in datasets {
+        let mut per_image: BTreeMap<u64, u64> = ds.images.iter().map(|im| (im.id, 0)).collect();
+        let mut sizes = SizeCounts::default();
+        let (mut crowd, mut truncated) = (0, 0);
+        let mut area_values: Vec<u64> = Vec::with_capacity(ds.annotations.len());
+        for a in &ds.annotations {
+            *per_image.entry(a.image_id).or_default() += 1;
+            match a.area {
+                x if x < SMALL_MAX_PX => sizes.small += 1,
+                x if x < MEDIUM_MAX_PX => sizes.medium += 1,
+                _ => sizes.large += 1,
+            }
+            crowd += (a.iscrowd != 0) as u64;
+            truncated += a.truncated as u64;
+            area_values.push(a.area);
+        }
+        area_values.sort_unstable();
+        let mut hist: BTreeMap<u64, u64> = BTreeMap::new();
+        for &n in per_image.values() {
+            *hist.entry(n).or_default() += 1;
+        }
+        let images = ds.images.len() as u64;
+        let annotations = ds.annotations.len() as u64;
+        splits.push(SplitStats {
+            split: split.as_str().into(),
+            areas: ds.info.areas.iter().map(|a| a.name.clone()).collect(),
+            images,
+            images_without_annotations: hist.get(&0).copied().unwrap_or(0),
+            annotations,
+            crowd,
+            truncated,
+            mean_instances_per_image: if images > 0 { annotations as f64 / images as f64 } else { 0.0 },
+            max_instances_per_image: per_image.values().copied().max().unwrap_or(0),
+            instances_per_image: hist
+                .into_iter()
+                .map(|(instances, images)| PerImageBin { instances, images })
+                .collect(),
+            sizes,
+            median_area_px: area_values.get(area_values.len() / 2).copied().unwrap_or(0),
+        });
+        for info in &ds.info.areas {
+            let images = ds.images.iter().filter(|im| im.area_name == info.name).count() as u64;
+            let anns: Vec<_> = ds.annotations.iter().filter(|a| a.area_name == info.name).collect();
+            let seen: BTreeSet<u32> = anns.iter().map(|a| a.building_id).collect();
+            areas.push(AreaStats {
+                area: info.name.clone(),
+                split: split.as_str().into(),
+                images,
+                annotations: anns.len() as u64,
+                buildings_seen: seen.len() as u64,
+                buildings_total: info.buildings,
+                coverage: if info.buildings > 0 { seen.len() as f64 / info.buildings as f64 } else { 0.0 },
+            });
+        }
+    }
+    areas.sort_by(|a, b| a.area.cmp(&b.area));
+    Stats { insgen_version: env!("CARGO_PKG_VERSION").into(), splits, areas }
+}
+
+/// Options for [`write_report`].
+#[derive(Debug, Clone, Copy)]
+pub struct ReportOptions {
+    /// Frames on the contact sheet (0 = no contact sheet).
+    pub contact_sheet_images: usize,
+}
+
+impl Default for ReportOptions {
+    fn default() -> Self {
+        ReportOptions { contact_sheet_images: 12 }
+    }
+}
+
+const SPLIT_COLOURS: [[u8; 3]; 3] = [[31, 119, 180], [255, 127, 14], [44, 160, 44]];
+
+/// Writes `stats.json`, `stats.md`, `hist_instances_per_image.png`, `hist_sizes.png` and (unless
+/// disabled) `contact_sheet.png` into `out_dir`; `image_root` is where `images[].file_name` are found.
+/// Returns the files written.
+///
+/// # Errors
+/// I/O and PNG errors naming the file. An image missing from the contact sheet is not an error: its
+/// tile is drawn on grey and the problem logged.
+pub fn write_report(
+    stats: &Stats,
+    datasets: &[(Split, &Dataset)],
+    out_dir: &Path,
+    image_root: &Path,
+    opts: ReportOptions,
+) -> Result<Vec<PathBuf>, CocoError> {
+    let mut written = Vec::new();
+    let json_path = out_dir.join("stats.json");
+    crate::util::write_json_atomic(&json_path, stats)?;
+    written.push(json_path);
+
+    // Instances per image, grouped into at most 25 bins.
+    let max = stats.splits.iter().map(|s| s.max_instances_per_image).max().unwrap_or(0);
+    let width = (max + 1).div_ceil(25).max(1);
+    let n_bins = (max / width + 1) as usize;
+    let cats: Vec<String> = (0..n_bins as u64)
+        .map(|b| if width == 1 { format!("{b}") } else { format!("{}", b * width) })
+        .collect();
+    let series: Vec<Series> = stats
+        .splits
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            let mut values = vec![0.0; n_bins];
+            for bin in &s.instances_per_image {
+                values[(bin.instances / width) as usize] += bin.images as f64;
+            }
+            Series { name: s.split.clone(), colour: SPLIT_COLOURS[i % 3], values }
+        })
+        .collect();
+    let title = if width == 1 {
+        "images by instances per image".to_string()
+    } else {
+        format!("images by instances per image (bins of {width})")
+    };
+    let p = out_dir.join("hist_instances_per_image.png");
+    bar_chart(&title, &cats, &series).save(&p)?;
+    written.push(p);
+
+    let size_series: Vec<Series> = stats
+        .splits
+        .iter()
+        .enumerate()
+        .map(|(i, s)| Series {
+            name: s.split.clone(),
+            colour: SPLIT_COLOURS[i % 3],
+            values: vec![s.sizes.small as f64, s.sizes.medium as f64, s.sizes.large as f64],
+        })
+        .collect();
+    let p = out_dir.join("hist_sizes.png");
+    let size_cats = ["small <32^2".to_string(), "medium <96^2".to_string(), "large".to_string()];
+    bar_chart("instances by size (px)", &size_cats, &size_series).save(&p)?;
+    written.push(p);
+
+    let sheet = opts.contact_sheet_images > 0;
+    if sheet {
+        let p = out_dir.join("contact_sheet.png");
+        contact_sheet(datasets, image_root, opts.contact_sheet_images)?.save(&p)?;
+        written.push(p);
+    }
+
+    let md_path = out_dir.join("stats.md");
+    crate::util::write_bytes_atomic(&md_path, markdown(stats, sheet).as_bytes())?;
+    written.push(md_path);
+    Ok(written)
+}
+
+fn markdown(stats: &Stats, sheet: bool) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# COCO export statistics\n\nWritten by insgen {}.\n", stats.insgen_version);
+    let _ = writeln!(s, "## Splits\n");
+    let _ = writeln!(
+        s,
+        "| split | areas | images | without annotations | annotations | per image (mean / max) | small | medium | \
+         large | truncated | crowd | median area px |"
+    );
+    let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    for sp in &stats.splits {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {:.2} / {} | {} | {} | {} | {} | {} | {} |",
+            sp.split,
+            if sp.areas.is_empty() { "—".to_string() } else { sp.areas.join(", ") },
+            sp.images,
+            sp.images_without_annotations,
+            sp.annotations,
+            sp.mean_instances_per_image,
+            sp.max_instances_per_image,
+            sp.sizes.small,
+            sp.sizes.medium,
+            sp.sizes.large,
+            sp.truncated,
+            sp.crowd,
+            sp.median_area_px
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nSize classes: small < 32² px, medium < 96² px, large ≥ 96² px (area = mask pixel count).\n"
+    );
+    let _ = writeln!(s, "## Instances per image\n");
+    let _ = writeln!(s, "| split | instances: images |\n|---|---|");
+    for sp in &stats.splits {
+        let bins: Vec<String> =
+            sp.instances_per_image.iter().map(|b| format!("{}: {}", b.instances, b.images)).collect();
+        let _ =
+            writeln!(s, "| {} | {} |", sp.split, if bins.is_empty() { "—".into() } else { bins.join(", ") });
+    }
+    let _ =
+        writeln!(s, "\n![instances per image](hist_instances_per_image.png)\n\n![sizes](hist_sizes.png)\n");
+    let _ = writeln!(s, "## Areas\n");
+    let _ = writeln!(
+        s,
+        "| area | split | images | annotations | buildings seen | buildings in model | coverage |"
+    );
+    let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---:|");
+    for a in &stats.areas {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {} | {:.1}% |",
+            a.area,
+            a.split,
+            a.images,
+            a.annotations,
+            a.buildings_seen,
+            a.buildings_total,
+            100.0 * a.coverage
+        );
+    }
+    if sheet {
+        let _ = writeln!(s, "\n## Contact sheet\n\n![annotated frames](contact_sheet.png)");
+    }
+    s
+}
+
+/// Tile size of the contact sheet, px.
+const TILE_W: u32 = 320;
+const TILE_H: u32 = 240;
+const COLUMNS: u32 = 4;
+
+/// Picks up to `n` images spread evenly over the splits and over each split's images.
+fn pick_images(datasets: &[(Split, &Dataset)], n: usize) -> Vec<(Split, usize)> {
+    let non_empty: Vec<_> = datasets.iter().filter(|(_, d)| !d.images.is_empty()).collect();
+    if non_empty.is_empty() || n == 0 {
+        return Vec::new();
+    }
+    let per = n.div_ceil(non_empty.len());
+    let mut out = Vec::new();
+    for (split, ds) in non_empty {
+        let len = ds.images.len();
+        let k = per.min(len);
+        for j in 0..k {
+            out.push((*split, j * len / k));
+        }
+    }
+    out.truncate(n);
+    out
+}
+
+/// Draws the contact sheet: each picked frame (RGB when `file_name` is an RGB render, else grey) with
+/// its annotations filled and outlined in per-building colours, labelled with split and frame.
+fn contact_sheet(datasets: &[(Split, &Dataset)], image_root: &Path, n: usize) -> Result<RgbImage, CocoError> {
+    let picks = pick_images(datasets, n);
+    let cols = COLUMNS.min(picks.len().max(1) as u32);
+    let rows = (picks.len() as u32).div_ceil(cols).max(1);
+    let mut sheet = RgbImage::new(cols * TILE_W, rows * TILE_H, [32, 32, 32]);
+    for (t, &(split, idx)) in picks.iter().enumerate() {
+        let ds = datasets.iter().find(|(s, _)| *s == split).map(|(_, d)| *d).expect("picked from datasets");
+        let im = &ds.images[idx];
+        // Fit the frame into the tile keeping its aspect ratio.
+        let scale = (TILE_W as f64 / im.width.max(1) as f64).min(TILE_H as f64 / im.height.max(1) as f64);
+        let (tw, th) =
+            (((im.width as f64 * scale) as u32).max(1), ((im.height as f64 * scale) as u32).max(1));
+        let mut tile = if im.file_name != im.mask_file {
+            match read_png_rgb(&image_root.join(&im.file_name)) {
+                Ok(rgb) => rgb.resized(tw, th),
+                Err(e) => {
+                    log::warn!("contact sheet: {}", super::error::chain_string(&e));
+                    RgbImage::new(tw, th, [90, 90, 90])
+                }
+            }
+        } else {
+            RgbImage::new(tw, th, [90, 90, 90])
+        };
+        for a in ds.annotations.iter().filter(|a| a.image_id == im.id) {
+            let rle_json = match (&a.segmentation, &a.mask_rle) {
+                (_, Some(r)) => r,
+                (Segmentation::Rle(r), None) => r,
+                (Segmentation::Polygons(_), None) => continue,
+            };
+            let Ok(rle) = rle_json.to_rle() else { continue };
+            let [h, w] = rle.size;
+            if (w, h) != (im.width, im.height) {
+                continue;
+            }
+            let full = rle.decode();
+            // Nearest-neighbour downsampling of the mask to the tile.
+            let small: Vec<bool> = (0..th)
+                .flat_map(|y| {
+                    let sy = (((y as f64 + 0.5) / scale) as u32).min(h - 1);
+                    let full = &full;
+                    (0..tw).map(move |x| {
+                        let sx = (((x as f64 + 0.5) / scale) as u32).min(w - 1);
+                        full[(sy * w + sx) as usize] != 0
+                    })
+                })
+                .collect();
+            let c = palette(a.building_id as u64);
+            let at = |x: i64, y: i64| {
+                x >= 0 && y >= 0 && x < tw as i64 && y < th as i64 && small[(y * tw as i64 + x) as usize]
+            };
+            for y in 0..th as i64 {
+                for x in 0..tw as i64 {
+                    if !at(x, y) {
+                        continue;
+                    }
+                    if !at(x - 1, y) || !at(x + 1, y) || !at(x, y - 1) || !at(x, y + 1) {
+                        tile.put(x, y, c);
+                    } else {
+                        tile.blend(x, y, c, 0.35);
+                    }
+                }
+            }
+        }
+        let label = format!("{} {}", split.as_str(), im.frame);
+        tile.fill_rect(0, 0, super::raster::text_width(&label, 1) + 4, 9, [0, 0, 0]);
+        tile.text(2, 2, &label, 1, [255, 255, 255]);
+        let (col, row) = (t as u32 % cols, t as u32 / cols);
+        let (ox, oy) = (col * TILE_W + (TILE_W - tw) / 2, row * TILE_H + (TILE_H - th) / 2);
+        sheet.paste(&tile, ox as i64, oy as i64);
+    }
+    Ok(sheet)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::coco::format::*;
+
+    fn dataset(anns: &[(u64, u64, u32)]) -> Dataset {
+        // anns: (image_id, area, building_id)
+        let info = Info {
+            description: String::new(),
+            version: String::new(),
+            contributor: String::new(),
+            url: String::new(),
+            split: "train".into(),
+            image_root: "..".into(),
+            annotation_unit: AnnotationUnit::Component,
+            filters: Filters::default(),
+            areas: vec![AreaInfo {
+                name: "a".into(),
+                manifest_split: "train".into(),
+                held_out: false,
+                buildings: 10,
+                sources: vec![],
+                attributions: vec![],
+            }],
+        };
+        let pose: crate::camera::PoseRecord = serde_json::from_value(serde_json::json!({
+            "name": "f", "area": "a", "preset": "cam2", "trajectory": "grid", "sequence": 0, "index": 0,
+            "intrinsics": {"width_px": 4, "height_px": 4, "fx_px": 1.0, "fy_px": 1.0, "cx_px": 2.0, "cy_px": 2.0},
+            "cam_to_world_enu": [[1.0,0.0,0.0,0.0],[0.0,1.0,0.0,0.0],[0.0,0.0,1.0,0.0],[0.0,0.0,0.0,1.0]],
+            "colmap_qvec": [1.0,0.0,0.0,0.0], "colmap_tvec": [0.0,0.0,0.0], "ecef_m": [0.0,0.0,0.0],
+            "lat_deg": 0.0, "lon_deg": 0.0, "h_m": 0.0, "yaw_deg": 0.0, "pitch_deg": 0.0, "roll_deg": 0.0,
+            "height_above_ground_m": 0.0
+        }))
+        .unwrap();
+        let images = (1..=3)
+            .map(|id| Image {
+                id,
+                file_name: format!("a/cam2/masks/{id}.png"),
+                width: 4,
+                height: 4,
+                license: None,
+                area_name: "a".into(),
+                camera: "cam2".into(),
+                preset: "cam2".into(),
+                frame: format!("{id}"),
+                mask_file: format!("a/cam2/masks/{id}.png"),
+                connectivity: crate::label::Connectivity::Eight,
+                intrinsics: pose.intrinsics,
+                cam_to_world_enu: pose.cam_to_world_enu,
+                colmap_qvec: pose.colmap_qvec,
+                colmap_tvec: pose.colmap_tvec,
+                lat_deg: 0.0,
+                lon_deg: 0.0,
+                h_m: 0.0,
+                yaw_deg: 0.0,
+                pitch_deg: 0.0,
+                roll_deg: 0.0,
+            })
+            .collect();
+        let annotations = anns
+            .iter()
+            .enumerate()
+            .map(|(i, &(image_id, area, building_id))| Annotation {
+                id: i as u64 + 1,
+                image_id,
+                category_id: 1,
+                segmentation: Segmentation::Polygons(vec![]),
+                area,
+                bbox: [0.0; 4],
+                iscrowd: (i == 0) as u8,
+                building_id,
+                source_id: String::new(),
+                component: Some(0),
+                num_components: None,
+                visible_fraction: None,
+                truncated: i == 1,
+                area_name: "a".into(),
+                mask_rle: None,
+            })
+            .collect();
+        Dataset { info, licenses: vec![], images, annotations, categories: vec![Category::building()] }
+    }
+
+    #[test]
+    fn counts_sizes_histogram_and_coverage() {
+        // Image 1: three instances; image 2: one; image 3: none. Areas on both sides of 32² and 96².
+        let ds = dataset(&[(1, 1023, 5), (1, 1024, 5), (1, 9215, 6), (2, 9216, 7)]);
+        let st = compute(&[(Split::Train, &ds)]);
+        let sp = &st.splits[0];
+        assert_eq!((sp.images, sp.annotations, sp.images_without_annotations), (3, 4, 1));
+        assert_eq!(sp.sizes, SizeCounts { small: 1, medium: 2, large: 1 });
+        assert_eq!(
+            sp.instances_per_image,
+            [
+                PerImageBin { instances: 0, images: 1 },
+                PerImageBin { instances: 1, images: 1 },
+                PerImageBin { instances: 3, images: 1 }
+            ]
+        );
+        assert_eq!((sp.max_instances_per_image, sp.crowd, sp.truncated), (3, 1, 1));
+        assert!((sp.mean_instances_per_image - 4.0 / 3.0).abs() < 1e-12);
+        assert_eq!(sp.median_area_px, 9215);
+        let a = &st.areas[0];
+        assert_eq!((a.buildings_seen, a.buildings_total, a.images, a.annotations), (3, 10, 3, 4));
+        assert!((a.coverage - 0.3).abs() < 1e-12);
+    }
+
+    #[test]
+    fn picks_spread_over_splits() {
+        let ds = dataset(&[]);
+        let picks = pick_images(&[(Split::Train, &ds), (Split::Val, &ds)], 4);
+        assert_eq!(picks, [(Split::Train, 0), (Split::Train, 1), (Split::Val, 0), (Split::Val, 1)]);
+    }
+}
