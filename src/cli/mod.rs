@@ -5,10 +5,11 @@
 //!
 //! Exit codes: 0 success, 1 failure (the cause chain is printed on stderr), 2 usage error (clap).
 
+pub mod eval_loc;
+pub mod export_coco;
 pub mod inspect;
 pub mod prepare;
 pub mod progress;
-pub mod export_coco;
 pub mod render_masks;
 pub mod stats;
 
@@ -61,6 +62,14 @@ impl Global {
 pub enum Command {
     /// Read an area's LoD models and write its instanced scene (GLB + manifest + building table).
     Prepare(prepare::Args),
+    /// Render pixel-exact instance-ID masks (wgpu) for an area's sampled poses.
+    RenderMasks(render_masks::Args),
+    /// Export COCO instance annotations per geographic split.
+    ExportCoco(export_coco::Args),
+    /// Dataset statistics (per split) with histograms and contact sheets.
+    Stats(stats::Args),
+    /// Localize queries with the instance-silhouette localizer and report recall.
+    EvalLoc(eval_loc::Args),
     /// Summarise a building-model file or a prepared area.
     Inspect(inspect::Args),
 }
@@ -70,6 +79,10 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     let g = &cli.global;
     match &cli.command {
         Command::Prepare(a) => prepare::run(a, g),
+        Command::RenderMasks(a) => render_masks::run(a, g),
+        Command::ExportCoco(a) => export_coco::run(a, g),
+        Command::Stats(a) => stats::run(a, g),
+        Command::EvalLoc(a) => eval_loc::run(a, g),
         Command::Inspect(a) => inspect::run(a, g),
     }
 }

@@ -37,6 +37,7 @@ impl Crs {
     pub fn parse(name: &str) -> Result<Crs, GeoError> {
         Err(GeoError::UnknownCrs { name: name.to_string(), why: "not implemented yet".into() })
     }
+    pub fn describe(&self) -> String { String::new() }
     pub fn heights(&self) -> HeightKind {
         HeightKind::Orthometric
     }

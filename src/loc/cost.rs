@@ -29,7 +29,7 @@ pub enum Weighting {
 }
 
 /// Which cost to use.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize, clap::ValueEnum, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum CostKind {
     /// Best-match Dice per query instance (InsLoD-Loc).
