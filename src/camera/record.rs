@@ -115,3 +115,67 @@ impl PoseRecord {
         }
     }
 }
+
+impl Trajectory {
+    /// All strategies, in preset order (cam1, cam2, cam3 use irregular, grid, regular).
+    pub const ALL: [Trajectory; 3] = [Trajectory::Grid, Trajectory::Regular, Trajectory::Irregular];
+
+    /// The name used in files and on the command line.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Trajectory::Grid => "grid",
+            Trajectory::Regular => "regular",
+            Trajectory::Irregular => "irregular",
+        }
+    }
+}
+
+impl std::fmt::Display for Trajectory {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl std::str::FromStr for Trajectory {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Trajectory::ALL
+            .into_iter()
+            .find(|t| t.as_str() == s)
+            .ok_or_else(|| format!("unknown strategy {s:?}: expected one of grid, regular, irregular"))
+    }
+}
+
+/// Writes records as JSON lines (one compact object per line), atomically.
+///
+/// # Errors
+/// The I/O error, naming `path`.
+pub fn write_jsonl(path: &std::path::Path, records: &[PoseRecord]) -> Result<(), crate::util::FileError> {
+    let mut bytes = Vec::new();
+    for r in records {
+        serde_json::to_writer(&mut bytes, r)
+            .map_err(|e| crate::util::FileError::new("serialising JSON for", path, std::io::Error::other(e)))?;
+        bytes.push(b'\n');
+    }
+    crate::util::write_bytes_atomic(path, &bytes)
+}
+
+/// Reads a `poses.jsonl`/`priors.jsonl` file (blank lines are skipped).
+///
+/// # Errors
+/// [`super::CameraError::File`] when unreadable, [`super::CameraError::Jsonl`] with the line number for
+/// a line that is not a pose record.
+pub fn read_jsonl(path: &std::path::Path) -> Result<Vec<PoseRecord>, super::CameraError> {
+    let bytes = crate::util::read_file(path)?;
+    let mut out = Vec::new();
+    for (i, line) in bytes.split(|&b| b == b'\n').enumerate() {
+        if line.iter().all(u8::is_ascii_whitespace) {
+            continue;
+        }
+        let rec = serde_json::from_slice(line)
+            .map_err(|source| super::CameraError::Jsonl { path: path.to_path_buf(), line: i + 1, source })?;
+        out.push(rec);
+    }
+    Ok(out)
+}

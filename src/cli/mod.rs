@@ -11,6 +11,7 @@ pub mod inspect;
 pub mod prepare;
 pub mod progress;
 pub mod render_masks;
+pub mod sample;
 pub mod stats;
 
 use std::path::PathBuf;
@@ -62,6 +63,8 @@ impl Global {
 pub enum Command {
     /// Read an area's LoD models and write its instanced scene (GLB + manifest + building table).
     Prepare(prepare::Args),
+    /// Sample UAV camera poses (ground truth and priors) over an area.
+    Sample(sample::Args),
     /// Render pixel-exact instance-ID masks (wgpu) for an area's sampled poses.
     RenderMasks(render_masks::Args),
     /// Export COCO instance annotations per geographic split.
@@ -79,6 +82,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     let g = &cli.global;
     match &cli.command {
         Command::Prepare(a) => prepare::run(a, g),
+        Command::Sample(a) => sample::run(a, g),
         Command::RenderMasks(a) => render_masks::run(a, g),
         Command::ExportCoco(a) => export_coco::run(a, g),
         Command::Stats(a) => stats::run(a, g),

@@ -1,0 +1,358 @@
+//! COLMAP text models (`cameras.txt`, `images.txt`) and the plain query/pose lists of the public
+//! LoD-Loc code, written and read.
+//!
+//! Formats (COLMAP documentation, "Output format → Text format"):
+//! - `cameras.txt`: `CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]`, one camera per line;
+//! - `images.txt`: two lines per image: `IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME`, then the
+//!   `POINTS2D[]` line as (X, Y, POINT3D_ID) triples — empty here, since insgen has no 2-D points;
+//! - lines starting with `#` are comments.
+//!
+//! The quaternion and translation are world-to-camera (x_cam = R(q) · x_world + t) with OpenCV camera
+//! axes; the world frame is the area's ENU frame. Numbers are written in Rust's shortest round-trip
+//! form, so reading a written file gives back the same f64 values exactly.
+//!
+//! The LoD-Loc lists (SPEC.md) are one image per line: intrinsics `NAME MODEL W H PARAMS[]`, poses
+//! `NAME QW QX QY QZ TX TY TZ`.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use super::{CameraError, Intrinsics, Pose};
+
+/// One camera of `cameras.txt` (or one line of a query list, whose id is then 0).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ColmapCamera {
+    pub camera_id: u32,
+    /// COLMAP model name (`PINHOLE`, `SIMPLE_PINHOLE`, `OPENCV`, …).
+    pub model: String,
+    pub width_px: u32,
+    pub height_px: u32,
+    /// Model parameters in COLMAP's order (PINHOLE: fx, fy, cx, cy in pixels).
+    pub params: Vec<f64>,
+}
+
+impl ColmapCamera {
+    /// A `PINHOLE` camera from intrinsics.
+    pub fn pinhole(camera_id: u32, k: &Intrinsics) -> Self {
+        ColmapCamera {
+            camera_id,
+            model: "PINHOLE".to_string(),
+            width_px: k.width_px,
+            height_px: k.height_px,
+            params: vec![k.fx_px, k.fy_px, k.cx_px, k.cy_px],
+        }
+    }
+
+    /// The pinhole intrinsics of a `PINHOLE` or `SIMPLE_PINHOLE` camera; `None` for models with
+    /// distortion.
+    pub fn intrinsics(&self) -> Option<Intrinsics> {
+        let (w, h) = (self.width_px, self.height_px);
+        match (self.model.as_str(), self.params.as_slice()) {
+            ("PINHOLE", &[fx, fy, cx, cy]) => {
+                Some(Intrinsics { width_px: w, height_px: h, fx_px: fx, fy_px: fy, cx_px: cx, cy_px: cy })
+            }
+            ("SIMPLE_PINHOLE", &[f, cx, cy]) => {
+                Some(Intrinsics { width_px: w, height_px: h, fx_px: f, fy_px: f, cx_px: cx, cy_px: cy })
+            }
+            _ => None,
+        }
+    }
+}
+
+/// One image of `images.txt` (or one line of a pose list, whose ids are then 0).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ColmapImage {
+    pub image_id: u32,
+    /// World-to-camera rotation quaternion (qw, qx, qy, qz).
+    pub qvec: [f64; 4],
+    /// World-to-camera translation, metres.
+    pub tvec: [f64; 3],
+    pub camera_id: u32,
+    pub name: String,
+}
+
+impl ColmapImage {
+    /// The image's record for `pose`.
+    pub fn from_pose(image_id: u32, camera_id: u32, name: &str, pose: &Pose) -> Self {
+        ColmapImage {
+            image_id,
+            qvec: pose.colmap_qvec(),
+            tvec: pose.t_cam_from_world(),
+            camera_id,
+            name: name.to_string(),
+        }
+    }
+
+    /// The pose (camera-to-world rotation and centre C = −Rᵀt).
+    pub fn pose(&self) -> Pose {
+        Pose::from_colmap(self.qvec, self.tvec)
+    }
+}
+
+/// Number of parameters of each COLMAP camera model (src/colmap/sensor/models.h).
+fn model_param_count(model: &str) -> Option<usize> {
+    Some(match model {
+        "SIMPLE_PINHOLE" => 3,
+        "PINHOLE" => 4,
+        "SIMPLE_RADIAL" | "SIMPLE_RADIAL_FISHEYE" => 4,
+        "RADIAL" | "RADIAL_FISHEYE" | "FOV" => 5,
+        "OPENCV" | "OPENCV_FISHEYE" => 8,
+        "FULL_OPENCV" | "THIN_PRISM_FISHEYE" => 12,
+        _ => return None,
+    })
+}
+
+/// The text of a `cameras.txt` file.
+pub fn format_cameras_txt(cameras: &[ColmapCamera]) -> String {
+    let mut s = String::new();
+    s.push_str("# Camera list with one line of data per camera:\n");
+    s.push_str("#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n");
+    let _ = writeln!(s, "# Number of cameras: {}", cameras.len());
+    for c in cameras {
+        let _ = write!(s, "{} {} {} {}", c.camera_id, c.model, c.width_px, c.height_px);
+        for p in &c.params {
+            let _ = write!(s, " {p}");
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// The text of an `images.txt` file (each image followed by an empty POINTS2D line).
+pub fn format_images_txt(images: &[ColmapImage]) -> String {
+    let mut s = String::new();
+    s.push_str("# Image list with two lines of data per image:\n");
+    s.push_str("#   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n");
+    s.push_str("#   POINTS2D[] as (X, Y, POINT3D_ID)\n");
+    let _ = writeln!(s, "# Number of images: {}, mean observations per image: 0", images.len());
+    for im in images {
+        let [qw, qx, qy, qz] = im.qvec;
+        let [tx, ty, tz] = im.tvec;
+        let _ = writeln!(s, "{} {qw} {qx} {qy} {qz} {tx} {ty} {tz} {} {}", im.image_id, im.camera_id, im.name);
+        s.push('\n');
+    }
+    s
+}
+
+/// Writes `cameras.txt` atomically.
+pub fn write_cameras_txt(path: &Path, cameras: &[ColmapCamera]) -> Result<(), CameraError> {
+    Ok(crate::util::write_bytes_atomic(path, format_cameras_txt(cameras).as_bytes())?)
+}
+
+/// Writes `images.txt` atomically.
+pub fn write_images_txt(path: &Path, images: &[ColmapImage]) -> Result<(), CameraError> {
+    Ok(crate::util::write_bytes_atomic(path, format_images_txt(images).as_bytes())?)
+}
+
+fn read_text(path: &Path) -> Result<String, CameraError> {
+    let bytes = crate::util::read_file(path)?;
+    String::from_utf8(bytes).map_err(|e| CameraError::Colmap { path: path.into(), line: 0, what: format!("not UTF-8: {e}") })
+}
+
+/// Reads a `cameras.txt` file.
+///
+/// # Errors
+/// [`CameraError::Colmap`] with the line number for a malformed line, an unknown model, a wrong
+/// parameter count or a duplicate camera id.
+pub fn read_cameras_txt(path: &Path) -> Result<Vec<ColmapCamera>, CameraError> {
+    parse_cameras_txt(&read_text(path)?, path)
+}
+
+/// Parses the text of a `cameras.txt` file; `path` is used in errors only.
+pub fn parse_cameras_txt(text: &str, path: &Path) -> Result<Vec<ColmapCamera>, CameraError> {
+    let mut out: Vec<ColmapCamera> = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let err = |what: String| CameraError::Colmap { path: path.into(), line: i + 1, what };
+        let tok: Vec<&str> = line.split_whitespace().collect();
+        if tok.len() < 4 {
+            return Err(err(format!("expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS[], got {line:?}")));
+        }
+        let camera_id: u32 = parse_num(tok[0], "CAMERA_ID").map_err(&err)?;
+        let cam = parse_camera_fields(camera_id, &tok[1..]).map_err(&err)?;
+        if out.iter().any(|c| c.camera_id == camera_id) {
+            return Err(err(format!("duplicate CAMERA_ID {camera_id}")));
+        }
+        out.push(cam);
+    }
+    Ok(out)
+}
+
+fn parse_camera_fields(camera_id: u32, tok: &[&str]) -> Result<ColmapCamera, String> {
+    let model = tok[0].to_string();
+    let n = model_param_count(&model).ok_or_else(|| format!("unknown camera model {model:?}"))?;
+    let width_px: u32 = parse_num(tok[1], "WIDTH")?;
+    let height_px: u32 = parse_num(tok[2], "HEIGHT")?;
+    if width_px == 0 || height_px == 0 {
+        return Err(format!("image size {width_px}×{height_px} is empty"));
+    }
+    let params = tok[3..].iter().map(|t| parse_f64(t, "PARAMS")).collect::<Result<Vec<f64>, String>>()?;
+    if params.len() != n {
+        return Err(format!("model {model} takes {n} parameters, found {}", params.len()));
+    }
+    Ok(ColmapCamera { camera_id, model, width_px, height_px, params })
+}
+
+/// Reads an `images.txt` file.
+///
+/// # Errors
+/// [`CameraError::Colmap`] with the line number for a malformed image or POINTS2D line, a zero
+/// quaternion or a duplicate image id.
+pub fn read_images_txt(path: &Path) -> Result<Vec<ColmapImage>, CameraError> {
+    parse_images_txt(&read_text(path)?, path)
+}
+
+/// Parses the text of an `images.txt` file; `path` is used in errors only.
+pub fn parse_images_txt(text: &str, path: &Path) -> Result<Vec<ColmapImage>, CameraError> {
+    let mut out: Vec<ColmapImage> = Vec::new();
+    let mut expect_points = false;
+    for (i, line) in text.lines().enumerate() {
+        let err = |what: String| CameraError::Colmap { path: path.into(), line: i + 1, what };
+        if line.starts_with('#') {
+            continue;
+        }
+        let tok: Vec<&str> = line.split_whitespace().collect();
+        if expect_points {
+            // The POINTS2D line of the previous image: (X, Y, POINT3D_ID) triples, possibly none.
+            expect_points = false;
+            if tok.len() % 3 != 0 || tok.iter().any(|t| t.parse::<f64>().is_err()) {
+                return Err(err(format!(
+                    "expected the POINTS2D line (X Y POINT3D_ID triples, or empty) of image {}, got {line:?}",
+                    out.last().map_or(0, |im| im.image_id)
+                )));
+            }
+            continue;
+        }
+        if tok.is_empty() {
+            continue;
+        }
+        if tok.len() < 10 {
+            return Err(err(format!("expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME, got {line:?}")));
+        }
+        let image_id: u32 = parse_num(tok[0], "IMAGE_ID").map_err(&err)?;
+        let pose = parse_pose_fields(&tok[1..8]).map_err(&err)?;
+        let camera_id: u32 = parse_num(tok[8], "CAMERA_ID").map_err(&err)?;
+        // COLMAP names may contain spaces: the name is the rest of the line.
+        let name = rest_after_tokens(line, 9);
+        if out.iter().any(|im| im.image_id == image_id) {
+            return Err(err(format!("duplicate IMAGE_ID {image_id}")));
+        }
+        out.push(ColmapImage { image_id, qvec: pose.0, tvec: pose.1, camera_id, name });
+        expect_points = true;
+    }
+    Ok(out)
+}
+
+/// Reads a LoD-Loc query list: `NAME MODEL WIDTH HEIGHT PARAMS[]` per line (camera ids are 0).
+pub fn read_query_list(path: &Path) -> Result<Vec<(String, ColmapCamera)>, CameraError> {
+    let text = read_text(path)?;
+    let mut out = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let err = |what: String| CameraError::Colmap { path: path.into(), line: i + 1, what };
+        let tok: Vec<&str> = line.split_whitespace().collect();
+        if tok.len() < 5 {
+            return Err(err(format!("expected NAME MODEL WIDTH HEIGHT PARAMS[], got {line:?}")));
+        }
+        out.push((tok[0].to_string(), parse_camera_fields(0, &tok[1..]).map_err(err)?));
+    }
+    Ok(out)
+}
+
+/// Reads a LoD-Loc pose list: `NAME QW QX QY QZ TX TY TZ` per line (ids are 0).
+pub fn read_pose_list(path: &Path) -> Result<Vec<ColmapImage>, CameraError> {
+    let text = read_text(path)?;
+    let mut out = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let err = |what: String| CameraError::Colmap { path: path.into(), line: i + 1, what };
+        let tok: Vec<&str> = line.split_whitespace().collect();
+        if tok.len() != 8 {
+            return Err(err(format!("expected NAME QW QX QY QZ TX TY TZ, got {line:?}")));
+        }
+        let (qvec, tvec) = parse_pose_fields(&tok[1..8]).map_err(err)?;
+        out.push(ColmapImage { image_id: 0, qvec, tvec, camera_id: 0, name: tok[0].to_string() });
+    }
+    Ok(out)
+}
+
+/// Formats a LoD-Loc pose list line per image.
+pub fn format_pose_list(images: &[ColmapImage]) -> String {
+    let mut s = String::new();
+    for im in images {
+        let [qw, qx, qy, qz] = im.qvec;
+        let [tx, ty, tz] = im.tvec;
+        let _ = writeln!(s, "{} {qw} {qx} {qy} {qz} {tx} {ty} {tz}", im.name);
+    }
+    s
+}
+
+fn parse_pose_fields(tok: &[&str]) -> Result<([f64; 4], [f64; 3]), String> {
+    let names = ["QW", "QX", "QY", "QZ", "TX", "TY", "TZ"];
+    let mut v = [0.0; 7];
+    for k in 0..7 {
+        v[k] = parse_f64(tok[k], names[k])?;
+    }
+    let qn = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2] + v[3] * v[3]).sqrt();
+    if qn < 1e-12 {
+        return Err("the quaternion (QW QX QY QZ) is zero".to_string());
+    }
+    Ok(([v[0], v[1], v[2], v[3]], [v[4], v[5], v[6]]))
+}
+
+fn parse_f64(t: &str, what: &str) -> Result<f64, String> {
+    match t.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err(format!("{what}: {t:?} is not a finite number")),
+    }
+}
+
+fn parse_num<T: std::str::FromStr>(t: &str, what: &str) -> Result<T, String> {
+    t.parse::<T>().map_err(|_| format!("{what}: {t:?} is not a valid non-negative integer"))
+}
+
+/// The part of `line` after its first `n` whitespace-separated tokens, trimmed.
+fn rest_after_tokens(line: &str, n: usize) -> String {
+    let mut rest = line.trim_start();
+    for _ in 0..n {
+        let end = rest.find(char::is_whitespace).unwrap_or(rest.len());
+        rest = rest[end..].trim_start();
+    }
+    rest.trim_end().to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn malformed_lines_name_file_and_line() {
+        let p = Path::new("m/cameras.txt");
+        let e = parse_cameras_txt("# c\n1 PINHOLE 10 10 1 2 3\n", p).unwrap_err().to_string();
+        assert_eq!(e, "m/cameras.txt:2: model PINHOLE takes 4 parameters, found 3");
+        let e = parse_cameras_txt("1 FISHEYE9 10 10 1\n", p).unwrap_err().to_string();
+        assert!(e.contains("unknown camera model \"FISHEYE9\""), "{e}");
+        let p = Path::new("m/images.txt");
+        let e = parse_images_txt("1 1 0 0 0 0 0 0 1 a.png\n1 2\n", p).unwrap_err().to_string();
+        assert!(e.starts_with("m/images.txt:2: expected the POINTS2D line"), "{e}");
+        let e = parse_images_txt("1 0 0 0 0 0 0 0 1 a.png\n\n", p).unwrap_err().to_string();
+        assert!(e.contains("quaternion") && e.contains(":1:"), "{e}");
+    }
+
+    #[test]
+    fn names_with_spaces_and_points_lines() {
+        let text = "# x\n3 1 0 0 0 1 2 3 7 dir/my image.png\n10.5 20.5 -1 1 2 4\n";
+        let ims = parse_images_txt(text, Path::new("i.txt")).unwrap();
+        assert_eq!(ims.len(), 1);
+        assert_eq!((ims[0].image_id, ims[0].camera_id, ims[0].name.as_str()), (3, 7, "dir/my image.png"));
+    }
+}

@@ -1,0 +1,352 @@
+//! `flight_plan.png`: a top view (north up) of the area with the sampled cameras.
+//!
+//! Drawn, back to front:
+//! - the area polygon, filled pale green, outlined dark green;
+//! - the buildings: the scene mesh's triangles projected to the ground and rasterised with the highest
+//!   point per pixel, shaded from light grey (ground level) to dark slate (tallest roof); without a mesh,
+//!   the building boxes of `buildings.json`;
+//! - each sequence's path (consecutive camera positions joined, one colour per sequence);
+//! - each camera as a disc (blue: nadir, orange: tilted) with a tick in its view direction, longer the
+//!   more it is tilted;
+//! - a scale bar (bottom left; its length, a round number of metres, is also in the image's
+//!   `tEXt` chunk `scale_bar_m`, with the `metres_per_px` of the drawing).
+//!
+//! The raster code (lines, discs, triangles, scanline polygon fill) is our own and integer-exact, so the
+//! picture is byte-identical for identical inputs.
+
+use std::io::Write;
+use std::path::Path;
+
+use super::{CameraError, PoseRecord};
+use crate::scene::PreparedScene;
+
+/// Longest side of the picture, pixels.
+pub const MAX_SIDE_PX: u32 = 1600;
+
+type Rgb = [u8; 3];
+const OUTSIDE: Rgb = [250, 250, 250];
+const INSIDE: Rgb = [232, 240, 226];
+const OUTLINE: Rgb = [40, 120, 40];
+const NADIR: Rgb = [30, 90, 200];
+const TILTED: Rgb = [225, 110, 20];
+const INK: Rgb = [20, 20, 20];
+const PATHS: [Rgb; 6] =
+    [[200, 40, 120], [20, 140, 160], [150, 90, 20], [100, 60, 180], [30, 150, 60], [190, 60, 40]];
+
+/// An RGB raster with a world (ENU) → pixel mapping, north up.
+pub struct Canvas {
+    pub width_px: u32,
+    pub height_px: u32,
+    /// RGB8, row-major from the top row.
+    pub rgb: Vec<u8>,
+    /// ENU (east, north) of the top-left corner of the picture, metres.
+    top_left_m: [f64; 2],
+    /// Pixels per metre.
+    scale_px_per_m: f64,
+}
+
+impl Canvas {
+    /// A canvas covering [min, max] (ENU metres) with the longest side `max_side_px`, filled with `bg`.
+    pub fn new(min_m: [f64; 2], max_m: [f64; 2], max_side_px: u32, bg: Rgb) -> Self {
+        let extent = (max_m[0] - min_m[0]).max(max_m[1] - min_m[1]).max(1.0);
+        let scale = max_side_px as f64 / extent;
+        let width_px = (((max_m[0] - min_m[0]) * scale).ceil() as u32).clamp(1, max_side_px);
+        let height_px = (((max_m[1] - min_m[1]) * scale).ceil() as u32).clamp(1, max_side_px);
+        let rgb = bg.repeat((width_px * height_px) as usize);
+        Canvas { width_px, height_px, rgb, top_left_m: [min_m[0], max_m[1]], scale_px_per_m: scale }
+    }
+
+    /// Metres per pixel.
+    pub fn metres_per_px(&self) -> f64 {
+        1.0 / self.scale_px_per_m
+    }
+
+    /// ENU (east, north) metres → continuous pixel coordinates (x right, y down).
+    pub fn to_px(&self, p_m: [f64; 2]) -> [f64; 2] {
+        [(p_m[0] - self.top_left_m[0]) * self.scale_px_per_m, (self.top_left_m[1] - p_m[1]) * self.scale_px_per_m]
+    }
+
+    /// The colour at pixel (x, y), or `None` outside.
+    pub fn get(&self, x: i64, y: i64) -> Option<Rgb> {
+        if x < 0 || y < 0 || x >= self.width_px as i64 || y >= self.height_px as i64 {
+            return None;
+        }
+        let i = 3 * (y as usize * self.width_px as usize + x as usize);
+        Some([self.rgb[i], self.rgb[i + 1], self.rgb[i + 2]])
+    }
+
+    /// Sets pixel (x, y) (ignored outside the picture).
+    pub fn set(&mut self, x: i64, y: i64, c: Rgb) {
+        if x < 0 || y < 0 || x >= self.width_px as i64 || y >= self.height_px as i64 {
+            return;
+        }
+        let i = 3 * (y as usize * self.width_px as usize + x as usize);
+        self.rgb[i..i + 3].copy_from_slice(&c);
+    }
+
+    /// A filled disc of radius `r_px` around the pixel containing `c_px`.
+    pub fn disc(&mut self, c_px: [f64; 2], r_px: i64, col: Rgb) {
+        let (cx, cy) = (c_px[0].floor() as i64, c_px[1].floor() as i64);
+        for dy in -r_px..=r_px {
+            for dx in -r_px..=r_px {
+                if dx * dx + dy * dy <= r_px * r_px + r_px / 2 {
+                    self.set(cx + dx, cy + dy, col);
+                }
+            }
+        }
+    }
+
+    /// A line between two pixel positions (Bresenham), `thickness_px` ≥ 1 wide.
+    pub fn line(&mut self, a_px: [f64; 2], b_px: [f64; 2], thickness_px: i64, col: Rgb) {
+        let clampf = |v: f64| v.clamp(-1.0e6, 1.0e6).floor() as i64;
+        let (mut x0, mut y0) = (clampf(a_px[0]), clampf(a_px[1]));
+        let (x1, y1) = (clampf(b_px[0]), clampf(b_px[1]));
+        let dx = (x1 - x0).abs();
+        let dy = -(y1 - y0).abs();
+        let sx = if x0 < x1 { 1 } else { -1 };
+        let sy = if y0 < y1 { 1 } else { -1 };
+        let mut err = dx + dy;
+        let r = (thickness_px - 1) / 2;
+        let mut guard = 0u64;
+        loop {
+            if r == 0 {
+                self.set(x0, y0, col);
+            } else {
+                self.disc([x0 as f64, y0 as f64], r, col);
+            }
+            if (x0 == x1 && y0 == y1) || guard > 4_000_000 {
+                break;
+            }
+            guard += 1;
+            let e2 = 2 * err;
+            if e2 >= dy {
+                err += dy;
+                x0 += sx;
+            }
+            if e2 <= dx {
+                err += dx;
+                y0 += sy;
+            }
+        }
+    }
+
+    /// Fills a polygon given in pixel coordinates (even–odd rule, sampled at pixel centres).
+    pub fn fill_polygon(&mut self, ring_px: &[[f64; 2]], col: Rgb) {
+        let n = ring_px.len();
+        for y in 0..self.height_px as i64 {
+            let yc = y as f64 + 0.5;
+            let mut xs: Vec<f64> = Vec::new();
+            for i in 0..n {
+                let (a, b) = (ring_px[i], ring_px[(i + 1) % n]);
+                if (a[1] > yc) != (b[1] > yc) {
+                    xs.push(a[0] + (yc - a[1]) / (b[1] - a[1]) * (b[0] - a[0]));
+                }
+            }
+            xs.sort_by(f64::total_cmp);
+            for pair in xs.chunks_exact(2) {
+                // Pixels whose centre x + 0.5 lies in [x0, x1).
+                let x_start = (pair[0] - 0.5).ceil().max(0.0) as i64;
+                let x_end = ((pair[1] - 0.5).ceil() as i64).min(self.width_px as i64);
+                for x in x_start..x_end {
+                    self.set(x, y, col);
+                }
+            }
+        }
+    }
+
+    /// Encodes the picture as an 8-bit RGB PNG with the given `tEXt` entries.
+    pub fn encode_png<W: Write>(&self, w: W, text: &[(&str, String)]) -> Result<(), png::EncodingError> {
+        let mut enc = png::Encoder::new(w, self.width_px, self.height_px);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        for (k, v) in text {
+            enc.add_text_chunk(k.to_string(), v.clone())?;
+        }
+        let mut writer = enc.write_header()?;
+        writer.write_image_data(&self.rgb)?;
+        writer.finish()
+    }
+}
+
+/// Per-pixel highest ground-projected building point (ENU up, metres), NaN where no building is.
+fn building_heights(canvas: &Canvas, scene: &PreparedScene) -> Vec<f64> {
+    let (w, h) = (canvas.width_px as i64, canvas.height_px as i64);
+    let mut top = vec![f64::NAN; (w * h) as usize];
+    let mut put = |x: i64, y: i64, z: f64| {
+        if x >= 0 && y >= 0 && x < w && y < h {
+            let t = &mut top[(y * w + x) as usize];
+            if t.is_nan() || z > *t {
+                *t = z;
+            }
+        }
+    };
+    let mesh = &scene.mesh;
+    if mesh.triangle_count() > 0 {
+        for tri in mesh.indices.chunks_exact(3) {
+            let v = [0, 1, 2].map(|k| mesh.positions_m.get(tri[k] as usize).copied());
+            let [Some(a), Some(b), Some(c)] = v else { continue };
+            let [pa, pb, pc] = [a, b, c].map(|p| canvas.to_px([p[0] as f64, p[1] as f64]));
+            let area = (pb[0] - pa[0]) * (pc[1] - pa[1]) - (pb[1] - pa[1]) * (pc[0] - pa[0]);
+            if area.abs() < 1e-9 || !area.is_finite() {
+                // A wall seen from above: it covers no pixel centre of its own.
+                continue;
+            }
+            let x0 = pa[0].min(pb[0]).min(pc[0]).floor().max(0.0) as i64;
+            let x1 = (pa[0].max(pb[0]).max(pc[0]).ceil() as i64).min(w - 1);
+            let y0 = pa[1].min(pb[1]).min(pc[1]).floor().max(0.0) as i64;
+            let y1 = (pa[1].max(pb[1]).max(pc[1]).ceil() as i64).min(h - 1);
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let q = [x as f64 + 0.5, y as f64 + 0.5];
+                    let w0 = ((pb[0] - q[0]) * (pc[1] - q[1]) - (pb[1] - q[1]) * (pc[0] - q[0])) / area;
+                    let w1 = ((pc[0] - q[0]) * (pa[1] - q[1]) - (pc[1] - q[1]) * (pa[0] - q[0])) / area;
+                    let w2 = 1.0 - w0 - w1;
+                    if w0 >= 0.0 && w1 >= 0.0 && w2 >= 0.0 {
+                        put(x, y, w0 * a[2] as f64 + w1 * b[2] as f64 + w2 * c[2] as f64);
+                    }
+                }
+            }
+        }
+    } else {
+        for b in &scene.buildings {
+            let p0 = canvas.to_px([b.bbox_min_enu_m[0], b.bbox_max_enu_m[1]]);
+            let p1 = canvas.to_px([b.bbox_max_enu_m[0], b.bbox_min_enu_m[1]]);
+            if !(p0[0].is_finite() && p0[1].is_finite() && p1[0].is_finite() && p1[1].is_finite()) {
+                continue;
+            }
+            let (xa, xb) = ((p0[0] - 0.5).ceil().max(0.0) as i64, ((p1[0] - 0.5).ceil() as i64).min(w));
+            let (ya, yb) = ((p0[1] - 0.5).ceil().max(0.0) as i64, ((p1[1] - 0.5).ceil() as i64).min(h));
+            for y in ya..yb {
+                for x in xa..xb {
+                    put(x, y, b.bbox_max_enu_m[2]);
+                }
+            }
+        }
+    }
+    top
+}
+
+/// A round scale-bar length (1, 2 or 5 × 10ⁿ metres) near a fifth of `width_m`.
+pub fn scale_bar_m(width_m: f64) -> f64 {
+    let target = (width_m / 5.0).max(1.0);
+    let p = 10f64.powf(target.log10().floor());
+    [5.0, 2.0, 1.0].into_iter().map(|k| k * p).find(|&v| v <= target).unwrap_or(p)
+}
+
+/// Draws the flight plan of `poses` over `scene`.
+pub fn draw_flight_plan(scene: &PreparedScene, poses: &[PoseRecord]) -> (Canvas, f64) {
+    let m = &scene.manifest;
+    let mut lo = [f64::INFINITY; 2];
+    let mut hi = [f64::NEG_INFINITY; 2];
+    let mut grow = |p: [f64; 2]| {
+        if p[0].is_finite() && p[1].is_finite() {
+            for k in 0..2 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+    };
+    m.area_polygon_enu_m.iter().for_each(|p| grow(*p));
+    for r in poses {
+        let c = r.pose().centre_m;
+        grow([c[0], c[1]]);
+    }
+    if !(lo[0].is_finite() && hi[0].is_finite()) {
+        lo = [-50.0, -50.0];
+        hi = [50.0, 50.0];
+    }
+    let pad = 0.04 * (hi[0] - lo[0]).max(hi[1] - lo[1]) + 20.0;
+    let mut canvas = Canvas::new([lo[0] - pad, lo[1] - pad], [hi[0] + pad, hi[1] + pad], MAX_SIDE_PX, OUTSIDE);
+
+    let ring_px: Vec<[f64; 2]> = m.area_polygon_enu_m.iter().map(|p| canvas.to_px(*p)).collect();
+    if ring_px.len() >= 3 {
+        canvas.fill_polygon(&ring_px, INSIDE);
+    }
+    let tops = building_heights(&canvas, scene);
+    let (z_lo, z_hi) = tops.iter().filter(|z| !z.is_nan()).fold((m.ground_enu_m, f64::NEG_INFINITY), |(a, b), &z| (a.min(z), b.max(z)));
+    let span = (z_hi - z_lo).max(1.0);
+    for (i, z) in tops.iter().enumerate() {
+        if z.is_nan() {
+            continue;
+        }
+        let t = ((z - z_lo) / span).clamp(0.0, 1.0);
+        let lerp = |a: f64, b: f64| (a + (b - a) * t).round() as u8;
+        let c = [lerp(205.0, 45.0), lerp(205.0, 55.0), lerp(210.0, 90.0)];
+        canvas.rgb[3 * i..3 * i + 3].copy_from_slice(&c);
+    }
+    for i in 0..ring_px.len() {
+        canvas.line(ring_px[i], ring_px[(i + 1) % ring_px.len()], 3, OUTLINE);
+    }
+    // Sequence paths.
+    for w in poses.windows(2) {
+        if w[0].sequence == w[1].sequence && w[1].index == w[0].index + 1 {
+            let (a, b) = (w[0].pose().centre_m, w[1].pose().centre_m);
+            let col = PATHS[w[0].sequence as usize % PATHS.len()];
+            canvas.line(canvas.to_px([a[0], a[1]]), canvas.to_px([b[0], b[1]]), 1, col);
+        }
+    }
+    // Cameras and their view directions.
+    for r in poses {
+        let c = r.pose().centre_m;
+        let at = canvas.to_px([c[0], c[1]]);
+        let tilted = r.pitch_deg > 1.0;
+        let col = if tilted { TILTED } else { NADIR };
+        let len_px = 7.0 + 18.0 * r.pitch_deg.to_radians().sin();
+        let yaw = r.yaw_deg.to_radians();
+        canvas.line(at, [at[0] + len_px * yaw.sin(), at[1] - len_px * yaw.cos()], 1, INK);
+        canvas.disc(at, 2, col);
+    }
+    // Scale bar.
+    let width_m = canvas.width_px as f64 * canvas.metres_per_px();
+    let bar_m = scale_bar_m(width_m);
+    let bar_px = bar_m / canvas.metres_per_px();
+    let y = canvas.height_px as f64 - 14.0;
+    canvas.line([12.0, y], [12.0 + bar_px, y], 3, INK);
+    canvas.line([12.0, y - 6.0], [12.0, y + 6.0], 1, INK);
+    canvas.line([12.0 + bar_px, y - 6.0], [12.0 + bar_px, y + 6.0], 1, INK);
+    (canvas, bar_m)
+}
+
+/// Draws and writes `flight_plan.png` atomically.
+///
+/// # Errors
+/// [`CameraError::File`] for I/O, [`CameraError::Png`] for encoding.
+pub fn write_flight_plan(path: &Path, scene: &PreparedScene, poses: &[PoseRecord]) -> Result<(), CameraError> {
+    let (canvas, bar_m) = draw_flight_plan(scene, poses);
+    let text = [
+        ("Title", format!("insgen flight plan: {} ({} frames)", scene.manifest.area, poses.len())),
+        ("scale_bar_m", format!("{bar_m}")),
+        ("metres_per_px", format!("{}", canvas.metres_per_px())),
+    ];
+    crate::util::write_atomic(path, |w| {
+        canvas.encode_png(w, &text).map_err(|source| CameraError::Png { path: path.to_path_buf(), source })
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scale_bars_are_round() {
+        assert_eq!(scale_bar_m(1000.0), 200.0);
+        assert_eq!(scale_bar_m(2600.0), 500.0);
+        assert_eq!(scale_bar_m(430.0), 50.0);
+        assert_eq!(scale_bar_m(3.0), 1.0);
+    }
+
+    #[test]
+    fn polygon_fill_and_lines() {
+        let mut c = Canvas::new([0.0, 0.0], [10.0, 10.0], 10, [0, 0, 0]);
+        // Square from (2, 2) to (6, 6) metres = pixels x 2..6, y 4..8 (north up).
+        let ring: Vec<[f64; 2]> = [[2.0, 2.0], [6.0, 2.0], [6.0, 6.0], [2.0, 6.0]].iter().map(|p| c.to_px(*p)).collect();
+        c.fill_polygon(&ring, [9, 9, 9]);
+        let filled = (0..100).filter(|i| c.rgb[3 * i] == 9).count();
+        assert_eq!(filled, 16);
+        assert_eq!(c.get(2, 4), Some([9, 9, 9]));
+        assert_eq!(c.get(1, 4), Some([0, 0, 0]));
+        assert_eq!(c.get(2, 8), Some([0, 0, 0]));
+        c.line([0.5, 0.5], [9.5, 9.5], 1, [5, 5, 5]);
+        assert!((0..10).all(|k| c.get(k, k) == Some([5, 5, 5])));
+    }
+}

@@ -1,0 +1,298 @@
+//! Cheap geometric checks on candidate poses, from the building bounding boxes of `buildings.json`:
+//! clearance (how tall are the buildings near the camera) and visibility (what share of a coarse grid
+//! of viewing rays hits a building box).
+//!
+//! The boxes over-approximate the buildings, so the visibility share is an upper bound of the share of
+//! building pixels a render would show; it is meant to reject views of empty land or sky, not to
+//! replace a render-based check. Rays are traced through a uniform 2-D grid of cells over the boxes
+//! (Amanatides–Woo traversal), so a ray only tests the boxes of the cells it crosses.
+//!
+//! # References
+//! J. Amanatides, A. Woo (1987), *A fast voxel traversal algorithm for ray tracing*.
+
+use super::pose::mat_vec;
+use super::{Intrinsics, Pose};
+use crate::scene::BuildingRecord;
+
+/// Building boxes in the area's ENU frame, bucketed in a uniform horizontal grid.
+#[derive(Debug, Clone)]
+pub struct BuildingIndex {
+    boxes: Vec<([f64; 3], [f64; 3])>,
+    /// South-west corner of the grid, ENU metres.
+    grid_origin_m: [f64; 2],
+    cell_m: f64,
+    nx: usize,
+    ny: usize,
+    cells: Vec<Vec<u32>>,
+    /// Lowest box bottom, ENU metres: rays stop there.
+    floor_m: f64,
+}
+
+/// Upper bound on grid cells per axis (keeps the index small for huge, sparse areas).
+const MAX_CELLS_PER_AXIS: f64 = 256.0;
+/// Smallest cell edge, metres.
+const MIN_CELL_M: f64 = 10.0;
+
+impl BuildingIndex {
+    /// Indexes the bounding boxes of `buildings` (records with non-finite or inverted boxes are skipped).
+    pub fn new(buildings: &[BuildingRecord]) -> Self {
+        let boxes: Vec<([f64; 3], [f64; 3])> = buildings
+            .iter()
+            .map(|b| (b.bbox_min_enu_m, b.bbox_max_enu_m))
+            .filter(|(lo, hi)| (0..3).all(|k| lo[k].is_finite() && hi[k].is_finite() && lo[k] <= hi[k]))
+            .collect();
+        Self::from_boxes(boxes)
+    }
+
+    /// Indexes explicit boxes ([min_e, min_n, min_u], [max_e, max_n, max_u]) in ENU metres.
+    pub fn from_boxes(boxes: Vec<([f64; 3], [f64; 3])>) -> Self {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for (a, b) in &boxes {
+            for k in 0..3 {
+                lo[k] = lo[k].min(a[k]);
+                hi[k] = hi[k].max(b[k]);
+            }
+        }
+        if boxes.is_empty() {
+            return BuildingIndex {
+                boxes,
+                grid_origin_m: [0.0; 2],
+                cell_m: 1.0,
+                nx: 0,
+                ny: 0,
+                cells: Vec::new(),
+                floor_m: 0.0,
+            };
+        }
+        let extent = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+        let cell_m = (extent / MAX_CELLS_PER_AXIS).max(MIN_CELL_M);
+        let nx = (((hi[0] - lo[0]) / cell_m).floor() as usize + 1).max(1);
+        let ny = (((hi[1] - lo[1]) / cell_m).floor() as usize + 1).max(1);
+        let mut cells = vec![Vec::new(); nx * ny];
+        for (i, (a, b)) in boxes.iter().enumerate() {
+            let ix0 = (((a[0] - lo[0]) / cell_m).floor() as usize).min(nx - 1);
+            let ix1 = (((b[0] - lo[0]) / cell_m).floor() as usize).min(nx - 1);
+            let iy0 = (((a[1] - lo[1]) / cell_m).floor() as usize).min(ny - 1);
+            let iy1 = (((b[1] - lo[1]) / cell_m).floor() as usize).min(ny - 1);
+            for iy in iy0..=iy1 {
+                for ix in ix0..=ix1 {
+                    cells[iy * nx + ix].push(i as u32);
+                }
+            }
+        }
+        BuildingIndex { boxes, grid_origin_m: [lo[0], lo[1]], cell_m, nx, ny, cells, floor_m: lo[2] }
+    }
+
+    /// Number of indexed boxes.
+    pub fn len(&self) -> usize {
+        self.boxes.len()
+    }
+
+    /// Whether there are no boxes.
+    pub fn is_empty(&self) -> bool {
+        self.boxes.is_empty()
+    }
+
+    /// The highest box top of all, ENU metres (`None` without boxes).
+    pub fn max_top_m(&self) -> Option<f64> {
+        self.boxes.iter().map(|b| b.1[2]).reduce(f64::max)
+    }
+
+    /// The highest box top (ENU metres) among boxes whose horizontal extent comes within `radius_m`
+    /// of `p_m`, or `None` when there is none.
+    pub fn tallest_top_near_m(&self, p_m: [f64; 2], radius_m: f64) -> Option<f64> {
+        if self.is_empty() {
+            return None;
+        }
+        let r = radius_m.max(0.0);
+        let cell = |v: f64, k: usize, n: usize| -> Option<usize> {
+            let i = ((v - self.grid_origin_m[k]) / self.cell_m).floor();
+            if i < 0.0 {
+                Some(0)
+            } else if i >= n as f64 {
+                Some(n - 1)
+            } else {
+                Some(i as usize)
+            }
+        };
+        // Entirely outside the grid (further than r from it): nothing near.
+        let g_hi = [
+            self.grid_origin_m[0] + self.nx as f64 * self.cell_m,
+            self.grid_origin_m[1] + self.ny as f64 * self.cell_m,
+        ];
+        if p_m[0] + r < self.grid_origin_m[0]
+            || p_m[1] + r < self.grid_origin_m[1]
+            || p_m[0] - r > g_hi[0]
+            || p_m[1] - r > g_hi[1]
+        {
+            return None;
+        }
+        let (ix0, ix1) = (cell(p_m[0] - r, 0, self.nx)?, cell(p_m[0] + r, 0, self.nx)?);
+        let (iy0, iy1) = (cell(p_m[1] - r, 1, self.ny)?, cell(p_m[1] + r, 1, self.ny)?);
+        let mut best: Option<f64> = None;
+        for iy in iy0..=iy1 {
+            for ix in ix0..=ix1 {
+                for &b in &self.cells[iy * self.nx + ix] {
+                    let (lo, hi) = &self.boxes[b as usize];
+                    let dx = (lo[0] - p_m[0]).max(0.0).max(p_m[0] - hi[0]);
+                    let dy = (lo[1] - p_m[1]).max(0.0).max(p_m[1] - hi[1]);
+                    if dx * dx + dy * dy <= r * r {
+                        best = Some(best.map_or(hi[2], |t| t.max(hi[2])));
+                    }
+                }
+            }
+        }
+        best
+    }
+
+    /// Whether the ray `o + t·d` (t ≥ 0, ENU metres) hits any box before it falls below the lowest
+    /// box bottom.
+    pub fn ray_hits_building(&self, o: [f64; 3], d: [f64; 3]) -> bool {
+        if self.is_empty() {
+            return false;
+        }
+        let t_max = if d[2] < -1e-12 { ((self.floor_m - o[2]) / d[2]).max(0.0) } else { f64::INFINITY };
+        // Clip the ray's horizontal trace to the grid.
+        let g_lo = self.grid_origin_m;
+        let g_hi = [g_lo[0] + self.nx as f64 * self.cell_m, g_lo[1] + self.ny as f64 * self.cell_m];
+        let (mut t0, mut t1) = (0.0f64, t_max);
+        for k in 0..2 {
+            if d[k].abs() < 1e-15 {
+                if o[k] < g_lo[k] || o[k] > g_hi[k] {
+                    return false;
+                }
+            } else {
+                let (a, b) = ((g_lo[k] - o[k]) / d[k], (g_hi[k] - o[k]) / d[k]);
+                t0 = t0.max(a.min(b));
+                t1 = t1.min(a.max(b));
+            }
+        }
+        if t0 > t1 {
+            return false;
+        }
+        let start = [o[0] + d[0] * t0, o[1] + d[1] * t0];
+        let n = [self.nx as i64, self.ny as i64];
+        let mut idx = [0i64; 2];
+        let mut step = [0i64; 2];
+        let mut t_next = [f64::INFINITY; 2];
+        let mut t_delta = [f64::INFINITY; 2];
+        for k in 0..2 {
+            idx[k] = (((start[k] - g_lo[k]) / self.cell_m).floor() as i64).clamp(0, n[k] - 1);
+            if d[k] > 1e-15 {
+                step[k] = 1;
+                t_next[k] = (g_lo[k] + (idx[k] + 1) as f64 * self.cell_m - o[k]) / d[k];
+                t_delta[k] = self.cell_m / d[k];
+            } else if d[k] < -1e-15 {
+                step[k] = -1;
+                t_next[k] = (g_lo[k] + idx[k] as f64 * self.cell_m - o[k]) / d[k];
+                t_delta[k] = -self.cell_m / d[k];
+            }
+        }
+        loop {
+            let cell = &self.cells[(idx[1] * n[0] + idx[0]) as usize];
+            if cell.iter().any(|&b| {
+                let (lo, hi) = &self.boxes[b as usize];
+                ray_box(o, d, lo, hi, t_max)
+            }) {
+                return true;
+            }
+            let k = if t_next[0] <= t_next[1] { 0 } else { 1 };
+            if t_next[k] > t1 {
+                return false;
+            }
+            idx[k] += step[k];
+            t_next[k] += t_delta[k];
+            if idx[k] < 0 || idx[k] >= n[k] {
+                return false;
+            }
+        }
+    }
+
+    /// Share (0..1) of a `rays[0]` × `rays[1]` grid of viewing rays (through the centres of an evenly
+    /// divided image) that hit a building box.
+    pub fn building_fraction(&self, k: &Intrinsics, pose: &Pose, rays: [u32; 2]) -> f64 {
+        let (nx, ny) = (rays[0].max(1), rays[1].max(1));
+        let mut hits = 0u32;
+        for j in 0..ny {
+            for i in 0..nx {
+                let u = (i as f64 + 0.5) * k.width_px as f64 / nx as f64;
+                let v = (j as f64 + 0.5) * k.height_px as f64 / ny as f64;
+                if self.ray_hits_building(pose.centre_m, pixel_ray_enu(k, pose, u, v)) {
+                    hits += 1;
+                }
+            }
+        }
+        hits as f64 / (nx * ny) as f64
+    }
+}
+
+/// The viewing direction (ENU, not normalised: its camera-frame z component is 1) through pixel
+/// coordinates (u, v) (see [`Intrinsics`] for the pixel convention).
+pub fn pixel_ray_enu(k: &Intrinsics, pose: &Pose, u: f64, v: f64) -> [f64; 3] {
+    let d_cam = [(u - k.cx_px) / k.fx_px, (v - k.cy_px) / k.fy_px, 1.0];
+    mat_vec(&pose.r_world_from_cam, d_cam)
+}
+
+/// Slab test: does `o + t·d` meet the box for some t in [0, t_max]?
+fn ray_box(o: [f64; 3], d: [f64; 3], lo: &[f64; 3], hi: &[f64; 3], t_max: f64) -> bool {
+    let (mut t0, mut t1) = (0.0f64, t_max);
+    for k in 0..3 {
+        if d[k].abs() < 1e-15 {
+            if o[k] < lo[k] || o[k] > hi[k] {
+                return false;
+            }
+        } else {
+            let (a, b) = ((lo[k] - o[k]) / d[k], (hi[k] - o[k]) / d[k]);
+            t0 = t0.max(a.min(b));
+            t1 = t1.min(a.max(b));
+            if t0 > t1 {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn index() -> BuildingIndex {
+        // Two towers: 20 × 20 m, 100 m tall at the origin; 10 × 10 m, 30 m tall 300 m east.
+        BuildingIndex::from_boxes(vec![
+            ([-10.0, -10.0, 0.0], [10.0, 10.0, 100.0]),
+            ([295.0, -5.0, 0.0], [305.0, 5.0, 30.0]),
+        ])
+    }
+
+    #[test]
+    fn tallest_near() {
+        let ix = index();
+        assert_eq!(ix.tallest_top_near_m([0.0, 0.0], 1.0), Some(100.0));
+        assert_eq!(ix.tallest_top_near_m([40.0, 0.0], 29.0), None);
+        assert_eq!(ix.tallest_top_near_m([40.0, 0.0], 30.0), Some(100.0));
+        assert_eq!(ix.tallest_top_near_m([300.0, 50.0], 50.0), Some(30.0));
+        assert_eq!(ix.tallest_top_near_m([5000.0, 0.0], 50.0), None);
+    }
+
+    #[test]
+    fn rays_hit_only_what_they_cross() {
+        let ix = index();
+        // Straight down onto each tower, and between them.
+        assert!(ix.ray_hits_building([0.0, 0.0, 500.0], [0.0, 0.0, -1.0]));
+        assert!(ix.ray_hits_building([300.0, 0.0, 500.0], [0.0, 0.0, -1.0]));
+        assert!(!ix.ray_hits_building([150.0, 0.0, 500.0], [0.0, 0.0, -1.0]));
+        // From (150, 0, 200) at 45° down towards the east tower: reaches the ground (z = 0) at x = 350,
+        // but is at z = 55 > 30 over x = 295 and at z = 45 over x = 305: it passes over the tower.
+        assert!(!ix.ray_hits_building([150.0, 0.0, 200.0], [1.0, 0.0, -1.0]));
+        // From (150, 0, 40) with slope −0.05: z = 40 − 0.05 · 145 = 32.75 at x = 295, over the tower.
+        assert!(!ix.ray_hits_building([150.0, 0.0, 40.0], [1.0, 0.0, -0.05]));
+        // From (150, 0, 35): z = 27.75 at x = 295, into the tower's west face.
+        assert!(ix.ray_hits_building([150.0, 0.0, 35.0], [1.0, 0.0, -0.05]));
+        // Horizontal ray above everything, and one pointing away from the grid.
+        assert!(!ix.ray_hits_building([-500.0, 0.0, 150.0], [1.0, 0.0, 0.0]));
+        assert!(ix.ray_hits_building([-500.0, 0.0, 50.0], [1.0, 0.0, 0.0]));
+        assert!(!ix.ray_hits_building([-500.0, 0.0, 50.0], [-1.0, 0.0, 0.0]));
+    }
+}
