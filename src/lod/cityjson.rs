@@ -1,9 +1,983 @@
-//! (Skeleton: being implemented.)
+//! CityJSON 1.1 / 2.0 and CityJSONSeq reader: `Building` objects → [`SourceBuilding`] polygons.
+//!
+//! Takes one `.json` file (a CityJSON document) or one `.jsonl` file (CityJSONSeq: a `CityJSON`
+//! header line with `transform`/`metadata`, then one `CityJSONFeature` per line, each with its own
+//! vertices) and hands on a [`SourceModel`] in the file's CRS, easting first
+//! ([`AxisConvention::EastNorth`]).
+//!
+//! The JSON is deserialised into typed structs that mirror the spec (no `serde_json::Value` for the
+//! document): vertices as `[f64; 3]`, geometry boundaries as a compact flat form (every vertex index
+//! once as `u32`, plus one child count per array), attributes other than `measuredHeight` skipped.
+//! CityJSONSeq is read line by line, so memory is proportional to one feature.
+//!
+//! What is read:
+//! - `Building` objects; their `BuildingPart` and `BuildingInstallation` descendants (through
+//!   `children` and `parents`, recursively) are folded into them and share the Building's key.
+//!   Interior objects (rooms, storeys, units, furniture, constructive elements) are ignored; all
+//!   other city objects are counted in [`ReadStats::skipped_non_building`]. A part without any
+//!   Building ancestor is read as a building of its own (with a warning);
+//! - geometry types `MultiSurface`, `CompositeSurface`, `Solid`, `MultiSolid`, `CompositeSolid` and
+//!   `GeometryInstance` (a template from `geometry-templates`, transformed by its
+//!   `transformationMatrix` and placed at its reference point); points and lines are ignored;
+//! - `transform` (`scale`, `translate`) turns the quantised vertices into coordinates;
+//!   `metadata.referenceSystem` is kept verbatim as the frame name (absent → `None`);
+//! - `attributes.measuredHeight` of the Building (metres).
+//!
+//! LoD choice: [`ReadOptions::lod`] forces one (exact match, `"2"` equals `"2.0"`; a building lacking
+//! it counts as without geometry). By default each building gets the highest LoD in [1, 2.2] it has
+//! usable geometry for; a part lacking that LoD contributes its best lower one. The chosen LoD is
+//! reported as the file spells it.
+//!
+//! Checks: rings lose their closing vertex and consecutive duplicates; degenerate rings (< 3
+//! distinct points, zero area) are dropped ([`ReadStats::degenerate_faces`]; a degenerate hole is
+//! dropped alone). A vertex index out of range, a non-finite or absurd (|v| > 1e9) coordinate, or a
+//! boundary array nested to the wrong depth for its type is an [`LodError::Invalid`] with the JSON
+//! path (`CityObjects["id"].geometry[0].boundaries[0][2][0][3]`); truncated or malformed JSON is an
+//! [`LodError::Malformed`] with line and column.
 
+use std::collections::BTreeMap;
+use std::fmt;
+use std::fs::File;
+use std::io::{BufRead, BufReader};
 use std::path::Path;
 
-use super::{LodError, ReadOptions, SourceModel};
+use serde::de::{self, DeserializeSeed, Deserializer, MapAccess, SeqAccess, Visitor};
+use serde::Deserialize;
 
-pub fn read(path: &Path, _opts: &ReadOptions) -> Result<SourceModel, LodError> {
-    Err(LodError::malformed(path, "reader not implemented yet"))
+use super::{
+    clean_ring, AxisConvention, Frame, Geometry, LodError, Polygon, ReadOptions, ReadStats, SourceBuilding,
+    SourceModel, MAX_ABS_COORDINATE,
+};
+use crate::util::FileError;
+
+/// Highest LoD the default choice takes (CityJSON LoDs are "1", "1.2", "2.2", …).
+const MAX_DEFAULT_LOD: f64 = 2.2;
+/// Lowest LoD the default choice takes (LoD0 footprints are flat; force them with `lod = "0"`).
+const MIN_DEFAULT_LOD: f64 = 1.0;
+
+/// Reads one CityJSON (`.json`) or CityJSONSeq (`.jsonl`) file.
+///
+/// A file with another extension that turns out to hold one JSON object per line is read as
+/// CityJSONSeq too.
+///
+/// # Errors
+/// - [`LodError::File`] if the file cannot be opened or read;
+/// - [`LodError::Malformed`] for truncated or malformed JSON (line and column) or JSON of the wrong
+///   shape (e.g. a vertex with two numbers);
+/// - [`LodError::Invalid`] with a JSON path for a vertex index out of range, a non-finite or absurd
+///   coordinate, a boundary array of the wrong depth, an unknown geometry type, a duplicate object
+///   key, a file that is not CityJSON 1.x/2.x, or a file without any building that has usable
+///   geometry.
+pub fn read(path: &Path, opts: &ReadOptions) -> Result<SourceModel, LodError> {
+    let name = path.file_name().map(|n| n.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    let mut reader = Reader::new(path, opts);
+    if name.ends_with(".jsonl") {
+        reader.read_seq()?;
+    } else {
+        let file = File::open(path).map_err(|e| FileError::new("opening", path, e))?;
+        let parsed: Result<Document, _> = serde_json::from_reader(BufReader::with_capacity(1 << 16, file));
+        match parsed {
+            Ok(doc) => reader.read_document(doc)?,
+            // One complete object followed by more JSON: a CityJSONSeq under another name.
+            Err(e) if e.is_syntax() && e.line() > 1 && e.to_string().starts_with("trailing characters") => {
+                reader.read_seq()?
+            }
+            Err(e) => return Err(json_error(path, None, e)),
+        }
+    }
+    reader.finish()
+}
+
+// ------------------------------------------------------------------------------------------------
+// Types mirroring the spec
+// ------------------------------------------------------------------------------------------------
+
+/// A CityJSON document, a CityJSONSeq header line, or a `CityJSONFeature` line.
+#[derive(Debug, Deserialize)]
+struct Document {
+    /// `"CityJSON"` (document or Seq header) or `"CityJSONFeature"`.
+    #[serde(rename = "type")]
+    kind: String,
+    /// Spec version, e.g. `"2.0"` (documents and headers only).
+    version: Option<String>,
+    /// Quantisation: coordinate = vertex · scale + translate.
+    transform: Option<Transform>,
+    metadata: Option<Metadata>,
+    /// The city objects, in file order.
+    #[serde(rename = "CityObjects", default)]
+    city_objects: CityObjects,
+    /// Vertex list (integers when `transform` is given).
+    #[serde(default)]
+    vertices: Vec<[f64; 3]>,
+    #[serde(rename = "geometry-templates")]
+    geometry_templates: Option<Templates>,
+}
+
+/// `transform`: real coordinate = `vertex[i] · scale[i] + translate[i]`.
+#[derive(Debug, Clone, Copy, Deserialize)]
+struct Transform {
+    scale: [f64; 3],
+    translate: [f64; 3],
+}
+
+/// The part of `metadata` this reader uses.
+#[derive(Debug, Deserialize)]
+struct Metadata {
+    /// CRS as a URL (`https://www.opengis.net/def/crs/EPSG/0/7415`) or, in 1.0, an OGC URN.
+    #[serde(rename = "referenceSystem")]
+    reference_system: Option<String>,
+}
+
+/// `geometry-templates`: template geometries over their own (real-valued, untransformed) vertices.
+#[derive(Debug, Deserialize)]
+struct Templates {
+    #[serde(default)]
+    templates: Vec<CjGeometry>,
+    #[serde(rename = "vertices-templates", default)]
+    vertices: Vec<[f64; 3]>,
+}
+
+/// One city object.
+#[derive(Debug, Deserialize)]
+struct CityObject {
+    /// `"Building"`, `"BuildingPart"`, `"Road"`, `"+Extension"`, …
+    #[serde(rename = "type")]
+    kind: String,
+    #[serde(default)]
+    geometry: Vec<CjGeometry>,
+    #[serde(default)]
+    parents: Vec<String>,
+    #[serde(default)]
+    children: Vec<String>,
+    attributes: Option<Attributes>,
+}
+
+/// The attributes this reader uses.
+#[derive(Debug, Deserialize)]
+struct Attributes {
+    /// Building height in metres (a number, or a numeric string in some exports).
+    #[serde(rename = "measuredHeight")]
+    measured_height: Option<serde_json::Value>,
+}
+
+/// One geometry object.
+#[derive(Debug, Deserialize)]
+struct CjGeometry {
+    /// `"Solid"`, `"MultiSurface"`, `"GeometryInstance"`, …
+    #[serde(rename = "type")]
+    kind: String,
+    /// Level of detail ("1", "1.2", "2.2"; a number in CityJSON 1.0). Absent on instances.
+    lod: Option<LodValue>,
+    boundaries: Option<Boundaries>,
+    /// `GeometryInstance`: index into `geometry-templates.templates`.
+    template: Option<u64>,
+    /// `GeometryInstance`: 4×4 row-major matrix applied to the template vertices.
+    #[serde(rename = "transformationMatrix")]
+    transformation_matrix: Option<Vec<f64>>,
+}
+
+/// A `lod` value, kept as the file spells it.
+#[derive(Debug, Clone, PartialEq)]
+struct LodValue(String);
+
+impl LodValue {
+    fn number(&self) -> Option<f64> {
+        self.0.trim().parse::<f64>().ok().filter(|v| v.is_finite())
+    }
+    /// Exact match for a forced LoD: the same number (`"2"` = `"2.0"`) or the same text.
+    fn matches(&self, wanted: &str) -> bool {
+        match (self.number(), wanted.trim().parse::<f64>()) {
+            (Some(a), Ok(b)) => a == b,
+            _ => self.0.trim() == wanted.trim(),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for LodValue {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl Visitor<'_> for V {
+            type Value = LodValue;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a LoD as a string (\"2.2\") or a number")
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> Result<LodValue, E> {
+                Ok(LodValue(v.to_string()))
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<LodValue, E> {
+                Ok(LodValue(v.to_string()))
+            }
+            fn visit_i64<E: de::Error>(self, v: i64) -> Result<LodValue, E> {
+                Ok(LodValue(v.to_string()))
+            }
+            fn visit_f64<E: de::Error>(self, v: f64) -> Result<LodValue, E> {
+                Ok(LodValue(v.to_string()))
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+/// `CityObjects` in file order (a JSON object; duplicate keys are kept so they can be reported).
+#[derive(Debug, Default)]
+struct CityObjects(Vec<(String, CityObject)>);
+
+impl<'de> Deserialize<'de> for CityObjects {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = CityObjects;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("an object of city objects")
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<CityObjects, A::Error> {
+                let mut out = Vec::with_capacity(map.size_hint().unwrap_or(0));
+                while let Some((k, v)) = map.next_entry::<String, CityObject>()? {
+                    out.push((k, v));
+                }
+                Ok(CityObjects(out))
+            }
+        }
+        d.deserialize_map(V)
+    }
+}
+
+/// A `boundaries` array of any depth in a compact flat form.
+///
+/// `counts[d]` lists, for every array at nesting depth `d` in document order, how many elements it
+/// holds (depth 0 is `boundaries` itself); `leaves` holds all vertex indices in order; `leaf_depth`
+/// is the depth of the arrays that hold indices. A consistent array (indices at one depth only,
+/// never mixed with arrays) can be walked back from this form.
+#[derive(Debug, Default)]
+struct Boundaries {
+    counts: Vec<Vec<u32>>,
+    leaves: Vec<u32>,
+    leaf_depth: Option<usize>,
+}
+
+impl<'de> Deserialize<'de> for Boundaries {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let mut b = Boundaries::default();
+        d.deserialize_seq(ArrayVisitor { depth: 0, b: &mut b })?;
+        Ok(b)
+    }
+}
+
+/// Deepest boundary nesting accepted (MultiSolid/CompositeSolid need 5 levels of arrays).
+const MAX_BOUNDARY_DEPTH: usize = 8;
+
+struct ArrayVisitor<'a> {
+    depth: usize,
+    b: &'a mut Boundaries,
+}
+
+impl<'de> Visitor<'de> for ArrayVisitor<'_> {
+    type Value = ();
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str("an array of vertex indices, or of such arrays")
+    }
+    fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<(), A::Error> {
+        let (depth, b) = (self.depth, self.b);
+        if depth >= MAX_BOUNDARY_DEPTH {
+            return Err(de::Error::custom(format!("boundaries are nested deeper than {MAX_BOUNDARY_DEPTH} levels")));
+        }
+        if b.counts.len() <= depth {
+            b.counts.resize_with(depth + 1, Vec::new);
+        }
+        let slot = b.counts[depth].len();
+        b.counts[depth].push(0);
+        let mut seen = (false, false); // (indices, arrays)
+        let mut n = 0u32;
+        while seq.next_element_seed(Element { depth, b: &mut *b, seen: &mut seen })?.is_some() {
+            n += 1;
+        }
+        b.counts[depth][slot] = n;
+        Ok(())
+    }
+}
+
+/// One element of a boundary array: a vertex index or a nested array.
+struct Element<'a> {
+    depth: usize,
+    b: &'a mut Boundaries,
+    seen: &'a mut (bool, bool),
+}
+
+impl<'de> DeserializeSeed<'de> for Element<'_> {
+    type Value = ();
+    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
+        d.deserialize_any(self)
+    }
+}
+
+impl<'de> Visitor<'de> for Element<'_> {
+    type Value = ();
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str("a vertex index (a non-negative integer) or an array")
+    }
+    fn visit_u64<E: de::Error>(self, v: u64) -> Result<(), E> {
+        if self.seen.1 {
+            return Err(E::custom("a boundary array mixes vertex indices and arrays"));
+        }
+        self.seen.0 = true;
+        match self.b.leaf_depth {
+            None => self.b.leaf_depth = Some(self.depth),
+            Some(d) if d != self.depth => {
+                return Err(E::custom(format!(
+                    "vertex indices at two nesting depths ({d} and {}) in one boundaries array",
+                    self.depth
+                )))
+            }
+            Some(_) => {}
+        }
+        let v = u32::try_from(v).map_err(|_| E::custom(format!("vertex index {v} is too large")))?;
+        self.b.leaves.push(v);
+        Ok(())
+    }
+    fn visit_i64<E: de::Error>(self, v: i64) -> Result<(), E> {
+        match u64::try_from(v) {
+            Ok(u) => self.visit_u64(u),
+            Err(_) => Err(E::custom(format!("vertex index {v} is negative"))),
+        }
+    }
+    fn visit_f64<E: de::Error>(self, v: f64) -> Result<(), E> {
+        Err(E::custom(format!("vertex index {v} is not an integer")))
+    }
+    fn visit_seq<A: SeqAccess<'de>>(self, seq: A) -> Result<(), A::Error> {
+        if self.seen.0 {
+            return Err(de::Error::custom("a boundary array mixes vertex indices and arrays"));
+        }
+        self.seen.1 = true;
+        ArrayVisitor { depth: self.depth + 1, b: self.b }.visit_seq(seq)
+    }
+}
+
+/// Walks a [`Boundaries`] back in document order.
+struct Walker<'a> {
+    b: &'a Boundaries,
+    next: Vec<usize>,
+    next_leaf: usize,
+}
+
+impl<'a> Walker<'a> {
+    fn new(b: &'a Boundaries) -> Self {
+        Walker { b, next: vec![0; b.counts.len().max(1)], next_leaf: 0 }
+    }
+    /// Number of elements of the next array at `depth`.
+    fn take(&mut self, depth: usize) -> usize {
+        let n = self.b.counts.get(depth).and_then(|c| c.get(self.next[depth])).copied().unwrap_or(0);
+        if depth < self.next.len() {
+            self.next[depth] += 1;
+        }
+        n as usize
+    }
+    fn leaves(&mut self, n: usize) -> &'a [u32] {
+        let start = self.next_leaf.min(self.b.leaves.len());
+        let end = (start + n).min(self.b.leaves.len());
+        self.next_leaf = end;
+        &self.b.leaves[start..end]
+    }
+}
+
+// ------------------------------------------------------------------------------------------------
+// Reading
+// ------------------------------------------------------------------------------------------------
+
+/// Building-family types folded into their Building.
+fn is_folded_part(kind: &str) -> bool {
+    matches!(kind, "BuildingPart" | "BuildingInstallation")
+}
+
+/// Building-family types whose geometry is ignored (interior or structural detail).
+fn is_ignored_building_detail(kind: &str) -> bool {
+    matches!(
+        kind,
+        "BuildingRoom" | "BuildingStorey" | "BuildingUnit" | "BuildingFurniture" | "BuildingConstructiveElement"
+    )
+}
+
+/// Where vertices come from and how to make them coordinates.
+struct VertexSource<'a> {
+    vertices: &'a [[f64; 3]],
+    transform: Option<Transform>,
+    /// Name of the vertex list in messages (`vertices`, `vertices-templates`).
+    list_name: &'static str,
+}
+
+impl VertexSource<'_> {
+    fn get(&self, index: u32) -> Option<[f64; 3]> {
+        let v = self.vertices.get(index as usize)?;
+        Some(match self.transform {
+            Some(t) => [
+                v[0] * t.scale[0] + t.translate[0],
+                v[1] * t.scale[1] + t.translate[1],
+                v[2] * t.scale[2] + t.translate[2],
+            ],
+            None => *v,
+        })
+    }
+}
+
+/// One geometry turned into polygons (`Err(())` = dropped as degenerate).
+struct Converted {
+    lod: LodValue,
+    polygons: Vec<Result<Polygon, ()>>,
+}
+
+struct Reader<'p> {
+    path: &'p Path,
+    forced_lod: Option<String>,
+    transform: Option<Transform>,
+    templates: Option<Templates>,
+    frame_name: Option<String>,
+    buildings: Vec<SourceBuilding>,
+    stats: ReadStats,
+    buildings_seen: u64,
+    buildings_empty: u64,
+    buildings_degenerate: u64,
+}
+
+impl<'p> Reader<'p> {
+    fn new(path: &'p Path, opts: &ReadOptions) -> Self {
+        Reader {
+            path,
+            forced_lod: opts.lod.clone(),
+            transform: None,
+            templates: None,
+            frame_name: None,
+            buildings: Vec::new(),
+            stats: ReadStats::default(),
+            buildings_seen: 0,
+            buildings_empty: 0,
+            buildings_degenerate: 0,
+        }
+    }
+
+    /// Checks `type`/`version` and takes `transform`, `metadata` and `geometry-templates`.
+    fn take_header(&mut self, doc: &mut Document, at: &str) -> Result<(), LodError> {
+        if doc.kind != "CityJSON" {
+            return Err(LodError::invalid(
+                self.path,
+                format!("{at}type"),
+                format!("expected \"CityJSON\", found {:?}: not a CityJSON file", doc.kind),
+            ));
+        }
+        match doc.version.as_deref() {
+            Some(v) if v.starts_with("1.") || v.starts_with("2.") => {}
+            Some(v) => {
+                return Err(LodError::invalid(
+                    self.path,
+                    format!("{at}version"),
+                    format!("CityJSON version {v:?} is not supported (1.0, 1.1, 2.0 are)"),
+                ))
+            }
+            None => log::warn!("{}: no CityJSON \"version\"; reading it as 2.0", self.path.display()),
+        }
+        if let Some(t) = doc.transform {
+            if t.scale.iter().chain(t.translate.iter()).any(|v| !v.is_finite() || v.abs() > MAX_ABS_COORDINATE) {
+                return Err(LodError::invalid(
+                    self.path,
+                    format!("{at}transform"),
+                    format!("scale {:?} / translate {:?} must be finite numbers", t.scale, t.translate),
+                ));
+            }
+        }
+        self.transform = doc.transform;
+        self.frame_name = doc.metadata.take().and_then(|m| m.reference_system);
+        self.templates = doc.geometry_templates.take();
+        Ok(())
+    }
+
+    fn read_document(&mut self, mut doc: Document) -> Result<(), LodError> {
+        self.take_header(&mut doc, "")?;
+        let vertices = std::mem::take(&mut doc.vertices);
+        self.read_objects(doc.city_objects.0, &vertices, "")
+    }
+
+    fn read_seq(&mut self) -> Result<(), LodError> {
+        let file = File::open(self.path).map_err(|e| FileError::new("opening", self.path, e))?;
+        let mut input = BufReader::with_capacity(1 << 16, file);
+        let mut line = String::new();
+        let mut line_no = 0usize;
+        let mut header_seen = false;
+        loop {
+            line.clear();
+            let n = input.read_line(&mut line).map_err(|e| FileError::new("reading", self.path, e))?;
+            if n == 0 {
+                break;
+            }
+            line_no += 1;
+            if line.trim().is_empty() {
+                continue;
+            }
+            let mut doc: Document =
+                serde_json::from_str(&line).map_err(|e| json_error(self.path, Some(line_no), e))?;
+            let at = format!("line {line_no}: ");
+            if !header_seen {
+                self.take_header(&mut doc, &at)?;
+                header_seen = true;
+            } else if doc.kind != "CityJSONFeature" {
+                return Err(LodError::invalid(
+                    self.path,
+                    format!("{at}type"),
+                    format!("expected \"CityJSONFeature\" after the header line, found {:?}", doc.kind),
+                ));
+            }
+            let vertices = std::mem::take(&mut doc.vertices);
+            self.read_objects(doc.city_objects.0, &vertices, &at)?;
+        }
+        if !header_seen {
+            return Err(LodError::malformed(self.path, "empty CityJSONSeq file: no header line"));
+        }
+        Ok(())
+    }
+
+    /// Folds parts into buildings and emits the buildings of one object collection.
+    fn read_objects(
+        &mut self,
+        objects: Vec<(String, CityObject)>,
+        vertices: &[[f64; 3]],
+        at: &str,
+    ) -> Result<(), LodError> {
+        let mut index: BTreeMap<&str, usize> = BTreeMap::new();
+        for (i, (key, _)) in objects.iter().enumerate() {
+            if index.insert(key.as_str(), i).is_some() {
+                return Err(LodError::invalid(
+                    self.path,
+                    format!("{at}CityObjects[{key:?}]"),
+                    "this key appears twice in CityObjects",
+                ));
+            }
+        }
+        // The Building each folded part belongs to (by object index).
+        let mut owner: Vec<Option<usize>> = vec![None; objects.len()];
+        let mut members: Vec<Vec<usize>> = vec![Vec::new(); objects.len()];
+        for (i, (_, obj)) in objects.iter().enumerate() {
+            if obj.kind != "Building" {
+                continue;
+            }
+            owner[i] = Some(i);
+            members[i].push(i);
+            // Depth-first over `children`.
+            let mut stack: Vec<&str> = obj.children.iter().rev().map(String::as_str).collect();
+            while let Some(child) = stack.pop() {
+                let Some(&c) = index.get(child) else {
+                    log::warn!("{}: {at}CityObjects[{:?}] lists a missing child {child:?}", self.path.display(), objects[i].0);
+                    continue;
+                };
+                if owner[c].is_some() || !is_folded_part(&objects[c].1.kind) {
+                    continue;
+                }
+                owner[c] = Some(i);
+                members[i].push(c);
+                stack.extend(objects[c].1.children.iter().rev().map(String::as_str));
+            }
+        }
+        // Parts reached only through `parents`.
+        for (i, (_, obj)) in objects.iter().enumerate() {
+            if owner[i].is_some() || !is_folded_part(&obj.kind) {
+                continue;
+            }
+            let mut cur = i;
+            let mut root = None;
+            for _ in 0..objects.len() {
+                let Some(parent) = objects[cur].1.parents.first().and_then(|p| index.get(p.as_str())) else { break };
+                cur = *parent;
+                if let Some(o) = owner[cur] {
+                    root = Some(o);
+                    break;
+                }
+                if objects[cur].1.kind == "Building" {
+                    root = Some(cur);
+                    break;
+                }
+            }
+            match root {
+                Some(r) => {
+                    owner[i] = Some(r);
+                    members[r].push(i);
+                }
+                None => {
+                    log::warn!(
+                        "{}: {at}CityObjects[{:?}] is a {} without a Building ancestor; read as a building",
+                        self.path.display(),
+                        objects[i].0,
+                        obj.kind
+                    );
+                    owner[i] = Some(i);
+                    members[i].push(i);
+                }
+            }
+        }
+        for (_, obj) in &objects {
+            let kind = obj.kind.as_str();
+            if kind != "Building" && !is_folded_part(kind) && !is_ignored_building_detail(kind) {
+                self.stats.skipped_non_building += 1;
+            }
+        }
+        let source = VertexSource { vertices, transform: self.transform, list_name: "vertices" };
+        for i in 0..objects.len() {
+            if members[i].is_empty() {
+                continue;
+            }
+            self.read_building(&objects, &members[i], &source, at)?;
+        }
+        Ok(())
+    }
+
+    /// Converts one building's components, chooses the LoD and emits it.
+    fn read_building(
+        &mut self,
+        objects: &[(String, CityObject)],
+        members: &[usize],
+        source: &VertexSource,
+        at: &str,
+    ) -> Result<(), LodError> {
+        self.buildings_seen += 1;
+        let (key, root) = &objects[members[0]];
+        // Per component: its geometries converted.
+        let mut components: Vec<Vec<Converted>> = Vec::with_capacity(members.len());
+        for &m in members {
+            let (mkey, obj) = &objects[m];
+            let mut converted = Vec::new();
+            for (g, geom) in obj.geometry.iter().enumerate() {
+                let gpath = format!("{at}CityObjects[{mkey:?}].geometry[{g}]");
+                if let Some(c) = self.convert(geom, source, &gpath)? {
+                    converted.push(c);
+                }
+            }
+            components.push(converted);
+        }
+        let usable = |c: &Converted| c.polygons.iter().any(|p| p.is_ok());
+        let in_default_range = |c: &Converted| {
+            c.lod.number().is_some_and(|v| (MIN_DEFAULT_LOD..=MAX_DEFAULT_LOD).contains(&v))
+        };
+        // The building's LoD: forced, else the highest in range with a usable polygon, else the
+        // highest in range with any polygon (so that dropped faces are counted).
+        let top: Option<LodValue> = match &self.forced_lod {
+            Some(f) => Some(LodValue(f.clone())),
+            None => {
+                let best = |need_usable: bool| {
+                    components
+                        .iter()
+                        .flatten()
+                        .filter(|c| in_default_range(c) && (!need_usable || usable(c)))
+                        .max_by(|a, b| a.lod.number().partial_cmp(&b.lod.number()).unwrap_or(std::cmp::Ordering::Equal))
+                        .map(|c| c.lod.clone())
+                };
+                best(true).or_else(|| best(false))
+            }
+        };
+        let mut polygons = Vec::new();
+        let mut degenerate = 0u64;
+        if let Some(top) = &top {
+            for comp in components {
+                let pick: Option<f64> = match &self.forced_lod {
+                    Some(_) => None,
+                    None => {
+                        let top_v = top.number().unwrap_or(MAX_DEFAULT_LOD);
+                        comp.iter()
+                            .filter(|c| usable(c) && c.lod.number().is_some_and(|v| v >= MIN_DEFAULT_LOD && v <= top_v))
+                            .filter_map(|c| c.lod.number())
+                            .fold(None, |acc: Option<f64>, v| Some(acc.map_or(v, |a| a.max(v))))
+                            .or(Some(top_v))
+                    }
+                };
+                for c in comp {
+                    let take = match pick {
+                        None => c.lod.matches(&top.0),
+                        Some(v) => c.lod.number() == Some(v),
+                    };
+                    if !take {
+                        continue;
+                    }
+                    for p in c.polygons {
+                        match p {
+                            Ok(p) => polygons.push(p),
+                            Err(()) => degenerate += 1,
+                        }
+                    }
+                }
+            }
+        }
+        self.stats.degenerate_faces += degenerate;
+        if polygons.is_empty() {
+            self.stats.buildings_without_geometry += 1;
+            if degenerate > 0 {
+                self.buildings_degenerate += 1;
+            } else {
+                self.buildings_empty += 1;
+            }
+            return Ok(());
+        }
+        self.stats.faces += polygons.len() as u64;
+        let measured_height_m = root.attributes.as_ref().and_then(|a| a.measured_height.as_ref()).and_then(|v| {
+            let h = match v {
+                serde_json::Value::Number(n) => n.as_f64(),
+                serde_json::Value::String(s) => s.trim().parse::<f64>().ok(),
+                _ => None,
+            };
+            h.filter(|h| h.is_finite())
+        });
+        self.buildings.push(SourceBuilding {
+            source_id: key.clone(),
+            lod: top.map(|t| t.0).unwrap_or_default(),
+            measured_height_m,
+            geometry: Geometry::Polygons(polygons),
+        });
+        Ok(())
+    }
+
+    /// Turns one geometry object into polygons; `None` for geometry without surfaces (points, lines).
+    fn convert(&self, geom: &CjGeometry, source: &VertexSource, gpath: &str) -> Result<Option<Converted>, LodError> {
+        if geom.kind == "GeometryInstance" {
+            return self.convert_instance(geom, source, gpath).map(Some);
+        }
+        let depth = match geom.kind.as_str() {
+            "MultiSurface" | "CompositeSurface" => 2,
+            "Solid" => 3,
+            "MultiSolid" | "CompositeSolid" => 4,
+            "MultiPoint" | "MultiLineString" => return Ok(None),
+            other => {
+                return Err(LodError::invalid(
+                    self.path,
+                    format!("{gpath}.type"),
+                    format!(
+                        "unknown geometry type {other:?} (expected MultiSurface, CompositeSurface, Solid, \
+                         MultiSolid, CompositeSolid, GeometryInstance, MultiPoint or MultiLineString)"
+                    ),
+                ))
+            }
+        };
+        let Some(lod) = geom.lod.clone() else {
+            return Err(LodError::invalid(self.path, gpath, format!("{} geometry without \"lod\"", geom.kind)));
+        };
+        let polygons = match &geom.boundaries {
+            Some(b) => self.surfaces(b, depth, &geom.kind, source, gpath, &|p| p)?,
+            None => Vec::new(),
+        };
+        Ok(Some(Converted { lod, polygons }))
+    }
+
+    /// A `GeometryInstance`: the template's polygons, transformed and placed at the reference point.
+    fn convert_instance(&self, geom: &CjGeometry, source: &VertexSource, gpath: &str) -> Result<Converted, LodError> {
+        let templates = self.templates.as_ref();
+        let t = geom.template.unwrap_or(u64::MAX);
+        let Some(template) = templates.and_then(|ts| ts.templates.get(t as usize)) else {
+            return Err(LodError::invalid(
+                self.path,
+                format!("{gpath}.template"),
+                format!(
+                    "template {} does not exist (the file has {} geometry template(s))",
+                    geom.template.map_or("(missing)".to_string(), |t| t.to_string()),
+                    templates.map_or(0, |ts| ts.templates.len())
+                ),
+            ));
+        };
+        let m: [f64; 16] = match geom.transformation_matrix.as_deref() {
+            Some(m) if m.len() == 16 && m.iter().all(|v| v.is_finite()) => {
+                let mut a = [0.0; 16];
+                a.copy_from_slice(m);
+                a
+            }
+            None => [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+            Some(m) => {
+                return Err(LodError::invalid(
+                    self.path,
+                    format!("{gpath}.transformationMatrix"),
+                    format!("expected 16 finite numbers, found {} value(s)", m.len()),
+                ))
+            }
+        };
+        let reference = geom.boundaries.as_ref().and_then(|b| (b.leaf_depth == Some(0)).then(|| b.leaves.first()).flatten());
+        let Some(&reference) = reference else {
+            return Err(LodError::invalid(
+                self.path,
+                format!("{gpath}.boundaries"),
+                "a GeometryInstance needs boundaries [reference vertex index]",
+            ));
+        };
+        let r = self.vertex(source, reference, &format!("{gpath}.boundaries[0]"))?;
+        let depth = match template.kind.as_str() {
+            "MultiSurface" | "CompositeSurface" => 2,
+            "Solid" => 3,
+            "MultiSolid" | "CompositeSolid" => 4,
+            _ => 0,
+        };
+        let tpath = format!("geometry-templates.templates[{t}]");
+        let lod = template.lod.clone().unwrap_or(LodValue(String::new()));
+        let tsource = VertexSource {
+            vertices: templates.map_or(&[][..], |ts| &ts.vertices[..]),
+            transform: None,
+            list_name: "vertices-templates",
+        };
+        let place = |p: [f64; 3]| {
+            let x = m[0] * p[0] + m[1] * p[1] + m[2] * p[2] + m[3];
+            let y = m[4] * p[0] + m[5] * p[1] + m[6] * p[2] + m[7];
+            let z = m[8] * p[0] + m[9] * p[1] + m[10] * p[2] + m[11];
+            [x + r[0], y + r[1], z + r[2]]
+        };
+        let polygons = match (&template.boundaries, depth) {
+            (Some(b), 2..=4) => self.surfaces(b, depth, &template.kind, &tsource, &tpath, &place)?,
+            _ => Vec::new(),
+        };
+        Ok(Converted { lod, polygons })
+    }
+
+    /// Walks a surface-based boundaries array (`depth` = depth of the arrays holding indices).
+    fn surfaces(
+        &self,
+        b: &Boundaries,
+        depth: usize,
+        kind: &str,
+        source: &VertexSource,
+        gpath: &str,
+        place: &dyn Fn([f64; 3]) -> [f64; 3],
+    ) -> Result<Vec<Result<Polygon, ()>>, LodError> {
+        if b.leaf_depth.is_some_and(|d| d != depth) || b.counts.len() > depth + 1 {
+            let found = b.leaf_depth.unwrap_or(b.counts.len().saturating_sub(1));
+            return Err(LodError::invalid(
+                self.path,
+                format!("{gpath}.boundaries"),
+                format!(
+                    "a {kind} needs vertex indices at nesting depth {}, found depth {}",
+                    depth + 1,
+                    found + 1
+                ),
+            ));
+        }
+        let mut out = Vec::new();
+        let mut walker = Walker::new(b);
+        let mut path = Vec::with_capacity(depth + 1);
+        self.walk(&mut walker, 0, depth, &mut path, source, gpath, place, &mut out)?;
+        Ok(out)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn walk(
+        &self,
+        w: &mut Walker,
+        depth: usize,
+        leaf_depth: usize,
+        path: &mut Vec<usize>,
+        source: &VertexSource,
+        gpath: &str,
+        place: &dyn Fn([f64; 3]) -> [f64; 3],
+        out: &mut Vec<Result<Polygon, ()>>,
+    ) -> Result<(), LodError> {
+        let n = w.take(depth);
+        if depth + 2 == leaf_depth {
+            // This array lists surfaces; each surface lists rings; each ring lists vertex indices.
+            for s in 0..n {
+                path.push(s);
+                let n_rings = w.take(depth + 1);
+                let mut rings = Vec::with_capacity(n_rings);
+                for r in 0..n_rings {
+                    let n_idx = w.take(depth + 2);
+                    let idx = w.leaves(n_idx);
+                    let mut ring = Vec::with_capacity(idx.len());
+                    for (k, &i) in idx.iter().enumerate() {
+                        let p = self.vertex(source, i, &index_path(gpath, path, &[r, k]))?;
+                        ring.push(place(p));
+                    }
+                    rings.push(ring);
+                }
+                path.pop();
+                let mut rings = rings.into_iter();
+                let polygon = match rings.next().and_then(clean_ring) {
+                    Some(exterior) => Ok(Polygon { exterior, interiors: rings.filter_map(clean_ring).collect() }),
+                    None => Err(()),
+                };
+                out.push(polygon);
+            }
+        } else {
+            for i in 0..n {
+                path.push(i);
+                self.walk(w, depth + 1, leaf_depth, path, source, gpath, place, out)?;
+                path.pop();
+            }
+        }
+        Ok(())
+    }
+
+    /// The coordinate of a vertex index, checked.
+    fn vertex(&self, source: &VertexSource, i: u32, at: &str) -> Result<[f64; 3], LodError> {
+        let Some(p) = source.get(i) else {
+            return Err(LodError::invalid(
+                self.path,
+                at,
+                format!("vertex index {i} is out of range ({} has {} vertices)", source.list_name, source.vertices.len()),
+            ));
+        };
+        if p.iter().any(|v| !v.is_finite() || v.abs() > MAX_ABS_COORDINATE) {
+            return Err(LodError::invalid(
+                self.path,
+                at,
+                format!(
+                    "{}[{i}] gives the coordinate [{}, {}, {}], which is not finite or beyond ±{MAX_ABS_COORDINATE:e}",
+                    source.list_name, p[0], p[1], p[2]
+                ),
+            ));
+        }
+        Ok(p)
+    }
+
+    fn finish(self) -> Result<SourceModel, LodError> {
+        if self.buildings.is_empty() {
+            let lod = match &self.forced_lod {
+                Some(l) => format!("LoD {l:?}"),
+                None => format!("LoD {MIN_DEFAULT_LOD}–{MAX_DEFAULT_LOD}"),
+            };
+            return Err(LodError::invalid(
+                self.path,
+                "CityObjects",
+                format!(
+                    "no buildings with geometry: {} building(s) found, {} without any {lod} surface, {} whose \
+                     {lod} surfaces are all degenerate ({} face(s) dropped: fewer than 3 distinct points or \
+                     zero area); {} other city object(s) skipped",
+                    self.buildings_seen,
+                    self.buildings_empty,
+                    self.buildings_degenerate,
+                    self.stats.degenerate_faces,
+                    self.stats.skipped_non_building
+                ),
+            ));
+        }
+        Ok(SourceModel {
+            path: self.path.to_path_buf(),
+            frame: Frame::Crs { name: self.frame_name, axes: AxisConvention::EastNorth },
+            buildings: self.buildings,
+            stats: self.stats,
+        })
+    }
+}
+
+/// `gpath.boundaries[a][b]…` for the vertex at `prefix` + `rest`.
+fn index_path(gpath: &str, prefix: &[usize], rest: &[usize]) -> String {
+    let mut s = format!("{gpath}.boundaries");
+    for i in prefix.iter().chain(rest) {
+        s.push_str(&format!("[{i}]"));
+    }
+    s
+}
+
+/// A serde_json error as an [`LodError`] with line and column (`line_no` for CityJSONSeq lines).
+fn json_error(path: &Path, line_no: Option<usize>, e: serde_json::Error) -> LodError {
+    let (line, column) = match line_no {
+        Some(l) => (l, e.column()),
+        None => (e.line(), e.column()),
+    };
+    if e.is_io() {
+        return LodError::File(FileError::new("reading", path, std::io::Error::from(e)));
+    }
+    if e.is_eof() {
+        return LodError::malformed(
+            path,
+            format!("truncated JSON: the file ends at line {line}, column {column} before the document is complete"),
+        );
+    }
+    // serde_json's message ends with its own " at line L column C" (relative to the parsed text).
+    let msg = e.to_string();
+    let msg = msg.rsplit_once(" at line ").map_or(msg.as_str(), |(m, _)| m).to_string();
+    LodError::malformed(path, format!("malformed JSON at line {line}, column {column}: {msg}"))
 }

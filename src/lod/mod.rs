@@ -159,3 +159,46 @@ pub fn read_source(path: &Path, format: Option<Format>, opts: &ReadOptions) -> R
         Format::Tiles3d => tiles3d::read(path, opts),
     }
 }
+
+/// Largest coordinate magnitude a reader accepts, in source units (metres or degrees): anything
+/// beyond is a corrupt value (e.g. `1e300`), not a place on Earth.
+pub const MAX_ABS_COORDINATE: f64 = 1e9;
+
+/// Cleans one ring as read from a file: removes the closing vertex (equal to the first) and
+/// consecutive duplicates (exact equality, wrap-around included).
+///
+/// Returns `None` when the ring is degenerate: fewer than 3 distinct points left, or zero area, i.e.
+/// twice its vector area (Newell's method, relative to the first vertex) is within rounding noise,
+/// `1e-12·L² + 64·ε·M·L` where `L` is the ring's largest distance from its first vertex and `M` its
+/// largest coordinate magnitude. The test works in any units (metres, degrees, or both mixed as in
+/// EPSG:6697 latitude/longitude/height).
+pub fn clean_ring(mut points: Vec<[f64; 3]>) -> Option<Vec<[f64; 3]>> {
+    points.dedup();
+    while points.len() > 1 && points.first() == points.last() {
+        points.pop();
+    }
+    if points.len() < 3 {
+        return None;
+    }
+    let p0 = points[0];
+    let rel = |p: &[f64; 3]| [p[0] - p0[0], p[1] - p0[1], p[2] - p0[2]];
+    let mut normal = [0.0_f64; 3];
+    let mut reach_sq = 0.0_f64;
+    let mut magnitude = 0.0_f64;
+    for (i, p) in points.iter().enumerate() {
+        let a = rel(p);
+        let b = rel(&points[(i + 1) % points.len()]);
+        normal[0] += a[1] * b[2] - a[2] * b[1];
+        normal[1] += a[2] * b[0] - a[0] * b[2];
+        normal[2] += a[0] * b[1] - a[1] * b[0];
+        reach_sq = reach_sq.max(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+        magnitude = magnitude.max(p[0].abs()).max(p[1].abs()).max(p[2].abs());
+    }
+    let twice_area = (normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]).sqrt();
+    let reach = reach_sq.sqrt();
+    let noise = 1e-12 * reach_sq + 64.0 * f64::EPSILON * magnitude * reach;
+    if !(twice_area > noise) {
+        return None;
+    }
+    Some(points)
+}
