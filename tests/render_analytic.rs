@@ -17,7 +17,7 @@ fn city() -> Vec<Box3> {
         // A 40 m × 20 m tower, 60 m tall, that hides part of box 1 at 45°.
         Box3 { id: 2, min_m: [-5.0, -25.0, 0.0], max_m: [35.0, -5.0, 60.0] },
         // A big ID (all three bytes used) on a small box.
-        Box3 { id: 0x00AB_CDEF, min_m: [20.0, 20.0, 0.0], max_m: [32.5, 27.5, 8.0] },
+        Box3 { id: 0x00AB_CDEF, min_m: [-70.0, -20.0, 0.0], max_m: [-57.5, -12.5, 8.0] },
     ]
 }
 

@@ -43,7 +43,7 @@ mod depth {
             assert!((g - e).abs() <= 1e-5 * e, "pixel {i}: {g} m vs {e} m");
             checked += 1;
         }
-        assert!(checked > 1000, "only {checked} pixels checked");
+        assert!(checked > 500, "only {checked} pixels checked");
     }
 
     #[test]

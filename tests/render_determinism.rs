@@ -74,3 +74,23 @@ fn writing_twice_gives_byte_identical_pngs() {
     // And the PNG holds exactly the rendered IDs.
     assert_eq!(idpng::read_id_png(&p1).unwrap().ids, img.ids);
 }
+
+#[test]
+fn a_caller_provided_device_renders_the_same() {
+    // Renderer::with_device: the device is created here, as an application sharing its GPU would.
+    let (device, queue) = pollster::block_on(async {
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapter =
+            instance.request_adapter(&wgpu::RequestAdapterOptions::default()).await.expect("adapter");
+        adapter.request_device(&wgpu::DeviceDescriptor::default()).await.expect("device")
+    });
+    let own = insgen::render::Renderer::with_device(device, queue).unwrap();
+    let scene_own = own.upload(&box_mesh(&boxes())).unwrap();
+    let shared = renderer();
+    let scene_shared = shared.upload(&box_mesh(&boxes())).unwrap();
+    for v in views() {
+        let a = own.render(&scene_own, &v, &RenderOptions::default()).unwrap();
+        let b = shared.render(&scene_shared, &v, &RenderOptions::default()).unwrap();
+        assert_eq!(a.ids, b.ids);
+    }
+}

@@ -179,7 +179,7 @@ mod tests {
             let (w, h) = (37u32, 23u32);
             // IDs exercising all three bytes, including values whose red byte alone differs.
             let ids: Vec<u32> = (0..w * h)
-                .map(|i| if i % 7 == 0 { 0 } else { (i * 2_654_435_761u32) & MAX_BUILDING_ID })
+                .map(|i| if i % 7 == 0 { 0 } else { i.wrapping_mul(2_654_435_761u32) & MAX_BUILDING_ID })
                 .collect();
             let bytes = encode_id_png(&ids, w, h).unwrap();
             let back = decode_id_png(Path::new("mem.png"), &bytes).unwrap();

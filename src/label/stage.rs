@@ -34,7 +34,7 @@ use std::sync::mpsc;
 use std::sync::Mutex;
 use std::time::Instant;
 
-use rayon::iter::{ParallelBridge, ParallelIterator};
+use rayon::iter::{IntoParallelRefIterator, ParallelBridge, ParallelIterator};
 
 use super::idpng::{self, IdPngError};
 use super::overlay::{self, OverlayError};
@@ -428,8 +428,10 @@ pub fn render_masks(
             ),
         });
     }
-    let todo: Vec<usize> =
-        selected.iter().copied().filter(|&i| plan.force || !outputs_verify(plan, &records[i])).collect();
+    // Verifying reads every existing PNG header and JSON: spread it over the pool.
+    let todo: Vec<usize> = {
+        selected.par_iter().copied().filter(|&i| plan.force || !outputs_verify(plan, &records[i])).collect()
+    };
     let skipped = selected.len() - todo.len();
     if skipped > 0 {
         log::info!("{skipped} frames already rendered (use --force to redo them)");

@@ -55,11 +55,29 @@ impl Renderer {
     /// [`RenderError::Device`] when the adapter refuses to create a device.
     pub fn new() -> Result<Renderer, RenderError> {
         pollster::block_on(async {
-            let instance =
-                wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-            let adapter = wgpu::util::initialize_adapter_from_env_or_default(&instance, None)
-                .await
-                .map_err(|e| RenderError::NoAdapter { reason: e.to_string() })?;
+            // Vulkan/Metal/DX12 first (lavapipe is Vulkan); GL only as a fallback, because probing EGL
+            // on a headless machine prints warnings to stderr. WGPU_BACKEND overrides both.
+            let explicit = wgpu::Backends::from_env().is_some();
+            let mut tried = Vec::new();
+            let mut found = None;
+            for backends in [wgpu::Backends::PRIMARY, wgpu::Backends::all()] {
+                let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+                if !explicit {
+                    desc.backends = backends;
+                }
+                let instance = wgpu::Instance::new(desc);
+                match wgpu::util::initialize_adapter_from_env_or_default(&instance, None).await {
+                    Ok(adapter) => {
+                        found = Some(adapter);
+                        break;
+                    }
+                    Err(e) => tried.push(e.to_string()),
+                }
+                if explicit {
+                    break;
+                }
+            }
+            let adapter = found.ok_or_else(|| RenderError::NoAdapter { reason: tried.join("; ") })?;
             let info = adapter.get_info();
             let name = format!("{} ({:?}, {} {})", info.name, info.backend, info.driver, info.driver_info);
             log::info!("GPU adapter: {name}");
