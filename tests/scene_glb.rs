@@ -41,12 +41,18 @@ fn push_box(mesh: &mut SceneMesh, id: u32, lo: [f32; 3], hi: [f32; 3]) {
     }
     // Faces of the cube over corner bits (x = 1, y = 2, z = 4), outward-facing.
     const TRIS: [[u32; 3]; 12] = [
-        [0, 2, 1], [1, 2, 3], // bottom (z = lo)
-        [4, 5, 6], [5, 7, 6], // top
-        [0, 1, 4], [1, 5, 4], // south (y = lo)
-        [2, 6, 3], [3, 6, 7], // north
-        [0, 4, 2], [2, 4, 6], // west
-        [1, 3, 5], [3, 7, 5], // east
+        [0, 2, 1],
+        [1, 2, 3], // bottom (z = lo)
+        [4, 5, 6],
+        [5, 7, 6], // top
+        [0, 1, 4],
+        [1, 5, 4], // south (y = lo)
+        [2, 6, 3],
+        [3, 6, 7], // north
+        [0, 4, 2],
+        [2, 4, 6], // west
+        [1, 3, 5],
+        [3, 7, 5], // east
     ];
     for t in TRIS {
         mesh.indices.extend(t.map(|v| base + v));
@@ -60,8 +66,7 @@ fn small_scene() -> (SceneMesh, Vec<BuildingRecord>) {
     push_box(&mut mesh, 1, [-120.1, 35.3, -0.7], [-100.07, 60.9, 12.3]);
     push_box(&mut mesh, 7, [0.1, -0.2, 0.0], [17.3, 9.9, 183.25]);
     push_box(&mut mesh, 16_777_215, [250.0, -310.5, 1.5], [271.3, -290.1, 44.4]);
-    let buildings =
-        vec![record(1, "bldg_0001"), record(7, "bldg_ö7"), record(16_777_215, "gml_UUID_ffffff")];
+    let buildings = vec![record(1, "bldg_0001"), record(7, "bldg_ö7"), record(16_777_215, "gml_UUID_ffffff")];
     (mesh, buildings)
 }
 
@@ -74,7 +79,8 @@ fn random_scene(n: u32, seed: u64) -> (SceneMesh, Vec<BuildingRecord>) {
         let x: f32 = rng.gen_range(-3000.0..3000.0);
         let y: f32 = rng.gen_range(-3000.0..3000.0);
         let z: f32 = rng.gen_range(-5.0..40.0);
-        let (w, d, h): (f32, f32, f32) = (rng.gen_range(5.0..40.0), rng.gen_range(5.0..40.0), rng.gen_range(3.0..200.0));
+        let (w, d, h): (f32, f32, f32) =
+            (rng.gen_range(5.0..40.0), rng.gen_range(5.0..40.0), rng.gen_range(3.0..200.0));
         push_box(&mut mesh, id, [x, y, z], [x + w, y + d, z + h]);
         buildings.push(record(id, &format!("b{id:07}")));
     }
@@ -112,7 +118,8 @@ fn accessor_slice<'a>(json: &Value, bin: &'a [u8], i: usize, elem: usize) -> &'a
     let acc = &json["accessors"][i];
     let view = &json["bufferViews"][acc["bufferView"].as_u64().unwrap() as usize];
     assert!(view.get("byteStride").is_none());
-    let start = view["byteOffset"].as_u64().unwrap() as usize + acc.get("byteOffset").map_or(0, |v| v.as_u64().unwrap() as usize);
+    let start = view["byteOffset"].as_u64().unwrap() as usize
+        + acc.get("byteOffset").map_or(0, |v| v.as_u64().unwrap() as usize);
     let count = acc["count"].as_u64().unwrap() as usize;
     assert!(count * elem <= view["byteLength"].as_u64().unwrap() as usize);
     &bin[start..start + count * elem]
@@ -143,7 +150,8 @@ mod round_trip {
         let pos_acc = json["meshes"][0]["primitives"][0]["attributes"]["POSITION"].as_u64().unwrap() as usize;
         let raw = accessor_slice(&json, &bin, pos_acc, 12);
         for (k, p) in mesh.positions_m.iter().enumerate() {
-            let f = |c: usize| f32::from_le_bytes(raw[k * 12 + c * 4..k * 12 + c * 4 + 4].try_into().unwrap());
+            let f =
+                |c: usize| f32::from_le_bytes(raw[k * 12 + c * 4..k * 12 + c * 4 + 4].try_into().unwrap());
             assert_eq!([f(0), f(1), f(2)], [p[0], p[2], -p[1]], "vertex {k}");
         }
         // min/max cover exactly the stored values (glTF requires them for POSITION).
@@ -203,7 +211,10 @@ mod features {
         let (json, bin) = split_glb(&std::fs::read(&path).unwrap());
 
         assert!(json["extensionsUsed"].as_array().unwrap().contains(&json!("EXT_mesh_features")));
-        assert!(json.get("extensionsRequired").is_none(), "viewers without the extensions must still load it");
+        assert!(
+            json.get("extensionsRequired").is_none(),
+            "viewers without the extensions must still load it"
+        );
         let prim = &json["meshes"][0]["primitives"][0];
         let sets = prim["extensions"]["EXT_mesh_features"]["featureIds"].as_array().unwrap();
         assert_eq!(sets.len(), 1);
@@ -233,8 +244,10 @@ mod features {
         // Every ID in the file is in the building table, and every building has triangles.
         let table: BTreeSet<u32> = buildings.iter().map(|b| b.id).collect();
         let idx_acc = prim["indices"].as_u64().unwrap() as usize;
-        let idx: Vec<u32> =
-            accessor_slice(&json, &bin, idx_acc, 4).chunks_exact(4).map(|c| u32::from_le_bytes(c.try_into().unwrap())).collect();
+        let idx: Vec<u32> = accessor_slice(&json, &bin, idx_acc, 4)
+            .chunks_exact(4)
+            .map(|c| u32::from_le_bytes(c.try_into().unwrap()))
+            .collect();
         let mut triangles: BTreeMap<u32, usize> = BTreeMap::new();
         for t in idx.chunks_exact(3) {
             let id = ids[t[0] as usize];
@@ -332,7 +345,10 @@ mod validator {
     fn assert_no_errors(report: &Value) {
         let issues = &report["issues"];
         for m in issues["messages"].as_array().unwrap() {
-            eprintln!("validator: severity {} {} at {}: {}", m["severity"], m["code"], m["pointer"], m["message"]);
+            eprintln!(
+                "validator: severity {} {} at {}: {}",
+                m["severity"], m["code"], m["pointer"], m["message"]
+            );
         }
         assert_eq!(issues["numErrors"], 0, "{:#}", issues);
     }
@@ -470,7 +486,10 @@ mod reader {
         let path = dir.path().join("zero.glb");
         std::fs::write(&path, other_writer_glb(true, [3, 0, 3], [0.0; 3])).unwrap();
         let msg = read_glb(&path).unwrap_err().to_string();
-        assert!(msg.contains("_FEATURE_ID_0") && msg.contains("vertex 1") && msg.contains("feature ID 0"), "{msg}");
+        assert!(
+            msg.contains("_FEATURE_ID_0") && msg.contains("vertex 1") && msg.contains("feature ID 0"),
+            "{msg}"
+        );
     }
 
     #[test]

@@ -41,7 +41,9 @@ fn newell(r: &[[f64; 3]]) -> [f64; 3] {
 }
 
 fn is_wall(p: &Polygon) -> bool {
-    p.exterior.len() == 4 && p.exterior[0][2] == p.exterior[1][2] && p.exterior[2][2] == p.exterior[3][2]
+    p.exterior.len() == 4
+        && p.exterior[0][2] == p.exterior[1][2]
+        && p.exterior[2][2] == p.exterior[3][2]
         && p.exterior[0][2] < p.exterior[2][2]
 }
 
@@ -92,7 +94,13 @@ mod determinism {
         assert_eq!(ids.iter().collect::<BTreeSet<_>>().len(), ids.len());
         // More than 9999 buildings widen the padding, so sorting still holds.
         let big = generate(
-            &ProceduralSpec { blocks_x: 40, blocks_y: 20, tower_blocks: 0, plaza_blocks: 0, ..default_spec() },
+            &ProceduralSpec {
+                blocks_x: 50,
+                blocks_y: 25,
+                tower_blocks: 0,
+                plaza_blocks: 0,
+                ..default_spec()
+            },
             PlaneOrigin::TOKYO_BAY,
         )
         .unwrap();
@@ -144,7 +152,9 @@ mod size_and_frame {
     #[test]
     fn tokyo_bay_origin_is_where_the_doc_says() {
         let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-        let python = std::env::var_os("INSGEN_PYTHON").map(PathBuf::from).unwrap_or_else(|| root.join(".venv/bin/python"));
+        let python = std::env::var_os("INSGEN_PYTHON")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| root.join(".venv/bin/python"));
         if !python.exists() {
             if std::env::var("CI").map(|v| v == "true").unwrap_or(false) {
                 panic!("CI: no Python at {} (set INSGEN_PYTHON)", python.display());
@@ -193,13 +203,18 @@ mod validity {
                         assert!(v.iter().all(|c| c.is_finite()));
                         // Off-plane distance: 1 µm (f64 rounding of rotated coordinates is ~1e-10 m).
                         let d: f64 = (0..3).map(|i| unit[i] * v[i]).sum::<f64>() - d0;
-                        assert!(d.abs() < 1e-6, "{} face {k}: vertex {v:?} is {d} m off the plane", b.source_id);
+                        assert!(
+                            d.abs() < 1e-6,
+                            "{} face {k}: vertex {v:?} is {d} m off the plane",
+                            b.source_id
+                        );
                     }
                     // No collinear consecutive triples (they would be degenerate wall quads later).
                     for i in 0..r.len() {
                         let (a, bb, c) = (r[i], r[(i + 1) % r.len()], r[(i + 2) % r.len()]);
                         let (u, w) = (sub(bb, a), sub(c, bb));
-                        let cr = [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
+                        let cr =
+                            [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
                         let s = (cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]).sqrt();
                         assert!(s > 1e-6, "{} face {k}: collinear vertices at {i}", b.source_id);
                     }
@@ -207,7 +222,11 @@ mod validity {
                 // Holes wind against the exterior (same plane, opposite normals).
                 for h in &p.interiors {
                     let nh = newell(h);
-                    assert!((0..3).map(|i| nh[i] * n[i]).sum::<f64>() < 0.0, "{} face {k}: hole winding", b.source_id);
+                    assert!(
+                        (0..3).map(|i| nh[i] * n[i]).sum::<f64>() < 0.0,
+                        "{} face {k}: hole winding",
+                        b.source_id
+                    );
                 }
             }
         }
@@ -258,11 +277,22 @@ mod validity {
             .map(|p| {
                 let xs = p.exterior.iter().map(|v| v[0]);
                 let ys = p.exterior.iter().map(|v| v[1]);
-                [xs.clone().fold(f64::MAX, f64::min), ys.clone().fold(f64::MAX, f64::min), xs.fold(f64::MIN, f64::max), ys.fold(f64::MIN, f64::max)]
+                [
+                    xs.clone().fold(f64::MAX, f64::min),
+                    ys.clone().fold(f64::MAX, f64::min),
+                    xs.fold(f64::MIN, f64::max),
+                    ys.fold(f64::MIN, f64::max),
+                ]
             })
             .collect();
-        let (x0, y0) = (bbox.iter().map(|b| b[0]).fold(f64::MAX, f64::min), bbox.iter().map(|b| b[1]).fold(f64::MAX, f64::min));
-        let (x1, y1) = (bbox.iter().map(|b| b[2]).fold(f64::MIN, f64::max), bbox.iter().map(|b| b[3]).fold(f64::MIN, f64::max));
+        let (x0, y0) = (
+            bbox.iter().map(|b| b[0]).fold(f64::MAX, f64::min),
+            bbox.iter().map(|b| b[1]).fold(f64::MAX, f64::min),
+        );
+        let (x1, y1) = (
+            bbox.iter().map(|b| b[2]).fold(f64::MIN, f64::max),
+            bbox.iter().map(|b| b[3]).fold(f64::MIN, f64::max),
+        );
         let step = 0.5;
         let (nx, ny) = (((x1 - x0) / step) as usize + 1, ((y1 - y0) / step) as usize + 1);
         let mut owner = vec![u32::MAX; nx * ny];
@@ -308,7 +338,8 @@ mod city_features {
             assert_eq!(walls, ring_edges, "{}: one wall per edge of outer and inner rings", b.source_id);
             // The inner walls face the courtyard: their normal points towards the hole's centroid.
             let hole = &holed[0].interiors[0];
-            let c = hole.iter().fold([0.0; 2], |a, v| [a[0] + v[0], a[1] + v[1]]).map(|s| s / hole.len() as f64);
+            let c =
+                hole.iter().fold([0.0; 2], |a, v| [a[0] + v[0], a[1] + v[1]]).map(|s| s / hole.len() as f64);
             let hole_xy: BTreeSet<[u64; 2]> = hole.iter().map(|v| [v[0].to_bits(), v[1].to_bits()]).collect();
             for w in polys.iter().filter(|p| is_wall(p)) {
                 let on_hole = w.exterior.iter().all(|v| hole_xy.contains(&[v[0].to_bits(), v[1].to_bits()]));
@@ -351,7 +382,12 @@ mod city_features {
                 }
             }
         }
-        eprintln!("{} shared wall faces ({} of equal height) between {} pairs", shared / 2, identical / 2, pairs.len());
+        eprintln!(
+            "{} shared wall faces ({} of equal height) between {} pairs",
+            shared / 2,
+            identical / 2,
+            pairs.len()
+        );
         assert!(pairs.len() >= 100, "{} neighbour pairs share a wall", pairs.len());
         assert!(identical / 2 >= 20, "{} fully coincident wall faces (row houses)", identical / 2);
     }
@@ -373,7 +409,10 @@ mod city_features {
         let towers = heights.iter().filter(|&&h| h >= 80.0).count();
         let low = heights.iter().filter(|&&h| h <= 25.0).count();
         let mid = heights.iter().filter(|&&h| h > 25.0 && h < 80.0).count();
-        eprintln!("{low} low-rise, {mid} mid-rise, {towers} towers; max {} m", heights.iter().fold(0.0f64, |a, &b| a.max(b)));
+        eprintln!(
+            "{low} low-rise, {mid} mid-rise, {towers} towers; max {} m",
+            heights.iter().fold(0.0f64, |a, &b| a.max(b))
+        );
         assert!(heights.iter().all(|&h| (3.0..=200.0).contains(&h)));
         assert!(towers >= spec.tower_blocks as usize && towers <= 2 * spec.tower_blocks as usize);
         assert!(low > heights.len() / 2, "mostly low-rise: {low} of {}", heights.len());
@@ -384,12 +423,48 @@ mod city_features {
 mod top_view {
     use super::*;
 
+    /// Area of the convex hull (Andrew's monotone chain), m².
+    fn hull_area(pts: &[[f64; 2]]) -> f64 {
+        let mut p = pts.to_vec();
+        p.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+        let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| {
+            (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+        };
+        let mut hull: Vec<[f64; 2]> = Vec::new();
+        for pass in 0..2 {
+            let start = hull.len();
+            let it: Box<dyn Iterator<Item = &[f64; 2]>> =
+                if pass == 0 { Box::new(p.iter()) } else { Box::new(p.iter().rev()) };
+            for &q in it {
+                while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0 {
+                    hull.pop();
+                }
+                hull.push(q);
+            }
+            hull.pop();
+        }
+        (0..hull.len())
+            .map(|i| {
+                let (a, b) = (hull[i], hull[(i + 1) % hull.len()]);
+                a[0] * b[1] - b[0] * a[1]
+            })
+            .sum::<f64>()
+            / 2.0
+    }
+
+    #[test]
+    fn hull_of_a_square_with_inner_points() {
+        let pts = [[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0], [1.0, 1.0], [0.5, 1.5], [1.0, 0.0]];
+        assert_eq!(hull_area(&pts), 4.0);
+    }
+
     /// Renders the city from above (1 px = 0.5 m; roofs shaded by height, outlines dark, streets grey)
     /// with the test's own rasteriser and writes `target/test-output/procedural_topview.png`.
     #[test]
     fn writes_a_top_view_png() {
         let m = city();
-        let roofs: Vec<(&Polygon, f64)> = m.buildings.iter().map(|b| (roof(b), b.measured_height_m.unwrap())).collect();
+        let roofs: Vec<(&Polygon, f64)> =
+            m.buildings.iter().map(|b| (roof(b), b.measured_height_m.unwrap())).collect();
         let all = roofs.iter().flat_map(|(p, _)| p.exterior.iter());
         let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
         for v in all {
@@ -411,7 +486,8 @@ mod top_view {
             let (j0, j1) = (((by0 - y0 + margin) / step) as usize, ((by1 - y0 + margin) / step) as usize + 1);
             for j in j0..j1.min(h) {
                 for i in i0..i1.min(w) {
-                    let (x, y) = (x0 - margin + (i as f64 + 0.5) * step, y0 - margin + (j as f64 + 0.5) * step);
+                    let (x, y) =
+                        (x0 - margin + (i as f64 + 0.5) * step, y0 - margin + (j as f64 + 0.5) * step);
                     if inside(p, x, y) {
                         owner[(h - 1 - j) * w + i] = k as u32; // north up
                     }
@@ -429,7 +505,11 @@ mod top_view {
                 }
                 let edge = [(1i64, 0i64), (-1, 0), (0, 1), (0, -1)].iter().any(|(di, dj)| {
                     let (ii, jj) = (i as i64 + di, j as i64 + dj);
-                    ii < 0 || jj < 0 || ii >= w as i64 || jj >= h as i64 || owner[jj as usize * w + ii as usize] != o
+                    ii < 0
+                        || jj < 0
+                        || ii >= w as i64
+                        || jj >= h as i64
+                        || owner[jj as usize * w + ii as usize] != o
                 });
                 if edge {
                     px.copy_from_slice(&[30, 30, 30]);
@@ -437,7 +517,11 @@ mod top_view {
                 }
                 // Height ramp: low = warm light, towers = dark blue.
                 let t = (roofs[o as usize].1 / 200.0).sqrt().clamp(0.0, 1.0);
-                px.copy_from_slice(&[(250.0 - 210.0 * t) as u8, (235.0 - 160.0 * t) as u8, (200.0 - 40.0 * t) as u8]);
+                px.copy_from_slice(&[
+                    (250.0 - 210.0 * t) as u8,
+                    (235.0 - 160.0 * t) as u8,
+                    (200.0 - 40.0 * t) as u8,
+                ]);
             }
         }
         let out = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/test-output/procedural_topview.png");
@@ -448,8 +532,13 @@ mod top_view {
         enc.set_depth(png::BitDepth::Eight);
         enc.write_header().unwrap().write_image_data(&rgb).unwrap();
         eprintln!("wrote {} ({w} × {h} px, 1 px = {step} m)", out.display());
-        let covered = owner.iter().filter(|&&o| o != u32::MAX).count() as f64 / owner.len() as f64;
-        eprintln!("built-up fraction of the bounding box: {:.0} %", covered * 100.0);
-        assert!(covered > 0.25 && covered < 0.75, "a dense city with streets: {covered}");
+        // Built-up fraction of the city's convex hull (the rotated street grid), from the rendering.
+        let pts: Vec<[f64; 2]> =
+            roofs.iter().flat_map(|(p, _)| p.exterior.iter().map(|v| [v[0], v[1]])).collect();
+        let hull_m2 = hull_area(&pts);
+        let built_m2 = owner.iter().filter(|&&o| o != u32::MAX).count() as f64 * step * step;
+        let covered = built_m2 / hull_m2;
+        eprintln!("built-up fraction of the city's hull: {:.0} %", covered * 100.0);
+        assert!(covered > 0.3 && covered < 0.7, "a dense city with streets: {covered}");
     }
 }

@@ -153,7 +153,8 @@ fn check_input(path: &Path, mesh: &SceneMesh, buildings: &[BuildingRecord]) -> R
     if let Some((k, &i)) = mesh.indices.iter().enumerate().find(|(_, &i)| i as usize >= n) {
         return Err(bad(format!("index {k} is {i}, but there are only {n} vertices")));
     }
-    if let Some((k, p)) = mesh.positions_m.iter().enumerate().find(|(_, p)| !p.iter().all(|c| c.is_finite())) {
+    if let Some((k, p)) = mesh.positions_m.iter().enumerate().find(|(_, p)| !p.iter().all(|c| c.is_finite()))
+    {
         return Err(bad(format!("vertex {k} has a non-finite coordinate {p:?}")));
     }
     let mut known = BTreeMap::new();
@@ -206,12 +207,12 @@ pub fn write_glb(path: &Path, mesh: &SceneMesh, buildings: &[BuildingRecord]) ->
     }
 
     let (views, bin_len) = plan_views(&[
-        (n_vertices * 12, Some(TARGET_ARRAY_BUFFER)),         // 0: POSITION
-        (n_vertices * 4, Some(TARGET_ARRAY_BUFFER)),          // 1: _FEATURE_ID_0
-        (n_vertices * 4, Some(TARGET_ARRAY_BUFFER)),          // 2: COLOR_0
-        (n_indices * 4, Some(TARGET_ELEMENT_ARRAY_BUFFER)),   // 3: indices
-        (string_bytes, None),                                 // 4: source_id string values
-        ((table_rows + 1) * 4, None),                         // 5: source_id string offsets (UINT32)
+        (n_vertices * 12, Some(TARGET_ARRAY_BUFFER)),       // 0: POSITION
+        (n_vertices * 4, Some(TARGET_ARRAY_BUFFER)),        // 1: _FEATURE_ID_0
+        (n_vertices * 4, Some(TARGET_ARRAY_BUFFER)),        // 2: COLOR_0
+        (n_indices * 4, Some(TARGET_ELEMENT_ARRAY_BUFFER)), // 3: indices
+        (string_bytes, None),                               // 4: source_id string values
+        ((table_rows + 1) * 4, None),                       // 5: source_id string offsets (UINT32)
     ]);
 
     // Bounds in the glTF frame, as the validator recomputes them from the stored f32 values.
@@ -520,7 +521,9 @@ fn read_positions(
     out.reserve(a.count);
     let elems = (0..a.count).map(|k| &a.data[k * a.stride..k * a.stride + 12]);
     match transform {
-        None => out.extend(elems.map(|e| gltf_to_enu([le_f32(&e[0..4]), le_f32(&e[4..8]), le_f32(&e[8..12])]))),
+        None => {
+            out.extend(elems.map(|e| gltf_to_enu([le_f32(&e[0..4]), le_f32(&e[4..8]), le_f32(&e[8..12])])))
+        }
         Some(m) => out.extend(elems.map(|e| {
             let p = [le_f32(&e[0..4]), le_f32(&e[4..8]), le_f32(&e[8..12])].map(f64::from);
             // Column-major 4×4 (glTF): world = M · [p, 1].
@@ -572,8 +575,10 @@ fn read_feature_ids(
             }
         }
     }
-    if let Some((k, &id)) =
-        out[first..].iter().enumerate().find(|(_, &id)| id == 0 || id > MAX_BUILDING_ID || Some(u64::from(id)) == null_id)
+    if let Some((k, &id)) = out[first..]
+        .iter()
+        .enumerate()
+        .find(|(_, &id)| id == 0 || id > MAX_BUILDING_ID || Some(u64::from(id)) == null_id)
     {
         return Err(invalid(format!(
             "vertex {k}: feature ID {id} is not a building ID (1..={MAX_BUILDING_ID}, not the null ID)"
@@ -598,7 +603,9 @@ fn read_indices(
         (Dimensions::Scalar, DataType::U8) => 1,
         (Dimensions::Scalar, DataType::U16) => 2,
         (Dimensions::Scalar, DataType::U32) => 4,
-        (d, t) => return Err(invalid(format!("indices must be SCALAR unsigned integers, found {d:?} {t:?}"))),
+        (d, t) => {
+            return Err(invalid(format!("indices must be SCALAR unsigned integers, found {d:?} {t:?}")))
+        }
     };
     let a = accessor_bytes(path, at, acc, bin, size)?;
     if a.count % 3 != 0 {
@@ -658,8 +665,7 @@ pub fn read_glb(path: &Path) -> Result<SceneMesh, GlbError> {
         what: format!("unexpected EXT_mesh_features content: {e}"),
     })?;
     let bin: &[u8] = glb.bin.as_deref().unwrap_or(&[]);
-    let invalid =
-        |at: String, what: String| GlbError::Invalid { path: path.to_path_buf(), at, what };
+    let invalid = |at: String, what: String| GlbError::Invalid { path: path.to_path_buf(), at, what };
 
     let scene = doc
         .default_scene()
@@ -714,7 +720,10 @@ pub fn read_glb(path: &Path) -> Result<SceneMesh, GlbError> {
             let pos_acc =
                 pos_acc.ok_or_else(|| invalid(format!("{at}.attributes"), "no POSITION attribute".into()))?;
             let id_acc = id_acc.ok_or_else(|| {
-                invalid(format!("{at}.attributes"), format!("EXT_mesh_features names {attr_name}, which is absent"))
+                invalid(
+                    format!("{at}.attributes"),
+                    format!("EXT_mesh_features names {attr_name}, which is absent"),
+                )
             })?;
             if pos_acc.count() != id_acc.count() {
                 return Err(invalid(
@@ -744,12 +753,21 @@ pub fn read_glb(path: &Path) -> Result<SceneMesh, GlbError> {
             )?;
             let n = pos_acc.count();
             match prim.indices() {
-                Some(acc) => {
-                    read_indices(path, &format!("{at}.indices"), &acc, bin, base as u32, n, &mut mesh.indices)?
-                }
+                Some(acc) => read_indices(
+                    path,
+                    &format!("{at}.indices"),
+                    &acc,
+                    bin,
+                    base as u32,
+                    n,
+                    &mut mesh.indices,
+                )?,
                 None => {
                     if n % 3 != 0 {
-                        return Err(invalid(at, format!("{n} vertices without indices is not whole triangles")));
+                        return Err(invalid(
+                            at,
+                            format!("{n} vertices without indices is not whole triangles"),
+                        ));
                     }
                     mesh.indices.extend(base as u32..(base + n) as u32);
                 }
@@ -776,7 +794,8 @@ mod tests {
             assert_eq!(enu_to_gltf([0.0, 1.0, 0.0]), [0.0, 0.0, -1.0]);
             assert_eq!(enu_to_gltf([0.0, 0.0, 1.0]), [0.0, 1.0, 0.0]);
             // A rotation (determinant +1): handedness is preserved, so no triangle flips its winding.
-            let m = [enu_to_gltf([1.0, 0.0, 0.0]), enu_to_gltf([0.0, 1.0, 0.0]), enu_to_gltf([0.0, 0.0, 1.0])];
+            let m =
+                [enu_to_gltf([1.0, 0.0, 0.0]), enu_to_gltf([0.0, 1.0, 0.0]), enu_to_gltf([0.0, 0.0, 1.0])];
             let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
                 - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
                 + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
@@ -828,7 +847,8 @@ mod tests {
             let s = [[2.0, 0.0, 0.0, 0.0], [0.0, 2.0, 0.0, 0.0], [0.0, 0.0, 2.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
             let m = mat_mul(&t, &s);
             let p = [1.0, 1.0, 1.0];
-            let out: [f64; 3] = std::array::from_fn(|r| m[0][r] * p[0] + m[1][r] * p[1] + m[2][r] * p[2] + m[3][r]);
+            let out: [f64; 3] =
+                std::array::from_fn(|r| m[0][r] * p[0] + m[1][r] * p[1] + m[2][r] * p[2] + m[3][r]);
             assert_eq!(out, [3.0, 4.0, 5.0]);
         }
     }

@@ -160,11 +160,17 @@ impl ProceduralSpec {
         if !in_range(self.avenue_width_m, self.street_width_m, 200.0) {
             return bad(
                 "avenue_width_m",
-                format!("{} m is outside [street_width_m = {}, 200] m", self.avenue_width_m, self.street_width_m),
+                format!(
+                    "{} m is outside [street_width_m = {}, 200] m",
+                    self.avenue_width_m, self.street_width_m
+                ),
             );
         }
         if !in_range(self.grid_rotation_deg, -360.0, 360.0) {
-            return bad("grid_rotation_deg", format!("{} is outside [-360, 360] degrees", self.grid_rotation_deg));
+            return bad(
+                "grid_rotation_deg",
+                format!("{} is outside [-360, 360] degrees", self.grid_rotation_deg),
+            );
         }
         if !in_range(self.ground_height_m, -500.0, 9000.0) {
             return bad("ground_height_m", format!("{} m is outside [-500, 9000] m", self.ground_height_m));
@@ -309,8 +315,8 @@ fn side_to_block(k: usize, p: [f64; 2], w: f64, h: f64) -> [f64; 2] {
 fn perimeter_block(rng: &mut ChaCha8Rng, spec: &ProceduralSpec, w: f64, h: f64) -> Vec<Lot> {
     // Depth of the row along each side; corner extensions along the side (e) and up the previous
     // side (f).
-    let max_depth = (w.min(h) * 0.2).min(16.0);
-    let depth: [f64; 4] = std::array::from_fn(|_| len(rng, 10.0, max_depth));
+    let max_depth = (w.min(h) * 0.22).min(18.0);
+    let depth: [f64; 4] = std::array::from_fn(|_| len(rng, 11.0, max_depth));
     let max_ext = w.min(h) * 0.12;
     let mut ext = [[0.0f64; 2]; 4];
     for e in &mut ext {
@@ -344,7 +350,8 @@ fn perimeter_block(rng: &mut ChaCha8Rng, spec: &ProceduralSpec, w: f64, h: f64) 
         } else {
             Footprint::rect(0.0, 0.0, d_prev, d)
         };
-        let corner_h = if rng.gen_bool(0.5) { height(rng, spec.mid_rise_m) } else { height(rng, spec.low_rise_m) };
+        let corner_h =
+            if rng.gen_bool(0.5) { height(rng, spec.mid_rise_m) } else { height(rng, spec.low_rise_m) };
         lots.push(Lot { footprint: to_block(corner), height_m: corner_h });
 
         // The row between this corner and the next one (whose extension up this side is ext[k+1][1]).
@@ -376,7 +383,7 @@ fn perimeter_block(rng: &mut ChaCha8Rng, spec: &ProceduralSpec, w: f64, h: f64) 
     // Sometimes a low shed in the yard, clear of every row and extension by 3 m.
     let inner = [max_depth + max_ext + 3.0, w - max_depth - max_ext - 3.0];
     let inner_y = [max_depth + max_ext + 3.0, h - max_depth - max_ext - 3.0];
-    if inner[1] - inner[0] >= 8.0 && inner_y[1] - inner_y[0] >= 8.0 && rng.gen_bool(0.35) {
+    if inner[1] - inner[0] >= 8.0 && inner_y[1] - inner_y[0] >= 8.0 && rng.gen_bool(0.5) {
         let sw = len(rng, 8.0, inner[1] - inner[0]);
         let sh = len(rng, 8.0, inner_y[1] - inner_y[0]);
         let x0 = q((w - sw) / 2.0);
@@ -390,7 +397,7 @@ fn perimeter_block(rng: &mut ChaCha8Rng, spec: &ProceduralSpec, w: f64, h: f64) 
 /// One mid-rise building around a courtyard: closed (a hole) or open (U-shape).
 fn courtyard_block(rng: &mut ChaCha8Rng, spec: &ProceduralSpec, w: f64, h: f64) -> Vec<Lot> {
     let s = len(rng, 0.0, 4.0);
-    let d = len(rng, 12.0, (w.min(h) * 0.25).min(18.0));
+    let d = len(rng, 12.0, (w.min(h) * 0.28).min(20.0));
     let (x0, y0, x1, y1) = (s, s, w - s, h - s);
     let footprint = if rng.gen_bool(0.65) {
         let mut fp = Footprint::rect(x0, y0, x1, y1);
@@ -419,14 +426,14 @@ fn detached_block(rng: &mut ChaCha8Rng, spec: &ProceduralSpec, w: f64, h: f64) -
                 continue; // an empty lot (parking, garden)
             }
             let (lx, ly) = (i as f64 * (lw + path), j as f64 * (lh + path));
-            let inset = len(rng, 1.5, 3.0);
+            let inset = len(rng, 1.0, 2.5);
             let (x0, y0, x1, y1) = (lx + inset, ly + inset, lx + lw - inset, ly + lh - inset);
             let (bw, bh) = (x1 - x0, y1 - y0);
             let kind = rng.gen_range(0..100u32);
             let footprint = if kind < 45 {
                 // A rectangle, shrunk along one axis for variety.
-                let shrink_x = len(rng, 0.0, bw * 0.3);
-                let shrink_y = len(rng, 0.0, bh * 0.3);
+                let shrink_x = len(rng, 0.0, bw * 0.2);
+                let shrink_y = len(rng, 0.0, bh * 0.2);
                 Footprint::rect(x0, y0, x1 - shrink_x, y1 - shrink_y)
             } else if kind < 85 || bw < 16.0 || bh < 16.0 {
                 let nxl = len(rng, bw * 0.3, bw * 0.6);
@@ -451,10 +458,10 @@ fn detached_block(rng: &mut ChaCha8Rng, spec: &ProceduralSpec, w: f64, h: f64) -
 fn slab_block(rng: &mut ChaCha8Rng, spec: &ProceduralSpec, w: f64, h: f64) -> Vec<Lot> {
     let along_x = rng.gen_bool(0.5);
     let (span, across) = if along_x { (w, h) } else { (h, w) };
-    let depth = len(rng, 12.0, 16.0);
-    // Three slabs only where they keep at least 12 m apart.
-    let n = if across >= 3.0 * depth + 2.0 * 12.0 + 10.0 && rng.gen_bool(0.5) { 3 } else { 2 };
-    let margin = len(rng, 2.0, 5.0);
+    let depth = len(rng, 14.0, 20.0);
+    let margin = len(rng, 2.0, 4.0);
+    // Three slabs where they stay at least 10 m apart.
+    let n = if across >= 3.0 * depth + 2.0 * 10.0 + 2.0 * margin { 3 } else { 2 };
     let gap = q((across - 2.0 * margin - n as f64 * depth) / (n as f64 - 1.0).max(1.0));
     let mut lots = Vec::new();
     for i in 0..n {
@@ -542,7 +549,12 @@ fn extrude(fp: &Footprint, ground_m: f64, top_m: f64, place: &dyn Fn([f64; 2]) -
         for i in 0..ring.len() {
             let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
             out.push(Polygon {
-                exterior: vec![[a[0], a[1], ground_m], [b[0], b[1], ground_m], [b[0], b[1], top_m], [a[0], a[1], top_m]],
+                exterior: vec![
+                    [a[0], a[1], ground_m],
+                    [b[0], b[1], ground_m],
+                    [b[0], b[1], top_m],
+                    [a[0], a[1], top_m],
+                ],
                 interiors: Vec::new(),
             });
         }
@@ -566,8 +578,10 @@ pub fn generate(spec: &ProceduralSpec, origin: PlaneOrigin) -> Result<SourceMode
     let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
 
     // Column widths and row heights (±20 %), and the streets between them.
-    let widths: Vec<f64> = (0..spec.blocks_x).map(|_| len(&mut rng, spec.block_size_m * 0.8, spec.block_size_m * 1.2)).collect();
-    let depths: Vec<f64> = (0..spec.blocks_y).map(|_| len(&mut rng, spec.block_size_m * 0.8, spec.block_size_m * 1.2)).collect();
+    let widths: Vec<f64> =
+        (0..spec.blocks_x).map(|_| len(&mut rng, spec.block_size_m * 0.8, spec.block_size_m * 1.2)).collect();
+    let depths: Vec<f64> =
+        (0..spec.blocks_y).map(|_| len(&mut rng, spec.block_size_m * 0.8, spec.block_size_m * 1.2)).collect();
     let street = |i: usize| {
         if spec.avenue_every > 0 && i % spec.avenue_every as usize == 0 {
             q(spec.avenue_width_m)
