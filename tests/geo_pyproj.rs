@@ -45,10 +45,14 @@ fn python() -> Option<PathBuf> {
         None => Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv/bin/python"),
     };
     if !p.exists() {
-        skip(&format!("Python interpreter {} is absent (set INSGEN_PYTHON or run scripts/setup.sh)", p.display()));
+        skip(&format!(
+            "Python interpreter {} is absent (set INSGEN_PYTHON or run scripts/setup.sh)",
+            p.display()
+        ));
         return None;
     }
-    let ok = Command::new(&p).args(["-c", "import pyproj"]).output().map(|o| o.status.success()).unwrap_or(false);
+    let ok =
+        Command::new(&p).args(["-c", "import pyproj"]).output().map(|o| o.status.success()).unwrap_or(false);
     if !ok {
         skip(&format!("{} cannot import pyproj", p.display()));
         return None;
@@ -110,7 +114,8 @@ fn run_reference(py: &Path, request: &serde_json::Value) -> Answer {
         out.status,
         String::from_utf8_lossy(&out.stderr)
     );
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("reference output is not the expected JSON: {e}"))
+    serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("reference output is not the expected JSON: {e}"))
 }
 
 /// The EPSG codes under test: geographic 2D/3D, geocentric, compound, all 19 Japan Plane Rectangular
@@ -187,7 +192,8 @@ fn crs_conversions_agree_with_pyproj() {
         let tf = crs.transform().unwrap_or_else(|e| panic!("EPSG:{}: {e}", r.code));
         let auth_in: Vec<[f64; 3]> = r.points.iter().map(|p| p.authority).collect();
         let en_in: Vec<[f64; 3]> = r.points.iter().map(|p| p.east_north).collect();
-        let auth = tf.to_geodetic_many(&auth_in, AxisConvention::Authority).expect("authority order converts");
+        let auth =
+            tf.to_geodetic_many(&auth_in, AxisConvention::Authority).expect("authority order converts");
         let en = tf.to_geodetic_many(&en_in, AxisConvention::EastNorth).expect("east/north order converts");
 
         let (mut max_h_auth, mut max_h_en, mut max_v, mut max_eh) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
@@ -205,7 +211,8 @@ fn crs_conversions_agree_with_pyproj() {
                 max_eh = max_eh.max((q[0] - ref_ecef_enu[0]).hypot(q[1] - ref_ecef_enu[1]));
             }
         }
-        let op_insgen = tf.operation_for(r.points[0].east_north, AxisConvention::EastNorth).unwrap_or_default();
+        let op_insgen =
+            tf.operation_for(r.points[0].east_north, AxisConvention::EastNorth).unwrap_or_default();
         let op_pyproj: Vec<&str> = r.operations.keys().map(String::as_str).collect();
         println!(
             "{:>6} {:<12} {:>4} {:>11.3e} {:>11.3e} {:>11.3e} {:>11.3e}  {} | {}",
@@ -238,6 +245,9 @@ fn crs_conversions_agree_with_pyproj() {
             max_err = max_err.max(err);
             assert!(err <= GEOID_TOL_M, "({lat}, {lon}): insgen N = {n} m, pyproj vgridshift {want} m");
         }
-        println!("geoid EGM96 15' vs pyproj vgridshift: {} points, max |ΔN| = {max_err:.3e} m", geoid_pts.len());
+        println!(
+            "geoid EGM96 15' vs pyproj vgridshift: {} points, max |ΔN| = {max_err:.3e} m",
+            geoid_pts.len()
+        );
     }
 }

@@ -88,7 +88,8 @@ impl Geoid {
             Geoid::None => "none",
             Geoid::Constant(_) => "constant",
             Geoid::Grid(g) => {
-                let file = g.path.file_name().map(|f| f.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+                let file =
+                    g.path.file_name().map(|f| f.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
                 if file.starts_with("egm96") {
                     "egm96"
                 } else {
@@ -134,7 +135,8 @@ impl std::fmt::Debug for GeoidGrid {
 impl PartialEq for GeoidGrid {
     fn eq(&self, o: &Self) -> bool {
         self.path == o.path
-            && (self.south_deg, self.west_deg, self.dlat_deg, self.dlon_deg) == (o.south_deg, o.west_deg, o.dlat_deg, o.dlon_deg)
+            && (self.south_deg, self.west_deg, self.dlat_deg, self.dlon_deg)
+                == (o.south_deg, o.west_deg, o.dlat_deg, o.dlon_deg)
             && (self.rows, self.cols) == (o.rows, o.cols)
             && (Arc::ptr_eq(&self.values_m, &o.values_m) || self.values_m == o.values_m)
     }
@@ -216,7 +218,16 @@ impl GeoidGrid {
             .chunks_exact(4)
             .map(|c| f32::from_be_bytes([c[0], c[1], c[2], c[3]]))
             .collect();
-        Ok(GeoidGrid { path: path.to_path_buf(), south_deg, west_deg, dlat_deg, dlon_deg, rows, cols, values_m })
+        Ok(GeoidGrid {
+            path: path.to_path_buf(),
+            south_deg,
+            west_deg,
+            dlat_deg,
+            dlon_deg,
+            rows,
+            cols,
+            values_m,
+        })
     }
 
     /// The file the grid was loaded from.
@@ -278,7 +289,9 @@ impl GeoidGrid {
             } else {
                 let lon = if lon_deg < west { lon_deg + 360.0 } else { lon_deg - 360.0 };
                 if lon < west || lon > east {
-                    return Err(bad(format!("longitude {lon_deg}° is outside the grid ({west}° to {east}°)")));
+                    return Err(bad(format!(
+                        "longitude {lon_deg}° is outside the grid ({west}° to {east}°)"
+                    )));
                 }
                 grid_x = (lon - west) / self.dlon_deg;
             }
@@ -356,10 +369,10 @@ mod tests {
             for (lat, lon, want) in [
                 (10.0, 20.0, 0.0),
                 (11.0, 22.0, 12.0),
-                (10.5, 20.5, 5.5),   // mean of 0, 1, 10, 11
+                (10.5, 20.5, 5.5),    // mean of 0, 1, 10, 11
                 (10.25, 21.75, 4.25), // 1 + 0.75 + 2.5 (bilinear is linear along each axis here)
-                (11.0, 21.5, 11.5),  // northern edge: row clamped
-                (10.0, 22.0, 2.0),   // eastern edge of a regional grid: column clamped
+                (11.0, 21.5, 11.5),   // northern edge: row clamped
+                (10.0, 22.0, 2.0),    // eastern edge of a regional grid: column clamped
             ] {
                 let n = g.undulation_m(lat, lon).unwrap();
                 assert!((n - want).abs() < 1e-12, "({lat}, {lon}): {n} vs {want}");
@@ -439,8 +452,11 @@ mod tests {
             assert_eq!(Geoid::Constant(-12.5).try_undulation_m(0.0, 0.0).unwrap(), -12.5);
             assert_eq!(Geoid::None.name(), "none");
             assert_eq!(Geoid::Constant(1.0).name(), "constant");
-            let g = GeoidGrid::from_gtx_bytes(Path::new("/a/EGM96_15.gtx"), &gtx(0.0, 0.0, 1.0, 1.0, 1, 1, &[0.0]))
-                .unwrap();
+            let g = GeoidGrid::from_gtx_bytes(
+                Path::new("/a/EGM96_15.gtx"),
+                &gtx(0.0, 0.0, 1.0, 1.0, 1, 1, &[0.0]),
+            )
+            .unwrap();
             assert_eq!(Geoid::Grid(g.clone()).name(), "egm96");
             let g2 = GeoidGrid { path: "/a/gsigeo.gtx".into(), ..g.clone() };
             assert_eq!(Geoid::Grid(g2.clone()).name(), "grid");
@@ -483,24 +499,23 @@ mod tests {
                 })
                 .collect();
             pts.extend([
-                (35.658, 139.7016),  // Tokyo (Shibuya)
-                (52.08, 4.31),       // Den Haag
-                (52.01, 4.36),       // Delft
-                (46.95, 7.44),       // Bern
-                (0.0, 179.9),        // just west of the antimeridian: the wrapping cell
-                (-16.5, -179.95),    // Fiji, east side
+                (35.658, 139.7016), // Tokyo (Shibuya)
+                (52.08, 4.31),      // Den Haag
+                (52.01, 4.36),      // Delft
+                (46.95, 7.44),      // Bern
+                (0.0, 179.9),       // just west of the antimeridian: the wrapping cell
+                (-16.5, -179.95),   // Fiji, east side
                 (12.3, 180.0),
-                (89.99, 10.0),       // top row (clamped)
+                (89.99, 10.0), // top row (clamped)
                 (90.0, -45.0),
                 (-90.0, 0.0),
                 (0.0, 0.0),
-                (27.9881, 86.925),   // Everest
+                (27.9881, 86.925), // Everest
             ]);
 
             let ctx = Context::new().unwrap();
-            let op = ctx
-                .create(&format!("+proj=vgridshift +grids={} +multiplier=1", path.display()))
-                .unwrap();
+            let op =
+                ctx.create(&format!("+proj=vgridshift +grids={} +multiplier=1", path.display())).unwrap();
             let mut x: Vec<f64> = pts.iter().map(|p| p.1.to_radians()).collect();
             let mut y: Vec<f64> = pts.iter().map(|p| p.0.to_radians()).collect();
             let mut z = vec![0.0; pts.len()];
@@ -513,7 +528,11 @@ mod tests {
                 max_err_m = max_err_m.max(err);
                 assert!(err < 1e-3, "({lat}, {lon}): insgen {n} m, PROJ {} m", z[i]);
             }
-            eprintln!("EGM96 vs PROJ {} vgridshift: {} points, max |ΔN| = {max_err_m:.2e} m", crate::geo::pj::proj_version(), pts.len());
+            eprintln!(
+                "EGM96 vs PROJ {} vgridshift: {} points, max |ΔN| = {max_err_m:.2e} m",
+                crate::geo::pj::proj_version(),
+                pts.len()
+            );
             // Known magnitudes: Tokyo ≈ 36.7 m, the Netherlands ≈ 43–44 m (h = H + N).
             let tokyo = geoid.undulation_m(35.658, 139.7016);
             let delft = geoid.undulation_m(52.01, 4.36);

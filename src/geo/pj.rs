@@ -147,7 +147,8 @@ impl Context {
     pub(crate) fn axes(&self, crs: &Obj) -> Result<Vec<AxisInfo>, String> {
         self.clear_error();
         // SAFETY: live context and object.
-        let cs = self.wrap(unsafe { sys::proj_crs_get_coordinate_system(self.ptr, crs.ptr) }, "coordinate system")?;
+        let cs = self
+            .wrap(unsafe { sys::proj_crs_get_coordinate_system(self.ptr, crs.ptr) }, "coordinate system")?;
         // SAFETY: live context and object.
         let n = unsafe { sys::proj_cs_get_axis_count(self.ptr, cs.ptr) };
         if n < 0 {
@@ -209,8 +210,9 @@ impl Context {
     pub(crate) fn crs_to_crs(&self, src: &Obj, dst: &Obj) -> Result<Obj, String> {
         self.clear_error();
         // SAFETY: live context and objects; null area and options.
-        let ptr =
-            unsafe { sys::proj_create_crs_to_crs_from_pj(self.ptr, src.ptr, dst.ptr, ptr::null_mut(), ptr::null()) };
+        let ptr = unsafe {
+            sys::proj_create_crs_to_crs_from_pj(self.ptr, src.ptr, dst.ptr, ptr::null_mut(), ptr::null())
+        };
         self.wrap(ptr, &format!("no coordinate operation from {} to {}", src.name(), dst.name()))
     }
 
