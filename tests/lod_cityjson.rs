@@ -175,6 +175,28 @@ mod fixtures {
         assert_eq!(m.buildings[0].lod, "2", "as the file spells it");
     }
 
+    /// CityJSON 1.1 without `transform` or CRS, with a numeric `lod` (as 1.0 wrote it): real-valued
+    /// vertices are taken as they are.
+    #[test]
+    fn cityjson_1_1_untransformed_numeric_lod() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("v11.json");
+        std::fs::write(
+            &p,
+            r#"{"type":"CityJSON","version":"1.1","CityObjects":{"b":{"type":"Building","geometry":[
+               {"type":"MultiSurface","lod":2,"boundaries":[[[0,1,2]]]}]}},
+               "vertices":[[85000.25,447000.5,1.0],[85010.25,447000.5,1.0],[85010.25,447010.5,1.0]]}"#,
+        )
+        .unwrap();
+        let m = read(&p, None).unwrap();
+        assert_eq!(m.frame, Frame::Crs { name: None, axes: AxisConvention::EastNorth });
+        assert_eq!(m.buildings[0].lod, "2");
+        assert_eq!(
+            polys(&m.buildings[0])[0].exterior,
+            vec![[85000.25, 447000.5, 1.0], [85010.25, 447000.5, 1.0], [85010.25, 447010.5, 1.0]]
+        );
+    }
+
     #[test]
     fn read_source_dispatches_json_to_cityjson() {
         let m = read_source(&fixture("transform_parts.city.json"), None, &ReadOptions::default()).unwrap();

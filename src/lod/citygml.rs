@@ -866,10 +866,10 @@ impl<'p> Parser<'p> {
         LodError::invalid(self.path, at, what)
     }
 
-    /// "line L, column C" of a byte offset, found by re-reading the file (only on the error path).
+    /// "line L, column C (byte B)" of a byte offset, found by re-reading the file (error path only).
     fn locate(&self, offset: u64) -> String {
         match line_column(self.path, offset) {
-            Some((line, col)) => format!("line {line}, column {col}"),
+            Some((line, col)) => format!("line {line}, column {col} (byte {offset})"),
             None => format!("byte {offset}"),
         }
     }
