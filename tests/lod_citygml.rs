@@ -75,9 +75,16 @@ mod fixtures {
         assert_eq!(a.lod, "2");
         assert_eq!(a.measured_height_m, Some(12.5));
         let p = polys(a);
-        assert_eq!(p.len(), 6, "ground, 4 walls, roof: referenced by lod2Solid and defined in boundedBy, once each");
+        assert_eq!(
+            p.len(),
+            6,
+            "ground, 4 walls, roof: referenced by lod2Solid and defined in boundedBy, once each"
+        );
         // Order: as the lod2Solid references them; closing point removed.
-        assert_eq!(p[0].exterior, vec![[0.0, 0.0, 0.0], [0.0, 10.0, 0.0], [10.0, 10.0, 0.0], [10.0, 0.0, 0.0]]);
+        assert_eq!(
+            p[0].exterior,
+            vec![[0.0, 0.0, 0.0], [0.0, 10.0, 0.0], [10.0, 10.0, 0.0], [10.0, 0.0, 0.0]]
+        );
         assert_eq!(p[1].exterior, vec![[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [10.0, 0.0, 7.0], [0.0, 0.0, 7.0]]);
         // LoD2 walls reach 7 m (LoD1 box: 6 m), so these are not the LoD1 faces.
         assert!(p[1..5].iter().all(|w| w.exterior.iter().any(|v| v[2] == 7.0)));
@@ -85,7 +92,10 @@ mod fixtures {
         assert_eq!(roof.exterior.len(), 4);
         assert!(roof.exterior.iter().all(|v| v[2] == 7.0));
         assert_eq!(roof.interiors.len(), 1, "the courtyard stays, the collinear hole is dropped");
-        assert_eq!(roof.interiors[0], vec![[4.0, 4.0, 7.0], [4.0, 6.0, 7.0], [6.0, 6.0, 7.0], [6.0, 4.0, 7.0]]);
+        assert_eq!(
+            roof.interiors[0],
+            vec![[4.0, 4.0, 7.0], [4.0, 6.0, 7.0], [6.0, 6.0, 7.0], [6.0, 4.0, 7.0]]
+        );
 
         let b = building(&m, "bB");
         assert_eq!(b.lod, "2");
@@ -94,9 +104,15 @@ mod fixtures {
         assert_eq!(p.len(), 2 + 6, "part bB-1 at LoD2 + part bB-2 falling back to LoD1");
         // gml:pos lists; closing point removed.
         assert_eq!(p[0].exterior, vec![[12.0, 0.0, 0.0], [16.0, 0.0, 0.0], [16.0, 0.0, 5.0]]);
-        assert_eq!(p[1].exterior, vec![[12.0, 0.0, 5.0], [16.0, 0.0, 5.0], [16.0, 4.0, 5.0], [12.0, 4.0, 5.0]]);
+        assert_eq!(
+            p[1].exterior,
+            vec![[12.0, 0.0, 5.0], [16.0, 0.0, 5.0], [16.0, 4.0, 5.0], [12.0, 4.0, 5.0]]
+        );
         // srsDimension="3" inherited from gml:Solid; gml:Shell walked.
-        assert_eq!(p[2].exterior, vec![[16.0, 0.0, 0.0], [16.0, 4.0, 0.0], [20.0, 4.0, 0.0], [20.0, 0.0, 0.0]]);
+        assert_eq!(
+            p[2].exterior,
+            vec![[16.0, 0.0, 0.0], [16.0, 4.0, 0.0], [20.0, 4.0, 0.0], [20.0, 0.0, 0.0]]
+        );
         assert!(p[2..].iter().all(|f| f.exterior.iter().all(|v| (16.0..=20.0).contains(&v[0]))));
 
         let c = building(&m, "bC");
@@ -104,7 +120,10 @@ mod fixtures {
         let p = polys(c);
         assert_eq!(p.len(), 2);
         // srsDimension="2": z = 0.
-        assert_eq!(p[0].exterior, vec![[22.0, 22.0, 0.0], [28.0, 22.0, 0.0], [28.0, 28.0, 0.0], [22.0, 28.0, 0.0]]);
+        assert_eq!(
+            p[0].exterior,
+            vec![[22.0, 22.0, 0.0], [28.0, 22.0, 0.0], [28.0, 28.0, 0.0], [22.0, 28.0, 0.0]]
+        );
         // gml:coordinates "x,y,z x,y,z".
         assert_eq!(p[1].exterior, vec![[22.0, 22.0, 4.0], [28.0, 22.0, 4.0], [28.0, 28.0, 4.0]]);
     }
@@ -189,14 +208,18 @@ mod bad_input {
     #[test]
     fn empty_building() {
         let msg = bad("bad_empty_building.gml");
-        assert!(msg.contains("no buildings with geometry") && msg.contains("1 building(s) found, 1 without"), "{msg}");
+        assert!(
+            msg.contains("no buildings with geometry") && msg.contains("1 building(s) found, 1 without"),
+            "{msg}"
+        );
     }
 
     #[test]
     fn degenerate_only_ring() {
         let msg = bad("bad_degenerate_ring.gml");
         assert!(
-            msg.contains("no buildings with geometry") && msg.contains("1 whose LoD 1 or 2 surfaces are all degenerate"),
+            msg.contains("no buildings with geometry")
+                && msg.contains("1 whose LoD 1 or 2 surfaces are all degenerate"),
             "{msg}"
         );
         assert!(msg.contains("1 face(s) dropped"), "{msg}");
@@ -205,7 +228,10 @@ mod bad_input {
     #[test]
     fn poslist_not_a_multiple_of_the_dimension() {
         let msg = bad("bad_poslist_length.gml");
-        assert!(msg.contains("short_poslist") && msg.contains("11 number(s)") && msg.contains("3-D"), "{msg}");
+        assert!(
+            msg.contains("short_poslist") && msg.contains("11 number(s)") && msg.contains("3-D"),
+            "{msg}"
+        );
     }
 
     #[test]
@@ -229,10 +255,18 @@ mod rings {
 
     #[test]
     fn closing_point_and_duplicates_removed() {
-        let r = clean_ring(vec![[0., 0., 0.], [1., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 0., 0.]]).unwrap();
+        let r =
+            clean_ring(vec![[0., 0., 0.], [1., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 0., 0.]]).unwrap();
         assert_eq!(r, vec![[0., 0., 0.], [1., 0., 0.], [1., 1., 0.]]);
         // Duplicate closing points and a duplicate across the wrap-around.
-        let r = clean_ring(vec![[0., 0., 0.], [0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 0., 0.], [0., 0., 0.]]);
+        let r = clean_ring(vec![
+            [0., 0., 0.],
+            [0., 0., 0.],
+            [1., 0., 0.],
+            [1., 1., 0.],
+            [0., 0., 0.],
+            [0., 0., 0.],
+        ]);
         assert_eq!(r.unwrap(), vec![[0., 0., 0.], [1., 0., 0.], [1., 1., 0.]]);
     }
 
@@ -240,7 +274,11 @@ mod rings {
     fn degenerate_rings_are_rejected() {
         assert_eq!(clean_ring(vec![[0., 0., 0.], [1., 0., 0.], [0., 0., 0.]]), None, "2 distinct points");
         assert_eq!(clean_ring(vec![[0., 0., 0.], [1., 1., 1.], [2., 2., 2.]]), None, "collinear");
-        assert_eq!(clean_ring(vec![[0., 0., 0.], [1., 0., 0.], [0., 0., 0.], [1., 0., 0.]]), None, "back and forth");
+        assert_eq!(
+            clean_ring(vec![[0., 0., 0.], [1., 0., 0.], [0., 0., 0.], [1., 0., 0.]]),
+            None,
+            "back and forth"
+        );
         assert_eq!(clean_ring(vec![]), None);
         // Collinear in EPSG:6697 degrees: rounding noise must not pass for area.
         let (lat, lon) = (35.532665125662916, 139.7952788378548);
@@ -350,7 +388,11 @@ mod real_data {
         for b in &m.buildings {
             for p in polys(b) {
                 for v in p.exterior.iter().chain(p.interiors.iter().flatten()) {
-                    assert!((20.0..50.0).contains(&v[0]) && (120.0..155.0).contains(&v[1]), "{}: {v:?}", b.source_id);
+                    assert!(
+                        (20.0..50.0).contains(&v[0]) && (120.0..155.0).contains(&v[1]),
+                        "{}: {v:?}",
+                        b.source_id
+                    );
                 }
             }
         }
@@ -371,15 +413,19 @@ mod real_data {
         // First LoD1 face, exactly as written (minus the closing point).
         let text = std::fs::read_to_string(&path).unwrap();
         let nums = text_scan::first_lod1_poslist(&text);
-        let expected: Vec<[f64; 3]> = nums.chunks(3).map(|c| [c[0], c[1], c[2]]).take(nums.len() / 3 - 1).collect();
+        let expected: Vec<[f64; 3]> =
+            nums.chunks(3).map(|c| [c[0], c[1], c[2]]).take(nums.len() / 3 - 1).collect();
         assert_eq!(polys(first)[0].exterior, expected);
     }
 
     #[test]
     fn tokyo_fixtures_parse() {
         let Some(dir) = shared_data("jp_tokyo_plateau_citygml_fixtures") else { return };
-        let mut files: Vec<PathBuf> =
-            std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).filter(|p| p.extension().is_some_and(|e| e == "gml")).collect();
+        let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|e| e == "gml"))
+            .collect();
         files.sort();
         assert_eq!(files.len(), 6);
         for f in files {
@@ -391,7 +437,8 @@ mod real_data {
     /// 135.53 (35.53 elsewhere). That polygon is dropped; the 5 other LoD2 faces stay.
     #[test]
     fn tokyo_stray_coordinate_is_dropped() {
-        let Some(path) = shared_data("jp_tokyo_plateau_citygml_fixtures/53392633_bldg_6697_2_op.plateau-builder.gml")
+        let Some(path) =
+            shared_data("jp_tokyo_plateau_citygml_fixtures/53392633_bldg_6697_2_op.plateau-builder.gml")
         else {
             return;
         };
@@ -414,7 +461,8 @@ mod real_data {
         // The museum: a Building with two BuildingParts, read as one building under the parent's id.
         let museum = building(&yokosuka, "bldg_16418b2d-dc75-4731-ae04-90bbef1d66fe");
         assert!(!polys(museum).is_empty());
-        for part in ["bldg_0e947699-9ee6-412f-98d2-6dafb177a681", "bldg_a9dcefad-63a0-4fa0-b666-84125640e7a4"] {
+        for part in ["bldg_0e947699-9ee6-412f-98d2-6dafb177a681", "bldg_a9dcefad-63a0-4fa0-b666-84125640e7a4"]
+        {
             assert!(yokosuka.buildings.iter().all(|b| b.source_id != part));
         }
         let sapporo = check_against_text_scan(&dir.join("64413325_bldg_6697_op.gml"));

@@ -100,7 +100,10 @@ mod fixtures {
             &[[1006.0, 2001.0, 3.0], [1006.0, 2003.0, 3.0], [1008.0, 2003.0, 3.0], [1008.0, 2001.0, 3.0]],
         );
         // The installation (through `parents` only).
-        assert_ring_close(&p[7].exterior, &[[1005.0, 2000.0, 3.0], [1009.0, 2000.0, 3.0], [1005.0, 2000.0, 4.0]]);
+        assert_ring_close(
+            &p[7].exterior,
+            &[[1005.0, 2000.0, 3.0], [1009.0, 2000.0, 3.0], [1005.0, 2000.0, 4.0]],
+        );
 
         let b2 = building(m, "B2");
         assert_eq!(b2.lod, "2.2");
@@ -169,7 +172,29 @@ mod fixtures {
         let m = read(&fixture("transform_parts.city.json"), Some("2.0")).unwrap();
         let ids: Vec<&str> = m.buildings.iter().map(|b| b.source_id.as_str()).collect();
         assert_eq!(ids, ["B3"]);
-        assert_eq!(m.buildings[0].lod, "2.0");
+        assert_eq!(m.buildings[0].lod, "2", "as the file spells it");
+    }
+
+    /// CityJSON 1.1 without `transform` or CRS, with a numeric `lod` (as 1.0 wrote it): real-valued
+    /// vertices are taken as they are.
+    #[test]
+    fn cityjson_1_1_untransformed_numeric_lod() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("v11.json");
+        std::fs::write(
+            &p,
+            r#"{"type":"CityJSON","version":"1.1","CityObjects":{"b":{"type":"Building","geometry":[
+               {"type":"MultiSurface","lod":2,"boundaries":[[[0,1,2]]]}]}},
+               "vertices":[[85000.25,447000.5,1.0],[85010.25,447000.5,1.0],[85010.25,447010.5,1.0]]}"#,
+        )
+        .unwrap();
+        let m = read(&p, None).unwrap();
+        assert_eq!(m.frame, Frame::Crs { name: None, axes: AxisConvention::EastNorth });
+        assert_eq!(m.buildings[0].lod, "2");
+        assert_eq!(
+            polys(&m.buildings[0])[0].exterior,
+            vec![[85000.25, 447000.5, 1.0], [85010.25, 447000.5, 1.0], [85010.25, 447010.5, 1.0]]
+        );
     }
 
     #[test]
@@ -245,7 +270,10 @@ mod bad_input {
                {"type":"Solid","lod":"2","boundaries":[[0,1,2]]}]}},"vertices":[[0,0,0],[1,0,0],[1,1,0]]}"#,
         );
         let msg = err_text(read(&p, None));
-        assert!(msg.contains("CityObjects[\"a\"].geometry[0].boundaries") && msg.contains("depth 4"), "{msg}");
+        assert!(
+            msg.contains("CityObjects[\"a\"].geometry[0].boundaries") && msg.contains("depth 4"),
+            "{msg}"
+        );
         let p = write(&dir, "notcj.json", r#"{"type":"FeatureCollection","features":[]}"#);
         let msg = err_text(read(&p, None));
         assert!(msg.contains("not a CityJSON file"), "{msg}");
@@ -266,7 +294,10 @@ mod bad_input {
         let cut = &text[..text.len() - 40];
         let p = write(&dir, "cut.city.jsonl", cut);
         let msg = err_text(read(&p, None));
-        assert!(msg.contains("cut.city.jsonl") && msg.contains("truncated JSON") && msg.contains("line 5"), "{msg}");
+        assert!(
+            msg.contains("cut.city.jsonl") && msg.contains("truncated JSON") && msg.contains("line 5"),
+            "{msg}"
+        );
     }
 }
 
@@ -284,7 +315,9 @@ mod value_walk {
     }
 
     fn surfaces_of(g: &Value) -> Vec<&Value> {
-        let list = |v: &'_ Value| v.as_array().unwrap().iter().collect::<Vec<_>>();
+        fn list(v: &Value) -> Vec<&Value> {
+            v.as_array().unwrap().iter().collect()
+        }
         let b = &g["boundaries"];
         match g["type"].as_str().unwrap() {
             "MultiSurface" | "CompositeSurface" => list(b),
@@ -299,11 +332,13 @@ mod value_walk {
     pub fn reference(path: &Path, lod: Option<&str>) -> Reference {
         let doc: Value = serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap();
         let objects = doc["CityObjects"].as_object().unwrap();
-        let scale: Vec<f64> = doc["transform"]["scale"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        let scale: Vec<f64> =
+            doc["transform"]["scale"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
         let translate: Vec<f64> =
             doc["transform"]["translate"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
         let vertices = doc["vertices"].as_array().unwrap();
-        let mut r = Reference { buildings: 0, surfaces: 0, first_building: String::new(), first_ring: Vec::new() };
+        let mut r =
+            Reference { buildings: 0, surfaces: 0, first_building: String::new(), first_ring: Vec::new() };
         let mut keys: Vec<&String> = objects.keys().collect();
         keys.sort(); // Value maps are sorted; the reader keeps file order, so compare sets, not order.
         for key in keys {
@@ -315,7 +350,8 @@ mod value_walk {
             for c in obj["children"].as_array().into_iter().flatten() {
                 members.push(&objects[c.as_str().unwrap()]);
             }
-            let geoms: Vec<&Value> = members.iter().flat_map(|m| m["geometry"].as_array().into_iter().flatten()).collect();
+            let geoms: Vec<&Value> =
+                members.iter().flat_map(|m| m["geometry"].as_array().into_iter().flatten()).collect();
             let lod_of = |g: &Value| g["lod"].as_str().unwrap().parse::<f64>().unwrap();
             let chosen = match lod {
                 Some(l) => l.parse::<f64>().unwrap(),
@@ -371,7 +407,9 @@ mod real_data {
         // unless it had consecutive duplicates.
         let same = |a: &[[f64; 3]]| {
             a.len() == reference.first_ring.len()
-                && a.iter().zip(&reference.first_ring).all(|(p, q)| (0..3).all(|i| (p[i] - q[i]).abs() < 1e-9))
+                && a.iter()
+                    .zip(&reference.first_ring)
+                    .all(|(p, q)| (0..3).all(|i| (p[i] - q[i]).abs() < 1e-9))
         };
         assert!(
             polys(first).iter().any(|p| same(&p.exterior)),
@@ -426,7 +464,9 @@ mod real_data {
         // RD New coordinates ('s-Hertogenbosch), easting first.
         for b in &m.buildings {
             for p in polys(b) {
-                assert!(p.exterior.iter().all(|v| (140_000.0..170_000.0).contains(&v[0]) && (400_000.0..430_000.0).contains(&v[1])));
+                assert!(p.exterior.iter().all(
+                    |v| (140_000.0..170_000.0).contains(&v[0]) && (400_000.0..430_000.0).contains(&v[1])
+                ));
             }
         }
     }

@@ -77,6 +77,7 @@ pub fn read(path: &Path, opts: &ReadOptions) -> Result<SourceModel, LodError> {
     };
     let file = File::open(path).map_err(|e| FileError::new("opening", path, e))?;
     let mut parser = Parser::new(path, forced_lod);
+    parser.file_len = file.metadata().ok().map(|m| m.len());
     parser.run(BufReader::with_capacity(1 << 16, file))?;
     parser.finish()
 }
@@ -245,6 +246,8 @@ struct Parser<'p> {
     dropping: Dropping,
     /// Byte offset of the event being handled (for line numbers in messages).
     event_pos: u64,
+    /// Size of the file, to tell a truncated file from other syntax errors.
+    file_len: Option<u64>,
 }
 
 fn local(name: &str) -> &str {
@@ -269,6 +272,7 @@ impl<'p> Parser<'p> {
             stats: ReadStats::default(),
             dropping: Dropping::default(),
             event_pos: 0,
+            file_len: None,
         }
     }
 
@@ -281,7 +285,14 @@ impl<'p> Parser<'p> {
                 Ok(ev) => ev,
                 Err(e) => {
                     let at = self.locate(reader.error_position());
-                    return Err(LodError::malformed(self.path, format!("malformed XML at {at}: {e}")));
+                    // A tag, comment or CDATA left open at the very end: the file was cut.
+                    let at_end = self.file_len.is_some_and(|n| reader.buffer_position() >= n);
+                    let what = if at_end && matches!(e, quick_xml::Error::Syntax(_)) {
+                        format!("truncated XML: the file ends inside markup that starts at {at} ({e})")
+                    } else {
+                        format!("malformed XML at {at}: {e}")
+                    };
+                    return Err(LodError::malformed(self.path, what));
                 }
             };
             match event {
@@ -390,7 +401,9 @@ impl<'p> Parser<'p> {
                     open.role = Role::Building;
                 }
                 "cityObjectMember" | "featureMember" | "featureMembers" => open.role = Role::Member,
-                "Envelope" if depth == 2 && self.buildings.is_empty() && self.dropping.buildings_seen == 0 => {
+                "Envelope"
+                    if depth == 2 && self.buildings.is_empty() && self.dropping.buildings_seen == 0 =>
+                {
                     open.role = Role::DocEnvelope;
                     self.envelope.srs_name = self.attr(e, "srsName")?;
                 }
@@ -435,7 +448,13 @@ impl<'p> Parser<'p> {
     }
 
     /// A start tag inside a geometry property.
-    fn geometry_start(&mut self, e: &BytesStart, name: &str, parent: Role, open: &mut Open) -> Result<(), LodError> {
+    fn geometry_start(
+        &mut self,
+        e: &BytesStart,
+        name: &str,
+        parent: Role,
+        open: &mut Open,
+    ) -> Result<(), LodError> {
         let in_polygon = self.building.as_ref().is_some_and(|b| b.polygon.is_some());
         if self.first_srs_name.is_none() {
             self.first_srs_name = self.attr(e, "srsName")?;
@@ -458,8 +477,12 @@ impl<'p> Parser<'p> {
                 self.building_mut().polygon = Some(PolygonAcc { id, ..PolygonAcc::default() });
                 open.role = Role::Polygon;
             }
-            "exterior" | "outerBoundaryIs" if in_polygon && parent == Role::Polygon => open.role = Role::Exterior,
-            "interior" | "innerBoundaryIs" if in_polygon && parent == Role::Polygon => open.role = Role::Interior,
+            "exterior" | "outerBoundaryIs" if in_polygon && parent == Role::Polygon => {
+                open.role = Role::Exterior
+            }
+            "interior" | "innerBoundaryIs" if in_polygon && parent == Role::Polygon => {
+                open.role = Role::Interior
+            }
             "LinearRing" if matches!(parent, Role::Exterior | Role::Interior) => {
                 let exterior = parent == Role::Exterior;
                 self.building_mut().ring = Some(RingAcc { exterior, points: Vec::new() });
@@ -648,7 +671,8 @@ impl<'p> Parser<'p> {
             for p in values.chunks_exact(dim) {
                 let point = [p[0], p[1], if dim == 3 { p[2] } else { 0.0 }];
                 if let Some(bx) = accepted_box {
-                    if outlier.is_none() && !(point[0] >= bx[0] && point[0] <= bx[2] && point[1] >= bx[1] && point[1] <= bx[3])
+                    if outlier.is_none()
+                        && !(point[0] >= bx[0] && point[0] <= bx[2] && point[1] >= bx[1] && point[1] <= bx[3])
                     {
                         outlier = Some([point[0], point[1]]);
                     }
@@ -842,10 +866,10 @@ impl<'p> Parser<'p> {
         LodError::invalid(self.path, at, what)
     }
 
-    /// "line L, column C" of a byte offset, found by re-reading the file (only on the error path).
+    /// "line L, column C (byte B)" of a byte offset, found by re-reading the file (error path only).
     fn locate(&self, offset: u64) -> String {
         match line_column(self.path, offset) {
-            Some((line, col)) => format!("line {line}, column {col}"),
+            Some((line, col)) => format!("line {line}, column {col} (byte {offset})"),
             None => format!("byte {offset}"),
         }
     }
@@ -855,7 +879,12 @@ impl Role {
     fn is_capture(self) -> bool {
         matches!(
             self,
-            Role::MeasuredHeight | Role::LowerCorner | Role::UpperCorner | Role::PosList | Role::Pos | Role::Coordinates
+            Role::MeasuredHeight
+                | Role::LowerCorner
+                | Role::UpperCorner
+                | Role::PosList
+                | Role::Pos
+                | Role::Coordinates
         )
     }
 }
@@ -883,4 +912,48 @@ fn line_column(path: &Path, offset: u64) -> Option<(u64, u64)> {
         reader.consume(n);
     }
     Some((line, offset - line_start + 1))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn local_names_ignore_the_prefix() {
+        assert_eq!(local("gml:Polygon"), "Polygon");
+        assert_eq!(local("Polygon"), "Polygon");
+        assert_eq!(local("xlink:href"), "href");
+    }
+
+    #[test]
+    fn envelope_box_grows_by_its_larger_side() {
+        let e =
+            Envelope { srs_name: None, lower: Some(vec![0.0, 0.0, 5.0]), upper: Some(vec![10.0, 20.0, 9.0]) };
+        assert_eq!(e.accepted_box(), Some([-20.0, -20.0, 30.0, 40.0]));
+        let inverted = Envelope { srs_name: None, lower: Some(vec![1.0, 0.0]), upper: Some(vec![0.0, 1.0]) };
+        assert_eq!(inverted.accepted_box(), None);
+        assert_eq!(Envelope::default().accepted_box(), None);
+    }
+
+    #[test]
+    fn line_and_column_of_an_offset() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("x.gml");
+        std::fs::write(&p, "ab\ncd\nef").unwrap();
+        assert_eq!(line_column(&p, 0), Some((1, 1)));
+        assert_eq!(line_column(&p, 4), Some((2, 2)));
+        assert_eq!(line_column(&p, 6), Some((3, 1)));
+    }
+
+    #[test]
+    fn name_stack_push_pop() {
+        let mut s = NameStack::default();
+        s.push("core:CityModel");
+        s.push("bldg:Building");
+        assert_eq!((s.len(), s.get(0), s.get(1)), (2, "core:CityModel", "bldg:Building"));
+        s.pop();
+        assert_eq!((s.len(), s.get(0)), (1, "core:CityModel"));
+        s.pop();
+        assert_eq!(s.len(), 0);
+    }
 }

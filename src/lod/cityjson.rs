@@ -279,7 +279,9 @@ impl<'de> Visitor<'de> for ArrayVisitor<'_> {
     fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<(), A::Error> {
         let (depth, b) = (self.depth, self.b);
         if depth >= MAX_BOUNDARY_DEPTH {
-            return Err(de::Error::custom(format!("boundaries are nested deeper than {MAX_BOUNDARY_DEPTH} levels")));
+            return Err(de::Error::custom(format!(
+                "boundaries are nested deeper than {MAX_BOUNDARY_DEPTH} levels"
+            )));
         }
         if b.counts.len() <= depth {
             b.counts.resize_with(depth + 1, Vec::new);
@@ -392,7 +394,11 @@ fn is_folded_part(kind: &str) -> bool {
 fn is_ignored_building_detail(kind: &str) -> bool {
     matches!(
         kind,
-        "BuildingRoom" | "BuildingStorey" | "BuildingUnit" | "BuildingFurniture" | "BuildingConstructiveElement"
+        "BuildingRoom"
+            | "BuildingStorey"
+            | "BuildingUnit"
+            | "BuildingFurniture"
+            | "BuildingConstructiveElement"
     )
 }
 
@@ -474,7 +480,11 @@ impl<'p> Reader<'p> {
             None => log::warn!("{}: no CityJSON \"version\"; reading it as 2.0", self.path.display()),
         }
         if let Some(t) = doc.transform {
-            if t.scale.iter().chain(t.translate.iter()).any(|v| !v.is_finite() || v.abs() > MAX_ABS_COORDINATE) {
+            if t.scale
+                .iter()
+                .chain(t.translate.iter())
+                .any(|v| !v.is_finite() || v.abs() > MAX_ABS_COORDINATE)
+            {
                 return Err(LodError::invalid(
                     self.path,
                     format!("{at}transform"),
@@ -562,7 +572,11 @@ impl<'p> Reader<'p> {
             let mut stack: Vec<&str> = obj.children.iter().rev().map(String::as_str).collect();
             while let Some(child) = stack.pop() {
                 let Some(&c) = index.get(child) else {
-                    log::warn!("{}: {at}CityObjects[{:?}] lists a missing child {child:?}", self.path.display(), objects[i].0);
+                    log::warn!(
+                        "{}: {at}CityObjects[{:?}] lists a missing child {child:?}",
+                        self.path.display(),
+                        objects[i].0
+                    );
                     continue;
                 };
                 if owner[c].is_some() || !is_folded_part(&objects[c].1.kind) {
@@ -581,7 +595,9 @@ impl<'p> Reader<'p> {
             let mut cur = i;
             let mut root = None;
             for _ in 0..objects.len() {
-                let Some(parent) = objects[cur].1.parents.first().and_then(|p| index.get(p.as_str())) else { break };
+                let Some(parent) = objects[cur].1.parents.first().and_then(|p| index.get(p.as_str())) else {
+                    break;
+                };
                 cur = *parent;
                 if let Some(o) = owner[cur] {
                     root = Some(o);
@@ -649,9 +665,8 @@ impl<'p> Reader<'p> {
             components.push(converted);
         }
         let usable = |c: &Converted| c.polygons.iter().any(|p| p.is_ok());
-        let in_default_range = |c: &Converted| {
-            c.lod.number().is_some_and(|v| (MIN_DEFAULT_LOD..=MAX_DEFAULT_LOD).contains(&v))
-        };
+        let in_default_range =
+            |c: &Converted| c.lod.number().is_some_and(|v| (MIN_DEFAULT_LOD..=MAX_DEFAULT_LOD).contains(&v));
         // The building's LoD: forced, else the highest in range with a usable polygon, else the
         // highest in range with any polygon (so that dropped faces are counted).
         let top: Option<LodValue> = match &self.forced_lod {
@@ -662,7 +677,9 @@ impl<'p> Reader<'p> {
                         .iter()
                         .flatten()
                         .filter(|c| in_default_range(c) && (!need_usable || usable(c)))
-                        .max_by(|a, b| a.lod.number().partial_cmp(&b.lod.number()).unwrap_or(std::cmp::Ordering::Equal))
+                        .max_by(|a, b| {
+                            a.lod.number().partial_cmp(&b.lod.number()).unwrap_or(std::cmp::Ordering::Equal)
+                        })
                         .map(|c| c.lod.clone())
                 };
                 best(true).or_else(|| best(false))
@@ -670,6 +687,8 @@ impl<'p> Reader<'p> {
         };
         let mut polygons = Vec::new();
         let mut degenerate = 0u64;
+        // The LoD as the file spells it (a forced "2.0" may match the file's "2").
+        let mut lod_name: Option<String> = None;
         if let Some(top) = &top {
             for comp in components {
                 let pick: Option<f64> = match &self.forced_lod {
@@ -677,7 +696,10 @@ impl<'p> Reader<'p> {
                     None => {
                         let top_v = top.number().unwrap_or(MAX_DEFAULT_LOD);
                         comp.iter()
-                            .filter(|c| usable(c) && c.lod.number().is_some_and(|v| v >= MIN_DEFAULT_LOD && v <= top_v))
+                            .filter(|c| {
+                                usable(c)
+                                    && c.lod.number().is_some_and(|v| v >= MIN_DEFAULT_LOD && v <= top_v)
+                            })
                             .filter_map(|c| c.lod.number())
                             .fold(None, |acc: Option<f64>, v| Some(acc.map_or(v, |a| a.max(v))))
                             .or(Some(top_v))
@@ -690,6 +712,9 @@ impl<'p> Reader<'p> {
                     };
                     if !take {
                         continue;
+                    }
+                    if lod_name.is_none() && c.lod.matches(&top.0) {
+                        lod_name = Some(c.lod.0.clone());
                     }
                     for p in c.polygons {
                         match p {
@@ -711,17 +736,18 @@ impl<'p> Reader<'p> {
             return Ok(());
         }
         self.stats.faces += polygons.len() as u64;
-        let measured_height_m = root.attributes.as_ref().and_then(|a| a.measured_height.as_ref()).and_then(|v| {
-            let h = match v {
-                serde_json::Value::Number(n) => n.as_f64(),
-                serde_json::Value::String(s) => s.trim().parse::<f64>().ok(),
-                _ => None,
-            };
-            h.filter(|h| h.is_finite())
-        });
+        let measured_height_m =
+            root.attributes.as_ref().and_then(|a| a.measured_height.as_ref()).and_then(|v| {
+                let h = match v {
+                    serde_json::Value::Number(n) => n.as_f64(),
+                    serde_json::Value::String(s) => s.trim().parse::<f64>().ok(),
+                    _ => None,
+                };
+                h.filter(|h| h.is_finite())
+            });
         self.buildings.push(SourceBuilding {
             source_id: key.clone(),
-            lod: top.map(|t| t.0).unwrap_or_default(),
+            lod: lod_name.or(top.map(|t| t.0)).unwrap_or_default(),
             measured_height_m,
             geometry: Geometry::Polygons(polygons),
         });
@@ -729,7 +755,12 @@ impl<'p> Reader<'p> {
     }
 
     /// Turns one geometry object into polygons; `None` for geometry without surfaces (points, lines).
-    fn convert(&self, geom: &CjGeometry, source: &VertexSource, gpath: &str) -> Result<Option<Converted>, LodError> {
+    fn convert(
+        &self,
+        geom: &CjGeometry,
+        source: &VertexSource,
+        gpath: &str,
+    ) -> Result<Option<Converted>, LodError> {
         if geom.kind == "GeometryInstance" {
             return self.convert_instance(geom, source, gpath).map(Some);
         }
@@ -750,7 +781,11 @@ impl<'p> Reader<'p> {
             }
         };
         let Some(lod) = geom.lod.clone() else {
-            return Err(LodError::invalid(self.path, gpath, format!("{} geometry without \"lod\"", geom.kind)));
+            return Err(LodError::invalid(
+                self.path,
+                gpath,
+                format!("{} geometry without \"lod\"", geom.kind),
+            ));
         };
         let polygons = match &geom.boundaries {
             Some(b) => self.surfaces(b, depth, &geom.kind, source, gpath, &|p| p)?,
@@ -760,7 +795,12 @@ impl<'p> Reader<'p> {
     }
 
     /// A `GeometryInstance`: the template's polygons, transformed and placed at the reference point.
-    fn convert_instance(&self, geom: &CjGeometry, source: &VertexSource, gpath: &str) -> Result<Converted, LodError> {
+    fn convert_instance(
+        &self,
+        geom: &CjGeometry,
+        source: &VertexSource,
+        gpath: &str,
+    ) -> Result<Converted, LodError> {
         let templates = self.templates.as_ref();
         let t = geom.template.unwrap_or(u64::MAX);
         let Some(template) = templates.and_then(|ts| ts.templates.get(t as usize)) else {
@@ -789,7 +829,10 @@ impl<'p> Reader<'p> {
                 ))
             }
         };
-        let reference = geom.boundaries.as_ref().and_then(|b| (b.leaf_depth == Some(0)).then(|| b.leaves.first()).flatten());
+        let reference = geom
+            .boundaries
+            .as_ref()
+            .and_then(|b| (b.leaf_depth == Some(0)).then(|| b.leaves.first()).flatten());
         let Some(&reference) = reference else {
             return Err(LodError::invalid(
                 self.path,
@@ -885,7 +928,9 @@ impl<'p> Reader<'p> {
                 path.pop();
                 let mut rings = rings.into_iter();
                 let polygon = match rings.next().and_then(clean_ring) {
-                    Some(exterior) => Ok(Polygon { exterior, interiors: rings.filter_map(clean_ring).collect() }),
+                    Some(exterior) => {
+                        Ok(Polygon { exterior, interiors: rings.filter_map(clean_ring).collect() })
+                    }
                     None => Err(()),
                 };
                 out.push(polygon);
@@ -906,7 +951,11 @@ impl<'p> Reader<'p> {
             return Err(LodError::invalid(
                 self.path,
                 at,
-                format!("vertex index {i} is out of range ({} has {} vertices)", source.list_name, source.vertices.len()),
+                format!(
+                    "vertex index {i} is out of range ({} has {} vertices)",
+                    source.list_name,
+                    source.vertices.len()
+                ),
             ));
         };
         if p.iter().any(|v| !v.is_finite() || v.abs() > MAX_ABS_COORDINATE) {
@@ -915,7 +964,10 @@ impl<'p> Reader<'p> {
                 at,
                 format!(
                     "{}[{i}] gives the coordinate [{}, {}, {}], which is not finite or beyond ±{MAX_ABS_COORDINATE:e}",
-                    source.list_name, p[0], p[1], p[2]
+                    source.list_name,
+                    short(p[0]),
+                    short(p[1]),
+                    short(p[2])
                 ),
             ));
         }
@@ -952,6 +1004,15 @@ impl<'p> Reader<'p> {
     }
 }
 
+/// A number for a message: plain when moderate, in exponent form when huge (`1e297`, not 298 digits).
+fn short(v: f64) -> String {
+    if v.is_finite() && v.abs() >= 1e15 {
+        format!("{v:e}")
+    } else {
+        v.to_string()
+    }
+}
+
 /// `gpath.boundaries[a][b]…` for the vertex at `prefix` + `rest`.
 fn index_path(gpath: &str, prefix: &[usize], rest: &[usize]) -> String {
     let mut s = format!("{gpath}.boundaries");
@@ -978,6 +1039,92 @@ fn json_error(path: &Path, line_no: Option<usize>, e: serde_json::Error) -> LodE
     }
     // serde_json's message ends with its own " at line L column C" (relative to the parsed text).
     let msg = e.to_string();
-    let msg = msg.rsplit_once(" at line ").map_or(msg.as_str(), |(m, _)| m).to_string();
+    let mut msg = msg.rsplit_once(" at line ").map_or(msg.as_str(), |(m, _)| m).to_string();
+    if msg == "expected value" {
+        msg.push_str(" (NaN and Infinity are not JSON numbers)");
+    }
     LodError::malformed(path, format!("malformed JSON at line {line}, column {column}: {msg}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn boundaries(json: &str) -> Result<Boundaries, serde_json::Error> {
+        serde_json::from_str(json)
+    }
+
+    mod flat_boundaries {
+        use super::*;
+
+        #[test]
+        fn multisurface_counts_and_leaves() {
+            let b = boundaries("[[[0,1,2],[3,4,5]],[[6,7,8,9]]]").unwrap();
+            assert_eq!(b.counts, vec![vec![2], vec![2, 1], vec![3, 3, 4]]);
+            assert_eq!(b.leaves, (0..10).collect::<Vec<u32>>());
+            assert_eq!(b.leaf_depth, Some(2));
+        }
+
+        #[test]
+        fn empty_arrays_are_kept() {
+            let b = boundaries("[[], [[0,1,2]]]").unwrap();
+            assert_eq!(b.counts, vec![vec![2], vec![0, 1], vec![3]]);
+        }
+
+        #[test]
+        fn walker_rebuilds_a_solid() {
+            // One shell of two surfaces; the second has a hole.
+            let b = boundaries("[[[[0,1,2]],[[3,4,5,6],[7,8,9]]]]").unwrap();
+            let mut w = Walker::new(&b);
+            assert_eq!(w.take(0), 1); // shells
+            assert_eq!(w.take(1), 2); // surfaces of shell 0
+            assert_eq!(w.take(2), 1); // rings of surface 0
+            let n = w.take(3);
+            assert_eq!(w.leaves(n), &[0, 1, 2]);
+            assert_eq!(w.take(2), 2); // rings of surface 1
+            let n = w.take(3);
+            assert_eq!(w.leaves(n), &[3, 4, 5, 6]);
+            let n = w.take(3);
+            assert_eq!(w.leaves(n), &[7, 8, 9]);
+        }
+
+        #[test]
+        fn inconsistent_nesting_is_rejected() {
+            let e = boundaries("[[0,[1]]]").unwrap_err().to_string();
+            assert!(e.contains("mixes vertex indices and arrays"), "{e}");
+            let e = boundaries("[[0],[[1]]]").unwrap_err().to_string();
+            assert!(e.contains("two nesting depths"), "{e}");
+            let e = boundaries("[[1.5]]").unwrap_err().to_string();
+            assert!(e.contains("not an integer"), "{e}");
+            let e = boundaries("[[4294967296]]").unwrap_err().to_string();
+            assert!(e.contains("too large"), "{e}");
+        }
+    }
+
+    mod lod_values {
+        use super::*;
+
+        #[test]
+        fn numbers_and_strings() {
+            let l: LodValue = serde_json::from_str("2").unwrap();
+            assert_eq!(l, LodValue("2".into()));
+            let l: LodValue = serde_json::from_str("2.2").unwrap();
+            assert_eq!(l, LodValue("2.2".into()));
+            let l: LodValue = serde_json::from_str("\"1.3\"").unwrap();
+            assert_eq!(l.number(), Some(1.3));
+        }
+
+        #[test]
+        fn forced_matching_is_numeric_then_textual() {
+            assert!(LodValue("2".into()).matches("2.0"));
+            assert!(!LodValue("2.2".into()).matches("2"));
+            assert!(LodValue("custom".into()).matches("custom"));
+        }
+    }
+
+    #[test]
+    fn short_numbers_in_messages() {
+        assert_eq!(short(1e297), "1e297");
+        assert_eq!(short(447000.5), "447000.5");
+    }
 }
