@@ -49,8 +49,14 @@ fn three_boxes_without_weld_are_three_buildings() {
     }
     assert_eq!(model.stats.faces, 36);
     // Hand computation: box 1 spans x 0..10, y 0..10, z 0..5 in the file; offset (−5000, −35000, 40).
-    assert_eq!(bbox(mesh(&model.buildings[0].geometry)), [[-5000.0, -4990.0], [-35000.0, -34990.0], [40.0, 45.0]]);
-    assert_eq!(bbox(mesh(&model.buildings[2].geometry)), [[-4970.0, -4960.0], [-34990.0, -34980.0], [40.0, 46.0]]);
+    assert_eq!(
+        bbox(mesh(&model.buildings[0].geometry)),
+        [[-5000.0, -4990.0], [-35000.0, -34990.0], [40.0, 45.0]]
+    );
+    assert_eq!(
+        bbox(mesh(&model.buildings[2].geometry)),
+        [[-4970.0, -4960.0], [-34990.0, -34980.0], [40.0, 46.0]]
+    );
 }
 
 #[test]
@@ -64,14 +70,18 @@ fn welding_joins_the_touching_boxes() {
     assert_eq!(joined.positions.len(), 16);
     assert_eq!(bbox(joined), [[-4980.0, -4960.0], [-35000.0, -34980.0], [40.0, 48.0]]);
     // Exact-coincidence welding finds the same corner.
-    let exact = obj::read(&fixture("three_boxes.obj"), &ReadOptions { weld_tolerance_m: Some(0.0), ..Default::default() });
+    let exact = obj::read(
+        &fixture("three_boxes.obj"),
+        &ReadOptions { weld_tolerance_m: Some(0.0), ..Default::default() },
+    );
     assert_eq!(exact.unwrap().buildings.len(), 2);
 }
 
 #[test]
 fn y_up_sidecar_given_by_the_caller() {
     let sidecar = ObjSidecar { crs: None, offset: [0.0, 0.0, 0.0], axes: ObjAxes::YUp, lod: None };
-    let model = obj::read_with_sidecar(&fixture("three_boxes.obj"), &sidecar, &ReadOptions::default()).unwrap();
+    let model =
+        obj::read_with_sidecar(&fixture("three_boxes.obj"), &sidecar, &ReadOptions::default()).unwrap();
     assert_eq!(model.frame, Frame::Crs { name: None, axes: AxisConvention::EastNorth });
     assert_eq!(model.buildings[0].lod, "unknown");
     // (x, y, z) ↦ (x, −z, y): box 1's file z 0..5 becomes north −5..0, file y 0..10 becomes up.
@@ -114,7 +124,8 @@ fn invalid_sidecar_names_the_sidecar() {
 fn sidecar_schema_agrees_with_the_reader() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let schema: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(root.join("schemas/obj_sidecar.schema.json")).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(root.join("schemas/obj_sidecar.schema.json")).unwrap())
+            .unwrap();
     let validator = jsonschema::validator_for(&schema).unwrap();
     let good: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(fixture("three_boxes.obj.json")).unwrap()).unwrap();

@@ -138,7 +138,8 @@ fn simple_glb(
     let mut attributes = json!({"POSITION": 0});
     if let Some((name, values)) = feature {
         let v = push(&f32_bytes(values), &mut bin);
-        accessors.push(json!({"bufferView": v, "componentType": 5126, "count": values.len(), "type": "SCALAR"}));
+        accessors
+            .push(json!({"bufferView": v, "componentType": 5126, "count": values.len(), "type": "SCALAR"}));
         attributes[name] = json!(2);
     }
     for extra in extra_views {
@@ -175,9 +176,24 @@ fn simple_glb(
 /// ```
 fn write_hand_tileset(dir: &Path) -> PathBuf {
     // b3dm: two triangles in glTF (y-up) coordinates.
-    let positions = [[0.0, 0.0, 0.0], [4.0, 0.0, 0.0], [4.0, 3.0, 0.0], [10.0, 0.0, 0.0], [12.0, 0.0, 0.0], [12.0, 0.0, -2.0]];
+    let positions = [
+        [0.0, 0.0, 0.0],
+        [4.0, 0.0, 0.0],
+        [4.0, 3.0, 0.0],
+        [10.0, 0.0, 0.0],
+        [12.0, 0.0, 0.0],
+        [12.0, 0.0, -2.0],
+    ];
     let node = json!({"matrix": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 1, 2, 3, 1]});
-    let g = simple_glb(&positions, &[0, 1, 2, 3, 4, 5], Some(("_BATCHID", &[0.0, 0.0, 0.0, 1.0, 1.0, 1.0])), node, json!({}), json!({}), &[]);
+    let g = simple_glb(
+        &positions,
+        &[0, 1, 2, 3, 4, 5],
+        Some(("_BATCHID", &[0.0, 0.0, 0.0, 1.0, 1.0, 1.0])),
+        node,
+        json!({}),
+        json!({}),
+        &[],
+    );
     let ft = json!({"BATCH_LENGTH": 2, "RTC_CENTER": [10.0, 20.0, 30.0]});
     let bt = json!({"gml_id": ["bldg_a", "bldg_b"], "lod": [2, 1], "measuredHeight": [12.5, null]});
     std::fs::write(dir.join("a b.b3dm"), b3dm(&ft, &bt, &g)).unwrap();
@@ -196,7 +212,14 @@ fn write_hand_tileset(dir: &Path) -> PathBuf {
         "propertyTables": [{"class": "building", "count": 2, "properties": {"gml_id": {"values": 3, "stringOffsets": 4}}}]
     }});
     let g = simple_glb(
-        &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [5.0, 0.0, 0.0], [6.0, 0.0, 0.0], [5.0, 1.0, 0.0]],
+        &[
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [5.0, 0.0, 0.0],
+            [6.0, 0.0, 0.0],
+            [5.0, 1.0, 0.0],
+        ],
         &[0, 1, 2, 3, 4, 5],
         Some(("_FEATURE_ID_0", &[0.0, 0.0, 0.0, 1.0, 1.0, 1.0])),
         json!({}),
@@ -213,9 +236,15 @@ fn write_hand_tileset(dir: &Path) -> PathBuf {
     // idless.glb: triangles 0 and 1 separate; triangle 2 touches triangle 1 through a repeated vertex.
     let g = simple_glb(
         &[
-            [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0],
-            [10.0, 0.0, 0.0], [11.0, 0.0, 0.0], [10.0, 1.0, 0.0],
-            [11.0, 0.0, 0.0], [12.0, 0.0, 0.0], [12.0, 1.0, 0.0],
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [10.0, 0.0, 0.0],
+            [11.0, 0.0, 0.0],
+            [10.0, 1.0, 0.0],
+            [11.0, 0.0, 0.0],
+            [12.0, 0.0, 0.0],
+            [12.0, 1.0, 0.0],
         ],
         &[0, 1, 2, 3, 4, 5, 6, 7, 8],
         None,
@@ -266,8 +295,12 @@ fn hand_tileset_frame_maths() {
     assert_vertices(
         mesh(&a.geometry),
         &[
-            [1022.0, 2034.0, 3064.0], [1030.0, 2034.0, 3064.0], [1030.0, 2034.0, 3070.0],
-            [1005.0, 2000.0, 3500.0], [1006.0, 2000.0, 3500.0], [1005.0, 2000.0, 3501.0],
+            [1022.0, 2034.0, 3064.0],
+            [1030.0, 2034.0, 3064.0],
+            [1030.0, 2034.0, 3070.0],
+            [1005.0, 2000.0, 3500.0],
+            [1006.0, 2000.0, 3500.0],
+            [1005.0, 2000.0, 3501.0],
         ],
         1e-9,
     );
@@ -278,12 +311,20 @@ fn hand_tileset_frame_maths() {
     let b = building(&model, "bldg_b");
     assert_eq!(b.lod, "1");
     assert_eq!(b.measured_height_m, None);
-    assert_vertices(mesh(&b.geometry), &[[1042.0, 2034.0, 3064.0], [1046.0, 2034.0, 3064.0], [1046.0, 2038.0, 3064.0]], 1e-9);
+    assert_vertices(
+        mesh(&b.geometry),
+        &[[1042.0, 2034.0, 3064.0], [1046.0, 2034.0, 3064.0], [1046.0, 2038.0, 3064.0]],
+        1e-9,
+    );
 
     // ext_1: (0,0,0),(1,0,0),(0,1,0) → Y2Z (0,0,0),(1,0,0),(0,0,1) → +(0,0,500) → +T1.
     let e = building(&model, "ext_1");
     assert_eq!(e.lod, "unknown");
-    assert_vertices(mesh(&e.geometry), &[[1000.0, 2000.0, 3500.0], [1001.0, 2000.0, 3500.0], [1000.0, 2000.0, 3501.0]], 1e-9);
+    assert_vertices(
+        mesh(&e.geometry),
+        &[[1000.0, 2000.0, 3500.0], [1001.0, 2000.0, 3500.0], [1000.0, 2000.0, 3501.0]],
+        1e-9,
+    );
 
     // The REPLACE parent's coarse.glb is not read; idless.glb splits into two components (the
     // repeated vertex does not connect without welding... see below).
@@ -303,7 +344,8 @@ fn hand_tileset_frame_maths() {
     assert_eq!(model.stats.faces, 7);
 
     // Welding joins triangles 1 and 2 of idless.glb.
-    let welded = tiles3d::read(&path, &ReadOptions { weld_tolerance_m: Some(0.01), ..Default::default() }).unwrap();
+    let welded =
+        tiles3d::read(&path, &ReadOptions { weld_tolerance_m: Some(0.01), ..Default::default() }).unwrap();
     let ids: Vec<&str> = welded.buildings.iter().map(|b| b.source_id.as_str()).collect();
     assert_eq!(ids, ["bldg_a", "bldg_b", "ext_1", "idless.glb#cc0", "idless.glb#cc1"]);
     assert_eq!(mesh(&welded.buildings[4].geometry).triangles.len(), 2);
@@ -366,11 +408,19 @@ fn draco_b3dm_matches_hand_computation() {
     //   x' ∈ [−3354904, −3354900], y' ∈ [−3956779.5, −3956775.5], z' ∈ [3698300, 3698308].
     // Tolerance: 16-bit Draco quantisation over a 24 m range, 24/65535 m ≈ 0.4 mm.
     let a = &model.buildings[0];
-    assert_vertices(mesh(&a.geometry), &corners([-3354906.0, -3956799.5, 3698300.0], [-3354900.0, -3956789.5, 3698320.0]), 1e-3);
+    assert_vertices(
+        mesh(&a.geometry),
+        &corners([-3354906.0, -3956799.5, 3698300.0], [-3354900.0, -3956789.5, 3698320.0]),
+        1e-3,
+    );
     assert_eq!(mesh(&a.geometry).triangles.len(), 12);
     assert_eq!((a.lod.as_str(), a.measured_height_m), ("2", Some(20.0)));
     let b = &model.buildings[1];
-    assert_vertices(mesh(&b.geometry), &corners([-3354904.0, -3956779.5, 3698300.0], [-3354900.0, -3956775.5, 3698308.0]), 1e-3);
+    assert_vertices(
+        mesh(&b.geometry),
+        &corners([-3354904.0, -3956779.5, 3698300.0], [-3354900.0, -3956775.5, 3698308.0]),
+        1e-3,
+    );
     assert_eq!(mesh(&b.geometry).triangles.len(), 12);
     assert_eq!((b.lod.as_str(), b.measured_height_m), ("1", Some(8.0)));
 
@@ -433,7 +483,10 @@ fn malformed_tileset_json() {
     let (path, err) = read_err("malformed_tileset/tileset.json");
     assert!(matches!(err, LodError::Malformed { .. }), "{err:?}");
     let msg = err.to_string();
-    assert!(msg.starts_with(&path.display().to_string()) && msg.contains("not a valid 3D Tiles tileset JSON"), "{msg}");
+    assert!(
+        msg.starts_with(&path.display().to_string()) && msg.contains("not a valid 3D Tiles tileset JSON"),
+        "{msg}"
+    );
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -454,11 +507,14 @@ fn reference_boxes(tileset: &Path) -> BTreeMap<String, [f64; 4]> {
         let ft: serde_json::Value = serde_json::from_slice(&bytes[28..28 + ftj]).unwrap();
         let n = ft["BATCH_LENGTH"].as_u64().unwrap() as usize;
         let bt_start = 28 + ftj + ftb;
-        let bt: serde_json::Value = serde_json::from_slice(bytes[bt_start..bt_start + btj].trim_ascii_end()).unwrap();
+        let bt: serde_json::Value =
+            serde_json::from_slice(bytes[bt_start..bt_start + btj].trim_ascii_end()).unwrap();
         let body = &bytes[bt_start + btj..];
         let col = |k: &str| -> Vec<f64> {
             let off = bt[k]["byteOffset"].as_u64().unwrap() as usize;
-            (0..n).map(|i| f64::from_le_bytes(body[off + 8 * i..off + 8 * i + 8].try_into().unwrap())).collect()
+            (0..n)
+                .map(|i| f64::from_le_bytes(body[off + 8 * i..off + 8 * i + 8].try_into().unwrap()))
+                .collect()
         };
         let (x0, x1, y0, y1) = (col("_xmin"), col("_xmax"), col("_ymin"), col("_ymax"));
         for i in 0..n {
@@ -487,12 +543,23 @@ fn shibuya_plateau_tileset() {
         *lods.entry(b.lod.as_str()).or_default() += 1;
     }
     assert_eq!(lods, BTreeMap::from([("1", 1121), ("2", 2474)]));
+    // Reference (Python over the 56 batch tables, JSON and binary columns): 3,395 features have a
+    // positive `bldg:measuredHeight`.
     let with_height = model.buildings.iter().filter(|b| b.measured_height_m.is_some()).count();
+    assert_eq!(with_height, 3395);
 
     // README extent: 139.6942–139.7102 E, 35.6520–35.6637 N, heights 47.6–282.4 m ellipsoidal.
     let refs = reference_boxes(&path);
     assert_eq!(refs.len(), 3595);
-    let (mut h_min, mut h_max) = (f64::INFINITY, f64::NEG_INFINITY);
+    // Extent over all vertices: [lon_min, lon_max, lat_min, lat_max, h_min, h_max].
+    let mut ext = [
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    ];
     let mut worst_deg: f64 = 0.0;
     for b in &model.buildings {
         let m = mesh(&b.geometry);
@@ -500,10 +567,10 @@ fn shibuya_plateau_tileset() {
         let mut bb = [f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY];
         for p in &m.positions {
             let g = ecef_to_geodetic(*p);
-            assert!((139.6942..=139.7102).contains(&g.lon_deg), "{}: lon {}", b.source_id, g.lon_deg);
-            assert!((35.6520..=35.6637).contains(&g.lat_deg), "{}: lat {}", b.source_id, g.lat_deg);
-            h_min = h_min.min(g.h_m);
-            h_max = h_max.max(g.h_m);
+            for (k, v) in [g.lon_deg, g.lat_deg, g.h_m].into_iter().enumerate() {
+                ext[2 * k] = ext[2 * k].min(v);
+                ext[2 * k + 1] = ext[2 * k + 1].max(v);
+            }
             bb = [bb[0].min(g.lon_deg), bb[1].max(g.lon_deg), bb[2].min(g.lat_deg), bb[3].max(g.lat_deg)];
         }
         let r = refs[&b.source_id];
@@ -511,16 +578,161 @@ fn shibuya_plateau_tileset() {
             worst_deg = worst_deg.max((bb[k] - r[k]).abs());
         }
     }
-    // The stated height range, rounded to 0.1 m.
-    assert!((47.55..47.65).contains(&h_min), "lowest vertex {h_min} m");
-    assert!((282.35..282.45).contains(&h_max), "highest vertex {h_max} m");
-    // Each building's lon/lat box agrees with the batch table's own box to 2e-6° (≈ 0.2 m): the
-    // whole transform chain (Draco, CESIUM_RTC, y-up, ECEF→geodetic) is right per building.
-    assert!(worst_deg < 2e-6, "worst lon/lat box difference {worst_deg}°");
+    // The README's extent is the vertices' extent rounded to 4 decimals (degrees) and 0.1 m.
+    let round = |x: f64, unit: f64| (x / unit).round() * unit;
+    let stated = [139.6942, 139.7102, 35.6520, 35.6637, 47.6, 282.4];
+    for k in 0..6 {
+        let unit = if k < 4 { 1e-4 } else { 0.1 };
+        assert!(
+            (round(ext[k], unit) - stated[k]).abs() < unit / 10.0,
+            "extent[{k}] = {} vs {}",
+            ext[k],
+            stated[k]
+        );
+    }
+    // Each building's lon/lat box agrees with the batch table's own box to 1e-8° (≈ 1 mm; observed
+    // 7e-11°): the whole chain (Draco, CESIUM_RTC, y-up, ECEF → geodetic) is right per building.
+    assert!(worst_deg < 1e-8, "worst lon/lat box difference {worst_deg}°");
     eprintln!(
         "shibuya: {} buildings, LoD {lods:?}, {with_height} with measured height, {} triangles, \
-         heights {h_min:.2}..{h_max:.2} m, worst box difference {worst_deg:.2e}°",
+         lon {:.6}..{:.6}°, lat {:.6}..{:.6}°, heights {:.3}..{:.3} m, worst box difference {worst_deg:.2e}°",
         model.buildings.len(),
-        model.stats.faces
+        model.stats.faces,
+        ext[0],
+        ext[1],
+        ext[2],
+        ext[3],
+        ext[4],
+        ext[5]
     );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Content edge cases, each against a hand computation.
+// ---------------------------------------------------------------------------------------------
+
+/// One triangle (glTF y-up) per batch id in `ids`, triangle k at x offset 10·k.
+fn batched_glb(ids: &[f32]) -> Vec<u8> {
+    let mut positions = Vec::new();
+    let mut per_vertex = Vec::new();
+    for (k, &id) in ids.iter().enumerate() {
+        let x = 10.0 * k as f32;
+        positions.extend([[x, 0.0, 0.0], [x + 1.0, 0.0, 0.0], [x, 1.0, 0.0]]);
+        per_vertex.extend([id; 3]);
+    }
+    let indices: Vec<u16> = (0..positions.len() as u16).collect();
+    simple_glb(&positions, &indices, Some(("_BATCHID", &per_vertex)), json!({}), json!({}), json!({}), &[])
+}
+
+#[test]
+fn cmpt_with_b3dm_and_i3dm_inner_tiles() {
+    let dir = tempfile::tempdir().unwrap();
+    let inner_a = b3dm(&json!({"BATCH_LENGTH": 1}), &json!({"gml_id": ["in_a"]}), &batched_glb(&[0.0]));
+    let inner_b = b3dm(&json!({"BATCH_LENGTH": 1}), &json!({"gml_id": ["in_b"]}), &batched_glb(&[0.0]));
+    // A minimal i3dm-shaped inner tile (magic, version, byteLength): skipped and counted.
+    let mut i3dm = b"i3dm".to_vec();
+    i3dm.extend_from_slice(&1u32.to_le_bytes());
+    i3dm.extend_from_slice(&12u32.to_le_bytes());
+    let total = 16 + inner_a.len() + i3dm.len() + inner_b.len();
+    let mut cmpt = b"cmpt".to_vec();
+    for w in [1, total, 3] {
+        cmpt.extend_from_slice(&(w as u32).to_le_bytes());
+    }
+    for t in [&inner_a, &i3dm, &inner_b] {
+        cmpt.extend_from_slice(t);
+    }
+    let path = dir.path().join("c.cmpt");
+    std::fs::write(&path, &cmpt).unwrap();
+    let (model, report) = tiles3d::read_with_report(&path, &ReadOptions::default()).unwrap();
+    let ids: Vec<&str> = model.buildings.iter().map(|b| b.source_id.as_str()).collect();
+    assert_eq!(ids, ["in_a", "in_b"]);
+    assert_eq!((report.contents_read, report.unsupported_contents), (2, 1));
+    // (0,1,0) → Y2Z (0,0,1).
+    assert_vertices(mesh(&model.buildings[1].geometry), &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]], 0.0);
+}
+
+#[test]
+fn gltf_up_axis_z_skips_the_rotation() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("t.glb"), batched_glb(&[0.0])).unwrap();
+    let t = json!({"asset": {"version": "1.0", "gltfUpAxis": "Z"}, "geometricError": 0,
+        "root": {"refine": "ADD", "geometricError": 0, "boundingVolume": {"sphere": [0, 0, 0, 1]},
+                 "content": {"uri": "t.glb"}}});
+    std::fs::write(dir.path().join("tileset.json"), serde_json::to_vec(&t).unwrap()).unwrap();
+    let model = tiles3d::read(&dir.path().join("tileset.json"), &ReadOptions::default()).unwrap();
+    // No batch table: the feature keeps a synthesized id; the vertices stay as written.
+    assert_eq!(model.buildings[0].source_id, "t.glb#batch0");
+    assert_vertices(mesh(&model.buildings[0].geometry), &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], 0.0);
+}
+
+#[test]
+fn batch_id_past_batch_length_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bad_ids.b3dm");
+    let tile = b3dm(&json!({"BATCH_LENGTH": 2}), &json!({"gml_id": ["a", "b"]}), &batched_glb(&[0.0, 2.0]));
+    std::fs::write(&path, tile).unwrap();
+    let err = tiles3d::read(&path, &ReadOptions::default()).unwrap_err();
+    let msg = err.to_string();
+    assert!(msg.contains("bad_ids.b3dm") && msg.contains("_BATCHID 2 is not below") && msg.contains("BATCH_LENGTH 2"), "{msg}");
+}
+
+#[test]
+fn unsupported_required_extension_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("meshopt.glb");
+    let g = simple_glb(
+        &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+        &[0, 1, 2],
+        None,
+        json!({}),
+        json!({}),
+        json!({}),
+        &[],
+    );
+    // Re-write the JSON chunk with an extensionsRequired entry.
+    let jlen = u32::from_le_bytes(g[12..16].try_into().unwrap()) as usize;
+    let mut gltf: serde_json::Value = serde_json::from_slice(g[20..20 + jlen].trim_ascii_end()).unwrap();
+    gltf["extensionsRequired"] = json!(["EXT_meshopt_compression", "KHR_materials_unlit"]);
+    let bin_len = u32::from_le_bytes(g[20 + jlen..24 + jlen].try_into().unwrap()) as usize;
+    std::fs::write(&path, glb(&gltf, &g[28 + jlen..28 + jlen + bin_len])).unwrap();
+    let msg = tiles3d::read(&path, &ReadOptions::default()).unwrap_err().to_string();
+    assert!(msg.contains("meshopt.glb") && msg.contains("EXT_meshopt_compression"), "{msg}");
+    assert!(!msg.contains("requires extension(s) EXT_meshopt_compression, KHR"), "material extensions are harmless: {msg}");
+}
+
+#[test]
+fn null_feature_ids_are_dropped() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("n.glb");
+    let mf = json!({"EXT_mesh_features": {"featureIds": [{"featureCount": 1, "attribute": 0, "nullFeatureId": 7}]}});
+    let g = simple_glb(
+        &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [5.0, 0.0, 0.0], [6.0, 0.0, 0.0], [5.0, 1.0, 0.0]],
+        &[0, 1, 2, 3, 4, 5],
+        Some(("_FEATURE_ID_0", &[0.0, 0.0, 0.0, 7.0, 7.0, 7.0])),
+        json!({}),
+        mf,
+        json!({}),
+        &[],
+    );
+    std::fs::write(&path, g).unwrap();
+    let (model, report) = tiles3d::read_with_report(&path, &ReadOptions::default()).unwrap();
+    let ids: Vec<&str> = model.buildings.iter().map(|b| b.source_id.as_str()).collect();
+    assert_eq!(ids, ["n.glb#ids0.feature0"]);
+    assert_eq!(report.null_feature_triangles, 1);
+}
+
+#[test]
+fn shibuya_komaba_neighbors_tileset() {
+    let Some(path) = shared_data("jp_tokyo_shibuya_plateau_3dtiles/tileset_komaba_neighbors.json") else { return };
+    let model = tiles3d::read(&path, &ReadOptions::default()).unwrap();
+    // Reference (Python over the 9 batch tables): 427 unique gml_ids, all `_lod` 1.
+    assert_eq!(model.buildings.len(), 427);
+    assert_eq!(model.buildings.iter().map(|b| b.source_id.as_str()).collect::<BTreeSet<_>>().len(), 427);
+    assert!(model.buildings.iter().all(|b| b.lod == "1"));
+    // ~1.6 km west of the station block: every vertex west of 139.6942 E.
+    for b in &model.buildings {
+        for p in &mesh(&b.geometry).positions {
+            assert!(ecef_to_geodetic(*p).lon_deg < 139.6942, "{}", b.source_id);
+        }
+    }
 }

@@ -31,7 +31,9 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use super::split::split_connected;
-use super::{AxisConvention, Frame, Geometry, LodError, ReadOptions, ReadStats, SourceBuilding, SourceModel, TriMesh};
+use super::{
+    AxisConvention, Frame, Geometry, LodError, ReadOptions, ReadStats, SourceBuilding, SourceModel, TriMesh,
+};
 
 /// Which way is up in the OBJ file's vertex coordinates.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -178,9 +180,10 @@ fn parse_obj(text: &str, sidecar: &ObjSidecar) -> Result<(TriMesh, ReadStats), S
         ignore_lines: true,
         ..Default::default()
     };
-    let (models, _materials) =
-        tobj::load_obj_buf(&mut Cursor::new(filtered.as_bytes()), &load, |_| Err(tobj::LoadError::OpenFileFailed))
-            .map_err(|e| format!("cannot parse OBJ: {e}"))?;
+    let (models, _materials) = tobj::load_obj_buf(&mut Cursor::new(filtered.as_bytes()), &load, |_| {
+        Err(tobj::LoadError::OpenFileFailed)
+    })
+    .map_err(|e| format!("cannot parse OBJ: {e}"))?;
 
     let mut mesh = TriMesh::default();
     let mut stats = ReadStats::default();
@@ -233,7 +236,8 @@ mod tests {
         #[test]
         fn quads_are_triangulated_and_axes_applied() {
             let obj = "v 1 2 3\nv 2 2 3\nv 2 5 3\nv 1 5 3\nf 1 2 3 4\n";
-            let sidecar = ObjSidecar { offset: [100.0, 200.0, 10.0], axes: ObjAxes::YUp, ..Default::default() };
+            let sidecar =
+                ObjSidecar { offset: [100.0, 200.0, 10.0], axes: ObjAxes::YUp, ..Default::default() };
             let (mesh, _) = parse_obj(obj, &sidecar).unwrap();
             assert_eq!(mesh.triangles.len(), 2);
             // (x, y, z) = (1, 2, 3) → (x, −z, y) = (1, −3, 2) → + offset.
@@ -256,7 +260,8 @@ mod tests {
 
         #[test]
         fn large_coordinates_keep_millimetres() {
-            let obj = "v 512345.678 3912345.678 40.001\nv 512346 3912345.678 40\nv 512346 3912346 40\nf 1 2 3\n";
+            let obj =
+                "v 512345.678 3912345.678 40.001\nv 512346 3912345.678 40\nv 512346 3912346 40\nf 1 2 3\n";
             let (mesh, _) = parse_obj(obj, &ObjSidecar::default()).unwrap();
             assert_eq!(mesh.positions[0], [512345.678, 3912345.678, 40.001]);
         }

@@ -110,7 +110,9 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<B3dm<'_>, String> {
         })?;
     }
     if end == byte_length {
-        return Err(format!("the b3dm has no GLB after its tables ({byte_length} bytes all used by header and tables)"));
+        return Err(format!(
+            "the b3dm has no GLB after its tables ({byte_length} bytes all used by header and tables)"
+        ));
     }
     let mut at = header_len;
     let mut take = |len: usize| {
@@ -133,6 +135,12 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<B3dm<'_>, String> {
         (None, Some(n)) => n,
         (None, None) => return Err("feature table has no BATCH_LENGTH".into()),
     };
+    if batch_length > super::MAX_FEATURES {
+        return Err(format!(
+            "feature table BATCH_LENGTH {batch_length} exceeds {} features",
+            super::MAX_FEATURES
+        ));
+    }
     let rtc_center = match ft.get("RTC_CENTER") {
         None => None,
         Some(v) => Some(rtc_center(v, ft_bin)?),
@@ -149,9 +157,9 @@ fn rtc_center(v: &Value, binary: &[u8]) -> Result<[f64; 3], String> {
             .map_err(|_| format!("feature table RTC_CENTER must be 3 numbers, got {v}"))?
     } else if let Some(off) = v.get("byteOffset").and_then(Value::as_u64) {
         let off = off as usize;
-        let b = binary
-            .get(off..off.saturating_add(12))
-            .ok_or_else(|| format!("feature table RTC_CENTER byteOffset {off} + 12 exceeds the binary body"))?;
+        let b = binary.get(off..off.saturating_add(12)).ok_or_else(|| {
+            format!("feature table RTC_CENTER byteOffset {off} + 12 exceeds the binary body")
+        })?;
         let f = |i: usize| f32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]) as f64;
         [f(0), f(4), f(8)]
     } else {
@@ -181,7 +189,8 @@ impl<'a> BatchTable<'a> {
             return Ok(Some(arr[..batch_length].iter().map(PropValue::from_json).collect()));
         }
         let bad = |what: &str| format!("batch table property {name:?}: {what} ({v})");
-        let offset = v.get("byteOffset").and_then(Value::as_u64).ok_or_else(|| bad("no byteOffset"))? as usize;
+        let offset =
+            v.get("byteOffset").and_then(Value::as_u64).ok_or_else(|| bad("no byteOffset"))? as usize;
         let ctype = v.get("componentType").and_then(Value::as_str).ok_or_else(|| bad("no componentType"))?;
         let kind = v.get("type").and_then(Value::as_str).ok_or_else(|| bad("no type"))?;
         let n = match kind {
@@ -199,10 +208,12 @@ impl<'a> BatchTable<'a> {
             _ => return Err(bad("unknown componentType")),
         };
         let len = batch_length * n * size;
-        let body = offset
-            .checked_add(len)
-            .and_then(|end| self.binary.get(offset..end))
-            .ok_or_else(|| bad(&format!("{len} bytes at byteOffset {offset} exceed the {}-byte binary body", self.binary.len())))?;
+        let body = offset.checked_add(len).and_then(|end| self.binary.get(offset..end)).ok_or_else(|| {
+            bad(&format!(
+                "{len} bytes at byteOffset {offset} exceed the {}-byte binary body",
+                self.binary.len()
+            ))
+        })?;
         // Only the first component of vector properties is kept (insgen reads scalars only).
         Ok(Some(
             body.chunks_exact(n * size)
@@ -245,18 +256,25 @@ pub(crate) fn split_cmpt(bytes: &[u8]) -> Result<Vec<&[u8]>, String> {
     }
     let byte_length = u32_at(bytes, 8) as usize;
     if byte_length != bytes.len() {
-        return Err(format!("cmpt header byteLength is {byte_length} but the tile has {} bytes", bytes.len()));
+        return Err(format!(
+            "cmpt header byteLength is {byte_length} but the tile has {} bytes",
+            bytes.len()
+        ));
     }
     let tiles_length = u32_at(bytes, 12) as usize;
     let mut tiles = Vec::with_capacity(tiles_length.min(1024));
     let mut at = 16;
     for k in 0..tiles_length {
         if at + 12 > byte_length {
-            return Err(format!("cmpt inner tile {k} starts at byte {at}, past the end ({byte_length} bytes)"));
+            return Err(format!(
+                "cmpt inner tile {k} starts at byte {at}, past the end ({byte_length} bytes)"
+            ));
         }
         let len = u32_at(bytes, at + 8) as usize;
         let end = at.checked_add(len).filter(|&e| e <= byte_length && len >= 12).ok_or_else(|| {
-            format!("cmpt inner tile {k} byteLength {len} at byte {at} runs past the end ({byte_length} bytes)")
+            format!(
+                "cmpt inner tile {k} byteLength {len} at byte {at} runs past the end ({byte_length} bytes)"
+            )
         })?;
         tiles.push(&bytes[at..end]);
         at = end;
@@ -332,6 +350,12 @@ mod tests {
         assert!(e.contains("featureTableJSONByteLength = 10000"), "{e}");
         assert!(parse(&good[..good.len() - 3]).is_err());
         assert!(parse(b"b3dm").is_err());
+    }
+
+    #[test]
+    fn implausible_batch_length_is_refused() {
+        let b = build(r#"{"BATCH_LENGTH":4000000000}"#, &[], "", &[], b"glTF....");
+        assert!(parse(&b).unwrap_err().contains("BATCH_LENGTH 4000000000 exceeds"));
     }
 
     #[test]

@@ -90,7 +90,8 @@ pub(crate) fn decode(
             if let Some(c) = tile.rtc_center {
                 outer *= DMat4::from_translation(DVec3::from_array(c));
             }
-            features_of(&g, outer, up, Some(&batch), label, &load_uri).map_err(|e| format!("embedded GLB: {e}"))
+            features_of(&g, outer, up, Some(&batch), label, &load_uri)
+                .map_err(|e| format!("embedded GLB: {e}"))
         }
         b"glTF" => {
             let g = gltf::parse_glb(bytes, &load_uri)?;
@@ -107,9 +108,10 @@ pub(crate) fn decode(
             }
             Ok(out)
         }
-        b"i3dm" | b"pnts" => {
-            Ok(DecodedContent { counters: Counters { unsupported_contents: 1, ..Default::default() }, ..Default::default() })
-        }
+        b"i3dm" | b"pnts" => Ok(DecodedContent {
+            counters: Counters { unsupported_contents: 1, ..Default::default() },
+            ..Default::default()
+        }),
         _ if bytes.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{')
             || bytes.starts_with(b"\xEF\xBB\xBF") =>
         {

@@ -41,11 +41,8 @@ pub(crate) fn decode(bytes: &[u8], position_id: u32, scalar_id: Option<u32>) -> 
     if pos.num_components() < 3 {
         return Err(format!("the Draco POSITION attribute has {} components, not 3", pos.num_components()));
     }
-    let positions = pos
-        .read_f32s(n_points, 3)
-        .chunks_exact(3)
-        .map(|c| [c[0] as f64, c[1] as f64, c[2] as f64])
-        .collect();
+    let positions =
+        pos.read_f32s(n_points, 3).chunks_exact(3).map(|c| [c[0] as f64, c[1] as f64, c[2] as f64]).collect();
     let scalar = match scalar_id {
         None => None,
         Some(id) => {

@@ -122,7 +122,10 @@ mod tests {
             })
         })
         .unwrap();
-        assert_eq!(props[0], FeatureProps { id: Some("a".into()), lod: Some("1".into()), measured_height_m: Some(3.5) });
+        assert_eq!(
+            props[0],
+            FeatureProps { id: Some("a".into()), lod: Some("1".into()), measured_height_m: Some(3.5) }
+        );
         assert_eq!(props[1], FeatureProps { id: None, lod: Some("2".into()), measured_height_m: None });
     }
 }

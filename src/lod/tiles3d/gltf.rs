@@ -36,6 +36,10 @@ const HANDLED_EXTENSIONS: &[&str] = &[
 /// Prefixes of geometry-neutral (material/texture) extensions that may be required without harm.
 const HANDLED_PREFIXES: &[&str] = &["KHR_materials_", "KHR_texture_", "EXT_texture_", "MSFT_texture_"];
 
+/// Most elements an accessor without a bufferView (all zeros) may have; its count is otherwise
+/// unbounded by the file size.
+const MAX_ZERO_ACCESSOR: usize = 1 << 26;
+
 /// The glTF up axis of a tileset's content (`asset.gltfUpAxis`, default Y as 3D Tiles specifies).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum UpAxis {
@@ -293,16 +297,28 @@ pub(crate) fn parse_glb<'a>(
     bytes: &'a [u8],
     load_uri: &dyn Fn(&str) -> Result<Vec<u8>, String>,
 ) -> Result<Gltf<'a>, String> {
-    if bytes.len() >= 8 && &bytes[0..4] == b"glTF" {
-        let version = u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]);
-        if version != 2 {
-            return Err(format!(
-                "glTF version {version} content is not supported; only glTF 2.0 is (upgrade the tileset, \
-                 e.g. with `npx 3d-tiles-tools upgrade`)"
-            ));
-        }
+    // The header is checked here so that the `gltf` crate only ever sees a consistent one (it
+    // subtracts 12 from the length field unchecked) and never the padding a b3dm may add after it.
+    if bytes.len() < 20 || &bytes[0..4] != b"glTF" {
+        return Err(format!(
+            "not a GLB: {} bytes starting with {:?}",
+            bytes.len(),
+            String::from_utf8_lossy(&bytes[..bytes.len().min(4)])
+        ));
     }
-    let glb = gltf::Glb::from_slice(bytes).map_err(|e| format!("not a valid GLB: {e}"))?;
+    let word = |i: usize| u32::from_le_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]) as usize;
+    let version = word(4);
+    if version != 2 {
+        return Err(format!(
+            "glTF version {version} content is not supported; only glTF 2.0 is (upgrade the tileset, \
+             e.g. with `npx 3d-tiles-tools upgrade`)"
+        ));
+    }
+    let length = word(8);
+    if !(20..=bytes.len()).contains(&length) {
+        return Err(format!("GLB header length is {length} but {} bytes are available", bytes.len()));
+    }
+    let glb = gltf::Glb::from_slice(&bytes[..length]).map_err(|e| format!("not a valid GLB: {e}"))?;
     let root = parse_json(&glb.json)?;
     let bin = glb.bin;
     let mut buffers = Vec::with_capacity(root.buffers.len());
@@ -312,7 +328,9 @@ pub(crate) fn parse_glb<'a>(
                 Some(bin) => buffers.push(bin.clone()),
                 None => return Err("buffers[0] has no uri but the GLB has no BIN chunk".into()),
             },
-            (None, _) => return Err(format!("buffers[{i}] has no uri (only buffers[0] may use the BIN chunk)")),
+            (None, _) => {
+                return Err(format!("buffers[{i}] has no uri (only buffers[0] may use the BIN chunk)"))
+            }
             (Some(uri), _) => buffers.push(Cow::Owned(load_buffer_uri(uri, load_uri)?)),
         }
     }
@@ -371,8 +389,9 @@ fn finish<'a>(root: Root, buffers: Vec<Cow<'a, [u8]>>) -> Result<Gltf<'a>, Strin
 
 fn load_buffer_uri(uri: &str, load_uri: &dyn Fn(&str) -> Result<Vec<u8>, String>) -> Result<Vec<u8>, String> {
     if let Some(rest) = uri.strip_prefix("data:") {
-        let (_, data) =
-            rest.split_once(";base64,").ok_or_else(|| format!("data URI buffer is not base64: {uri:.40}…"))?;
+        let (_, data) = rest
+            .split_once(";base64,")
+            .ok_or_else(|| format!("data URI buffer is not base64: {uri:.40}…"))?;
         return base64_decode(data).ok_or_else(|| "data URI buffer holds invalid base64".to_string());
     }
     load_uri(uri)
@@ -545,9 +564,15 @@ impl<'a> Gltf<'a> {
                     match r.buffer_views.get(bv) {
                         None => p.push(format!("{at}.sparse.{what}.bufferView: {bv} does not exist")),
                         Some(view) => {
-                            if s.count.checked_mul(len).and_then(|x| x.checked_add(off)).is_none_or(|e| e > view.byte_length)
+                            if s.count
+                                .checked_mul(len)
+                                .and_then(|x| x.checked_add(off))
+                                .is_none_or(|e| e > view.byte_length)
                             {
-                                p.push(format!("{at}.sparse.{what}: {} entries exceed bufferView {bv}", s.count));
+                                p.push(format!(
+                                    "{at}.sparse.{what}: {} entries exceed bufferView {bv}",
+                                    s.count
+                                ));
                             }
                         }
                     }
@@ -634,6 +659,9 @@ impl<'a> Gltf<'a> {
         let n = components(&a.kind).ok_or_else(|| format!("accessors[{i}]: unknown type {:?}", a.kind))?;
         let size = component_size(a.component_type)
             .ok_or_else(|| format!("accessors[{i}]: unknown componentType {}", a.component_type))?;
+        if a.buffer_view.is_none() && a.count > MAX_ZERO_ACCESSOR {
+            return Err(format!("accessors[{i}]: {} elements without a bufferView is implausible", a.count));
+        }
         let mut out = vec![0.0; a.count * n];
         if let Some(bv) = a.buffer_view {
             let stride = r.buffer_views[bv].byte_stride.unwrap_or(n * size);
@@ -658,7 +686,8 @@ impl<'a> Gltf<'a> {
                 }
                 for c in 0..n {
                     let at = s.values.byte_offset + (k * n + c) * size;
-                    out[e * n + c] = read_component(&val_bytes[at..at + size], a.component_type, a.normalized);
+                    out[e * n + c] =
+                        read_component(&val_bytes[at..at + size], a.component_type, a.normalized);
                 }
             }
         }
@@ -670,7 +699,11 @@ impl<'a> Gltf<'a> {
     ///
     /// # Errors
     /// A message naming the glTF object that is wrong.
-    pub(crate) fn world_primitives(&self, outer: DMat4, up: UpAxis) -> Result<(Vec<WorldPrimitive>, u64), String> {
+    pub(crate) fn world_primitives(
+        &self,
+        outer: DMat4,
+        up: UpAxis,
+    ) -> Result<(Vec<WorldPrimitive>, u64), String> {
         let r = &self.root;
         let roots: Vec<usize> = match r.scene.or(if r.scenes.is_empty() { None } else { Some(0) }) {
             Some(s) => r.scenes[s].nodes.clone(),
@@ -750,13 +783,15 @@ impl<'a> Gltf<'a> {
                     .attributes
                     .get("POSITION")
                     .ok_or("KHR_draco_mesh_compression.attributes has no POSITION")?;
-                let feature_attr = feature_set.as_ref().and_then(|(name, _, _)| ext.attributes.get(name).copied());
+                let feature_attr =
+                    feature_set.as_ref().and_then(|(name, _, _)| ext.attributes.get(name).copied());
                 let bytes = self.view_bytes(ext.buffer_view)?;
                 let d = draco::decode(bytes, pos_id, feature_attr).map_err(|e| format!("Draco: {e}"))?;
                 (d.positions, d.triangles, d.scalar)
             }
             None => {
-                let acc = *prim.attributes.get("POSITION").ok_or("the primitive has no POSITION attribute")?;
+                let acc =
+                    *prim.attributes.get("POSITION").ok_or("the primitive has no POSITION attribute")?;
                 let (n, flat) = self.read_accessor(acc)?;
                 if n != 3 {
                     return Err(format!("POSITION accessor {acc} is not VEC3"));
@@ -820,8 +855,8 @@ impl<'a> Gltf<'a> {
     /// Returns (attribute name, table, nullFeatureId).
     fn feature_set(&self, prim: &Primitive) -> Result<Option<(String, TableKey, Option<u64>)>, String> {
         if let Some(v) = prim.extensions.get("EXT_mesh_features") {
-            let mf: MeshFeatures =
-                serde_json::from_value(v.clone()).map_err(|e| format!("extensions.EXT_mesh_features: {e}"))?;
+            let mf: MeshFeatures = serde_json::from_value(v.clone())
+                .map_err(|e| format!("extensions.EXT_mesh_features: {e}"))?;
             for (s, set) in mf.feature_ids.iter().enumerate() {
                 let Some(a) = set.attribute else { continue };
                 let name = format!("_FEATURE_ID_{a}");
@@ -832,7 +867,9 @@ impl<'a> Gltf<'a> {
                     .and_then(|a| a.get(&name))
                     .is_some();
                 if !prim.attributes.contains_key(&name) && !in_draco {
-                    return Err(format!("EXT_mesh_features.featureIds[{s}] names attribute {name}, which is missing"));
+                    return Err(format!(
+                        "EXT_mesh_features.featureIds[{s}] names attribute {name}, which is missing"
+                    ));
                 }
                 let table = match set.property_table {
                     Some(t) => TableKey::Property(t),
@@ -902,6 +939,19 @@ mod tests {
         assert_eq!(assemble(&[0, 1, 2, 3], 5), vec![[0, 1, 2], [2, 1, 3]]);
         assert_eq!(assemble(&[0, 1, 2, 3], 6), vec![[0, 1, 2], [0, 2, 3]]);
         assert_eq!(assemble(&[0, 1, 2, 3, 4], 4), vec![[0, 1, 2]]);
+    }
+
+    #[test]
+    fn glb_header_is_checked_before_the_gltf_crate_sees_it() {
+        let no_uri = |_: &str| -> Result<Vec<u8>, String> { Err("no files".into()) };
+        let mut b = b"glTF".to_vec();
+        b.extend_from_slice(&2u32.to_le_bytes());
+        b.extend_from_slice(&4u32.to_le_bytes()); // length < header size
+        b.extend_from_slice(&[0; 12]);
+        assert!(parse_glb(&b, &no_uri).err().unwrap().contains("length is 4"));
+        b[4..8].copy_from_slice(&1u32.to_le_bytes());
+        assert!(parse_glb(&b, &no_uri).err().unwrap().contains("glTF version 1"));
+        assert!(parse_glb(b"b3dm", &no_uri).err().unwrap().contains("not a GLB"));
     }
 
     #[test]

@@ -91,14 +91,25 @@ pub(crate) fn property_tables(
         (Some(s), _) => s,
         (None, Some(uri)) => {
             let bytes = load_uri(uri)?;
-            serde_json::from_slice(&bytes).map_err(|e| format!("EXT_structural_metadata schemaUri {uri:?}: {e}"))?
+            serde_json::from_slice(&bytes)
+                .map_err(|e| format!("EXT_structural_metadata schemaUri {uri:?}: {e}"))?
         }
         (None, None) => return Err("EXT_structural_metadata has neither schema nor schemaUri".into()),
     };
     let mut out = Vec::with_capacity(meta.property_tables.len());
     for (t, table) in meta.property_tables.iter().enumerate() {
+        if table.count > super::MAX_FEATURES {
+            return Err(format!(
+                "EXT_structural_metadata.propertyTables[{t}].count {} exceeds {} features",
+                table.count,
+                super::MAX_FEATURES
+            ));
+        }
         let class = schema.classes.get(&table.class).ok_or_else(|| {
-            format!("EXT_structural_metadata.propertyTables[{t}].class {:?} is not in the schema", table.class)
+            format!(
+                "EXT_structural_metadata.propertyTables[{t}].class {:?} is not in the schema",
+                table.class
+            )
         })?;
         let props = feature_props(table.count, |name| {
             let (Some(tp), Some(cp)) = (table.properties.get(name), class.properties.get(name)) else {
@@ -127,12 +138,13 @@ fn read_property(
         "STRING" => {
             let offsets_view = tp.string_offsets.ok_or("STRING property without stringOffsets")?;
             let offset_type = tp.string_offset_type.as_deref().unwrap_or("UINT32");
-            let offsets = read_uints(gltf.view_bytes(offsets_view)?, offset_type, count + 1)?;
+            let offsets = read_uints(gltf.view_bytes(offsets_view)?, offset_type, count.saturating_add(1))?;
             let mut out = Vec::with_capacity(count);
             for w in offsets.windows(2) {
                 let (a, b) = (w[0] as usize, w[1] as usize);
                 let s = values.get(a..b).ok_or_else(|| format!("string bytes {a}..{b} exceed the values"))?;
-                let s = std::str::from_utf8(s).map_err(|_| format!("string at bytes {a}..{b} is not UTF-8"))?;
+                let s =
+                    std::str::from_utf8(s).map_err(|_| format!("string at bytes {a}..{b} is not UTF-8"))?;
                 out.push(PropValue::Str(s.to_string()));
             }
             Ok(Some(out))
@@ -146,9 +158,9 @@ fn read_property(
                 "INT64" | "UINT64" | "FLOAT64" => 8,
                 _ => return Err(format!("unknown componentType {ctype:?}")),
             };
-            let body = values
-                .get(..count * size)
-                .ok_or_else(|| format!("{count} values of {size} bytes exceed the {}-byte buffer view", values.len()))?;
+            let body = count.checked_mul(size).and_then(|len| values.get(..len)).ok_or_else(|| {
+                format!("{count} values of {size} bytes exceed the {}-byte buffer view", values.len())
+            })?;
             let no_data = cp.no_data.as_ref().and_then(Value::as_f64);
             let offset = tp.offset.or(cp.offset).unwrap_or(0.0);
             let scale = tp.scale.or(cp.scale).unwrap_or(1.0);
@@ -177,7 +189,10 @@ fn read_uints(bytes: &[u8], kind: &str, n: usize) -> Result<Vec<u64>, String> {
         "UINT64" => 8,
         _ => return Err(format!("unknown offset type {kind:?}")),
     };
-    let body = bytes.get(..n * size).ok_or_else(|| format!("{n} offsets of {size} bytes exceed their buffer view"))?;
+    let body = n
+        .checked_mul(size)
+        .and_then(|len| bytes.get(..len))
+        .ok_or_else(|| format!("{n} offsets of {size} bytes exceed their buffer view"))?;
     Ok(body
         .chunks_exact(size)
         .map(|c| {

@@ -45,6 +45,10 @@ use super::{Frame, Geometry, LodError, ReadOptions, ReadStats, SourceBuilding, S
 use content::append;
 use tileset::ContentJob;
 
+/// Most features one batch or property table may list (a building id is 24 bits wide anyway); a
+/// larger count is taken as a corrupt header rather than allocated.
+pub(crate) const MAX_FEATURES: usize = 1 << 24;
+
 /// What a tileset read did besides producing buildings (logged by [`read`]).
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct TilesReport {

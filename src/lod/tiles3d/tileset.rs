@@ -131,7 +131,12 @@ fn walk_tileset(
             "root",
             format!(
                 "external tilesets form a cycle: {}",
-                stack.iter().chain([&canonical]).map(|p| p.display().to_string()).collect::<Vec<_>>().join(" → ")
+                stack
+                    .iter()
+                    .chain([&canonical])
+                    .map(|p| p.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(" → ")
             ),
         ));
     }
@@ -217,7 +222,9 @@ fn walk_tile(
         } else {
             let norm = normalize(&file);
             let label = match norm.strip_prefix(ctx.root_dir) {
-                Ok(rel) => rel.components().map(|c| c.as_os_str().to_string_lossy()).collect::<Vec<_>>().join("/"),
+                Ok(rel) => {
+                    rel.components().map(|c| c.as_os_str().to_string_lossy()).collect::<Vec<_>>().join("/")
+                }
                 Err(_) => norm.display().to_string(),
             };
             out.jobs.push(ContentJob {
@@ -417,6 +424,9 @@ mod tests {
         .unwrap();
         let p = validate(&t);
         let at: Vec<&str> = p.iter().map(|(a, _)| a.as_str()).collect();
-        assert_eq!(at, ["root.transform", "root.refine", "root.children[0].content", "root.children[1].implicitTiling"]);
+        assert_eq!(
+            at,
+            ["root.transform", "root.refine", "root.children[0].content", "root.children[1].implicitTiling"]
+        );
     }
 }
