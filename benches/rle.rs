@@ -182,6 +182,16 @@ fn main() {
             r.identical.map(|b| if b { "yes" } else { "NO" }).unwrap_or("not compared (no Python)"),
         ));
     }
+    md.push_str(&format!(
+        "\nBuild: {} (debug assertions {}); machine: {} logical CPUs, shared.\n",
+        if cfg!(debug_assertions) {
+            "test/dev-style profile with optimisation"
+        } else {
+            "bench profile (release)"
+        },
+        if cfg!(debug_assertions) { "on" } else { "off" },
+        std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
+    ));
     if py.is_none() {
         md.push_str("\npycocotools was not found (set INSGEN_PYTHON); only insgen was timed.\n");
     }

@@ -337,6 +337,13 @@ fn assert_pycocotools_exact(py: &Path, out: &Path, expect_polygons: bool) -> Val
     let v = run_check(py, &["dataset", out.to_str().unwrap()]);
     for split in ["train", "val", "test"] {
         let r = &v["files"][split];
+        eprintln!(
+            "pycocotools {split}: {} images, {} annotations checked, segm AP {}, bbox AP {}, polygons {} ({} exact)",
+            r["images"], r["checked"], r["segm"]["AP"], r["bbox"]["AP"], r["polygon_annotations"], r["polygon_exact"]
+        );
+    }
+    for split in ["train", "val", "test"] {
+        let r = &v["files"][split];
         assert_eq!(r["mismatches"], serde_json::json!([]), "{split}: annToMask differs from the ID map");
         assert_eq!(r["checked"], r["annotations"], "{split}: every annotation checked");
         if r["annotations"].as_u64().unwrap() > 0 {
@@ -431,6 +438,13 @@ fn component_export_agrees_with_pycocotools_and_the_id_maps() {
     assert_eq!(st.splits[2].images_without_annotations, 1, "charlie's empty frame");
     let sheet = insgen::coco::raster::read_png_rgb(&p.out_dir.join("contact_sheet.png")).unwrap();
     assert_eq!((sheet.width, sheet.height), (4 * 320, 3 * 240));
+    if let Some(keep) = std::env::var_os("INSGEN_COCO_PREVIEW") {
+        // For looking at the figures by eye: INSGEN_COCO_PREVIEW=/tmp/preview cargo test ...
+        std::fs::create_dir_all(&keep).unwrap();
+        for f in &files_written {
+            std::fs::copy(f, Path::new(&keep).join(f.file_name().unwrap())).unwrap();
+        }
+    }
     let md = std::fs::read_to_string(p.out_dir.join("stats.md")).unwrap();
     assert!(md.contains("| alpha | train |"), "{md}");
 

@@ -230,7 +230,9 @@ pub fn bar_chart(title: &str, categories: &[String], series: &[Series]) -> RgbIm
     let n_cat = categories.len().max(1) as i64;
     let n_ser = series.len().max(1) as i64;
     let bar_w = if n_cat * n_ser > 60 { 4 } else { 10 };
-    let group_w = n_ser * bar_w + 8;
+    // Few categories: make room for every label; many: label every k-th (below).
+    let widest = categories.iter().map(|c| text_width(c, S)).max().unwrap_or(0);
+    let group_w = if n_cat <= 12 { (n_ser * bar_w + 8).max(widest + 12) } else { n_ser * bar_w + 8 };
     let (left, right, top, bottom) = (70i64, 20i64, 50i64, 60i64);
     let plot_h = 260i64;
     let width = (left + right + n_cat * group_w).max(360);
@@ -252,12 +254,13 @@ pub fn bar_chart(title: &str, categories: &[String], series: &[Series]) -> RgbIm
             let v = s.values.get(ci).copied().unwrap_or(0.0);
             let h = if max > 0.0 { (v / max * plot_h as f64).round() as i64 } else { 0 };
             let h = if v > 0.0 { h.max(1) } else { h };
-            img.fill_rect(gx + si as i64 * bar_w, top + plot_h - h, bar_w - 1, h, s.colour);
+            let bars_x = gx + (group_w - 8 - n_ser * bar_w) / 2;
+            img.fill_rect(bars_x + si as i64 * bar_w, top + plot_h - h, bar_w - 1, h, s.colour);
         }
         // Label every category when they fit, else every k-th.
         let every = ((text_width(cat, S) + 6) / group_w + 1).max(1) as usize;
         if ci % every == 0 {
-            let tx = gx + (n_ser * bar_w - text_width(cat, S)) / 2;
+            let tx = gx + (group_w - 8 - text_width(cat, S)) / 2;
             img.text(tx, top + plot_h + 6, cat, S, black);
         }
     }
@@ -333,6 +336,7 @@ fn glyph(c: char) -> [u8; 5] {
         ')' => [0b100, 0b010, 0b010, 0b010, 0b100],
         '#' => [0b101, 0b111, 0b101, 0b111, 0b101],
         '*' => [0b000, 0b101, 0b010, 0b101, 0b000],
+        '^' => [0b010, 0b101, 0b000, 0b000, 0b000],
         _ => [0; 5],
     }
 }
@@ -355,7 +359,8 @@ mod tests {
     fn chart_bars_are_proportional() {
         let s = Series { name: "a".into(), colour: [255, 0, 0], values: vec![10.0, 5.0] };
         let img = bar_chart("t", &["x".into(), "y".into()], &[s]);
-        let count_red = |x0: u32| (0..img.height).filter(|&y| img.get(x0, y) == [255, 0, 0]).count();
+        // Only the plot area (y in 50..=310): the legend square below it is red too.
+        let count_red = |x0: u32| (50..=310).filter(|&y| img.get(x0, y) == [255, 0, 0]).count();
         // Bars start at left + 4 and groups are 1·10 + 8 = 18 px wide; the plot is 260 px tall.
         assert_eq!(count_red(70 + 4 + 2), 260);
         assert_eq!(count_red(70 + 18 + 4 + 2), 130);

@@ -13,18 +13,19 @@
 //! `[0, 0, 0, 0]`. The unit tests check the golden vectors produced by pycocotools; the integration test
 //! `tests/coco_rle.rs` compares against `pycocotools.mask` live.
 //!
-//! Encoding works from row-major images (as rendered) without transposing a copy per mask: the image is
-//! walked in strips of [`STRIP_COLS`] columns, each strip transposed into a small scratch buffer that fits
-//! in L2, and the runs of every label are appended to their own RLE in the same pass
-//! ([`encode_labels`]), so a frame with hundreds of instances is read once.
+//! Encoding works from row-major images (as rendered) without transposing anything: a column's runs
+//! start and end exactly where the pixel differs from the one above, so one sequential pass comparing
+//! each row with the previous one finds them all (see `for_each_column_run`). [`encode_labels`] appends
+//! the runs of every label to its own RLE in that same pass, so a frame with hundreds of instances is
+//! read once.
 //!
 //! # References
 //! pycocotools `common/maskApi.c` (cocodataset/cocoapi), `PythonAPI/pycocotools/_mask.pyx`.
 
 use std::fmt;
 
-/// Columns transposed at a time by the encoders (32 columns × 1080 rows × 4 bytes = 138 KiB of scratch).
-const STRIP_COLS: usize = 32;
+/// Pixels compared at a time when looking for changes between consecutive rows.
+const CHUNK: usize = 64;
 
 /// Longest compressed group sequence accepted for one count: 7 groups of 5 bits cover any u32 count and
 /// any difference of two u32 counts (pycocotools' own decoder overflows a C `int` beyond that).
@@ -102,7 +103,12 @@ impl RleBuilder {
 
 /// Calls `f(value, start, len)` for every maximal vertical run of equal values of a row-major image, in
 /// column-major order; `start` is the column-major index of the run's first pixel.
-fn for_each_column_run<T: Copy + PartialEq + Default>(
+///
+/// No transposed copy is made: each row is compared with the row above — equal stretches (most of a
+/// building map) are skipped [`CHUNK`] pixels at a time with a `memcmp` — and the rows where each column
+/// changes value are bucketed per column (a counting sort, so they stay in increasing order). The runs
+/// of a column then lie between consecutive change rows.
+fn for_each_column_run<T: Copy + PartialEq>(
     data: &[T],
     height: usize,
     width: usize,
@@ -111,31 +117,43 @@ fn for_each_column_run<T: Copy + PartialEq + Default>(
     if height == 0 || width == 0 {
         return;
     }
-    let mut scratch = vec![T::default(); STRIP_COLS.min(width) * height];
-    let mut x0 = 0;
-    while x0 < width {
-        let strip = STRIP_COLS.min(width - x0);
-        for y in 0..height {
-            let row = &data[y * width + x0..y * width + x0 + strip];
-            for (c, &v) in row.iter().enumerate() {
-                scratch[c * height + y] = v;
+    let mut changes: Vec<(u32, u32)> = Vec::new(); // (x, y): the pixel differs from the one above
+    let mut per_col = vec![0usize; width + 1];
+    for y in 1..height {
+        let above = &data[(y - 1) * width..y * width];
+        let row = &data[y * width..(y + 1) * width];
+        for (k, (ca, cb)) in above.chunks(CHUNK).zip(row.chunks(CHUNK)).enumerate() {
+            if ca == cb {
+                continue;
             }
-        }
-        for c in 0..strip {
-            let col = &scratch[c * height..(c + 1) * height];
-            let base = ((x0 + c) * height) as u64;
-            let mut y = 0;
-            while y < height {
-                let v = col[y];
-                let start = y;
-                y += 1;
-                while y < height && col[y] == v {
-                    y += 1;
+            for (i, (a, b)) in ca.iter().zip(cb).enumerate() {
+                if a != b {
+                    let x = k * CHUNK + i;
+                    changes.push((x as u32, y as u32));
+                    per_col[x + 1] += 1;
                 }
-                f(v, base + start as u64, (y - start) as u64);
             }
         }
-        x0 += strip;
+    }
+    for x in 0..width {
+        per_col[x + 1] += per_col[x];
+    }
+    let mut next = per_col.clone();
+    let mut rows = vec![0u32; changes.len()];
+    for &(x, y) in &changes {
+        rows[next[x as usize]] = y;
+        next[x as usize] += 1;
+    }
+    for x in 0..width {
+        let base = (x * height) as u64;
+        let (mut start, mut v) = (0usize, data[x]);
+        for &y in &rows[per_col[x]..per_col[x + 1]] {
+            let y = y as usize;
+            f(v, base + start as u64, (y - start) as u64);
+            start = y;
+            v = data[y * width + x];
+        }
+        f(v, base + start as u64, (height - start) as u64);
     }
 }
 
@@ -582,6 +600,15 @@ mod tests {
                     assert_eq!(r.decode_col_major(), col);
                 }
             }
+        }
+
+        #[test]
+        fn any_non_zero_byte_is_inside() {
+            let mut rng = ChaCha8Rng::seed_from_u64(17);
+            let (h, w) = (19, 23);
+            let m: Vec<u8> = (0..h * w).map(|_| [0, 0, 1, 2, 255][rng.gen_range(0..5)]).collect();
+            let binary: Vec<u8> = m.iter().map(|&v| (v != 0) as u8).collect();
+            assert_eq!(encode(&m, h as u32, w as u32).unwrap().counts, reference_encode(&binary, h, w));
         }
 
         #[test]
