@@ -17,7 +17,9 @@
 //! - `EXT_structural_metadata`: a schema with class `building` (one STRING property `source_id`) and a
 //!   property table with one row per ID `0..=max ID` (row = building ID; rows of IDs without a
 //!   building, including the background row 0, hold the empty string), so a viewer that understands
-//!   the extension (CesiumJS, for one) shows the source identity of a picked building;
+//!   the extension (CesiumJS, for one) shows the source identity of a picked building. Written only
+//!   when the IDs are dense (max ID ≤ 2 × buildings + 1024, always the case for IDs 1..=N as
+//!   `prepare` assigns them); otherwise the feature IDs stand alone (no `propertyTable`);
 //! - `COLOR_0` (VEC4 UNSIGNED_BYTE normalized): a flat colour per building from a hash of its ID
 //!   ([`building_colour`]), with an unlit (`KHR_materials_unlit`), double-sided material, so any glTF
 //!   viewer shows the instances.
@@ -197,23 +199,35 @@ pub fn write_glb(path: &Path, mesh: &SceneMesh, buildings: &[BuildingRecord]) ->
     let n_vertices = mesh.positions_m.len() as u64;
     let n_indices = mesh.indices.len() as u64;
 
-    // Property table: row = building ID, rows 0..=max ID.
+    let mut distinct: Vec<u32> = mesh.building_ids.clone();
+    distinct.sort_unstable();
+    distinct.dedup();
+    let feature_count = distinct.len() as u64;
+
+    // Property table: row = building ID, rows 0..=max ID. Only when the IDs are dense (as `prepare`
+    // assigns them, 1..=N), so that a few scattered large IDs do not bloat the file with empty rows.
     let source_ids: BTreeMap<u32, &str> = buildings.iter().map(|b| (b.id, b.source_id.as_str())).collect();
-    let max_id = mesh.building_ids.iter().copied().max().unwrap_or(0);
-    let table_rows = u64::from(max_id) + 1;
-    let string_bytes: u64 = (0..=max_id).map(|id| source_ids.get(&id).map_or(0, |s| s.len() as u64)).sum();
+    let max_id = distinct.last().copied().unwrap_or(0);
+    let table_rows = (u64::from(max_id) <= 2 * feature_count + 1024).then_some(u64::from(max_id) + 1);
+    let string_bytes: u64 = match table_rows {
+        Some(_) => (0..=max_id).map(|id| source_ids.get(&id).map_or(0, |s| s.len() as u64)).sum(),
+        None => 0,
+    };
     if string_bytes > u64::from(u32::MAX) {
         return Err(GlbError::TooLarge { path: path.to_path_buf(), bytes: string_bytes });
     }
 
-    let (views, bin_len) = plan_views(&[
+    let mut view_specs = vec![
         (n_vertices * 12, Some(TARGET_ARRAY_BUFFER)),       // 0: POSITION
         (n_vertices * 4, Some(TARGET_ARRAY_BUFFER)),        // 1: _FEATURE_ID_0
         (n_vertices * 4, Some(TARGET_ARRAY_BUFFER)),        // 2: COLOR_0
         (n_indices * 4, Some(TARGET_ELEMENT_ARRAY_BUFFER)), // 3: indices
-        (string_bytes, None),                               // 4: source_id string values
-        ((table_rows + 1) * 4, None),                       // 5: source_id string offsets (UINT32)
-    ]);
+    ];
+    if let Some(rows) = table_rows {
+        view_specs.push((string_bytes, None)); // 4: source_id string values
+        view_specs.push(((rows + 1) * 4, None)); // 5: source_id string offsets (UINT32)
+    }
+    let (views, bin_len) = plan_views(&view_specs);
 
     // Bounds in the glTF frame, as the validator recomputes them from the stored f32 values.
     let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
@@ -224,11 +238,6 @@ pub fn write_glb(path: &Path, mesh: &SceneMesh, buildings: &[BuildingRecord]) ->
             hi[k] = hi[k].max(g[k]);
         }
     }
-    let mut distinct: Vec<u32> = mesh.building_ids.clone();
-    distinct.sort_unstable();
-    distinct.dedup();
-    let feature_count = distinct.len() as u64;
-
     let json = document_json(&views, bin_len, n_vertices, n_indices, table_rows, feature_count, lo, hi);
     let mut json_bytes =
         serde_json::to_vec(&json).map_err(|e| FileError::new("serialising glTF JSON for", path, e.into()))?;
@@ -280,22 +289,24 @@ pub fn write_glb(path: &Path, mesh: &SceneMesh, buildings: &[BuildingRecord]) ->
             w.write_all(&i.to_le_bytes()).map_err(io)?;
         }
         written += views[3].length;
-        pad_to(w, &mut written, views[4].offset).map_err(io)?;
-        for id in 0..=max_id {
-            if let Some(s) = source_ids.get(&id) {
-                w.write_all(s.as_bytes()).map_err(io)?;
+        if table_rows.is_some() {
+            pad_to(w, &mut written, views[4].offset).map_err(io)?;
+            for id in 0..=max_id {
+                if let Some(s) = source_ids.get(&id) {
+                    w.write_all(s.as_bytes()).map_err(io)?;
+                }
             }
-        }
-        written += views[4].length;
-        pad_to(w, &mut written, views[5].offset).map_err(io)?;
-        let mut offset = 0u32;
-        w.write_all(&offset.to_le_bytes()).map_err(io)?;
-        for id in 0..=max_id {
-            // Cannot overflow: the sum of all lengths was checked against u32::MAX.
-            offset += source_ids.get(&id).map_or(0, |s| s.len() as u32);
+            written += views[4].length;
+            pad_to(w, &mut written, views[5].offset).map_err(io)?;
+            let mut offset = 0u32;
             w.write_all(&offset.to_le_bytes()).map_err(io)?;
+            for id in 0..=max_id {
+                // Cannot overflow: the sum of all lengths was checked against u32::MAX.
+                offset += source_ids.get(&id).map_or(0, |s| s.len() as u32);
+                w.write_all(&offset.to_le_bytes()).map_err(io)?;
+            }
+            written += views[5].length;
         }
-        written += views[5].length;
         pad_to(w, &mut written, bin_len).map_err(io)?;
         Ok(())
     })
@@ -317,7 +328,7 @@ fn document_json(
     bin_len: u64,
     n_vertices: u64,
     n_indices: u64,
-    table_rows: u64,
+    table_rows: Option<u64>,
     feature_count: u64,
     lo: [f32; 3],
     hi: [f32; 3],
@@ -335,7 +346,7 @@ fn document_json(
     // min/max as the f64 value of each f32, so they equal the stored data exactly whichever
     // precision the reader compares in.
     let f64s = |a: [f32; 3]| a.map(f64::from).to_vec();
-    json!({
+    let mut doc = json!({
         "asset": {
             "version": "2.0",
             "generator": concat!("insgen ", env!("CARGO_PKG_VERSION")),
@@ -364,7 +375,7 @@ fn document_json(
                 "propertyTables": [{
                     "name": "buildings",
                     "class": FEATURE_LABEL,
-                    "count": table_rows,
+                    "count": table_rows.unwrap_or(0),
                     "properties": {
                         "source_id": {"values": 4, "stringOffsets": 5, "stringOffsetType": "UINT32"}
                     }
@@ -411,7 +422,20 @@ fn document_json(
         ],
         "bufferViews": buffer_views,
         "buffers": [{"byteLength": bin_len}]
-    })
+    });
+    if table_rows.is_none() {
+        doc["extensionsUsed"] = json!(["EXT_mesh_features", "KHR_materials_unlit"]);
+        if let Some(root) = doc.as_object_mut() {
+            root.remove("extensions");
+        }
+        if let Some(set) = doc["meshes"][0]["primitives"][0]["extensions"]["EXT_mesh_features"]["featureIds"]
+            [0]
+        .as_object_mut()
+        {
+            set.remove("propertyTable");
+        }
+    }
+    doc
 }
 
 /// The part of a primitive's JSON that the `gltf` crate does not keep (extensions it does not know).
