@@ -31,4 +31,5 @@ pub mod camera;
 pub mod render;
 pub mod label;
 pub mod coco;
+pub mod blender;
 pub mod cli;

@@ -6,6 +6,7 @@
 //! Exit codes: 0 success, 1 failure (the cause chain is printed on stderr), 2 usage error (clap).
 
 pub mod progress;
+pub mod render_rgb;
 
 use std::path::PathBuf;
 
