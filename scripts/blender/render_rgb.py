@@ -85,6 +85,10 @@ def configure_render(bpy, scene, job):
     r.use_border = False
     r.film_transparent = False
     r.use_persistent_data = True
+    # No metadata in the files (dates, render times, host names): same job, same bytes.
+    for prop in r.bl_rna.properties:
+        if prop.identifier.startswith("use_stamp"):
+            setattr(r, prop.identifier, False)
     threads = int(job.get("threads", 0))
     if threads > 0:
         r.threads_mode = "FIXED"
@@ -134,7 +138,8 @@ def configure_render(bpy, scene, job):
         r.engine = "BLENDER_WORKBENCH"
         sh = scene.display.shading
         sh.light = "STUDIO"
-        sh.color_type = "ATTRIBUTE"
+        # The scene's flat per-building colour attribute (COLOR_0), when there is one.
+        sh.color_type = "VERTEX"
         sh.show_shadows = True
         sh.show_cavity = False
         scene.display.render_aa = "8"

@@ -3,7 +3,8 @@
 //! progress, verify each output and rename it into place.
 //!
 //! Outputs are atomic: Blender writes `<out>/.insgen-tmp-<frame>.<ext>`; when it reports the frame
-//! done, insgen decodes the file, checks its size and renames it to `<out>/<frame>.<ext>`. On any
+//! done, insgen decodes the file, checks its size, writes `<out>/<frame>.<ext>` atomically (re-encoded,
+//! so no render-time metadata breaks byte-identical reruns) and removes the temporary file. On any
 //! failure the batch's temporary files are removed, so only complete, verified frames ever appear.
 
 use std::collections::BTreeMap;
@@ -147,9 +148,16 @@ pub fn frame_outputs(plan: &RenderPlan, name: &str) -> Vec<Output> {
     }
 }
 
-/// Checks that an output decodes and has the frame's size.
-pub fn verify_output(kind: OutputKind, path: &Path, k: &Intrinsics) -> Result<(), String> {
-    let (w, h) = match kind {
+/// A decoded output image.
+enum Decoded {
+    /// 8-bit RGB, row-major.
+    Png { width: u32, height: u32, rgb: Vec<u8> },
+    /// Float32 R, G, B planes, row-major.
+    Exr { width: u32, height: u32, planes: [Vec<f32>; 3] },
+}
+
+fn decode_output(kind: OutputKind, path: &Path) -> Result<Decoded, String> {
+    match kind {
         OutputKind::Png => {
             let file = std::fs::File::open(path).map_err(|e| format!("cannot open: {e}"))?;
             let mut reader = png::Decoder::new(std::io::BufReader::new(file))
@@ -160,22 +168,90 @@ pub fn verify_output(kind: OutputKind, path: &Path, k: &Intrinsics) -> Result<()
             if info.bit_depth != png::BitDepth::Eight || info.color_type != png::ColorType::Rgb {
                 return Err(format!("is {:?} {:?}, expected 8-bit RGB", info.bit_depth, info.color_type));
             }
-            (info.width, info.height)
+            buf.truncate(info.buffer_size());
+            Ok(Decoded::Png { width: info.width, height: info.height, rgb: buf })
         }
-        OutputKind::RgbExr => {
+        OutputKind::RgbExr | OutputKind::IdExr => {
+            if kind == OutputKind::IdExr {
+                // Checks that every value is a building ID.
+                read_id_exr(path).map_err(|e| e.to_string())?;
+            }
             let img = exr::prelude::read_first_flat_layer_from_file(path)
                 .map_err(|e| format!("does not decode: {e}"))?;
-            (img.layer_data.size.0 as u32, img.layer_data.size.1 as u32)
+            let layer = &img.layer_data;
+            let plane = |name: &str| -> Result<Vec<f32>, String> {
+                let c = layer
+                    .channel_data
+                    .list
+                    .iter()
+                    .find(|c| c.name.eq(name))
+                    .ok_or_else(|| format!("has no {name} channel"))?;
+                match &c.sample_data {
+                    exr::prelude::FlatSamples::F32(v) => Ok(v.clone()),
+                    _ => Err(format!("channel {name} is not float32")),
+                }
+            };
+            Ok(Decoded::Exr {
+                width: layer.size.0 as u32,
+                height: layer.size.1 as u32,
+                planes: [plane("R")?, plane("G")?, plane("B")?],
+            })
         }
-        OutputKind::IdExr => {
-            let img = read_id_exr(path).map_err(|e| e.to_string())?;
-            (img.width, img.height)
-        }
+    }
+}
+
+fn check_size(d: &Decoded, k: &Intrinsics) -> Result<(), String> {
+    let (w, h) = match d {
+        Decoded::Png { width, height, .. } | Decoded::Exr { width, height, .. } => (*width, *height),
     };
     if (w, h) != (k.width_px, k.height_px) {
         return Err(format!("is {w}×{h} px, expected {}×{}", k.width_px, k.height_px));
     }
     Ok(())
+}
+
+/// Checks that an output decodes, has the expected kind and the frame's size.
+pub fn verify_output(kind: OutputKind, path: &Path, k: &Intrinsics) -> Result<(), String> {
+    check_size(&decode_output(kind, path)?, k)
+}
+
+/// Verifies Blender's temporary output and writes the final file atomically, re-encoded by insgen so
+/// that it carries no render metadata (Blender stamps render times into PNG and EXR headers): the
+/// same job gives byte-identical files. The temporary file is removed afterwards.
+fn finalize_output(o: &Output, k: &Intrinsics) -> Result<(), String> {
+    let decoded = decode_output(o.kind, &o.tmp)?;
+    check_size(&decoded, k)?;
+    match decoded {
+        Decoded::Png { width, height, rgb } => {
+            let mut bytes = Vec::with_capacity(rgb.len() / 2);
+            {
+                let mut enc = png::Encoder::new(&mut bytes, width, height);
+                enc.set_color(png::ColorType::Rgb);
+                enc.set_depth(png::BitDepth::Eight);
+                enc.set_compression(png::Compression::Fast);
+                let mut w = enc.write_header().map_err(|e| format!("re-encoding PNG: {e}"))?;
+                w.write_image_data(&rgb).map_err(|e| format!("re-encoding PNG: {e}"))?;
+            }
+            crate::util::write_bytes_atomic(&o.path, &bytes).map_err(|e| e.to_string())?;
+        }
+        Decoded::Exr { width, height, planes } => {
+            let dir = o.path.parent().unwrap_or(Path::new("."));
+            let tmp = tempfile::Builder::new()
+                .prefix(TMP_PREFIX)
+                .suffix(".exr")
+                .tempfile_in(dir)
+                .map_err(|e| format!("creating a temporary file: {e}"))?
+                .into_temp_path();
+            let w = width as usize;
+            exr::prelude::write_rgb_file(&tmp, w, height as usize, |x, y| {
+                let i = y * w + x;
+                (planes[0][i], planes[1][i], planes[2][i])
+            })
+            .map_err(|e| format!("re-encoding EXR: {e}"))?;
+            tmp.persist(&o.path).map_err(|e| format!("renaming into place: {e}"))?;
+        }
+    }
+    std::fs::remove_file(&o.tmp).map_err(|e| format!("removing {}: {e}", o.tmp.display()))
 }
 
 /// Whether all of a frame's outputs exist and verify (the resume test).
@@ -191,20 +267,21 @@ pub fn sun_from_seed(seed: u64) -> (f64, f64) {
     (rng.gen_range(0.0..360.0), rng.gen_range(30.0..65.0))
 }
 
-fn look_for(plan: &RenderPlan, frames: &[FrameRequest]) -> Look {
+/// Half side of the ground plane around the area origin, metres: far enough that a camera seeing the
+/// horizon from a few hundred metres up still finds ground below it. It is a constant (not derived from
+/// the frames) so that a frame renders the same whether it is rendered alone, in a shard or in a batch.
+pub const GROUND_HALF_EXTENT_M: f64 = 50_000.0;
+
+/// The look of a plan; depends only on the plan (never on which frames are rendered), so a frame's image
+/// is the same in any batch or shard.
+fn look_for(plan: &RenderPlan) -> Look {
     let (az, el) = sun_from_seed(plan.look_seed);
-    let n = frames.len().max(1) as f64;
-    let ce = frames.iter().map(|f| f.pose.centre_m[0]).sum::<f64>() / n;
-    let cn = frames.iter().map(|f| f.pose.centre_m[1]).sum::<f64>() / n;
-    let spread =
-        frames.iter().map(|f| (f.pose.centre_m[0] - ce).hypot(f.pose.centre_m[1] - cn)).fold(0.0, f64::max);
     Look {
         seed: plan.look_seed,
         ground_enu_m: plan.ground_enu_m,
         ground_plane: matches!(plan.source, SceneSource::Lod { .. }),
-        ground_centre_enu_m: [ce, cn],
-        // Far enough that even a camera seeing the horizon finds ground below it.
-        ground_half_extent_m: spread + 20_000.0,
+        ground_centre_enu_m: [0.0, 0.0],
+        ground_half_extent_m: GROUND_HALF_EXTENT_M,
         sun_azimuth_deg: az,
         sun_elevation_deg: el,
         sun_strength: 4.0,
@@ -305,7 +382,7 @@ pub fn render_frames(
     if crate::util::read_file(&script).map(|b| b != RENDER_SCRIPT.as_bytes()).unwrap_or(true) {
         crate::util::write_bytes_atomic(&script, RENDER_SCRIPT.as_bytes())?;
     }
-    let look = look_for(&plan, &todo);
+    let look = look_for(&plan);
     progress.start(todo.len() as u64, "frames");
     let result = (|| {
         for batch in todo.chunks(plan.restart_every) {
@@ -404,13 +481,11 @@ fn run_batch(
                     what: "Blender reported a frame that is not in the job".into(),
                 })?;
                 for o in &outputs[i] {
-                    verify_output(o.kind, &o.tmp, &batch[i].intrinsics).map_err(|what| {
-                        BlenderError::Output { frame: frame.clone(), path: o.tmp.clone(), what }
+                    finalize_output(o, &batch[i].intrinsics).map_err(|what| BlenderError::Output {
+                        frame: frame.clone(),
+                        path: o.tmp.clone(),
+                        what,
                     })?;
-                }
-                for o in &outputs[i] {
-                    std::fs::rename(&o.tmp, &o.path)
-                        .map_err(|e| crate::util::FileError::new("renaming into place", &o.path, e))?;
                 }
                 done[i] = true;
                 summary.rendered.push(FrameTiming { name: frame, seconds });
