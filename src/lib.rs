@@ -31,5 +31,6 @@ pub mod camera;
 pub mod render;
 pub mod label;
 pub mod coco;
+pub mod blender;
 pub mod loc;
 pub mod cli;

@@ -11,6 +11,7 @@ pub mod inspect;
 pub mod prepare;
 pub mod progress;
 pub mod render_masks;
+pub mod render_rgb;
 pub mod sample;
 pub mod stats;
 
@@ -67,6 +68,8 @@ pub enum Command {
     Sample(sample::Args),
     /// Render pixel-exact instance-ID masks (wgpu) for an area's sampled poses.
     RenderMasks(render_masks::Args),
+    /// Render photoreal RGB frames with Blender (bpy) at the sampled poses.
+    RenderRgb(render_rgb::Args),
     /// Export COCO instance annotations per geographic split.
     ExportCoco(export_coco::Args),
     /// Dataset statistics (per split) with histograms and contact sheets.
@@ -84,6 +87,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Prepare(a) => prepare::run(a, g),
         Command::Sample(a) => sample::run(a, g),
         Command::RenderMasks(a) => render_masks::run(a, g),
+        Command::RenderRgb(a) => render_rgb::run(a, g),
         Command::ExportCoco(a) => export_coco::run(a, g),
         Command::Stats(a) => stats::run(a, g),
         Command::EvalLoc(a) => eval_loc::run(a, g),

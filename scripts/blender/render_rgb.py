@@ -1,0 +1,706 @@
+"""insgen render-rgb: the Blender side of RGB and ID rendering, driven by one JSON job file.
+
+Run as
+    <venv>/bin/python render_rgb.py JOB.json            (bpy installed as a Python module), or
+    blender -b --factory-startup -P render_rgb.py -- JOB.json
+
+The job file is written by insgen (src/blender/job.rs; schema: schemas/blender_job.schema.json). Nothing in
+this script is generated: every value comes from the job. The script
+
+1. resets Blender to an empty factory scene and applies the render settings (engine, samples, seed,
+   Standard view transform, PNG 8-bit / EXR float32 outputs);
+2. imports every model (glTF/GLB) of the job and places it in the area's ENU frame: the glTF importer
+   converts y-up to Blender's z-up, Blender (x, y, z) = glTF (x, -z, y); the job gives ENU_from_glTF per
+   model, so each imported model is parented to an empty whose matrix is ENU_from_glTF @ inverse(Y2Z);
+3. builds the look: in "rgb" mode procedural facade/roof materials varied per building (LoD models), the
+   models' own materials shown as emission (photogrammetry), a textured ground plane, a sky texture and a
+   sun; in "ids" mode one flat emission material whose red channel is the building ID (exact in float32);
+4. renders every frame with the camera given in Blender terms (lens, sensor, shift, pixel aspect, world
+   matrix), writes the images to the temporary paths given in the job, and prints one protocol line per
+   frame on stdout.
+
+Protocol: lines on stdout starting with "INSGEN " followed by a JSON object:
+    {"ready": {"models": n, "seconds": t, "bounds": [...]}}   after the scene is built
+    {"done": "<frame>", "seconds": t}                          after a frame's files are written
+    {"error": "<message>", "frame": "<frame or null>"}          before exiting with status 1
+Everything else on stdout/stderr is Blender's own logging.
+"""
+
+import json
+import math
+import sys
+import time
+import traceback
+
+PROTOCOL_PREFIX = "INSGEN "
+JOB_FORMAT = "insgen-blender-job"
+JOB_VERSION = 1
+# Name of the per-face building-ID attribute the script derives from _FEATURE_ID_0 (face domain, so no
+# interpolation can perturb the value: every pixel of a face reads the exact float).
+FACE_ID_ATTRIBUTE = "insgen_building_id"
+FEATURE_ID_ATTRIBUTE = "_FEATURE_ID_0"
+
+
+def emit(obj):
+    sys.stdout.write(PROTOCOL_PREFIX + json.dumps(obj) + "\n")
+    sys.stdout.flush()
+
+
+def job_path_from_argv(argv):
+    """The job path: the argument after '--' (blender -P), else the first argument (python)."""
+    if "--" in argv:
+        rest = argv[argv.index("--") + 1:]
+    else:
+        rest = argv[1:]
+    if len(rest) != 1:
+        raise SystemExit("usage: render_rgb.py JOB.json  (or blender -b -P render_rgb.py -- JOB.json)")
+    return rest[0]
+
+
+def load_job(path):
+    with open(path, "r", encoding="utf-8") as f:
+        job = json.load(f)
+    if job.get("format") != JOB_FORMAT:
+        raise ValueError(f"{path}: not an insgen Blender job (format = {job.get('format')!r})")
+    if job.get("version") != JOB_VERSION:
+        raise ValueError(f"{path}: job version {job.get('version')!r}, this script reads {JOB_VERSION}")
+    return job
+
+
+# --------------------------------------------------------------------------------------------- scene
+
+
+def reset_scene(bpy):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    for block in (bpy.data.meshes, bpy.data.materials, bpy.data.lights, bpy.data.cameras, bpy.data.images):
+        for item in list(block):
+            block.remove(item)
+    return scene
+
+
+def configure_render(bpy, scene, job):
+    r = scene.render
+    r.resolution_percentage = 100
+    r.use_border = False
+    r.film_transparent = False
+    r.use_persistent_data = True
+    # No metadata in the files (dates, render times, host names): same job, same bytes.
+    for prop in r.bl_rna.properties:
+        if prop.identifier.startswith("use_stamp"):
+            setattr(r, prop.identifier, False)
+    threads = int(job.get("threads", 0))
+    if threads > 0:
+        r.threads_mode = "FIXED"
+        r.threads = threads
+    else:
+        r.threads_mode = "AUTO"
+    vs = scene.view_settings
+    vs.view_transform = "Standard"
+    vs.look = "None"
+    vs.exposure = float(job["look"].get("exposure", 0.0)) if job["mode"] == "rgb" else 0.0
+    vs.gamma = 1.0
+    scene.display_settings.display_device = "sRGB"
+    scene.sequencer_colorspace_settings.name = "sRGB"
+
+    engine = job["engine"]
+    if job["mode"] == "ids" or engine == "cycles":
+        r.engine = "CYCLES"
+        c = scene.cycles
+        c.device = "CPU"
+        c.seed = int(job["seed"])
+        c.use_animated_seed = False
+        c.use_adaptive_sampling = False
+        c.use_denoising = False
+        if job["mode"] == "ids":
+            # One sample per pixel taken (up to 0.005 px) at the pixel centre: a box filter of the
+            # smallest allowed width, so the sample position matches a rasteriser's pixel-centre rule.
+            c.samples = 1
+            c.pixel_filter_type = "BOX"
+            c.filter_width = 0.01
+            c.max_bounces = 0
+            c.sample_clamp_direct = 0.0
+            c.sample_clamp_indirect = 0.0
+        else:
+            c.samples = int(job["samples"])
+            c.pixel_filter_type = "BLACKMAN_HARRIS"
+            c.filter_width = 1.5
+            c.max_bounces = 4
+            c.diffuse_bounces = 2
+            c.glossy_bounces = 2
+            c.transmission_bounces = 2
+            c.transparent_max_bounces = 4
+            c.sample_clamp_indirect = 10.0
+            if job.get("denoise"):
+                c.use_denoising = True
+                c.denoiser = "OPENIMAGEDENOISE"
+    elif engine == "workbench":
+        r.engine = "BLENDER_WORKBENCH"
+        sh = scene.display.shading
+        sh.light = "STUDIO"
+        # The scene's flat per-building colour attribute (COLOR_0), when there is one.
+        sh.color_type = "VERTEX"
+        sh.show_shadows = True
+        sh.show_cavity = False
+        scene.display.render_aa = "8"
+    else:
+        raise ValueError(f"unknown engine {engine!r} (expected cycles or workbench)")
+
+
+def y2z_inverse(Matrix):
+    # glTF y-up to Blender z-up as the importer applies it: (x, y, z) -> (x, -z, y). Its inverse maps
+    # Blender back to glTF: (x, y, z) -> (x, z, -y).
+    return Matrix(((1.0, 0.0, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0), (0.0, -1.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
+
+
+def import_models(bpy, job):
+    """Imports each model and returns a list of (root empty, [mesh objects])."""
+    from mathutils import Matrix
+
+    placed = []
+    for index, model in enumerate(job["models"]):
+        before = set(bpy.data.objects)
+        result = bpy.ops.import_scene.gltf(filepath=model["glb"], merge_vertices=False)
+        if "FINISHED" not in result:
+            raise RuntimeError(f"glTF import of {model['glb']} failed: {result}")
+        new_objects = [o for o in bpy.data.objects if o not in before]
+        root = bpy.data.objects.new(f"insgen_model_{index}", None)
+        bpy.context.scene.collection.objects.link(root)
+        root.matrix_world = Matrix(model["enu_from_gltf"]) @ y2z_inverse(Matrix)
+        for obj in new_objects:
+            if obj.parent is None:
+                basis = obj.matrix_basis.copy()
+                obj.parent = root
+                obj.matrix_parent_inverse = Matrix.Identity(4)
+                obj.matrix_basis = basis
+        meshes = [o for o in new_objects if o.type == "MESH"]
+        for obj in meshes:
+            add_face_ids(obj)
+        placed.append((root, meshes, model))
+    bpy.context.view_layer.update()
+    return placed
+
+
+def add_face_ids(obj):
+    """Copies the per-vertex _FEATURE_ID_0 to a face-domain attribute (value of the face's first corner)."""
+    mesh = obj.data
+    src = mesh.attributes.get(FEATURE_ID_ATTRIBUTE)
+    n_faces = len(mesh.polygons)
+    face_ids = [0.0] * n_faces
+    if src is not None and n_faces:
+        values = [0.0] * len(src.data)
+        src.data.foreach_get("value", values)
+        if src.domain == "POINT":
+            starts = [0] * n_faces
+            mesh.polygons.foreach_get("loop_start", starts)
+            corner_verts = [0] * len(mesh.loops)
+            mesh.loops.foreach_get("vertex_index", corner_verts)
+            face_ids = [float(round(values[corner_verts[s]])) for s in starts]
+        elif src.domain == "FACE":
+            face_ids = [float(round(v)) for v in values]
+        elif src.domain == "CORNER":
+            starts = [0] * n_faces
+            mesh.polygons.foreach_get("loop_start", starts)
+            face_ids = [float(round(values[s])) for s in starts]
+    attr = mesh.attributes.new(FACE_ID_ATTRIBUTE, "FLOAT", "FACE")
+    if n_faces:
+        attr.data.foreach_set("value", face_ids)
+
+
+def model_bounds(placed):
+    bounds = []
+    for _root, meshes, _model in placed:
+        lo = [math.inf] * 3
+        hi = [-math.inf] * 3
+        for obj in meshes:
+            mw = obj.matrix_world
+            for v in obj.data.vertices:
+                p = mw @ v.co
+                for k in range(3):
+                    lo[k] = min(lo[k], p[k])
+                    hi[k] = max(hi[k], p[k])
+        bounds.append(None if lo[0] == math.inf else [lo, hi])
+    return bounds
+
+
+# --------------------------------------------------------------------------------------------- looks
+
+
+def new_material(bpy, name):
+    mat = bpy.data.materials.new(name)
+    nt = mat.node_tree
+    for n in list(nt.nodes):
+        nt.nodes.remove(n)
+    return mat, nt
+
+
+def node(nt, kind, **props):
+    n = nt.nodes.new(kind)
+    for k, v in props.items():
+        setattr(n, k, v)
+    return n
+
+
+def math_node(nt, op, a, b=None, clamp=False):
+    n = node(nt, "ShaderNodeMath", operation=op, use_clamp=clamp)
+    link_or_set(nt, n.inputs[0], a)
+    if b is not None:
+        link_or_set(nt, n.inputs[1], b)
+    return n.outputs[0]
+
+
+def link_or_set(nt, socket, value):
+    if hasattr(value, "is_output"):
+        nt.links.new(value, socket)
+    else:
+        socket.default_value = value
+
+
+def socket(sockets, identifier):
+    """A node socket by its identifier (names repeat across the Mix node's typed variants)."""
+    for s in sockets:
+        if s.identifier == identifier:
+            return s
+    raise KeyError(identifier)
+
+
+def mix_color(nt, factor, a, b):
+    n = node(nt, "ShaderNodeMix", data_type="RGBA", blend_type="MIX", clamp_factor=True)
+    link_or_set(nt, socket(n.inputs, "Factor_Float"), factor)
+    link_or_set(nt, socket(n.inputs, "A_Color"), a)
+    link_or_set(nt, socket(n.inputs, "B_Color"), b)
+    return socket(n.outputs, "Result_Color")
+
+
+def mix_float(nt, factor, a, b):
+    n = node(nt, "ShaderNodeMix", data_type="FLOAT", clamp_factor=True)
+    link_or_set(nt, socket(n.inputs, "Factor_Float"), factor)
+    link_or_set(nt, socket(n.inputs, "A_Float"), a)
+    link_or_set(nt, socket(n.inputs, "B_Float"), b)
+    return socket(n.outputs, "Result_Float")
+
+
+def per_building_random(nt, building_id, look_seed, channel):
+    """A uniform [0, 1) value per (building, seed, channel): white noise of (id, seed, channel)."""
+    combine = node(nt, "ShaderNodeCombineXYZ")
+    nt.links.new(building_id, combine.inputs["X"])
+    combine.inputs["Y"].default_value = float(look_seed % 100003)
+    combine.inputs["Z"].default_value = float(channel)
+    wn = node(nt, "ShaderNodeTexWhiteNoise", noise_dimensions="3D")
+    nt.links.new(combine.outputs["Vector"], wn.inputs["Vector"])
+    return wn.outputs["Value"]
+
+
+def palette(nt, fac, colors):
+    ramp = node(nt, "ShaderNodeValToRGB")
+    ramp.color_ramp.interpolation = "CONSTANT"
+    els = ramp.color_ramp.elements
+    while len(els) > 1:
+        els.remove(els[-1])
+    n = len(colors)
+    els[0].position = 0.0
+    els[0].color = (*colors[0], 1.0)
+    for i in range(1, n):
+        e = els.new(i / n)
+        e.color = (*colors[i], 1.0)
+    nt.links.new(fac, ramp.inputs["Fac"])
+    return ramp.outputs["Color"]
+
+
+# Linear-RGB facade, roof and glass palettes (sRGB-ish values converted by eye to linear).
+FACADE_COLORS = [
+    (0.55, 0.50, 0.42), (0.62, 0.62, 0.60), (0.35, 0.14, 0.09), (0.75, 0.72, 0.66), (0.25, 0.25, 0.26),
+    (0.48, 0.40, 0.30), (0.70, 0.66, 0.55), (0.42, 0.44, 0.47), (0.30, 0.20, 0.14), (0.82, 0.80, 0.78),
+]
+ROOF_COLORS = [
+    (0.20, 0.20, 0.21), (0.40, 0.40, 0.40), (0.30, 0.12, 0.08), (0.55, 0.55, 0.52), (0.12, 0.16, 0.12),
+    (0.45, 0.43, 0.38), (0.65, 0.65, 0.66),
+]
+GLASS_COLORS = [(0.05, 0.08, 0.12), (0.08, 0.10, 0.10), (0.10, 0.14, 0.20), (0.04, 0.05, 0.06)]
+
+
+def building_material(bpy, look):
+    """One shared material; per-building variety comes from the face attribute holding the building ID.
+
+    Facades: a palette colour, a brick or plaster texture, and a window grid laid out in facade
+    coordinates (horizontal distance along the wall, height above ground) with per-building floor height,
+    window spacing and window-to-wall ratio; curtain-wall buildings are mostly glass. Roofs (faces whose
+    normal points up) get a roof palette with noise.
+    """
+    seed = int(look["seed"])
+    ground_m = float(look["ground_enu_m"])
+    mat, nt = new_material(bpy, "insgen_building")
+    out = node(nt, "ShaderNodeOutputMaterial")
+    bsdf = node(nt, "ShaderNodeBsdfPrincipled")
+    nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
+
+    attr = node(nt, "ShaderNodeAttribute", attribute_type="GEOMETRY", attribute_name=FACE_ID_ATTRIBUTE)
+    bid = attr.outputs["Fac"]
+    r_color = per_building_random(nt, bid, seed, 1)
+    r_style = per_building_random(nt, bid, seed, 2)
+    r_floor = per_building_random(nt, bid, seed, 3)
+    r_space = per_building_random(nt, bid, seed, 4)
+    r_ratio = per_building_random(nt, bid, seed, 5)
+    r_roof = per_building_random(nt, bid, seed, 6)
+    r_glass = per_building_random(nt, bid, seed, 7)
+    r_bright = per_building_random(nt, bid, seed, 8)
+
+    geo = node(nt, "ShaderNodeNewGeometry")
+    pos = node(nt, "ShaderNodeSeparateXYZ")
+    nt.links.new(geo.outputs["Position"], pos.inputs["Vector"])
+    nrm = node(nt, "ShaderNodeSeparateXYZ")
+    nt.links.new(geo.outputs["True Normal"], nrm.inputs["Vector"])
+
+    # Horizontal facade coordinate: position projected on the wall's horizontal tangent (-ny, nx).
+    t = math_node(nt, "ADD", math_node(nt, "MULTIPLY", pos.outputs["X"], math_node(nt, "MULTIPLY", nrm.outputs["Y"], -1.0)),
+                  math_node(nt, "MULTIPLY", pos.outputs["Y"], nrm.outputs["X"]))
+    height = math_node(nt, "SUBTRACT", pos.outputs["Z"], ground_m)
+
+    floor_h = math_node(nt, "ADD", math_node(nt, "MULTIPLY", r_floor, 1.4), 2.9)
+    spacing = math_node(nt, "ADD", math_node(nt, "MULTIPLY", r_space, 2.5), 2.2)
+    ratio = math_node(nt, "ADD", math_node(nt, "MULTIPLY", r_ratio, 0.45), 0.3)
+    curtain = math_node(nt, "GREATER_THAN", r_style, 0.78)
+    ratio = mix_float(nt, curtain, ratio, 0.9)
+
+    u = math_node(nt, "FRACT", math_node(nt, "DIVIDE", t, spacing))
+    v = math_node(nt, "FRACT", math_node(nt, "DIVIDE", height, floor_h))
+    half = math_node(nt, "MULTIPLY", ratio, 0.5)
+    du = math_node(nt, "ABSOLUTE", math_node(nt, "SUBTRACT", u, 0.5))
+    dv = math_node(nt, "ABSOLUTE", math_node(nt, "SUBTRACT", v, 0.55))
+    in_u = math_node(nt, "LESS_THAN", du, half)
+    in_v = math_node(nt, "LESS_THAN", dv, math_node(nt, "MULTIPLY", half, 0.8))
+    # No windows on the ground floor's lowest metre, nor on roofs.
+    above = math_node(nt, "GREATER_THAN", height, 1.0)
+    nz = nrm.outputs["Z"]
+    roof = math_node(nt, "GREATER_THAN", nz, 0.7)
+    wall = math_node(nt, "LESS_THAN", math_node(nt, "ABSOLUTE", nz), 0.3)
+    window = math_node(nt, "MULTIPLY", math_node(nt, "MULTIPLY", in_u, in_v), math_node(nt, "MULTIPLY", above, wall))
+
+    # Wall colour: palette pick, brightness jitter, brick texture for the "brick" style, plaster noise.
+    base = palette(nt, r_color, FACADE_COLORS)
+    bright = math_node(nt, "ADD", math_node(nt, "MULTIPLY", r_bright, 0.5), 0.75)
+    uvw = node(nt, "ShaderNodeCombineXYZ")
+    nt.links.new(t, uvw.inputs["X"])
+    nt.links.new(height, uvw.inputs["Y"])
+    brick = node(nt, "ShaderNodeTexBrick")
+    brick.inputs["Scale"].default_value = 4.0
+    brick.inputs["Mortar Size"].default_value = 0.015
+    nt.links.new(uvw.outputs["Vector"], brick.inputs["Vector"])
+    nt.links.new(base, brick.inputs["Color1"])
+    brick.inputs["Color2"].default_value = (0.3, 0.12, 0.08, 1.0)
+    brick.inputs["Mortar"].default_value = (0.6, 0.58, 0.55, 1.0)
+    is_brick = math_node(nt, "LESS_THAN", r_style, 0.3)
+    wall_color = mix_color(nt, is_brick, base, brick.outputs["Color"])
+    noise = node(nt, "ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 0.8
+    noise.inputs["Detail"].default_value = 6.0
+    nt.links.new(geo.outputs["Position"], noise.inputs["Vector"])
+    grime = math_node(nt, "ADD", math_node(nt, "MULTIPLY", noise.outputs["Fac"], 0.5), 0.75)
+    shade = math_node(nt, "MULTIPLY", grime, bright)
+    wall_scaled = node(nt, "ShaderNodeMix", data_type="RGBA", blend_type="MULTIPLY", clamp_factor=True)
+    socket(wall_scaled.inputs, "Factor_Float").default_value = 1.0
+    nt.links.new(wall_color, socket(wall_scaled.inputs, "A_Color"))
+    shade_rgb = node(nt, "ShaderNodeCombineXYZ")
+    for k in ("X", "Y", "Z"):
+        nt.links.new(shade, shade_rgb.inputs[k])
+    nt.links.new(shade_rgb.outputs["Vector"], socket(wall_scaled.inputs, "B_Color"))
+    wall_color = socket(wall_scaled.outputs, "Result_Color")
+
+    glass = palette(nt, r_glass, GLASS_COLORS)
+    roof_base = palette(nt, r_roof, ROOF_COLORS)
+    roof_noise = node(nt, "ShaderNodeTexNoise")
+    roof_noise.inputs["Scale"].default_value = 0.3
+    roof_noise.inputs["Detail"].default_value = 4.0
+    nt.links.new(geo.outputs["Position"], roof_noise.inputs["Vector"])
+    roof_color = mix_color(nt, math_node(nt, "MULTIPLY", roof_noise.outputs["Fac"], 0.35), roof_base,
+                           (0.5, 0.5, 0.48, 1.0))
+
+    color = mix_color(nt, window, wall_color, glass)
+    color = mix_color(nt, roof, color, roof_color)
+    nt.links.new(color, bsdf.inputs["Base Color"])
+    rough = mix_float(nt, window, 0.85, 0.06)
+    rough = mix_float(nt, roof, rough, 0.9)
+    nt.links.new(rough, bsdf.inputs["Roughness"])
+    spec = mix_float(nt, window, 0.3, 1.0)
+    nt.links.new(spec, bsdf.inputs["Specular IOR Level"])
+    return mat
+
+
+def ground_material(bpy, look):
+    """Asphalt and grass patches from low-frequency noise, with fine grain, in world coordinates."""
+    mat, nt = new_material(bpy, "insgen_ground")
+    out = node(nt, "ShaderNodeOutputMaterial")
+    bsdf = node(nt, "ShaderNodeBsdfPrincipled")
+    nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    geo = node(nt, "ShaderNodeNewGeometry")
+    big = node(nt, "ShaderNodeTexNoise", noise_dimensions="4D")
+    big.inputs["Scale"].default_value = 0.004
+    big.inputs["Detail"].default_value = 3.0
+    big.inputs["W"].default_value = float(int(look["seed"]) % 1000)
+    nt.links.new(geo.outputs["Position"], big.inputs["Vector"])
+    grass = math_node(nt, "GREATER_THAN", big.outputs["Fac"], 0.56)
+    fine = node(nt, "ShaderNodeTexNoise")
+    fine.inputs["Scale"].default_value = 0.6
+    fine.inputs["Detail"].default_value = 8.0
+    nt.links.new(geo.outputs["Position"], fine.inputs["Vector"])
+    asphalt = mix_color(nt, fine.outputs["Fac"], (0.05, 0.05, 0.05, 1.0), (0.16, 0.16, 0.15, 1.0))
+    green = mix_color(nt, fine.outputs["Fac"], (0.03, 0.08, 0.02, 1.0), (0.10, 0.18, 0.05, 1.0))
+    color = mix_color(nt, grass, asphalt, green)
+    nt.links.new(color, bsdf.inputs["Base Color"])
+    bsdf.inputs["Roughness"].default_value = 0.95
+    return mat
+
+
+def id_material(bpy):
+    """Flat emission: R = G = B = building ID (float32 holds every 24-bit integer exactly)."""
+    mat, nt = new_material(bpy, "insgen_ids")
+    out = node(nt, "ShaderNodeOutputMaterial")
+    em = node(nt, "ShaderNodeEmission")
+    em.inputs["Strength"].default_value = 1.0
+    attr = node(nt, "ShaderNodeAttribute", attribute_type="GEOMETRY", attribute_name=FACE_ID_ATTRIBUTE)
+    nt.links.new(attr.outputs["Color"], em.inputs["Color"])
+    nt.links.new(em.outputs["Emission"], out.inputs["Surface"])
+    return mat
+
+
+def emission_from_base_color(bpy, mat):
+    """Shows a photogrammetry material's base colour unlit (the texture already holds the lighting)."""
+    nt = mat.node_tree
+    if nt is None:
+        return
+    principled = [n for n in nt.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled"]
+    outputs = [n for n in nt.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
+    if not principled or not outputs:
+        return
+    p = principled[0]
+    em = nt.nodes.new("ShaderNodeEmission")
+    base = p.inputs["Base Color"]
+    if base.is_linked:
+        nt.links.new(base.links[0].from_socket, em.inputs["Color"])
+    else:
+        em.inputs["Color"].default_value = base.default_value
+    nt.links.new(em.outputs["Emission"], outputs[0].inputs["Surface"])
+
+
+def assign_material(meshes, mat):
+    for obj in meshes:
+        obj.data.materials.clear()
+        obj.data.materials.append(mat)
+        for poly in obj.data.polygons:
+            poly.material_index = 0
+
+
+def add_ground(bpy, scene, look, mat, half_extent_m):
+    """A square plane at the ground level, 5 cm below it to stay clear of building floors."""
+    from mathutils import Vector
+
+    z = float(look["ground_enu_m"]) - 0.05
+    cx, cy = look.get("ground_centre_enu_m", [0.0, 0.0])
+    h = float(half_extent_m)
+    mesh = bpy.data.meshes.new("insgen_ground")
+    verts = [Vector((cx - h, cy - h, z)), Vector((cx + h, cy - h, z)), Vector((cx + h, cy + h, z)),
+             Vector((cx - h, cy + h, z))]
+    mesh.from_pydata(verts, [], [(0, 1, 2, 3)])
+    mesh.materials.append(mat)
+    obj = bpy.data.objects.new("insgen_ground", mesh)
+    scene.collection.objects.link(obj)
+    return obj
+
+
+def sun_direction(look):
+    """Unit vector towards the sun in ENU from azimuth (clockwise from north) and elevation, degrees."""
+    az = math.radians(float(look["sun_azimuth_deg"]))
+    el = math.radians(float(look["sun_elevation_deg"]))
+    return (math.sin(az) * math.cos(el), math.cos(az) * math.cos(el), math.sin(el))
+
+
+def add_sky_and_sun(bpy, scene, look):
+    from mathutils import Vector
+
+    world = bpy.data.worlds.new("insgen_world")
+    scene.world = world
+    nt = world.node_tree
+    for n in list(nt.nodes):
+        nt.nodes.remove(n)
+    out = node(nt, "ShaderNodeOutputWorld")
+    bg = node(nt, "ShaderNodeBackground")
+    sky = node(nt, "ShaderNodeTexSky")
+    types = [e.identifier for e in sky.bl_rna.properties["sky_type"].enum_items]
+    for wanted in ("MULTIPLE_SCATTERING", "SINGLE_SCATTERING", "NISHITA", "HOSEK_WILKIE"):
+        if wanted in types:
+            sky.sky_type = wanted
+            break
+    el = math.radians(float(look["sun_elevation_deg"]))
+    az = math.radians(float(look["sun_azimuth_deg"]))
+    if hasattr(sky, "sun_elevation"):
+        sky.sun_elevation = el
+        # Cycles places the sky's sun at azimuth sun_rotation + 90 deg counter-clockwise from +x, i.e.
+        # rotation 0 = north; our azimuth runs clockwise from north.
+        sky.sun_rotation = (-az) % (2.0 * math.pi)
+        sky.sun_disc = False
+    if hasattr(sky, "sun_direction"):
+        sky.sun_direction = sun_direction(look)
+    if hasattr(sky, "turbidity"):
+        sky.turbidity = 2.5
+    nt.links.new(sky.outputs["Color"], bg.inputs["Color"])
+    bg.inputs["Strength"].default_value = float(look.get("sky_strength", 0.25))
+    nt.links.new(bg.outputs["Background"], out.inputs["Surface"])
+
+    light = bpy.data.lights.new("insgen_sun", type="SUN")
+    light.energy = float(look.get("sun_strength", 4.0))
+    light.angle = math.radians(0.53)
+    light.color = (1.0, 0.96, 0.9)
+    sun = bpy.data.objects.new("insgen_sun", light)
+    scene.collection.objects.link(sun)
+    d = Vector(sun_direction(look))
+    sun.rotation_mode = "QUATERNION"
+    # A sun lamp shines along its local -Z: point -Z away from the sun.
+    sun.rotation_quaternion = (-d).to_track_quat("-Z", "Y")
+
+
+def black_world(bpy, scene):
+    world = bpy.data.worlds.new("insgen_black")
+    scene.world = world
+    nt = world.node_tree
+    for n in list(nt.nodes):
+        nt.nodes.remove(n)
+    out = node(nt, "ShaderNodeOutputWorld")
+    bg = node(nt, "ShaderNodeBackground")
+    bg.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    bg.inputs["Strength"].default_value = 0.0
+    nt.links.new(bg.outputs["Background"], out.inputs["Surface"])
+
+
+def build_look(bpy, scene, job, placed):
+    look = job["look"]
+    if job["mode"] == "ids":
+        mat = id_material(bpy)
+        for _root, meshes, _model in placed:
+            assign_material(meshes, mat)
+        black_world(bpy, scene)
+        return
+    if job["engine"] == "workbench":
+        # Workbench shows the models' colour attribute (the scene's flat per-building colour).
+        scene.world = bpy.data.worlds.new("insgen_world")
+        return
+    bmat = building_material(bpy, look)
+    for _root, meshes, model in placed:
+        if model["kind"] == "lod":
+            assign_material(meshes, bmat)
+        else:
+            for obj in meshes:
+                for slot in obj.material_slots:
+                    if slot.material is not None:
+                        emission_from_base_color(bpy, slot.material)
+    if look.get("ground_plane", True):
+        add_ground(bpy, scene, look, ground_material(bpy, look), look.get("ground_half_extent_m", 20000.0))
+    add_sky_and_sun(bpy, scene, look)
+
+
+# --------------------------------------------------------------------------------------------- frames
+
+
+def make_camera(bpy, scene):
+    cam_data = bpy.data.cameras.new("insgen_camera")
+    cam = bpy.data.objects.new("insgen_camera", cam_data)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    return cam
+
+
+def apply_camera(scene, cam, frame):
+    """Sets resolution, pixel aspect and the camera exactly as the job derived them (src/blender/camera.rs)."""
+    from mathutils import Matrix
+
+    k = frame["intrinsics"]
+    b = frame["camera"]
+    r = scene.render
+    r.resolution_x = int(k["width_px"])
+    r.resolution_y = int(k["height_px"])
+    r.pixel_aspect_x = float(b["pixel_aspect_x"])
+    r.pixel_aspect_y = float(b["pixel_aspect_y"])
+    d = cam.data
+    d.type = "PERSP"
+    d.lens_unit = "MILLIMETERS"
+    d.sensor_fit = "HORIZONTAL"
+    d.sensor_width = float(b["sensor_width_mm"])
+    d.lens = float(b["lens_mm"])
+    d.shift_x = float(b["shift_x"])
+    d.shift_y = float(b["shift_y"])
+    d.clip_start = float(b["clip_start_m"])
+    d.clip_end = float(b["clip_end_m"])
+    cam.matrix_world = Matrix(frame["blender_matrix_world"])
+
+
+def set_visibility(placed, frame):
+    visible = frame.get("models")
+    for index, (_root, meshes, _model) in enumerate(placed):
+        hide = visible is not None and index not in visible
+        for obj in meshes:
+            obj.hide_render = hide
+
+
+def save(bpy, scene, frame, mode):
+    img = bpy.data.images["Render Result"]
+    s = scene.render.image_settings
+    if frame.get("png"):
+        s.file_format = "PNG"
+        s.color_mode = "RGB"
+        s.color_depth = "8"
+        s.compression = 15
+        img.save_render(frame["png"], scene=scene)
+    if frame.get("exr"):
+        s.file_format = "OPEN_EXR"
+        s.color_mode = "RGB"
+        s.color_depth = "32"
+        s.exr_codec = "ZIP"
+        img.save_render(frame["exr"], scene=scene)
+
+
+def main(argv):
+    started = time.time()
+    job_path = job_path_from_argv(argv)
+    job = load_job(job_path)
+    try:
+        import bpy  # noqa: F401  (imported here so a missing bpy is reported with the job path)
+    except ImportError as e:
+        emit({"error": f"cannot import bpy: {e}", "frame": None})
+        sys.stderr.write(f"ModuleNotFoundError: No module named 'bpy' ({e})\n")
+        return 3
+    scene = reset_scene(bpy)
+    configure_render(bpy, scene, job)
+    placed = import_models(bpy, job)
+    build_look(bpy, scene, job, placed)
+    cam = make_camera(bpy, scene)
+    ready = {"models": len(placed), "seconds": round(time.time() - started, 3)}
+    if job.get("report_bounds"):
+        ready["bounds"] = model_bounds(placed)
+    emit({"ready": ready})
+    current = None
+    try:
+        for frame in job["frames"]:
+            current = frame["name"]
+            t0 = time.time()
+            apply_camera(scene, cam, frame)
+            set_visibility(placed, frame)
+            bpy.ops.render.render(write_still=False)
+            save(bpy, scene, frame, job["mode"])
+            emit({"done": current, "seconds": round(time.time() - t0, 3)})
+    except Exception as e:  # reported with the frame, then the traceback for the log
+        emit({"error": f"{type(e).__name__}: {e}", "frame": current})
+        traceback.print_exc()
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    try:
+        code = main(sys.argv)
+    except SystemExit:
+        raise
+    except Exception as e:
+        emit({"error": f"{type(e).__name__}: {e}", "frame": None})
+        traceback.print_exc()
+        code = 1
+    sys.stdout.flush()
+    sys.exit(code)

@@ -1,0 +1,527 @@
+//! Running Blender: finding it, starting one process per job, relaying its protocol lines, and turning
+//! a failure into an error that says what to do.
+//!
+//! Two launchers: a Python interpreter with the `bpy` module (`<repo>/.venv-blender/bin/python`, made by
+//! `scripts/setup_blender.sh`) running `render_rgb.py JOB`, or a Blender binary running
+//! `blender -b --factory-startup -P render_rgb.py -- JOB`. Stdout and stderr are piped and drained
+//! concurrently (stderr on its own thread), so a chatty Blender never blocks on a full pipe. Stdout lines
+//! starting with `INSGEN ` are protocol events ([`Event`]); every other line is Blender's own logging,
+//! logged at debug level and kept (the last [`TAIL_LINES`]) for the error report.
+
+use std::collections::VecDeque;
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+
+use serde::Deserialize;
+
+use super::error::{BlenderError, ProcessFailure};
+
+/// Environment variable naming a Python interpreter that can `import bpy`.
+pub const ENV_PYTHON: &str = "INSGEN_BLENDER_PYTHON";
+/// Environment variable naming a Blender binary (takes precedence over the venv when set).
+pub const ENV_BLENDER: &str = "INSGEN_BLENDER";
+/// The venv `scripts/setup_blender.sh` creates, relative to the repository root.
+pub const VENV_PYTHON: &str = ".venv-blender/bin/python";
+/// Prefix of protocol lines on the script's stdout.
+pub const PROTOCOL_PREFIX: &str = "INSGEN ";
+/// How many trailing log lines a failure report keeps.
+pub const TAIL_LINES: usize = 40;
+
+/// How Blender is started.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Launcher {
+    /// A Python interpreter with the `bpy` module installed.
+    Python { interpreter: PathBuf },
+    /// A Blender executable, run in background mode.
+    Blender { binary: PathBuf },
+}
+
+impl Launcher {
+    /// Finds Blender: an explicit binary, an explicit interpreter, `$INSGEN_BLENDER`,
+    /// `$INSGEN_BLENDER_PYTHON`, then `.venv-blender/bin/python` under each of `roots` (in order).
+    ///
+    /// # Errors
+    /// [`BlenderError::NotFound`] listing what was tried.
+    pub fn find(
+        blender: Option<&Path>,
+        python: Option<&Path>,
+        roots: &[PathBuf],
+    ) -> Result<Launcher, BlenderError> {
+        let mut tried = Vec::new();
+        let mut check = |p: &Path, what: &str| {
+            if p.is_file() {
+                true
+            } else {
+                tried.push(format!("{what} {} (not a file)", p.display()));
+                false
+            }
+        };
+        if let Some(b) = blender {
+            if check(b, "--blender") {
+                return Ok(Launcher::Blender { binary: b.to_path_buf() });
+            }
+        }
+        if let Some(p) = python {
+            if check(p, "--blender-python") {
+                return Ok(Launcher::Python { interpreter: p.to_path_buf() });
+            }
+        }
+        if blender.is_some() || python.is_some() {
+            return Err(BlenderError::NotFound { what: tried.join("; ") });
+        }
+        if let Some(b) = std::env::var_os(ENV_BLENDER).filter(|v| !v.is_empty()) {
+            let b = PathBuf::from(b);
+            if check(&b, ENV_BLENDER) {
+                return Ok(Launcher::Blender { binary: b });
+            }
+        }
+        if let Some(p) = std::env::var_os(ENV_PYTHON).filter(|v| !v.is_empty()) {
+            let p = PathBuf::from(p);
+            if check(&p, ENV_PYTHON) {
+                return Ok(Launcher::Python { interpreter: p });
+            }
+        }
+        for root in roots {
+            let p = root.join(VENV_PYTHON);
+            if check(&p, "venv") {
+                return Ok(Launcher::Python { interpreter: p });
+            }
+        }
+        Err(BlenderError::NotFound { what: format!("tried {}", tried.join("; ")) })
+    }
+
+    /// The command running `script` on `job`.
+    pub fn command(&self, script: &Path, job: &Path) -> Command {
+        match self {
+            Launcher::Python { interpreter } => {
+                let mut c = Command::new(interpreter);
+                c.arg(script).arg(job);
+                c
+            }
+            Launcher::Blender { binary } => {
+                let mut c = Command::new(binary);
+                c.args(["-b", "--factory-startup", "-noaudio", "--python-exit-code", "1", "-P"])
+                    .arg(script)
+                    .arg("--")
+                    .arg(job);
+                c
+            }
+        }
+    }
+}
+
+/// A protocol event printed by the script.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Event {
+    /// The scene is built; `bounds` (when the job asked) gives each model's ENU bounds [min, max] in metres.
+    Ready { models: usize, seconds: f64, bounds: Option<Vec<Option<[[f64; 3]; 2]>>> },
+    /// A frame's files are written to its temporary paths.
+    Done { frame: String, seconds: f64 },
+    /// The script failed (it exits non-zero afterwards).
+    Error { message: String, frame: Option<String> },
+}
+
+#[derive(Deserialize)]
+struct ReadyJson {
+    models: usize,
+    seconds: f64,
+    #[serde(default)]
+    bounds: Option<Vec<Option<[[f64; 3]; 2]>>>,
+}
+
+#[derive(Deserialize)]
+struct EventJson {
+    #[serde(default)]
+    ready: Option<ReadyJson>,
+    #[serde(default)]
+    done: Option<String>,
+    #[serde(default)]
+    seconds: Option<f64>,
+    #[serde(default)]
+    error: Option<String>,
+    #[serde(default)]
+    frame: Option<String>,
+}
+
+/// Parses one stdout line: `None` for ordinary log lines, `Some(Err(text))` for a malformed protocol line.
+pub fn parse_event(line: &str) -> Option<Result<Event, String>> {
+    let body = line.strip_prefix(PROTOCOL_PREFIX)?;
+    let ev: EventJson = match serde_json::from_str(body) {
+        Ok(e) => e,
+        Err(e) => return Some(Err(format!("malformed protocol line {body:?}: {e}"))),
+    };
+    Some(if let Some(r) = ev.ready {
+        Ok(Event::Ready { models: r.models, seconds: r.seconds, bounds: r.bounds })
+    } else if let Some(frame) = ev.done {
+        Ok(Event::Done { frame, seconds: ev.seconds.unwrap_or(f64::NAN) })
+    } else if let Some(message) = ev.error {
+        Ok(Event::Error { message, frame: ev.frame })
+    } else {
+        Err(format!("protocol line {body:?} has no ready/done/error field"))
+    })
+}
+
+/// Hints for known failure signatures in the captured output.
+pub fn hint_for(log: &[String], launcher: &Launcher) -> Option<String> {
+    let has = |s: &str| log.iter().any(|l| l.contains(s));
+    if has("No module named 'bpy'") || has("cannot import bpy") {
+        let who = match launcher {
+            Launcher::Python { interpreter } => interpreter.display().to_string(),
+            Launcher::Blender { binary } => binary.display().to_string(),
+        };
+        return Some(format!(
+            "bpy cannot be imported by {who}: run scripts/setup.sh (it creates .venv-blender with bpy 5.0.1 \
+             for CPython 3.11), or point INSGEN_BLENDER_PYTHON at an interpreter that has bpy"
+        ));
+    }
+    if has("cannot open shared object file") {
+        return Some(
+            "a system library Blender needs is missing: install libxrender1 libxxf86vm1 libxfixes3 libxi6 \
+             libxkbcommon0 libsm6 libgl1 (apt-get install …), then retry"
+                .into(),
+        );
+    }
+    if has("is not available on this addon version") || has("Extension") && has("not available") {
+        return Some(
+            "the glTF importer rejected a required extension of a model: check the tile content's \
+             extensionsRequired (insgen strips CESIUM_RTC; others must be supported by Blender's importer)"
+                .into(),
+        );
+    }
+    if has("MemoryError") || has("std::bad_alloc") || has("Killed") {
+        return Some(
+            "Blender ran out of memory: lower --restart-every, or render fewer tiles per frame (--max-sse)"
+                .into(),
+        );
+    }
+    if has("Unable to open") || has("No such file or directory") {
+        return Some("a file named in the job could not be opened: check the paths in the job file".into());
+    }
+    None
+}
+
+/// Quotes a command for display.
+pub fn display_command(cmd: &Command) -> String {
+    let quote = |s: &std::ffi::OsStr| {
+        let s = s.to_string_lossy();
+        if s.is_empty() || s.contains(|c: char| c.is_whitespace() || "'\"$`\\".contains(c)) {
+            format!("'{}'", s.replace('\'', "'\\''"))
+        } else {
+            s.into_owned()
+        }
+    };
+    std::iter::once(quote(cmd.get_program())).chain(cmd.get_args().map(quote)).collect::<Vec<_>>().join(" ")
+}
+
+struct Tail {
+    lines: VecDeque<String>,
+}
+
+impl Tail {
+    fn new() -> Self {
+        Tail { lines: VecDeque::with_capacity(TAIL_LINES) }
+    }
+    fn push(&mut self, line: String) {
+        if self.lines.len() == TAIL_LINES {
+            self.lines.pop_front();
+        }
+        self.lines.push_back(line);
+    }
+}
+
+fn kill(child: &mut Child) {
+    // The child may already have exited; either way it must not outlive the error.
+    let _ = child.kill();
+    let _ = child.wait();
+}
+
+/// Runs one job: starts the process, hands every protocol event to `on_event` as it arrives, and waits.
+///
+/// When `on_event` returns an error (e.g. an output failed verification) the process is killed and that
+/// error returned. A non-zero exit, a reported `error` event, or an exit without any `ready` line becomes
+/// [`BlenderError::Failed`] with the command, status, stderr tail and a hint.
+///
+/// # Errors
+/// [`BlenderError::Spawn`], [`BlenderError::Failed`], or whatever `on_event` returns.
+pub fn run_job(
+    launcher: &Launcher,
+    script: &Path,
+    job: &Path,
+    mut on_event: impl FnMut(Event) -> Result<(), BlenderError>,
+) -> Result<(), BlenderError> {
+    let mut cmd = launcher.command(script, job);
+    cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped());
+    cmd.env("PYTHONUNBUFFERED", "1").env("PYTHONDONTWRITEBYTECODE", "1");
+    let shown = display_command(&cmd);
+    log::debug!("running {shown}");
+    let mut child = cmd.spawn().map_err(|source| BlenderError::Spawn {
+        hint: (source.kind() == std::io::ErrorKind::NotFound)
+            .then(|| "the interpreter or Blender binary does not exist: run scripts/setup.sh".to_string()),
+        command: shown.clone(),
+        source,
+    })?;
+    let stderr = child.stderr.take().expect("stderr was piped above");
+    let stdout = child.stdout.take().expect("stdout was piped above");
+    // Stderr is drained on its own thread into a shared tail, so the tail can be read even when the
+    // process is killed and some grandchild keeps the pipe open (the thread then ends on its own).
+    let err_tail = std::sync::Arc::new(std::sync::Mutex::new(Tail::new()));
+    let err_thread = {
+        let err_tail = std::sync::Arc::clone(&err_tail);
+        std::thread::spawn(move || {
+            for line in BufReader::new(stderr).lines() {
+                match line {
+                    Ok(l) => {
+                        log::debug!("blender stderr: {l}");
+                        if let Ok(mut t) = err_tail.lock() {
+                            t.push(l);
+                        }
+                    }
+                    Err(_) => break,
+                }
+            }
+        })
+    };
+    let mut out_tail = Tail::new();
+    let mut reported: Option<(String, Option<String>)> = None;
+    let mut ready = false;
+    let mut current: Option<String> = None;
+    let mut relay_error: Option<BlenderError> = None;
+    let mut protocol_error: Option<String> = None;
+    for line in BufReader::new(stdout).lines() {
+        let line = match line {
+            Ok(l) => l,
+            Err(_) => break,
+        };
+        match parse_event(&line) {
+            None => {
+                log::debug!("blender: {line}");
+                out_tail.push(line);
+            }
+            Some(Err(e)) => {
+                protocol_error = Some(e);
+                kill(&mut child);
+                break;
+            }
+            Some(Ok(ev)) => {
+                match &ev {
+                    Event::Ready { .. } => ready = true,
+                    Event::Done { frame, .. } => current = Some(frame.clone()),
+                    Event::Error { message, frame } => reported = Some((message.clone(), frame.clone())),
+                }
+                if let Err(e) = on_event(ev) {
+                    relay_error = Some(e);
+                    kill(&mut child);
+                    break;
+                }
+            }
+        }
+    }
+    if let Some(e) = relay_error {
+        return Err(e);
+    }
+    let status =
+        child.wait().map_err(|source| BlenderError::Spawn { command: shown.clone(), hint: None, source })?;
+    let killed = protocol_error.is_some();
+    if !killed {
+        let _ = err_thread.join();
+    }
+    let err_lines: Vec<String> =
+        err_tail.lock().map(|t| t.lines.iter().cloned().collect()).unwrap_or_default();
+    let failed = !status.success() || reported.is_some() || protocol_error.is_some() || !ready;
+    if !failed {
+        return Ok(());
+    }
+    let mut tail: Vec<String> = out_tail.lines.into_iter().collect();
+    tail.extend(err_lines);
+    if tail.len() > TAIL_LINES {
+        tail.drain(..tail.len() - TAIL_LINES);
+    }
+    let status_text = match (status.code(), protocol_error, ready) {
+        (_, Some(p), _) => format!("a protocol error: {p}"),
+        (Some(0), None, false) => "exit status 0 but without building the scene (no ready line)".into(),
+        (Some(c), _, _) => format!("exit status {c}"),
+        (None, _, _) => signal_text(&status),
+    };
+    let (message, frame) = match reported {
+        Some((m, f)) => (Some(m), f),
+        // The frame after the last finished one was in progress.
+        None => (None, current.map(|c| format!("after {c}"))),
+    };
+    let mut log_lines = tail.clone();
+    if let Some(m) = &message {
+        log_lines.push(m.clone());
+    }
+    let hint = hint_for(&log_lines, launcher);
+    Err(BlenderError::Failed(Box::new(ProcessFailure {
+        command: shown,
+        status: status_text,
+        frame,
+        message,
+        stderr_tail: tail,
+        hint,
+    })))
+}
+
+#[cfg(unix)]
+fn signal_text(status: &std::process::ExitStatus) -> String {
+    use std::os::unix::process::ExitStatusExt;
+    match status.signal() {
+        Some(9) => "signal 9 (killed; out of memory?)".into(),
+        Some(s) => format!("signal {s}"),
+        None => "an unknown status".into(),
+    }
+}
+
+#[cfg(not(unix))]
+fn signal_text(_status: &std::process::ExitStatus) -> String {
+    "an unknown status".into()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn protocol_lines() {
+        assert_eq!(parse_event("12:00 | INFO: glTF import"), None);
+        assert_eq!(
+            parse_event(r#"INSGEN {"done": "f_0001", "seconds": 1.5}"#),
+            Some(Ok(Event::Done { frame: "f_0001".into(), seconds: 1.5 }))
+        );
+        assert_eq!(
+            parse_event(r#"INSGEN {"ready": {"models": 2, "seconds": 0.5}}"#),
+            Some(Ok(Event::Ready { models: 2, seconds: 0.5, bounds: None }))
+        );
+        assert_eq!(
+            parse_event(r#"INSGEN {"error": "boom", "frame": null}"#),
+            Some(Ok(Event::Error { message: "boom".into(), frame: None }))
+        );
+        assert!(matches!(parse_event("INSGEN {not json"), Some(Err(_))));
+        assert!(matches!(parse_event(r#"INSGEN {"other": 1}"#), Some(Err(_))));
+    }
+
+    #[test]
+    fn hints() {
+        let py = Launcher::Python { interpreter: "/x/python".into() };
+        let h = hint_for(&["ModuleNotFoundError: No module named 'bpy'".into()], &py).unwrap();
+        assert!(h.contains("scripts/setup.sh") && h.contains("/x/python"), "{h}");
+        assert!(hint_for(
+            &["Error: Extension CESIUM_RTC is not available on this addon version".into()],
+            &py
+        )
+        .unwrap()
+        .contains("extension"));
+        assert_eq!(hint_for(&["all fine".into()], &py), None);
+    }
+
+    #[test]
+    fn find_prefers_explicit_and_reports_what_was_tried() {
+        let dir = tempfile::tempdir().unwrap();
+        let py = dir.path().join(VENV_PYTHON);
+        std::fs::create_dir_all(py.parent().unwrap()).unwrap();
+        std::fs::write(&py, "").unwrap();
+        let missing = dir.path().join("nope");
+        let e = Launcher::find(None, Some(&missing), &[dir.path().to_path_buf()]).unwrap_err().to_string();
+        assert!(e.contains("nope") && e.contains("setup.sh"), "{e}");
+        assert_eq!(Launcher::find(Some(&py), None, &[]).unwrap(), Launcher::Blender { binary: py.clone() });
+    }
+
+    #[cfg(unix)]
+    mod fake_blender {
+        use super::*;
+
+        /// A fake "Python" (a shell script) standing in for Blender, to test the plumbing.
+        fn fake(dir: &Path, body: &str) -> Launcher {
+            use std::os::unix::fs::PermissionsExt;
+            let p = dir.join("fake-python");
+            std::fs::write(&p, format!("#!/bin/sh\n{body}\n")).unwrap();
+            std::fs::set_permissions(&p, std::fs::Permissions::from_mode(0o755)).unwrap();
+            Launcher::Python { interpreter: p }
+        }
+
+        #[test]
+        fn events_are_relayed_in_order() {
+            let dir = tempfile::tempdir().unwrap();
+            let l = fake(
+                dir.path(),
+                r#"echo 'INFO: noise'
+echo 'INSGEN {"ready": {"models": 1, "seconds": 0.1}}'
+echo 'some stderr' >&2
+echo 'INSGEN {"done": "a", "seconds": 0.2}'
+echo 'INSGEN {"done": "b", "seconds": 0.3}'"#,
+            );
+            let mut seen = Vec::new();
+            run_job(&l, Path::new("script.py"), Path::new("job.json"), |e| {
+                seen.push(e);
+                Ok(())
+            })
+            .unwrap();
+            assert_eq!(seen.len(), 3);
+            assert_eq!(seen[2], Event::Done { frame: "b".into(), seconds: 0.3 });
+        }
+
+        #[test]
+        fn failure_reports_command_status_tail_and_hint() {
+            let dir = tempfile::tempdir().unwrap();
+            let l = fake(
+                dir.path(),
+                r#"echo 'Traceback (most recent call last):' >&2
+echo "ModuleNotFoundError: No module named 'bpy'" >&2
+exit 3"#,
+            );
+            let e =
+                run_job(&l, Path::new("/s/render rgb.py"), Path::new("/j/job.json"), |_| Ok(())).unwrap_err();
+            let text = e.to_string();
+            assert!(text.contains("fake-python '/s/render rgb.py' /j/job.json"), "{text}");
+            assert!(text.contains("exit status 3"), "{text}");
+            assert!(
+                text.contains("No module named 'bpy'") && text.contains("hint: bpy cannot be imported"),
+                "{text}"
+            );
+            assert!(text.contains("stderr (last 2 lines)") && text.contains(&"-".repeat(78)), "{text}");
+        }
+
+        #[test]
+        fn reported_error_names_the_frame() {
+            let dir = tempfile::tempdir().unwrap();
+            let l = fake(
+                dir.path(),
+                r#"echo 'INSGEN {"ready": {"models": 1, "seconds": 0.1}}'
+echo 'INSGEN {"error": "RuntimeError: render failed", "frame": "f7"}'
+exit 1"#,
+            );
+            let e = run_job(&l, Path::new("s.py"), Path::new("j.json"), |_| Ok(())).unwrap_err().to_string();
+            assert!(e.contains("frame \"f7\"") && e.contains("render failed"), "{e}");
+            assert!(e.contains("<stderr is empty>"), "{e}");
+        }
+
+        #[test]
+        fn relay_error_kills_and_wins() {
+            let dir = tempfile::tempdir().unwrap();
+            let l = fake(
+                dir.path(),
+                r#"echo 'INSGEN {"ready": {"models": 1, "seconds": 0.1}}'
+echo 'INSGEN {"done": "a", "seconds": 0.2}'
+sleep 30"#,
+            );
+            let t0 = std::time::Instant::now();
+            let e = run_job(&l, Path::new("s.py"), Path::new("j.json"), |ev| match ev {
+                Event::Done { frame, .. } => {
+                    Err(BlenderError::Output { frame, path: "x.png".into(), what: "does not decode".into() })
+                }
+                _ => Ok(()),
+            })
+            .unwrap_err();
+            assert!(matches!(e, BlenderError::Output { .. }));
+            assert!(t0.elapsed().as_secs() < 20, "the child was not killed");
+        }
+
+        #[test]
+        fn missing_interpreter_is_a_spawn_error() {
+            let l = Launcher::Python { interpreter: "/no/such/python".into() };
+            let e = run_job(&l, Path::new("s.py"), Path::new("j.json"), |_| Ok(())).unwrap_err().to_string();
+            assert!(e.contains("/no/such/python") && e.contains("setup.sh"), "{e}");
+        }
+    }
+}

@@ -1,0 +1,650 @@
+//! Rendering a list of frames with Blender: skip finished frames, split the rest into batches (one
+//! Blender process each, restarted every N frames to bound memory), write a job per batch, relay
+//! progress, verify each output and rename it into place.
+//!
+//! Outputs are atomic: Blender writes `<out>/.insgen-tmp-<frame>.<ext>`; when it reports the frame
+//! done, insgen decodes the file, checks its size, writes `<out>/<frame>.<ext>` atomically (re-encoded,
+//! so no render-time metadata breaks byte-identical reruns) and removes the temporary file. On any
+//! failure the batch's temporary files are removed, so only complete, verified frames ever appear.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use rand::{Rng, SeedableRng};
+
+use super::align::read_id_exr;
+use super::camera::{blender_matrix_world, cam_to_world_enu, BlenderCamera};
+use super::error::{BlenderError, JobIssue};
+use super::job::{
+    check_writable, valid_frame_name, Engine, Job, JobFrame, JobModel, Look, Mode, ModelKind, JOB_FORMAT,
+    JOB_VERSION,
+};
+use super::process::{run_job, Event, Launcher};
+use super::tileset::{prepare_tile, select_tiles, SelectOptions, ENU_FROM_SCENE_GLTF};
+use crate::camera::{Intrinsics, Pose};
+use crate::geo::EnuFrame;
+use crate::util::Progress;
+
+/// The Blender-side script, embedded so the binary works from any directory; it is written next to the
+/// job files before each run (`scripts/blender/render_rgb.py` in the repository).
+pub const RENDER_SCRIPT: &str = include_str!("../../scripts/blender/render_rgb.py");
+/// File name of the script copy in the work directory.
+pub const SCRIPT_FILE: &str = "render_rgb.py";
+/// Prefix of temporary output files.
+pub const TMP_PREFIX: &str = ".insgen-tmp-";
+
+/// Where the geometry comes from.
+#[derive(Debug, Clone)]
+pub enum SceneSource {
+    /// The prepared scene's `scene.glb` (the instanced LoD model, procedural look).
+    Lod { glb: PathBuf },
+    /// A photogrammetry tileset, placed with the area's ENU frame; tiles chosen per frame.
+    Tileset { tileset: PathBuf, enu: EnuFrame, select: SelectOptions },
+}
+
+/// One frame to render.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameRequest {
+    pub name: String,
+    pub intrinsics: Intrinsics,
+    pub pose: Pose,
+}
+
+/// Everything a render run needs (built once by the CLI from its flags).
+#[derive(Debug, Clone)]
+pub struct RenderPlan {
+    pub launcher: Launcher,
+    pub mode: Mode,
+    pub engine: Engine,
+    /// Cycles samples per pixel (RGB mode).
+    pub samples: u32,
+    /// Cycles sampling seed.
+    pub seed: u32,
+    pub denoise: bool,
+    /// Render threads (0 = all cores).
+    pub threads: u32,
+    /// RGB mode: also write a linear float32 EXR per frame.
+    pub exr: bool,
+    pub source: SceneSource,
+    /// Seed of the per-building material variation and of the sun direction.
+    pub look_seed: u64,
+    /// Ground level in ENU metres.
+    pub ground_enu_m: f64,
+    /// Directory of the final outputs (`rgb/` or `alignment/`).
+    pub out_dir: PathBuf,
+    /// Directory for job files, the script copy and the unwrapped tile cache.
+    pub work_dir: PathBuf,
+    /// Frames per Blender process (≥ 1).
+    pub restart_every: usize,
+    /// Re-render frames whose outputs already exist.
+    pub force: bool,
+    /// Camera clipping range, metres.
+    pub clip_start_m: f64,
+    pub clip_end_m: f64,
+    /// Ask the script for each model's ENU bounds (tests).
+    pub report_bounds: bool,
+}
+
+/// Time spent on one frame, as Blender reported it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameTiming {
+    pub name: String,
+    pub seconds: f64,
+}
+
+/// What a run did.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RenderSummary {
+    /// Frames rendered in this run, in order.
+    pub rendered: Vec<FrameTiming>,
+    /// Frames skipped because their outputs already existed and verified.
+    pub skipped: Vec<String>,
+    /// Blender processes started, and the scene set-up time each reported (seconds).
+    pub setup_seconds: Vec<f64>,
+    /// Per model of the last job, its ENU bounds [min, max] in metres (when `report_bounds`).
+    pub bounds: Vec<Option<[[f64; 3]; 2]>>,
+    /// Models of each job (the number of tiles for a tileset).
+    pub models_per_job: Vec<usize>,
+    /// Tile contents Blender cannot import, skipped, by extension.
+    pub skipped_contents: BTreeMap<String, u64>,
+}
+
+/// The kind of one output file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutputKind {
+    /// 8-bit RGB PNG.
+    Png,
+    /// Linear float32 EXR of the RGB render.
+    RgbExr,
+    /// Float32 EXR with building IDs.
+    IdExr,
+}
+
+/// One output of a frame: final path, temporary path and kind.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Output {
+    pub path: PathBuf,
+    pub tmp: PathBuf,
+    pub kind: OutputKind,
+}
+
+/// The outputs a frame gets under `plan`: `<frame>.png` (+ `<frame>.exr`) in RGB mode,
+/// `<frame>.ids.exr` in ID mode.
+pub fn frame_outputs(plan: &RenderPlan, name: &str) -> Vec<Output> {
+    let out = |file: String, kind| Output {
+        path: plan.out_dir.join(&file),
+        tmp: plan.out_dir.join(format!("{TMP_PREFIX}{file}")),
+        kind,
+    };
+    match plan.mode {
+        Mode::Rgb => {
+            let mut v = vec![out(format!("{name}.png"), OutputKind::Png)];
+            if plan.exr {
+                v.push(out(format!("{name}.exr"), OutputKind::RgbExr));
+            }
+            v
+        }
+        Mode::Ids => vec![out(format!("{name}.ids.exr"), OutputKind::IdExr)],
+    }
+}
+
+/// A decoded output image.
+enum Decoded {
+    /// 8-bit RGB, row-major.
+    Png { width: u32, height: u32, rgb: Vec<u8> },
+    /// Float32 R, G, B planes, row-major.
+    Exr { width: u32, height: u32, planes: [Vec<f32>; 3] },
+}
+
+fn decode_output(kind: OutputKind, path: &Path) -> Result<Decoded, String> {
+    match kind {
+        OutputKind::Png => {
+            let file = std::fs::File::open(path).map_err(|e| format!("cannot open: {e}"))?;
+            let mut reader = png::Decoder::new(std::io::BufReader::new(file))
+                .read_info()
+                .map_err(|e| format!("not a PNG: {e}"))?;
+            let mut buf = vec![0; reader.output_buffer_size()];
+            let info = reader.next_frame(&mut buf).map_err(|e| format!("does not decode: {e}"))?;
+            if info.bit_depth != png::BitDepth::Eight || info.color_type != png::ColorType::Rgb {
+                return Err(format!("is {:?} {:?}, expected 8-bit RGB", info.bit_depth, info.color_type));
+            }
+            buf.truncate(info.buffer_size());
+            Ok(Decoded::Png { width: info.width, height: info.height, rgb: buf })
+        }
+        OutputKind::RgbExr | OutputKind::IdExr => {
+            if kind == OutputKind::IdExr {
+                // Checks that every value is a building ID.
+                read_id_exr(path).map_err(|e| e.to_string())?;
+            }
+            let img = exr::prelude::read_first_flat_layer_from_file(path)
+                .map_err(|e| format!("does not decode: {e}"))?;
+            let layer = &img.layer_data;
+            let plane = |name: &str| -> Result<Vec<f32>, String> {
+                let c = layer
+                    .channel_data
+                    .list
+                    .iter()
+                    .find(|c| c.name.eq(name))
+                    .ok_or_else(|| format!("has no {name} channel"))?;
+                match &c.sample_data {
+                    exr::prelude::FlatSamples::F32(v) => Ok(v.clone()),
+                    _ => Err(format!("channel {name} is not float32")),
+                }
+            };
+            Ok(Decoded::Exr {
+                width: layer.size.0 as u32,
+                height: layer.size.1 as u32,
+                planes: [plane("R")?, plane("G")?, plane("B")?],
+            })
+        }
+    }
+}
+
+fn check_size(d: &Decoded, k: &Intrinsics) -> Result<(), String> {
+    let (w, h) = match d {
+        Decoded::Png { width, height, .. } | Decoded::Exr { width, height, .. } => (*width, *height),
+    };
+    if (w, h) != (k.width_px, k.height_px) {
+        return Err(format!("is {w}×{h} px, expected {}×{}", k.width_px, k.height_px));
+    }
+    Ok(())
+}
+
+/// Checks that an output decodes, has the expected kind and the frame's size.
+pub fn verify_output(kind: OutputKind, path: &Path, k: &Intrinsics) -> Result<(), String> {
+    check_size(&decode_output(kind, path)?, k)
+}
+
+/// Verifies Blender's temporary output and writes the final file atomically, re-encoded by insgen so
+/// that it carries no render metadata (Blender stamps render times into PNG and EXR headers): the
+/// same job gives byte-identical files. The temporary file is removed afterwards.
+fn finalize_output(o: &Output, k: &Intrinsics) -> Result<(), String> {
+    let decoded = decode_output(o.kind, &o.tmp)?;
+    check_size(&decoded, k)?;
+    match decoded {
+        Decoded::Png { width, height, rgb } => {
+            let mut bytes = Vec::with_capacity(rgb.len() / 2);
+            {
+                let mut enc = png::Encoder::new(&mut bytes, width, height);
+                enc.set_color(png::ColorType::Rgb);
+                enc.set_depth(png::BitDepth::Eight);
+                enc.set_compression(png::Compression::Fast);
+                let mut w = enc.write_header().map_err(|e| format!("re-encoding PNG: {e}"))?;
+                w.write_image_data(&rgb).map_err(|e| format!("re-encoding PNG: {e}"))?;
+            }
+            crate::util::write_bytes_atomic(&o.path, &bytes).map_err(|e| e.to_string())?;
+        }
+        Decoded::Exr { width, height, planes } => {
+            let dir = o.path.parent().unwrap_or(Path::new("."));
+            let tmp = tempfile::Builder::new()
+                .prefix(TMP_PREFIX)
+                .suffix(".exr")
+                .tempfile_in(dir)
+                .map_err(|e| format!("creating a temporary file: {e}"))?
+                .into_temp_path();
+            let w = width as usize;
+            exr::prelude::write_rgb_file(&tmp, w, height as usize, |x, y| {
+                let i = y * w + x;
+                (planes[0][i], planes[1][i], planes[2][i])
+            })
+            .map_err(|e| format!("re-encoding EXR: {e}"))?;
+            tmp.persist(&o.path).map_err(|e| format!("renaming into place: {e}"))?;
+        }
+    }
+    std::fs::remove_file(&o.tmp).map_err(|e| format!("removing {}: {e}", o.tmp.display()))
+}
+
+/// Whether all of a frame's outputs exist and verify (the resume test).
+pub fn frame_complete(plan: &RenderPlan, f: &FrameRequest) -> bool {
+    frame_outputs(plan, &f.name)
+        .iter()
+        .all(|o| o.path.is_file() && verify_output(o.kind, &o.path, &f.intrinsics).is_ok())
+}
+
+/// Sun direction for a look seed: azimuth uniform in [0°, 360°), elevation uniform in [30°, 65°].
+pub fn sun_from_seed(seed: u64) -> (f64, f64) {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x5u64.rotate_left(60));
+    (rng.gen_range(0.0..360.0), rng.gen_range(30.0..65.0))
+}
+
+/// Half side of the ground plane around the area origin, metres: far enough that a camera seeing the
+/// horizon from a few hundred metres up still finds ground below it. It is a constant (not derived from
+/// the frames) so that a frame renders the same whether it is rendered alone, in a shard or in a batch.
+pub const GROUND_HALF_EXTENT_M: f64 = 50_000.0;
+
+/// The look of a plan; depends only on the plan (never on which frames are rendered), so a frame's image
+/// is the same in any batch or shard.
+fn look_for(plan: &RenderPlan) -> Look {
+    let (az, el) = sun_from_seed(plan.look_seed);
+    Look {
+        seed: plan.look_seed,
+        ground_enu_m: plan.ground_enu_m,
+        ground_plane: matches!(plan.source, SceneSource::Lod { .. }),
+        ground_centre_enu_m: [0.0, 0.0],
+        ground_half_extent_m: GROUND_HALF_EXTENT_M,
+        sun_azimuth_deg: az,
+        sun_elevation_deg: el,
+        sun_strength: 4.0,
+        sky_strength: 0.35,
+        exposure: 0.0,
+    }
+}
+
+fn remove_tmp(outputs: &[Output]) {
+    for o in outputs {
+        if o.tmp.exists() {
+            if let Err(e) = std::fs::remove_file(&o.tmp) {
+                log::warn!("cannot remove {}: {e}", o.tmp.display());
+            }
+        }
+    }
+}
+
+fn check_request(plan: &RenderPlan, frames: &[FrameRequest]) -> Vec<JobIssue> {
+    let mut issues = Vec::new();
+    let mut seen = std::collections::BTreeSet::new();
+    for (i, f) in frames.iter().enumerate() {
+        if !valid_frame_name(&f.name) {
+            issues.push(JobIssue {
+                path: format!("frames[{i}].name"),
+                what: format!("{:?} cannot be a file name", f.name),
+            });
+        } else if !seen.insert(f.name.as_str()) {
+            issues.push(JobIssue {
+                path: format!("frames[{i}].name"),
+                what: format!("{:?} appears twice", f.name),
+            });
+        }
+    }
+    if plan.restart_every == 0 {
+        issues.push(JobIssue { path: "restart_every".into(), what: "must be at least 1".into() });
+    }
+    match &plan.source {
+        SceneSource::Lod { glb } if !glb.is_file() => issues.push(JobIssue {
+            path: "scene".into(),
+            what: format!("{} does not exist (run `insgen prepare` for the area first)", glb.display()),
+        }),
+        SceneSource::Tileset { tileset, .. } if !tileset.is_file() => issues
+            .push(JobIssue { path: "tileset".into(), what: format!("{} does not exist", tileset.display()) }),
+        _ => {}
+    }
+    issues
+}
+
+fn absolute(p: &Path) -> PathBuf {
+    if p.is_absolute() {
+        p.to_path_buf()
+    } else {
+        std::env::current_dir().map(|d| d.join(p)).unwrap_or_else(|_| p.to_path_buf())
+    }
+}
+
+/// Renders `frames` under `plan` (see the module doc), reporting each finished frame to `progress`.
+///
+/// # Errors
+/// [`BlenderError::InvalidJob`] before anything starts (bad names, missing scene, unwritable output);
+/// tileset and tile errors; a failed Blender process; an output that does not verify. Frames finished
+/// before the failure stay in place (a rerun resumes after them).
+pub fn render_frames(
+    plan: &RenderPlan,
+    frames: &[FrameRequest],
+    progress: &dyn Progress,
+) -> Result<RenderSummary, BlenderError> {
+    let mut plan = plan.clone();
+    plan.out_dir = absolute(&plan.out_dir);
+    plan.work_dir = absolute(&plan.work_dir);
+    let issues = check_request(&plan, frames);
+    if !issues.is_empty() {
+        return Err(BlenderError::InvalidJob { path: plan.work_dir.clone(), issues });
+    }
+    for dir in [&plan.out_dir, &plan.work_dir] {
+        crate::util::create_dir_all(dir)?;
+        if let Err(what) = check_writable(dir) {
+            return Err(BlenderError::InvalidJob {
+                path: dir.clone(),
+                issues: vec![JobIssue { path: "output".into(), what }],
+            });
+        }
+    }
+    let mut summary = RenderSummary::default();
+    let mut todo = Vec::new();
+    for f in frames {
+        if !plan.force && frame_complete(&plan, f) {
+            summary.skipped.push(f.name.clone());
+        } else {
+            todo.push(f.clone());
+        }
+    }
+    if todo.is_empty() {
+        return Ok(summary);
+    }
+    let script = plan.work_dir.join(SCRIPT_FILE);
+    if crate::util::read_file(&script).map(|b| b != RENDER_SCRIPT.as_bytes()).unwrap_or(true) {
+        crate::util::write_bytes_atomic(&script, RENDER_SCRIPT.as_bytes())?;
+    }
+    let look = look_for(&plan);
+    progress.start(todo.len() as u64, "frames");
+    let result = (|| {
+        for batch in todo.chunks(plan.restart_every) {
+            run_batch(&plan, &script, &look, batch, progress, &mut summary)?;
+        }
+        Ok(())
+    })();
+    progress.finish();
+    result.map(|()| summary)
+}
+
+fn run_batch(
+    plan: &RenderPlan,
+    script: &Path,
+    look: &Look,
+    batch: &[FrameRequest],
+    progress: &dyn Progress,
+    summary: &mut RenderSummary,
+) -> Result<(), BlenderError> {
+    let (models, per_frame): (Vec<JobModel>, Option<Vec<Vec<u32>>>) = match &plan.source {
+        SceneSource::Lod { glb } => (
+            vec![JobModel { glb: absolute(glb), enu_from_gltf: ENU_FROM_SCENE_GLTF, kind: ModelKind::Lod }],
+            None,
+        ),
+        SceneSource::Tileset { tileset, enu, select } => {
+            let cams: Vec<(Intrinsics, Pose)> = batch.iter().map(|f| (f.intrinsics, f.pose)).collect();
+            let sel = select_tiles(tileset, enu, &cams, select)?;
+            for (k, v) in &sel.skipped {
+                *summary.skipped_contents.entry(k.clone()).or_insert(0) += v;
+            }
+            let cache = plan.work_dir.join("tiles");
+            let models =
+                sel.tiles.iter().map(|t| prepare_tile(t, enu, &cache)).collect::<Result<Vec<_>, _>>()?;
+            (models, Some(sel.per_frame))
+        }
+    };
+    let outputs: Vec<Vec<Output>> = batch.iter().map(|f| frame_outputs(plan, &f.name)).collect();
+    let mut job_frames = Vec::with_capacity(batch.len());
+    for (i, f) in batch.iter().enumerate() {
+        let camera =
+            BlenderCamera::from_intrinsics(&f.name, &f.intrinsics, plan.clip_start_m, plan.clip_end_m)?;
+        let find = |kind| outputs[i].iter().find(|o| o.kind == kind).map(|o| o.tmp.clone());
+        job_frames.push(JobFrame {
+            name: f.name.clone(),
+            intrinsics: f.intrinsics,
+            camera,
+            cam_to_world_enu: cam_to_world_enu(&f.pose),
+            blender_matrix_world: blender_matrix_world(&f.pose),
+            models: per_frame.as_ref().map(|p| p[i].clone()),
+            png: find(OutputKind::Png),
+            exr: find(OutputKind::RgbExr).or_else(|| find(OutputKind::IdExr)),
+        });
+    }
+    let job = Job {
+        format: JOB_FORMAT.into(),
+        version: JOB_VERSION,
+        mode: plan.mode,
+        engine: plan.engine,
+        samples: plan.samples,
+        seed: plan.seed,
+        denoise: plan.denoise,
+        threads: plan.threads,
+        report_bounds: plan.report_bounds,
+        models,
+        look: look.clone(),
+        frames: job_frames,
+    };
+    let mode = match plan.mode {
+        Mode::Rgb => "rgb",
+        Mode::Ids => "ids",
+    };
+    let job_path = plan.work_dir.join(format!("job-{mode}-{}.json", batch[0].name));
+    let issues = job.validate();
+    if !issues.is_empty() {
+        return Err(BlenderError::InvalidJob { path: job_path, issues });
+    }
+    crate::util::write_json_atomic(&job_path, &job)?;
+    summary.models_per_job.push(job.models.len());
+    for o in outputs.iter().flatten() {
+        remove_tmp(std::slice::from_ref(o));
+    }
+    let index: BTreeMap<&str, usize> = batch.iter().enumerate().map(|(i, f)| (f.name.as_str(), i)).collect();
+    let mut done = vec![false; batch.len()];
+    let result = run_job(&plan.launcher, script, &job_path, |ev| {
+        match ev {
+            Event::Ready { seconds, bounds, .. } => {
+                summary.setup_seconds.push(seconds);
+                if let Some(b) = bounds {
+                    summary.bounds = b;
+                }
+            }
+            Event::Done { frame, seconds } => {
+                let i = *index.get(frame.as_str()).ok_or_else(|| BlenderError::Output {
+                    frame: frame.clone(),
+                    path: job_path.clone(),
+                    what: "Blender reported a frame that is not in the job".into(),
+                })?;
+                for o in &outputs[i] {
+                    finalize_output(o, &batch[i].intrinsics).map_err(|what| BlenderError::Output {
+                        frame: frame.clone(),
+                        path: o.tmp.clone(),
+                        what,
+                    })?;
+                }
+                done[i] = true;
+                summary.rendered.push(FrameTiming { name: frame, seconds });
+                progress.inc(1);
+            }
+            Event::Error { .. } => {}
+        }
+        Ok(())
+    });
+    let result = result.and_then(|()| match done.iter().position(|d| !d) {
+        Some(i) => Err(BlenderError::Output {
+            frame: batch[i].name.clone(),
+            path: job_path.clone(),
+            what: "Blender exited successfully without reporting this frame".into(),
+        }),
+        None => Ok(()),
+    });
+    if result.is_err() {
+        for o in outputs.iter().flatten() {
+            remove_tmp(std::slice::from_ref(o));
+        }
+    }
+    result
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plan(dir: &Path) -> RenderPlan {
+        let glb = dir.join("scene.glb");
+        std::fs::write(&glb, b"glTF").unwrap();
+        RenderPlan {
+            launcher: Launcher::Python { interpreter: "/nonexistent/python".into() },
+            mode: Mode::Rgb,
+            engine: Engine::Cycles,
+            samples: 4,
+            seed: 0,
+            denoise: false,
+            threads: 0,
+            exr: true,
+            source: SceneSource::Lod { glb },
+            look_seed: 1,
+            ground_enu_m: 0.0,
+            out_dir: dir.join("rgb"),
+            work_dir: dir.join("blender"),
+            restart_every: 10,
+            force: false,
+            clip_start_m: 0.1,
+            clip_end_m: 1e5,
+            report_bounds: false,
+        }
+    }
+
+    fn frame(name: &str) -> FrameRequest {
+        FrameRequest {
+            name: name.into(),
+            intrinsics: Intrinsics::from_hfov(8, 6, 60.0),
+            pose: Pose::from_ypr_deg(0.0, 0.0, 0.0, [0.0, 0.0, 100.0]),
+        }
+    }
+
+    fn write_png(path: &Path, w: u32, h: u32) {
+        let mut out = Vec::new();
+        {
+            let mut enc = png::Encoder::new(&mut out, w, h);
+            enc.set_color(png::ColorType::Rgb);
+            enc.set_depth(png::BitDepth::Eight);
+            enc.write_header().unwrap().write_image_data(&vec![90u8; (w * h * 3) as usize]).unwrap();
+        }
+        std::fs::write(path, out).unwrap();
+    }
+
+    #[test]
+    fn outputs_per_mode() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut p = plan(dir.path());
+        let o = frame_outputs(&p, "f1");
+        assert_eq!(o.len(), 2);
+        assert_eq!(o[0].path, dir.path().join("rgb/f1.png"));
+        assert_eq!(o[0].tmp, dir.path().join("rgb/.insgen-tmp-f1.png"));
+        assert_eq!(o[1].path, dir.path().join("rgb/f1.exr"));
+        p.mode = Mode::Ids;
+        assert_eq!(frame_outputs(&p, "f1")[0].path, dir.path().join("rgb/f1.ids.exr"));
+    }
+
+    #[test]
+    fn resume_needs_every_output_to_decode_at_the_right_size() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut p = plan(dir.path());
+        p.exr = false;
+        std::fs::create_dir_all(&p.out_dir).unwrap();
+        let f = frame("a");
+        assert!(!frame_complete(&p, &f));
+        std::fs::write(p.out_dir.join("a.png"), b"\x89PNG truncated").unwrap();
+        assert!(!frame_complete(&p, &f));
+        write_png(&p.out_dir.join("a.png"), 8, 5);
+        assert!(!frame_complete(&p, &f), "wrong height accepted");
+        write_png(&p.out_dir.join("a.png"), 8, 6);
+        assert!(frame_complete(&p, &f));
+        p.exr = true;
+        assert!(!frame_complete(&p, &f), "missing EXR accepted");
+    }
+
+    #[test]
+    fn all_done_means_blender_is_not_started() {
+        // The launcher does not exist: reaching it would fail, so success proves the skip.
+        let dir = tempfile::tempdir().unwrap();
+        let mut p = plan(dir.path());
+        p.exr = false;
+        std::fs::create_dir_all(&p.out_dir).unwrap();
+        write_png(&p.out_dir.join("a.png"), 8, 6);
+        let s = render_frames(&p, &[frame("a")], &crate::util::NoProgress).unwrap();
+        assert_eq!(s.skipped, vec!["a".to_string()]);
+        assert!(s.rendered.is_empty());
+        p.force = true;
+        assert!(matches!(
+            render_frames(&p, &[frame("a")], &crate::util::NoProgress),
+            Err(BlenderError::Spawn { .. })
+        ));
+    }
+
+    #[test]
+    fn bad_requests_fail_before_anything_is_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut p = plan(dir.path());
+        p.source = SceneSource::Lod { glb: dir.path().join("missing/scene.glb") };
+        let e =
+            render_frames(&p, &[frame("a"), frame("a"), frame("x/y")], &crate::util::NoProgress).unwrap_err();
+        let text = e.to_string();
+        assert!(text.contains("frames[1].name") && text.contains("frames[2].name"), "{text}");
+        assert!(text.contains("missing/scene.glb") && text.contains("insgen prepare"), "{text}");
+        assert!(!p.out_dir.exists(), "outputs created for an invalid request");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn unwritable_output_is_reported() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let p = plan(dir.path());
+        std::fs::create_dir_all(&p.out_dir).unwrap();
+        std::fs::set_permissions(&p.out_dir, std::fs::Permissions::from_mode(0o555)).unwrap();
+        // Root ignores permissions; only check when the probe really fails.
+        if check_writable(&p.out_dir).is_ok() {
+            eprintln!("skipping: running as root, directory permissions are not enforced");
+            return;
+        }
+        let e = render_frames(&p, &[frame("a")], &crate::util::NoProgress).unwrap_err().to_string();
+        assert!(e.contains("not writable") && e.contains("rgb"), "{e}");
+    }
+
+    #[test]
+    fn sun_is_seeded_and_in_range() {
+        assert_eq!(sun_from_seed(5), sun_from_seed(5));
+        assert_ne!(sun_from_seed(5), sun_from_seed(6));
+        for s in 0..50 {
+            let (az, el) = sun_from_seed(s);
+            assert!((0.0..360.0).contains(&az) && (30.0..65.0).contains(&el));
+        }
+    }
+}

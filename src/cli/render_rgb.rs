@@ -1,0 +1,381 @@
+//! `insgen render-rgb`: RGB frames with Blender, pixel-aligned with the masks, and the alignment check.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+
+use crate::blender::align::{
+    building_ious, pixel_agreement, read_id_exr, read_id_png, summarise, FrameAlignment,
+};
+use crate::blender::run::{frame_outputs, OutputKind};
+use crate::blender::tileset::SelectOptions;
+use crate::blender::{render_frames, Engine, FrameRequest, Launcher, Mode, RenderPlan, SceneSource, Shard};
+use crate::camera::PoseRecord;
+use crate::geo::{EnuFrame, Geodetic};
+use crate::scene::artifact::{Manifest, GLB_FILE, MANIFEST_FILE};
+
+/// Render engine choice on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum EngineArg {
+    /// Path tracing on the CPU (default).
+    Cycles,
+    /// Fast preview shading with flat per-building colours.
+    Workbench,
+}
+
+/// Renders RGB frames with Blender for a camera's poses.
+///
+/// Reads <workdir>/<area>/scene/{scene.glb,manifest.json} and <workdir>/<area>/<camera>/poses.jsonl;
+/// writes <workdir>/<area>/<camera>/rgb/<frame>.png (and <frame>.exr with --exr). Each frame uses exactly
+/// the intrinsics and pose of its mask, so RGB and masks are pixel-aligned. Frames whose PNG already
+/// exists and decodes are skipped (use --force to redo them).
+///
+/// With --check-alignment, Blender renders building IDs instead (float32 EXR, alignment/<frame>.ids.exr),
+/// which are compared with masks/<frame>.png: per-building IoU, report in alignment/report.{md,json};
+/// the command fails when the median IoU is below 0.995 or the 5th percentile below 0.98.
+///
+/// Blender is the bpy module in .venv-blender (scripts/setup.sh installs it), or --blender-python /
+/// INSGEN_BLENDER_PYTHON, or a Blender binary via --blender / INSGEN_BLENDER.
+#[derive(Debug, Clone, clap::Args)]
+#[command(
+    after_long_help = "Examples:\n  insgen render-rgb --area demo --camera cam2 --limit 4 --samples 16\n  \
+insgen render-rgb --area demo --camera cam2 --shard 0/2 & insgen render-rgb --area demo --camera cam2 --shard 1/2\n  \
+insgen render-rgb --area demo --camera cam2 --check-alignment --limit 10"
+)]
+pub struct Args {
+    /// Area name (a directory under the workdir).
+    #[arg(long, value_name = "NAME")]
+    pub area: String,
+    /// Camera preset whose poses to render (cam1, cam2, cam3 or custom).
+    #[arg(long, value_name = "PRESET")]
+    pub camera: String,
+    /// Render only frames whose index in poses.jsonl is i modulo N (0 ≤ i < N).
+    #[arg(long, value_name = "i/N", value_parser = parse_shard)]
+    pub shard: Option<Shard>,
+    /// Cycles samples per pixel.
+    #[arg(long, value_name = "N", default_value_t = 64)]
+    pub samples: u32,
+    /// Render engine.
+    #[arg(long, value_enum, default_value_t = EngineArg::Cycles)]
+    pub engine: EngineArg,
+    /// Also write a linear float32 EXR per frame.
+    #[arg(long)]
+    pub exr: bool,
+    /// Render building IDs and compare them with the masks instead of rendering RGB.
+    #[arg(long)]
+    pub check_alignment: bool,
+    /// Start a fresh Blender process every N frames (bounds memory).
+    #[arg(long, value_name = "N", default_value_t = 50, value_parser = clap::value_parser!(u32).range(1..))]
+    pub restart_every: u32,
+    /// Re-render frames whose outputs already exist.
+    #[arg(long)]
+    pub force: bool,
+    /// Render at most N frames (after sharding).
+    #[arg(long, value_name = "N")]
+    pub limit: Option<usize>,
+    /// Seed of the sampling, the sun and the per-building materials.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub seed: u32,
+    /// Render a photogrammetry 3D Tiles tileset (tileset.json) instead of the procedural LoD look.
+    #[arg(long, value_name = "FILE")]
+    pub tileset: Option<PathBuf>,
+    /// Screen-space error in pixels above which tiles are refined.
+    #[arg(long, value_name = "PX", default_value_t = 16.0, hide_short_help = true)]
+    pub max_sse: f64,
+    /// Render threads (0 = all cores).
+    #[arg(long, value_name = "N", default_value_t = 0, hide_short_help = true)]
+    pub threads: u32,
+    /// Do not denoise RGB renders.
+    #[arg(long, hide_short_help = true)]
+    pub no_denoise: bool,
+    /// Minimum union in pixels for a building to enter the alignment statistics.
+    #[arg(long, value_name = "PX", default_value_t = 64, hide_short_help = true)]
+    pub min_union: u64,
+    /// Blender executable to run (`blender -b -P …`) instead of the bpy venv.
+    #[arg(long, value_name = "FILE", hide_short_help = true)]
+    pub blender: Option<PathBuf>,
+    /// Python interpreter with the bpy module.
+    #[arg(long, value_name = "FILE", hide_short_help = true)]
+    pub blender_python: Option<PathBuf>,
+}
+
+fn parse_shard(s: &str) -> Result<Shard, String> {
+    Shard::parse(s)
+}
+
+/// Stable 64-bit FNV-1a of a string (the area's contribution to the look seed).
+fn fnv1a(s: &str) -> u64 {
+    s.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3))
+}
+
+/// Reads `poses.jsonl`, naming the line of any bad record.
+pub fn read_poses(path: &Path) -> anyhow::Result<Vec<PoseRecord>> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let mut out = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let rec: PoseRecord = serde_json::from_str(line)
+            .with_context(|| format!("{}:{}: not a pose record", path.display(), i + 1))?;
+        out.push(rec);
+    }
+    Ok(out)
+}
+
+/// Paths and settings resolved from the flags, before any work starts.
+struct Plan {
+    camera_dir: PathBuf,
+    frames: Vec<FrameRequest>,
+    render: RenderPlan,
+}
+
+fn plan(args: &Args, global: &super::Global) -> anyhow::Result<Plan> {
+    let area_dir = global.workdir.join(&args.area);
+    let scene_dir = area_dir.join("scene");
+    let camera_dir = area_dir.join(&args.camera);
+    let poses_path = camera_dir.join("poses.jsonl");
+    if !poses_path.is_file() {
+        bail!(
+            "{} does not exist; sample the poses first: insgen sample --area {} --camera {}",
+            poses_path.display(),
+            args.area,
+            args.camera
+        );
+    }
+    let manifest_path = scene_dir.join(MANIFEST_FILE);
+    if !manifest_path.is_file() {
+        bail!(
+            "{} does not exist; prepare the scene first: insgen prepare --area {}",
+            manifest_path.display(),
+            args.area
+        );
+    }
+    let manifest: Manifest = serde_json::from_slice(&crate::util::read_file(&manifest_path)?)
+        .with_context(|| format!("{}: not a scene manifest", manifest_path.display()))?;
+    let records = read_poses(&poses_path)?;
+    let mut frames: Vec<FrameRequest> = records
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| args.shard.is_none_or(|s| s.contains(*i)))
+        .map(|(_, r)| FrameRequest { name: r.name.clone(), intrinsics: r.intrinsics, pose: r.pose() })
+        .collect();
+    if let Some(n) = args.limit {
+        frames.truncate(n);
+    }
+    let roots = [std::env::current_dir().unwrap_or_default(), PathBuf::from(env!("CARGO_MANIFEST_DIR"))];
+    let launcher = Launcher::find(args.blender.as_deref(), args.blender_python.as_deref(), &roots)?;
+    let source = match (&args.tileset, args.check_alignment) {
+        (Some(t), false) => {
+            let o = manifest.origin;
+            SceneSource::Tileset {
+                tileset: t.clone(),
+                enu: EnuFrame::new(Geodetic::new(o.lat_deg, o.lon_deg, o.h_m)),
+                select: SelectOptions { max_sse_px: args.max_sse },
+            }
+        }
+        // The masks come from the LoD model, so the alignment check always renders it.
+        _ => SceneSource::Lod { glb: scene_dir.join(GLB_FILE) },
+    };
+    let (mode, out_dir) = if args.check_alignment {
+        (Mode::Ids, camera_dir.join("alignment"))
+    } else {
+        (Mode::Rgb, camera_dir.join("rgb"))
+    };
+    let render = RenderPlan {
+        launcher,
+        mode,
+        engine: match args.engine {
+            EngineArg::Cycles => Engine::Cycles,
+            EngineArg::Workbench if args.check_alignment => Engine::Cycles,
+            EngineArg::Workbench => Engine::Workbench,
+        },
+        samples: args.samples,
+        seed: args.seed,
+        denoise: !args.no_denoise,
+        threads: args.threads,
+        exr: args.exr,
+        source,
+        look_seed: fnv1a(&args.area) ^ args.seed as u64,
+        ground_enu_m: manifest.ground_enu_m,
+        out_dir,
+        work_dir: camera_dir.join("blender"),
+        restart_every: args.restart_every as usize,
+        force: args.force,
+        clip_start_m: 0.5,
+        clip_end_m: 100_000.0,
+        report_bounds: false,
+    };
+    Ok(Plan { camera_dir, frames, render })
+}
+
+/// Runs `insgen render-rgb`.
+pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
+    let plan = plan(args, global)?;
+    if plan.frames.is_empty() {
+        log::warn!("no frames selected (shard/limit leave nothing to render)");
+        return Ok(());
+    }
+    let progress = global.progress();
+    let summary = render_frames(&plan.render, &plan.frames, &progress)?;
+    let secs: Vec<f64> = summary.rendered.iter().map(|t| t.seconds).collect();
+    let mean = if secs.is_empty() { 0.0 } else { secs.iter().sum::<f64>() / secs.len() as f64 };
+    if !global.quiet {
+        eprintln!(
+            "render-rgb: {} frame(s) rendered ({mean:.2} s/frame in Blender), {} already done, {} Blender process(es)",
+            summary.rendered.len(),
+            summary.skipped.len(),
+            summary.setup_seconds.len()
+        );
+        for (ext, n) in &summary.skipped_contents {
+            eprintln!("render-rgb: skipped {n} tile content(s) of type .{ext} (not importable by Blender)");
+        }
+    }
+    if !args.check_alignment {
+        return Ok(());
+    }
+    let masks = plan.camera_dir.join("masks");
+    let mut per_frame = Vec::with_capacity(plan.frames.len());
+    for f in &plan.frames {
+        let ids_path = frame_outputs(&plan.render, &f.name)
+            .into_iter()
+            .find(|o| o.kind == OutputKind::IdExr)
+            .map(|o| o.path)
+            .context("ID output path")?;
+        let mask_path = masks.join(format!("{}.png", f.name));
+        if !mask_path.is_file() {
+            bail!(
+                "{} does not exist; render the masks first: insgen render-masks --area {} --camera {}",
+                mask_path.display(),
+                args.area,
+                args.camera
+            );
+        }
+        let a = read_id_exr(&ids_path)?;
+        let b = read_id_png(&mask_path)?;
+        let buildings = building_ious(&a, &b, &mask_path)?;
+        per_frame.push(FrameAlignment {
+            frame: f.name.clone(),
+            pixel_agreement: pixel_agreement(&a, &b),
+            buildings,
+        });
+    }
+    let report = summarise(per_frame, args.min_union);
+    let dir = &plan.render.out_dir;
+    crate::util::write_json_atomic(&dir.join("report.json"), &report)?;
+    crate::util::write_bytes_atomic(&dir.join("report.md"), report.to_markdown().as_bytes())?;
+    let fmt = |v: Option<f64>| v.map(|x| format!("{x:.4}")).unwrap_or_else(|| "n/a".into());
+    println!(
+        "alignment: median IoU {}, p5 {}, {} pairs over {} frames, pixel agreement {:.5} → {}",
+        fmt(report.median_iou),
+        fmt(report.p5_iou),
+        report.pairs_counted,
+        report.frames,
+        report.pixel_agreement,
+        dir.join("report.md").display()
+    );
+    if !report.pass {
+        bail!(
+            "alignment below target (median ≥ {}, p5 ≥ {}); see {}",
+            report.target_median_iou,
+            report.target_p5_iou,
+            dir.join("report.md").display()
+        );
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Debug, Parser)]
+    struct Wrap {
+        #[command(flatten)]
+        args: Args,
+    }
+
+    fn parse(extra: &[&str]) -> Result<Args, clap::Error> {
+        let mut v = vec!["x", "--area", "demo", "--camera", "cam2"];
+        v.extend_from_slice(extra);
+        Wrap::try_parse_from(v).map(|w| w.args)
+    }
+
+    #[test]
+    fn defaults() {
+        let a = parse(&[]).unwrap();
+        assert_eq!((a.samples, a.engine, a.restart_every, a.seed), (64, EngineArg::Cycles, 50, 0));
+        assert!(!a.exr && !a.check_alignment && !a.force && a.shard.is_none() && a.limit.is_none());
+    }
+
+    #[test]
+    fn shard_flag() {
+        assert_eq!(parse(&["--shard", "1/3"]).unwrap().shard, Some(Shard { index: 1, count: 3 }));
+        assert!(parse(&["--shard", "3/3"]).is_err());
+    }
+
+    #[test]
+    fn engine_and_counts() {
+        let a = parse(&["--engine", "workbench", "--samples", "8", "--restart-every", "5", "--limit", "2"])
+            .unwrap();
+        assert_eq!((a.engine, a.samples, a.restart_every, a.limit), (EngineArg::Workbench, 8, 5, Some(2)));
+        assert!(parse(&["--restart-every", "0"]).is_err());
+        assert!(parse(&["--engine", "eevee"]).is_err());
+    }
+
+    #[test]
+    fn switches_and_paths() {
+        let a = parse(&[
+            "--exr",
+            "--check-alignment",
+            "--force",
+            "--tileset",
+            "t/tileset.json",
+            "--max-sse",
+            "8",
+        ])
+        .unwrap();
+        assert!(a.exr && a.check_alignment && a.force);
+        assert_eq!(a.tileset, Some(PathBuf::from("t/tileset.json")));
+        assert_eq!(a.max_sse, 8.0);
+        let a = parse(&[
+            "--blender",
+            "/opt/blender",
+            "--blender-python",
+            "/p/python",
+            "--no-denoise",
+            "--min-union",
+            "10",
+        ])
+        .unwrap();
+        assert_eq!(a.blender, Some(PathBuf::from("/opt/blender")));
+        assert_eq!(a.blender_python, Some(PathBuf::from("/p/python")));
+        assert!(a.no_denoise);
+        assert_eq!(a.min_union, 10);
+    }
+
+    #[test]
+    fn missing_inputs_name_the_command_to_run() {
+        let dir = tempfile::tempdir().unwrap();
+        let global = super::super::Global {
+            workdir: dir.path().to_path_buf(),
+            scenes: "scenes".into(),
+            verbose: 0,
+            quiet: true,
+            no_progress: true,
+        };
+        let e = run(&parse(&[]).unwrap(), &global).unwrap_err().to_string();
+        assert!(e.contains("insgen sample --area demo --camera cam2"), "{e}");
+        std::fs::create_dir_all(dir.path().join("demo/cam2")).unwrap();
+        std::fs::write(dir.path().join("demo/cam2/poses.jsonl"), "").unwrap();
+        let e = run(&parse(&[]).unwrap(), &global).unwrap_err().to_string();
+        assert!(e.contains("insgen prepare --area demo"), "{e}");
+    }
+
+    #[test]
+    fn fnv_is_stable() {
+        // FNV-1a 64 of "a" = 0xaf63dc4c8601ec8c (published test vector).
+        assert_eq!(fnv1a("a"), 0xaf63_dc4c_8601_ec8c);
+    }
+}

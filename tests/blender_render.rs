@@ -1,0 +1,545 @@
+//! Blender integration tests: real renders of tiny scenes through bpy (`.venv-blender`).
+//!
+//! - ID renders of box buildings match an independent f64 ray-casting reference (pixel centres), with
+//!   off-centre principal points, fx ≠ fy, tilt and roll: every differing pixel lies on an edge of the
+//!   reference, and per-building IoU passes the issue-6 targets (median ≥ 0.995, p5 ≥ 0.98);
+//! - the same check through a generated 3D Tiles tileset (b3dm RTC_CENTER, glTF CESIUM_RTC, tile
+//!   transforms, an external tileset, REPLACE refinement, a culled tile whose file does not exist);
+//! - a small RGB job: sizes, non-flat content, restarts, byte-identical reruns, resume without Blender;
+//! - failures: a corrupt model surfaces Blender's stderr and leaves no partial frame;
+//! - real data: the Shibuya b3dm tiles land inside their region bounding volumes;
+//! - `#[ignore]` benchmark: seconds per frame for cam2 at 1920×1080.
+//!
+//! Tests skip with a reason when the bpy interpreter is missing (and fail under CI=true).
+
+mod blender_support;
+
+use std::path::{Path, PathBuf};
+
+use blender_support::*;
+use insgen::blender::align::{building_ious, read_id_exr, summarise, FrameAlignment, IdImage};
+use insgen::blender::run::frame_outputs;
+use insgen::blender::tileset::{mat4_inverse_affine, mat4_point, SelectOptions, Y_UP_TO_Z_UP};
+use insgen::blender::{render_frames, Engine, FrameRequest, Launcher, Mode, RenderPlan, SceneSource};
+use insgen::camera::{Intrinsics, Pose};
+use insgen::geo::{EnuFrame, Geodetic};
+use insgen::util::NoProgress;
+
+fn plan(python: &Path, dir: &Path, mode: Mode, source: SceneSource) -> RenderPlan {
+    RenderPlan {
+        launcher: Launcher::Python { interpreter: python.to_path_buf() },
+        mode,
+        engine: Engine::Cycles,
+        samples: 4,
+        seed: 1,
+        denoise: false,
+        // Two render threads: the test machine is shared.
+        threads: 2,
+        exr: false,
+        source,
+        look_seed: 11,
+        ground_enu_m: 0.0,
+        out_dir: dir.join("out"),
+        work_dir: dir.join("work"),
+        restart_every: 50,
+        force: false,
+        clip_start_m: 0.5,
+        clip_end_m: 100_000.0,
+        report_bounds: false,
+    }
+}
+
+fn write_scene_glb(dir: &Path, boxes: &[BoxBuilding]) -> PathBuf {
+    let p = dir.join("scene.glb");
+    std::fs::write(&p, glb_bytes(boxes, &scene_gltf, serde_json::json!({}))).unwrap();
+    p
+}
+
+/// Frames exercising the camera model: off-centre principal point, fx ≠ fy, tilt, roll.
+fn test_frames() -> Vec<FrameRequest> {
+    let k1 =
+        Intrinsics { width_px: 160, height_px: 120, fx_px: 150.0, fy_px: 170.0, cx_px: 70.3, cy_px: 66.8 };
+    let mut k2 = Intrinsics::from_hfov(160, 120, 50.0);
+    k2.cx_px = 85.0;
+    k2.fx_px *= 0.9;
+    vec![
+        FrameRequest {
+            name: "nadir_offcentre".into(),
+            intrinsics: k1,
+            pose: Pose::from_ypr_deg(20.0, 0.0, 0.0, [0.0, 0.0, 150.0]),
+        },
+        FrameRequest {
+            name: "tilt45".into(),
+            intrinsics: k1,
+            pose: Pose::from_ypr_deg(200.0, 45.0, 0.0, [40.0, 60.0, 110.0]),
+        },
+        FrameRequest {
+            name: "tilt60_roll".into(),
+            intrinsics: k2,
+            pose: Pose::from_ypr_deg(75.0, 60.0, 4.0, [-120.0, -30.0, 90.0]),
+        },
+    ]
+}
+
+/// Compares Blender's ID renders of `frames` with the reference of `boxes`; returns the report.
+fn check_ids_against_reference(
+    plan: &RenderPlan,
+    frames: &[FrameRequest],
+    boxes: &[BoxBuilding],
+) -> insgen::blender::align::AlignmentReport {
+    let mut per_frame = Vec::new();
+    for f in frames {
+        let path = frame_outputs(plan, &f.name)[0].path.clone();
+        let got = read_id_exr(&path).unwrap();
+        let k = &f.intrinsics;
+        assert_eq!((got.width, got.height), (k.width_px, k.height_px));
+        let want = IdImage { width: k.width_px, height: k.height_px, ids: reference_ids(boxes, k, &f.pose) };
+        let edges = edge_mask(&want.ids, k.width_px, k.height_px);
+        let mut differ = 0;
+        for (i, (&a, &b)) in got.ids.iter().zip(&want.ids).enumerate() {
+            if a != b {
+                differ += 1;
+                assert!(
+                    edges[i],
+                    "{}: pixel ({}, {}) is {a} but the reference says {b} away from any edge",
+                    f.name,
+                    i as u32 % k.width_px,
+                    i as u32 / k.width_px
+                );
+            }
+        }
+        let present: std::collections::BTreeSet<u32> = want.ids.iter().copied().filter(|&v| v != 0).collect();
+        assert!(present.len() >= 3, "{}: only {present:?} visible; the test frame is badly placed", f.name);
+        eprintln!(
+            "{}: {differ} differing pixels of {} ({} edge pixels)",
+            f.name,
+            got.ids.len(),
+            edges.iter().filter(|&&e| e).count()
+        );
+        let agreement =
+            got.ids.iter().zip(&want.ids).filter(|(a, b)| a == b).count() as f64 / got.ids.len() as f64;
+        per_frame.push(FrameAlignment {
+            frame: f.name.clone(),
+            pixel_agreement: agreement,
+            buildings: building_ious(&got, &want, &path).unwrap(),
+        });
+    }
+    summarise(per_frame, 64)
+}
+
+#[test]
+fn ids_render_matches_f64_reference() {
+    let Some(py) = blender_python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let boxes = box_city();
+    let glb = write_scene_glb(dir.path(), &boxes);
+    let p = plan(&py, dir.path(), Mode::Ids, SceneSource::Lod { glb });
+    let frames = test_frames();
+    let s = render_frames(&p, &frames, &NoProgress).unwrap();
+    assert_eq!(s.rendered.len(), 3);
+    let report = check_ids_against_reference(&p, &frames, &boxes);
+    eprintln!("median IoU {:?}, p5 {:?}, min {:?}", report.median_iou, report.p5_iou, report.min_iou);
+    assert!(report.pairs_counted >= 12, "{}", report.pairs_counted);
+    assert!(report.pass, "{}", report.to_markdown());
+    // No temporary file is left behind.
+    let leftovers: Vec<_> = std::fs::read_dir(&p.out_dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().starts_with('.'))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}
+
+/// Column-major 16 numbers of a row-major 4×4 (3D Tiles `transform`).
+fn col_major(m: &[[f64; 4]; 4]) -> Vec<f64> {
+    (0..4).flat_map(|j| (0..4).map(move |i| m[i][j])).collect()
+}
+
+#[test]
+fn tileset_tiles_are_placed_exactly() {
+    let Some(py) = blender_python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let ts_dir = dir.path().join("tiles");
+    std::fs::create_dir_all(ts_dir.join("ext")).unwrap();
+    let enu = EnuFrame::new(Geodetic::new(35.0, 139.0, 50.0));
+    let ecef_from_enu = enu.ecef_from_enu_matrix();
+    let boxes = box_city();
+    let (a_boxes, rest) = boxes.split_at(2);
+    let (b_boxes, c_boxes) = rest.split_at(2);
+    let y2z_inv = mat4_inverse_affine(&Y_UP_TO_Z_UP).unwrap();
+
+    // Tile A1: b3dm with RTC_CENTER under a tile transform = the ENU frame of a point 300 m east,
+    // rotated by that frame's own axes (a realistic "local ENU" tile transform).
+    let a_origin = enu.enu_to_geodetic([300.0, 0.0, 0.0]);
+    let t_a = EnuFrame::new(a_origin).ecef_from_enu_matrix();
+    let rtc_a = [5.0, -3.0, 2.0];
+    let local_a = insgen::blender::tileset::mat4_mul(&mat4_inverse_affine(&t_a).unwrap(), &ecef_from_enu);
+    let to_gltf_a = |p: [f64; 3]| {
+        let l = mat4_point(&local_a, p);
+        mat4_point(&y2z_inv, [l[0] - rtc_a[0], l[1] - rtc_a[1], l[2] - rtc_a[2]])
+    };
+    std::fs::write(
+        ts_dir.join("a1.b3dm"),
+        b3dm_bytes(&glb_bytes(a_boxes, &to_gltf_a, serde_json::json!({})), Some(rtc_a)),
+    )
+    .unwrap();
+    // A's own (coarse) content must be replaced by A1: a decoy building that is not in the reference.
+    let decoy = [BoxBuilding::new(999, -20.0, -20.0, 20.0, 20.0, 0.0, 100.0)];
+    std::fs::write(
+        ts_dir.join("a_coarse.b3dm"),
+        b3dm_bytes(&glb_bytes(&decoy, &to_gltf_a, serde_json::json!({})), Some(rtc_a)),
+    )
+    .unwrap();
+
+    // Tile B: a glb with CESIUM_RTC (ECEF centre) and no transform.
+    let centre_b = enu.enu_to_ecef([10.0, 10.0, 0.0]);
+    let to_gltf_b = |p: [f64; 3]| {
+        let e = enu.enu_to_ecef(p);
+        mat4_point(&y2z_inv, [e[0] - centre_b[0], e[1] - centre_b[1], e[2] - centre_b[2]])
+    };
+    let rtc_ext = serde_json::json!({"extensionsUsed": ["CESIUM_RTC"], "extensionsRequired": ["CESIUM_RTC"], "extensions": {"CESIUM_RTC": {"center": centre_b}}});
+    std::fs::write(ts_dir.join("b.glb"), glb_bytes(b_boxes, &to_gltf_b, rtc_ext)).unwrap();
+
+    // Tile C: an external tileset whose root carries a second transform (a pure translation) under a
+    // parent tile with the ENU-frame transform of the area origin.
+    let t_c_parent = ecef_from_enu;
+    let t_c_root = [[1.0, 0.0, 0.0, -7.0], [0.0, 1.0, 0.0, 4.0], [0.0, 0.0, 1.0, 1.5], [0.0, 0.0, 0.0, 1.0]];
+    let to_gltf_c = |p: [f64; 3]| mat4_point(&y2z_inv, [p[0] + 7.0, p[1] - 4.0, p[2] - 1.5]);
+    std::fs::write(
+        ts_dir.join("ext/c.b3dm"),
+        b3dm_bytes(&glb_bytes(c_boxes, &to_gltf_c, serde_json::json!({})), None),
+    )
+    .unwrap();
+    let ext = serde_json::json!({
+        "asset": {"version": "1.0"},
+        "geometricError": 0,
+        "root": {"transform": col_major(&t_c_root), "boundingVolume": {"sphere": [0, 0, 0, 200]}, "geometricError": 0, "refine": "ADD", "content": {"uri": "c.b3dm"}}
+    });
+    std::fs::write(ts_dir.join("ext/sub.json"), serde_json::to_vec_pretty(&ext).unwrap()).unwrap();
+
+    let deg = |v: f64| v.to_radians();
+    let tileset = serde_json::json!({
+        "asset": {"version": "1.0"},
+        "geometricError": 500,
+        "root": {
+            "boundingVolume": {"region": [deg(138.99), deg(34.99), deg(139.12), deg(35.01), -10, 200]},
+            "geometricError": 500,
+            "refine": "ADD",
+            "children": [
+                {"transform": col_major(&t_a), "boundingVolume": {"box": [-300, 0, 50, 200, 0, 0, 0, 200, 0, 0, 0, 60]},
+                 "geometricError": 50, "refine": "REPLACE", "content": {"uri": "a_coarse.b3dm"},
+                 "children": [{"boundingVolume": {"box": [-300, 0, 50, 200, 0, 0, 0, 200, 0, 0, 0, 60]}, "geometricError": 0, "content": {"uri": "a1.b3dm"}}]},
+                {"boundingVolume": {"region": [deg(138.999), deg(34.999), deg(139.001), deg(35.001), -10, 100]}, "geometricError": 0, "content": {"uri": "b.glb"}},
+                {"transform": col_major(&t_c_parent), "boundingVolume": {"sphere": [0, 0, 0, 300]}, "geometricError": 0, "content": {"uri": "ext/sub.json"}},
+                {"transform": col_major(&EnuFrame::new(enu.enu_to_geodetic([10_000.0, 0.0, 0.0])).ecef_from_enu_matrix()),
+                 "boundingVolume": {"box": [0, 0, 0, 100, 0, 0, 0, 100, 0, 0, 0, 100]}, "geometricError": 0, "content": {"uri": "far_away_missing.b3dm"}}
+            ]
+        }
+    });
+    let ts_path = ts_dir.join("tileset.json");
+    std::fs::write(&ts_path, serde_json::to_vec_pretty(&tileset).unwrap()).unwrap();
+
+    let source = SceneSource::Tileset { tileset: ts_path, enu, select: SelectOptions::default() };
+    let p = plan(&py, dir.path(), Mode::Ids, source);
+    let frames = test_frames();
+    let s = render_frames(&p, &frames, &NoProgress).unwrap();
+    assert_eq!(s.rendered.len(), 3);
+    assert_eq!(s.models_per_job, vec![3], "A1, B and C, without the coarse A or the far tile");
+    let report = check_ids_against_reference(&p, &frames, &boxes);
+    eprintln!("tileset: median IoU {:?}, p5 {:?}", report.median_iou, report.p5_iou);
+    assert!(report.pass, "{}", report.to_markdown());
+}
+
+#[test]
+fn rgb_job_renders_resumes_and_repeats_exactly() {
+    let Some(py) = blender_python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let boxes = box_city();
+    let glb = write_scene_glb(dir.path(), &boxes);
+    let mut p = plan(&py, dir.path(), Mode::Rgb, SceneSource::Lod { glb });
+    p.restart_every = 1;
+    p.exr = true;
+    let k = Intrinsics::from_hfov(64, 48, 50.0);
+    let frames = vec![
+        FrameRequest {
+            name: "a".into(),
+            intrinsics: k,
+            pose: Pose::from_ypr_deg(0.0, 0.0, 0.0, [0.0, 0.0, 120.0]),
+        },
+        FrameRequest {
+            name: "b".into(),
+            intrinsics: k,
+            pose: Pose::from_ypr_deg(200.0, 45.0, 0.0, [40.0, 60.0, 110.0]),
+        },
+    ];
+    let s = render_frames(&p, &frames, &NoProgress).unwrap();
+    assert_eq!(s.rendered.len(), 2);
+    assert_eq!(s.setup_seconds.len(), 2, "restart_every = 1 must start one process per frame");
+    for f in &frames {
+        let (w, h, rgb) = read_rgb_png(&p.out_dir.join(format!("{}.png", f.name)));
+        assert_eq!((w, h), (64, 48));
+        // Not flat: buildings, ground and sky differ. Mean absolute deviation of luma above 5 levels.
+        let luma: Vec<f64> = rgb
+            .chunks_exact(3)
+            .map(|c| 0.2126 * c[0] as f64 + 0.7152 * c[1] as f64 + 0.0722 * c[2] as f64)
+            .collect();
+        let mean = luma.iter().sum::<f64>() / luma.len() as f64;
+        let mad = luma.iter().map(|v| (v - mean).abs()).sum::<f64>() / luma.len() as f64;
+        assert!(mad > 5.0 && mean > 20.0 && mean < 235.0, "{}: mean {mean}, deviation {mad}", f.name);
+        // Buildings are visible where the reference puts them: their pixels differ from the ground's.
+        let ids = reference_ids(&boxes, &f.intrinsics, &f.pose);
+        let avg = |sel: bool| {
+            let v: Vec<f64> =
+                luma.iter().zip(&ids).filter(|(_, &id)| (id != 0) == sel).map(|(l, _)| *l).collect();
+            v.iter().sum::<f64>() / v.len().max(1) as f64
+        };
+        assert!(
+            (avg(true) - avg(false)).abs() > 3.0,
+            "{}: buildings {} vs ground {}",
+            f.name,
+            avg(true),
+            avg(false)
+        );
+        assert!(p.out_dir.join(format!("{}.exr", f.name)).is_file());
+    }
+    let first = std::fs::read(p.out_dir.join("b.png")).unwrap();
+    let first_exr = std::fs::read(p.out_dir.join("b.exr")).unwrap();
+    // Resume: nothing to do, Blender is not started.
+    let s = render_frames(&p, &frames, &NoProgress).unwrap();
+    assert_eq!((s.rendered.len(), s.skipped.len(), s.setup_seconds.len()), (0, 2, 0));
+    // Determinism: forcing a rerender reproduces the bytes.
+    p.force = true;
+    render_frames(&p, &frames[1..], &NoProgress).unwrap();
+    assert!(std::fs::read(p.out_dir.join("b.png")).unwrap() == first, "PNG rerender differs");
+    assert!(std::fs::read(p.out_dir.join("b.exr")).unwrap() == first_exr, "EXR rerender differs");
+}
+
+#[test]
+fn workbench_engine_renders() {
+    let Some(py) = blender_python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let glb = write_scene_glb(dir.path(), &box_city());
+    let mut p = plan(&py, dir.path(), Mode::Rgb, SceneSource::Lod { glb });
+    p.engine = Engine::Workbench;
+    let k = Intrinsics::from_hfov(64, 48, 50.0);
+    let f = FrameRequest {
+        name: "w".into(),
+        intrinsics: k,
+        pose: Pose::from_ypr_deg(0.0, 0.0, 0.0, [0.0, 0.0, 120.0]),
+    };
+    render_frames(&p, &[f], &NoProgress).unwrap();
+    let (w, h, rgb) = read_rgb_png(&p.out_dir.join("w.png"));
+    assert_eq!((w, h), (64, 48));
+    assert!(rgb.iter().any(|&v| v != rgb[0]), "flat image");
+}
+
+#[test]
+fn corrupt_model_fails_with_blender_output_and_no_partial_frame() {
+    let Some(py) = blender_python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let glb = dir.path().join("scene.glb");
+    std::fs::write(&glb, b"glTF\x02\x00\x00\x00garbage that is not a glb").unwrap();
+    let p = plan(&py, dir.path(), Mode::Ids, SceneSource::Lod { glb });
+    let f = &test_frames()[0];
+    let e = render_frames(&p, std::slice::from_ref(f), &NoProgress).unwrap_err();
+    let text = e.to_string();
+    assert!(text.starts_with("Blender failed: `"), "{text}");
+    assert!(text.contains("render_rgb.py") && text.contains("job-ids-nadir_offcentre.json"), "{text}");
+    assert!(text.contains("exit status 1") && text.contains("stderr (last"), "{text}");
+    let files: Vec<_> = std::fs::read_dir(&p.out_dir).unwrap().collect();
+    assert!(files.is_empty(), "partial outputs left: {files:?}");
+}
+
+#[test]
+fn missing_tile_content_fails_before_blender_starts() {
+    // No interpreter needed: the error comes from preparing the tiles.
+    let dir = tempfile::tempdir().unwrap();
+    let enu = EnuFrame::new(Geodetic::new(35.0, 139.0, 50.0));
+    let ts = serde_json::json!({
+        "asset": {"version": "1.0"}, "geometricError": 0,
+        "root": {"transform": col_major(&enu.ecef_from_enu_matrix()), "boundingVolume": {"sphere": [0, 0, 0, 100]}, "geometricError": 0, "content": {"uri": "gone.b3dm"}}
+    });
+    let ts_path = dir.path().join("tileset.json");
+    std::fs::write(&ts_path, serde_json::to_vec(&ts).unwrap()).unwrap();
+    let mut p = plan(
+        Path::new("/nonexistent/python"),
+        dir.path(),
+        Mode::Rgb,
+        SceneSource::Tileset { tileset: ts_path, enu, select: SelectOptions::default() },
+    );
+    p.restart_every = 1;
+    let e = render_frames(&p, &test_frames()[..1], &NoProgress).unwrap_err().to_string();
+    assert!(e.contains("gone.b3dm"), "{e}");
+    assert_eq!(std::fs::read_dir(&p.out_dir).unwrap().count(), 0);
+}
+
+#[test]
+fn shibuya_tiles_land_inside_their_regions() {
+    let Some(ts_path) = shared_data("jp_tokyo_shibuya_plateau_3dtiles/tileset.json") else { return };
+    let Some(py) = blender_python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    // Area origin near Shibuya station; a nadir camera 600 m above it sees a handful of tiles.
+    let enu = EnuFrame::new(Geodetic::new(35.6580, 139.7016, 40.0));
+    let k = Intrinsics::from_hfov(32, 24, 40.0);
+    let f = FrameRequest {
+        name: "shibuya".into(),
+        intrinsics: k,
+        pose: Pose::from_ypr_deg(0.0, 0.0, 0.0, [0.0, 0.0, 600.0]),
+    };
+    let mut p = plan(
+        &py,
+        dir.path(),
+        Mode::Ids,
+        SceneSource::Tileset { tileset: ts_path.clone(), enu, select: SelectOptions::default() },
+    );
+    p.report_bounds = true;
+    let s = render_frames(&p, std::slice::from_ref(&f), &NoProgress).unwrap();
+    let job: insgen::blender::Job =
+        serde_json::from_slice(&std::fs::read(p.work_dir.join("job-ids-shibuya.json")).unwrap()).unwrap();
+    assert!(job.models.len() >= 3, "only {} tiles selected", job.models.len());
+    assert_eq!(s.bounds.len(), job.models.len());
+    // Region of each selected tile, from tileset.json, as an ENU box (corners of the geodetic region).
+    let ts: serde_json::Value = serde_json::from_slice(&std::fs::read(&ts_path).unwrap()).unwrap();
+    let mut checked = 0;
+    for (model, bounds) in job.models.iter().zip(&s.bounds) {
+        let stem = model.glb.file_stem().unwrap().to_string_lossy().into_owned();
+        let name = stem.split_once('-').unwrap().1.to_string();
+        let child = ts["root"]["children"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|c| c["content"]["uri"].as_str().unwrap().ends_with(&format!("{name}.b3dm")))
+            .unwrap();
+        let r: Vec<f64> = child["boundingVolume"]["region"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for lat in [r[1], r[3], 0.5 * (r[1] + r[3])] {
+            for lon in [r[0], r[2], 0.5 * (r[0] + r[2])] {
+                for h in [r[4], r[5]] {
+                    let e = enu.geodetic_to_enu(Geodetic::new(lat.to_degrees(), lon.to_degrees(), h));
+                    for a in 0..3 {
+                        lo[a] = lo[a].min(e[a]);
+                        hi[a] = hi[a].max(e[a]);
+                    }
+                }
+            }
+        }
+        let [bmin, bmax] = bounds.expect("tile has vertices");
+        // 1 m tolerance: float32 vertices and the region's own rounding.
+        for a in 0..3 {
+            assert!(
+                bmin[a] >= lo[a] - 1.0 && bmax[a] <= hi[a] + 1.0,
+                "{name} axis {a}: [{}, {}] outside region [{}, {}]",
+                bmin[a],
+                bmax[a],
+                lo[a],
+                hi[a]
+            );
+        }
+        // And it fills its region (the region is the tight box of the tile's content).
+        assert!(
+            bmax[2] - bmin[2] > 0.8 * (hi[2] - lo[2]) - 2.0,
+            "{name}: height {} vs region {}",
+            bmax[2] - bmin[2],
+            hi[2] - lo[2]
+        );
+        checked += 1;
+    }
+    eprintln!("{checked} Shibuya tiles inside their regions");
+}
+
+/// Seconds per frame for cam2 (1920×1080, 25° HFOV) over a dense box city, Cycles CPU.
+/// `INSGEN_BENCH_SAMPLES` (default 32) sets the samples; the first frame includes shader compilation.
+#[test]
+#[ignore = "benchmark: several minutes on 2 cores"]
+fn bench_cam2_full_resolution() {
+    let Some(py) = blender_python() else { return };
+    let samples: u32 = std::env::var("INSGEN_BENCH_SAMPLES").ok().and_then(|v| v.parse().ok()).unwrap_or(32);
+    let out = std::env::var_os("INSGEN_BENCH_DIR").map(PathBuf::from);
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = out.as_deref().unwrap_or(tmp.path());
+    std::fs::create_dir_all(dir).unwrap();
+    // 20 × 20 blocks of varied boxes, 40 m pitch.
+    let mut boxes = Vec::new();
+    let mut id = 1;
+    for i in 0..20 {
+        for j in 0..20 {
+            let (e, n) = (-400.0 + 40.0 * i as f64, -400.0 + 40.0 * j as f64);
+            let h =
+                8.0 + ((i * 7 + j * 13) % 17) as f64 * 4.0 + if (i + 2 * j) % 23 == 0 { 80.0 } else { 0.0 };
+            let w = 18.0 + ((i * 3 + j) % 5) as f64 * 3.0;
+            boxes.push(BoxBuilding::new(id, e, n, e + w, n + 24.0, 0.0, h));
+            id += 1;
+        }
+    }
+    let glb = write_scene_glb(dir, &boxes);
+    let mut p = plan(&py, dir, Mode::Rgb, SceneSource::Lod { glb });
+    p.samples = samples;
+    p.denoise = std::env::var("INSGEN_BENCH_DENOISE").map(|v| v == "1").unwrap_or(false);
+    p.threads = 0;
+    p.force = true;
+    let k = Intrinsics::from_hfov(1920, 1080, 25.0);
+    let frames = vec![
+        FrameRequest {
+            name: "cam2_nadir".into(),
+            intrinsics: k,
+            pose: Pose::from_ypr_deg(30.0, 0.0, 0.0, [0.0, 0.0, 350.0]),
+        },
+        FrameRequest {
+            name: "cam2_tilt45".into(),
+            intrinsics: k,
+            pose: Pose::from_ypr_deg(30.0, 45.0, 0.0, [-200.0, -300.0, 300.0]),
+        },
+    ];
+    let s = render_frames(&p, &frames, &NoProgress).unwrap();
+    for t in &s.rendered {
+        eprintln!(
+            "bench cam2 1920x1080 cycles cpu {samples} spp denoise={}: {} {:.1} s",
+            p.denoise, t.name, t.seconds
+        );
+    }
+    eprintln!("scene set-up {:?} s; outputs in {}", s.setup_seconds, p.out_dir.display());
+}
+
+#[test]
+fn job_files_follow_the_schema() {
+    // The launcher does not exist, so the run stops right after writing the job file; the job is then
+    // checked against schemas/blender_job.schema.json (ID mode with a scene, RGB mode with a tileset).
+    let schema: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas/blender_job.schema.json"))
+            .unwrap(),
+    )
+    .unwrap();
+    let validator = jsonschema::validator_for(&schema).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let glb = write_scene_glb(dir.path(), &box_city());
+    let no_python = Path::new("/nonexistent/python");
+    let mut jobs = Vec::new();
+    for mode in [Mode::Ids, Mode::Rgb] {
+        let mut p = plan(no_python, dir.path(), mode, SceneSource::Lod { glb: glb.clone() });
+        p.exr = true;
+        assert!(render_frames(&p, &test_frames(), &NoProgress).is_err());
+        let name =
+            if mode == Mode::Ids { "job-ids-nadir_offcentre.json" } else { "job-rgb-nadir_offcentre.json" };
+        jobs.push(p.work_dir.join(name));
+    }
+    for path in jobs {
+        let job: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+        let errors: Vec<String> =
+            validator.iter_errors(&job).map(|e| format!("{} at {}", e, e.instance_path)).collect();
+        assert!(errors.is_empty(), "{}: {errors:#?}", path.display());
+        assert_eq!(job["frames"].as_array().unwrap().len(), 3);
+    }
+    // And the schema rejects what the script would refuse.
+    let mut bad: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("work/job-ids-nadir_offcentre.json")).unwrap())
+            .unwrap();
+    bad["frames"][0]["camera"]["pixel_aspect_x"] = serde_json::json!(0.5);
+    bad["mode"] = serde_json::json!("depth");
+    assert_eq!(validator.iter_errors(&bad).count(), 2);
+}
