@@ -5,6 +5,7 @@
 //!
 //! Exit codes: 0 success, 1 failure (the cause chain is printed on stderr), 2 usage error (clap).
 
+pub mod demo;
 pub mod eval_loc;
 pub mod export_coco;
 pub mod inspect;
@@ -64,6 +65,8 @@ impl Global {
 pub enum Command {
     /// Read an area's LoD models and write its instanced scene (GLB + manifest + building table).
     Prepare(prepare::Args),
+    /// Run the whole pipeline on the embedded procedural demo city.
+    Demo(demo::Args),
     /// Sample UAV camera poses (ground truth and priors) over an area.
     Sample(sample::Args),
     /// Render pixel-exact instance-ID masks (wgpu) for an area's sampled poses.
@@ -85,6 +88,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     let g = &cli.global;
     match &cli.command {
         Command::Prepare(a) => prepare::run(a, g),
+        Command::Demo(a) => demo::run(a, g),
         Command::Sample(a) => sample::run(a, g),
         Command::RenderMasks(a) => render_masks::run(a, g),
         Command::RenderRgb(a) => render_rgb::run(a, g),

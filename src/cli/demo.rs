@@ -1,0 +1,76 @@
+//! `insgen demo`: the whole pipeline on the embedded procedural city (scenes/demo*.toml), nothing to
+//! download. Each step is the same command a user would type; they are run in order and each one's
+//! outputs feed the next.
+
+use anyhow::Context;
+use clap::Parser;
+
+use super::{Cli, Global};
+
+/// Runs prepare → sample → render-masks → export-coco → eval-loc (→ render-rgb when Blender's bpy is
+/// installed) on the demo districts: demo (train), demo-val (val) and demo-test (held out).
+#[derive(Debug, Clone, clap::Args)]
+pub struct Args {
+    /// Camera preset for the demo.
+    #[arg(long, value_name = "PRESET", default_value = "cam2")]
+    pub camera: String,
+    /// Poses sampled per district.
+    #[arg(long, value_name = "N", default_value_t = 24)]
+    pub count: u32,
+    /// Queries localized on the held-out district.
+    #[arg(long, value_name = "N", default_value_t = 6)]
+    pub queries: u32,
+    /// Skip the Blender RGB step even when bpy is installed.
+    #[arg(long)]
+    pub no_rgb: bool,
+}
+
+fn step(global: &Global, words: &[&str]) -> anyhow::Result<()> {
+    let mut argv: Vec<String> = vec!["insgen".into()];
+    argv.extend(words.iter().map(|s| s.to_string()));
+    argv.push("--workdir".into());
+    argv.push(global.workdir.display().to_string());
+    argv.push("--scenes".into());
+    argv.push(global.scenes.display().to_string());
+    if global.quiet {
+        argv.push("-q".into());
+    }
+    if global.no_progress {
+        argv.push("--no-progress".into());
+    }
+    eprintln!("==> {}", argv[..1 + words.len()].join(" "));
+    let cli = Cli::try_parse_from(&argv).with_context(|| format!("demo step `{}`", words.join(" ")))?;
+    super::run(cli).with_context(|| format!("demo step `{}`", words.join(" ")))
+}
+
+pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
+    let districts = ["demo", "demo-val", "demo-test"];
+    let count = args.count.to_string();
+    for d in districts {
+        step(global, &["prepare", "--area", d])?;
+        step(global, &["sample", "--area", d, "--camera", &args.camera, "--count", &count])?;
+        step(global, &["render-masks", "--area", d, "--camera", &args.camera, "--preview", "4"])?;
+    }
+    let blender_python = std::path::Path::new(".venv-blender/bin/python");
+    if !args.no_rgb && blender_python.exists() {
+        step(global, &["render-rgb", "--area", "demo", "--camera", &args.camera, "--limit", "2"])?;
+    } else if !args.no_rgb {
+        eprintln!("==> skipping render-rgb: .venv-blender is missing (scripts/setup.sh installs it)");
+    }
+    step(global, &["export-coco"])?;
+    let q = args.queries.to_string();
+    step(
+        global,
+        &[
+            "eval-loc", "--area", "demo-test", "--camera", &args.camera, "--oracle", "--limit", &q, "--cost", "instance", "--cost",
+            "semantic", "--render-width", "320", "--coarse-width", "160",
+        ],
+    )?;
+    eprintln!(
+        "==> done: scenes, poses, masks and previews under {0}/<area>/, COCO under {0}/coco/, localization report \
+         under {0}/demo-test/{1}/loc/",
+        global.workdir.display(),
+        args.camera
+    );
+    Ok(())
+}
