@@ -228,7 +228,8 @@ fn crs_conversions_agree_with_pyproj() {
         );
         if max_h_auth > TOL_M || max_h_en > TOL_M || max_v > TOL_M || max_eh > TOL_M {
             failures.push(format!(
-                "EPSG:{} {}: horizontal {max_h_auth:.4} / {max_h_en:.4} m, ECEF vertical {max_v:.4} m, ECEF {max_eh:.4} m",
+                "EPSG:{} {}: horizontal {max_h_auth:.4} / {max_h_en:.4} m, ECEF vertical {max_v:.4} m, \
+                 ECEF horizontal {max_eh:.4} m",
                 r.code, r.name
             ));
         }

@@ -841,7 +841,8 @@ mod tests {
 
         #[test]
         fn utm_central_meridian_on_the_equator() {
-            // UTM: E = 500 000 m on the central meridian, N = 0 (north) or 10 000 000 m (south) on the equator.
+            // UTM: E = 500 000 m on the central meridian; on the equator N = 0 (north zones) or
+            // 10 000 000 m (south zones).
             for (code, lon0, northing) in
                 [(32631, 3.0, 0.0), (32654, 141.0, 0.0), (32733, 15.0, 10_000_000.0)]
             {

@@ -206,7 +206,8 @@ impl GeoidGrid {
             .ok_or_else(|| bad(format!("grid size {rows} × {cols} is too large")))?;
         if bytes.len() != want {
             return Err(bad(format!(
-                "the header announces {rows} × {cols} values ({want} bytes with the header) but the file has {} bytes",
+                "the header announces {rows} × {cols} values ({want} bytes with the header) but the file \
+                 has {} bytes",
                 bytes.len()
             )));
         }
@@ -318,7 +319,8 @@ impl GeoidGrid {
             (self.node(ix, iy2), fy - fx * fy),
             (self.node(ix2, iy2), fx * fy),
         ];
-        let valid = |v: f32| !(v > 1000.0 || v < -1000.0 || v == GTX_NODATA);
+        // PROJ's nodata test (|v| > 1000 m or the GTX marker); a NaN node also counts as nodata here.
+        let valid = |v: f32| (-1000.0..=1000.0).contains(&v) && v != GTX_NODATA;
         let n_valid = corners.iter().filter(|(v, _)| valid(*v)).count();
         match n_valid {
             0 => Err(bad(format!("no geoid data around ({lat_deg}°, {lon_deg}°)"))),
