@@ -651,7 +651,7 @@ impl<'p> Parser<'p> {
         let consistent = match role {
             Role::Coordinates => tuple_sizes.iter().all(|&n| n == dim),
             Role::Pos => values.len() == dim,
-            _ => values.len() % dim == 0,
+            _ => values.len().is_multiple_of(dim),
         };
         if !(2..=3).contains(&dim) || !consistent {
             let what = match role {
@@ -752,13 +752,12 @@ impl<'p> Parser<'p> {
         // Which LoD each component contributes: the chosen one, or (by default) its best lower one.
         let mut picks: Vec<(usize, usize)> = Vec::new(); // (component, lod)
         if let Some(top) = chosen {
-            for c in 0..b.components.len() {
-                let lod = match self.forced_lod {
-                    Some(_) => top,
-                    None => (0..=top).rev().find(|&l| usable(&lists[l][c])).unwrap_or(top),
-                };
-                picks.push((c, lod));
-            }
+            picks = (0..b.components.len())
+                .map(|c| match self.forced_lod {
+                    Some(_) => (c, top),
+                    None => (c, (0..=top).rev().find(|&l| usable(&lists[l][c])).unwrap_or(top)),
+                })
+                .collect();
         }
         let mut polygons = Vec::new();
         let mut degenerate = 0u64;

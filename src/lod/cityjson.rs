@@ -632,11 +632,8 @@ impl<'p> Reader<'p> {
             }
         }
         let source = VertexSource { vertices, transform: self.transform, list_name: "vertices" };
-        for i in 0..objects.len() {
-            if members[i].is_empty() {
-                continue;
-            }
-            self.read_building(&objects, &members[i], &source, at)?;
+        for group in members.iter().filter(|m| !m.is_empty()) {
+            self.read_building(&objects, group, &source, at)?;
         }
         Ok(())
     }

@@ -197,7 +197,8 @@ pub fn clean_ring(mut points: Vec<[f64; 3]>) -> Option<Vec<[f64; 3]>> {
     let twice_area = (normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]).sqrt();
     let reach = reach_sq.sqrt();
     let noise = 1e-12 * reach_sq + 64.0 * f64::EPSILON * magnitude * reach;
-    if !(twice_area > noise) {
+    // NaN area (from non-finite input) counts as degenerate too.
+    if twice_area.is_nan() || twice_area <= noise {
         return None;
     }
     Some(points)
