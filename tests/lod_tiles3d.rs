@@ -171,7 +171,8 @@ fn simple_glb(
 ///  ├─ children[1]: refine REPLACE, content coarse.glb (superseded: must not be read)
 ///  │     └─ children[0]: content ext/tileset.json (external 1.1 tileset)
 ///  │           root: transform translate(0, 0, 500), contents [f.glb]
-///  │           f.glb: EXT_mesh_features _FEATURE_ID_0 → property table gml_id [ext_1, bldg_a]
+///  │           f.glb: EXT_mesh_features _FEATURE_ID_0 → property table gml_id [ext_1, bldg_a],
+///  │                  lod [2, 1], height [6.5, 8.5] (FLOAT32 with scale and offset)
 ///  └─ children[2]: contents [idless.glb] — three triangles, no feature IDs
 /// ```
 fn write_hand_tileset(dir: &Path) -> PathBuf {
@@ -207,9 +208,17 @@ fn write_hand_tileset(dir: &Path) -> PathBuf {
     let strings = b"ext_1bldg_a".to_vec();
     let offsets: Vec<u8> = [0u32, 5, 11].iter().flat_map(|o| o.to_le_bytes()).collect();
     let mf = json!({"EXT_mesh_features": {"featureIds": [{"featureCount": 2, "attribute": 0, "propertyTable": 0}]}});
+    // Properties: gml_id (STRING), lod (UINT8 [2, 1]), height (FLOAT32 [3, 4] with scale 2 and
+    // offset 0.5 → 6.5, 8.5 m).
+    let lod = vec![2u8, 1];
+    let height = f32_bytes(&[3.0, 4.0]);
     let sm = json!({"EXT_structural_metadata": {
-        "schema": {"id": "s", "classes": {"building": {"properties": {"gml_id": {"type": "STRING"}}}}},
-        "propertyTables": [{"class": "building", "count": 2, "properties": {"gml_id": {"values": 3, "stringOffsets": 4}}}]
+        "schema": {"id": "s", "classes": {"building": {"properties": {
+            "gml_id": {"type": "STRING"},
+            "lod": {"type": "SCALAR", "componentType": "UINT8"},
+            "height": {"type": "SCALAR", "componentType": "FLOAT32", "scale": 2.0, "offset": 0.5}}}}},
+        "propertyTables": [{"class": "building", "count": 2, "properties": {
+            "gml_id": {"values": 3, "stringOffsets": 4}, "lod": {"values": 5}, "height": {"values": 6}}}]
     }});
     let g = simple_glb(
         &[
@@ -225,7 +234,7 @@ fn write_hand_tileset(dir: &Path) -> PathBuf {
         json!({}),
         mf,
         sm,
-        &[strings, offsets],
+        &[strings, offsets, lod, height],
     );
     std::fs::write(dir.join("ext/f.glb"), g).unwrap();
     let ext = json!({"asset": {"version": "1.1"}, "geometricError": 0,
@@ -319,7 +328,7 @@ fn hand_tileset_frame_maths() {
 
     // ext_1: (0,0,0),(1,0,0),(0,1,0) → Y2Z (0,0,0),(1,0,0),(0,0,1) → +(0,0,500) → +T1.
     let e = building(&model, "ext_1");
-    assert_eq!(e.lod, "unknown");
+    assert_eq!((e.lod.as_str(), e.measured_height_m), ("2", Some(6.5)));
     assert_vertices(
         mesh(&e.geometry),
         &[[1000.0, 2000.0, 3500.0], [1001.0, 2000.0, 3500.0], [1000.0, 2000.0, 3501.0]],
