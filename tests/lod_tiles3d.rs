@@ -335,8 +335,8 @@ fn hand_tileset_frame_maths() {
         1e-9,
     );
 
-    // The REPLACE parent's coarse.glb is not read; idless.glb splits into two components (the
-    // repeated vertex does not connect without welding... see below).
+    // The REPLACE parent's coarse.glb is not read; idless.glb splits into three components: its
+    // repeated vertex connects nothing without welding (see below).
     let ids: Vec<&str> = model.buildings.iter().map(|b| b.source_id.as_str()).collect();
     assert_eq!(ids, ["bldg_a", "bldg_b", "ext_1", "idless.glb#cc0", "idless.glb#cc1", "idless.glb#cc2"]);
     assert_eq!(
