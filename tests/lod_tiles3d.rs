@@ -66,7 +66,7 @@ fn f32_bytes(v: &[f32]) -> Vec<u8> {
 }
 
 fn pad_to(mut v: Vec<u8>, n: usize, fill: u8) -> Vec<u8> {
-    while v.len() % n != 0 {
+    while !v.len().is_multiple_of(n) {
         v.push(fill);
     }
     v
@@ -121,7 +121,7 @@ fn simple_glb(
     let mut push = |bytes: &[u8], bin: &mut Vec<u8>| {
         let off = bin.len();
         bin.extend_from_slice(bytes);
-        while bin.len() % 4 != 0 {
+        while !bin.len().is_multiple_of(4) {
             bin.push(0);
         }
         views.push(json!({"buffer": 0, "byteOffset": off, "byteLength": bytes.len()}));
@@ -171,7 +171,8 @@ fn simple_glb(
 ///  ├─ children[1]: refine REPLACE, content coarse.glb (superseded: must not be read)
 ///  │     └─ children[0]: content ext/tileset.json (external 1.1 tileset)
 ///  │           root: transform translate(0, 0, 500), contents [f.glb]
-///  │           f.glb: EXT_mesh_features _FEATURE_ID_0 → property table gml_id [ext_1, bldg_a]
+///  │           f.glb: EXT_mesh_features _FEATURE_ID_0 → property table gml_id [ext_1, bldg_a],
+///  │                  lod [2, 1], height [6.5, 8.5] (FLOAT32 with scale and offset)
 ///  └─ children[2]: contents [idless.glb] — three triangles, no feature IDs
 /// ```
 fn write_hand_tileset(dir: &Path) -> PathBuf {
@@ -207,9 +208,17 @@ fn write_hand_tileset(dir: &Path) -> PathBuf {
     let strings = b"ext_1bldg_a".to_vec();
     let offsets: Vec<u8> = [0u32, 5, 11].iter().flat_map(|o| o.to_le_bytes()).collect();
     let mf = json!({"EXT_mesh_features": {"featureIds": [{"featureCount": 2, "attribute": 0, "propertyTable": 0}]}});
+    // Properties: gml_id (STRING), lod (UINT8 [2, 1]), height (FLOAT32 [3, 4] with scale 2 and
+    // offset 0.5 → 6.5, 8.5 m).
+    let lod = vec![2u8, 1];
+    let height = f32_bytes(&[3.0, 4.0]);
     let sm = json!({"EXT_structural_metadata": {
-        "schema": {"id": "s", "classes": {"building": {"properties": {"gml_id": {"type": "STRING"}}}}},
-        "propertyTables": [{"class": "building", "count": 2, "properties": {"gml_id": {"values": 3, "stringOffsets": 4}}}]
+        "schema": {"id": "s", "classes": {"building": {"properties": {
+            "gml_id": {"type": "STRING"},
+            "lod": {"type": "SCALAR", "componentType": "UINT8"},
+            "height": {"type": "SCALAR", "componentType": "FLOAT32", "scale": 2.0, "offset": 0.5}}}}},
+        "propertyTables": [{"class": "building", "count": 2, "properties": {
+            "gml_id": {"values": 3, "stringOffsets": 4}, "lod": {"values": 5}, "height": {"values": 6}}}]
     }});
     let g = simple_glb(
         &[
@@ -225,7 +234,7 @@ fn write_hand_tileset(dir: &Path) -> PathBuf {
         json!({}),
         mf,
         sm,
-        &[strings, offsets],
+        &[strings, offsets, lod, height],
     );
     std::fs::write(dir.join("ext/f.glb"), g).unwrap();
     let ext = json!({"asset": {"version": "1.1"}, "geometricError": 0,
@@ -319,15 +328,15 @@ fn hand_tileset_frame_maths() {
 
     // ext_1: (0,0,0),(1,0,0),(0,1,0) → Y2Z (0,0,0),(1,0,0),(0,0,1) → +(0,0,500) → +T1.
     let e = building(&model, "ext_1");
-    assert_eq!(e.lod, "unknown");
+    assert_eq!((e.lod.as_str(), e.measured_height_m), ("2", Some(6.5)));
     assert_vertices(
         mesh(&e.geometry),
         &[[1000.0, 2000.0, 3500.0], [1001.0, 2000.0, 3500.0], [1000.0, 2000.0, 3501.0]],
         1e-9,
     );
 
-    // The REPLACE parent's coarse.glb is not read; idless.glb splits into two components (the
-    // repeated vertex does not connect without welding... see below).
+    // The REPLACE parent's coarse.glb is not read; idless.glb splits into three components: its
+    // repeated vertex connects nothing without welding (see below).
     let ids: Vec<&str> = model.buildings.iter().map(|b| b.source_id.as_str()).collect();
     assert_eq!(ids, ["bldg_a", "bldg_b", "ext_1", "idless.glb#cc0", "idless.glb#cc1", "idless.glb#cc2"]);
     assert_eq!(
@@ -532,6 +541,9 @@ fn shibuya_plateau_tileset() {
     assert_eq!(report.contents_read, 56);
     assert_eq!(report.merged_features, 0);
     assert_eq!(report.connected_component_buildings, 0);
+    assert_eq!(report.mixed_feature_triangles, 0);
+    // Every batch id of the 56 tiles (ΣBATCH_LENGTH = 3,595) has triangles.
+    assert_eq!(model.stats.buildings_without_geometry, 0);
     // README: 3,595 features, each with a unique gml_id.
     assert_eq!(model.buildings.len(), 3595);
     let unique: BTreeSet<&str> = model.buildings.iter().map(|b| b.source_id.as_str()).collect();
@@ -595,7 +607,8 @@ fn shibuya_plateau_tileset() {
     assert!(worst_deg < 1e-8, "worst lon/lat box difference {worst_deg}°");
     eprintln!(
         "shibuya: {} buildings, LoD {lods:?}, {with_height} with measured height, {} triangles, \
-         lon {:.6}..{:.6}°, lat {:.6}..{:.6}°, heights {:.3}..{:.3} m, worst box difference {worst_deg:.2e}°",
+         lon {:.6}..{:.6}°, lat {:.6}..{:.6}°, heights {:.3}..{:.3} m, worst box difference {worst_deg:.2e}°; \
+         {} mixed-feature and {} degenerate triangles, {} features without geometry",
         model.buildings.len(),
         model.stats.faces,
         ext[0],
@@ -603,7 +616,10 @@ fn shibuya_plateau_tileset() {
         ext[2],
         ext[3],
         ext[4],
-        ext[5]
+        ext[5],
+        report.mixed_feature_triangles,
+        model.stats.degenerate_faces,
+        model.stats.buildings_without_geometry
     );
 }
 
@@ -648,7 +664,11 @@ fn cmpt_with_b3dm_and_i3dm_inner_tiles() {
     assert_eq!(ids, ["in_a", "in_b"]);
     assert_eq!((report.contents_read, report.unsupported_contents), (2, 1));
     // (0,1,0) → Y2Z (0,0,1).
-    assert_vertices(mesh(&model.buildings[1].geometry), &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]], 0.0);
+    assert_vertices(
+        mesh(&model.buildings[1].geometry),
+        &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
+        0.0,
+    );
 }
 
 #[test]
@@ -662,7 +682,11 @@ fn gltf_up_axis_z_skips_the_rotation() {
     let model = tiles3d::read(&dir.path().join("tileset.json"), &ReadOptions::default()).unwrap();
     // No batch table: the feature keeps a synthesized id; the vertices stay as written.
     assert_eq!(model.buildings[0].source_id, "t.glb#batch0");
-    assert_vertices(mesh(&model.buildings[0].geometry), &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], 0.0);
+    assert_vertices(
+        mesh(&model.buildings[0].geometry),
+        &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+        0.0,
+    );
 }
 
 #[test]
@@ -673,7 +697,12 @@ fn batch_id_past_batch_length_is_an_error() {
     std::fs::write(&path, tile).unwrap();
     let err = tiles3d::read(&path, &ReadOptions::default()).unwrap_err();
     let msg = err.to_string();
-    assert!(msg.contains("bad_ids.b3dm") && msg.contains("_BATCHID 2 is not below") && msg.contains("BATCH_LENGTH 2"), "{msg}");
+    assert!(
+        msg.contains("bad_ids.b3dm")
+            && msg.contains("_BATCHID 2 is not below")
+            && msg.contains("BATCH_LENGTH 2"),
+        "{msg}"
+    );
 }
 
 #[test]
@@ -697,7 +726,10 @@ fn unsupported_required_extension_is_named() {
     std::fs::write(&path, glb(&gltf, &g[28 + jlen..28 + jlen + bin_len])).unwrap();
     let msg = tiles3d::read(&path, &ReadOptions::default()).unwrap_err().to_string();
     assert!(msg.contains("meshopt.glb") && msg.contains("EXT_meshopt_compression"), "{msg}");
-    assert!(!msg.contains("requires extension(s) EXT_meshopt_compression, KHR"), "material extensions are harmless: {msg}");
+    assert!(
+        !msg.contains("requires extension(s) EXT_meshopt_compression, KHR"),
+        "material extensions are harmless: {msg}"
+    );
 }
 
 #[test]
@@ -706,7 +738,14 @@ fn null_feature_ids_are_dropped() {
     let path = dir.path().join("n.glb");
     let mf = json!({"EXT_mesh_features": {"featureIds": [{"featureCount": 1, "attribute": 0, "nullFeatureId": 7}]}});
     let g = simple_glb(
-        &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [5.0, 0.0, 0.0], [6.0, 0.0, 0.0], [5.0, 1.0, 0.0]],
+        &[
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [5.0, 0.0, 0.0],
+            [6.0, 0.0, 0.0],
+            [5.0, 1.0, 0.0],
+        ],
         &[0, 1, 2, 3, 4, 5],
         Some(("_FEATURE_ID_0", &[0.0, 0.0, 0.0, 7.0, 7.0, 7.0])),
         json!({}),
@@ -723,7 +762,9 @@ fn null_feature_ids_are_dropped() {
 
 #[test]
 fn shibuya_komaba_neighbors_tileset() {
-    let Some(path) = shared_data("jp_tokyo_shibuya_plateau_3dtiles/tileset_komaba_neighbors.json") else { return };
+    let Some(path) = shared_data("jp_tokyo_shibuya_plateau_3dtiles/tileset_komaba_neighbors.json") else {
+        return;
+    };
     let model = tiles3d::read(&path, &ReadOptions::default()).unwrap();
     // Reference (Python over the 9 batch tables): 427 unique gml_ids, all `_lod` 1.
     assert_eq!(model.buildings.len(), 427);

@@ -173,13 +173,9 @@ fn parse_obj(text: &str, sidecar: &ObjSidecar) -> Result<(TriMesh, ReadStats), S
             filtered.push('\n');
         }
     }
-    let load = tobj::LoadOptions {
-        single_index: false,
-        triangulate: true,
-        ignore_points: true,
-        ignore_lines: true,
-        ..Default::default()
-    };
+    // All four fields of tobj's LoadOptions without its `merging`/`reordering` features (off here).
+    let load =
+        tobj::LoadOptions { single_index: false, triangulate: true, ignore_points: true, ignore_lines: true };
     let (models, _materials) = tobj::load_obj_buf(&mut Cursor::new(filtered.as_bytes()), &load, |_| {
         Err(tobj::LoadError::OpenFileFailed)
     })

@@ -289,7 +289,7 @@ mod tests {
     /// A b3dm around `glb` with the given table chunks (padded to 8 bytes as the spec asks).
     pub(crate) fn build(ft_json: &str, ft_bin: &[u8], bt_json: &str, bt_bin: &[u8], glb: &[u8]) -> Vec<u8> {
         let pad = |mut v: Vec<u8>, fill: u8| {
-            while v.len() % 8 != 0 {
+            while !v.len().is_multiple_of(8) {
                 v.push(fill);
             }
             v

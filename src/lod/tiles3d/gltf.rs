@@ -510,7 +510,7 @@ impl<'a> Gltf<'a> {
                 }
             }
             if let Some(s) = v.byte_stride {
-                if !(4..=252).contains(&s) || s % 4 != 0 {
+                if !(4..=252).contains(&s) || !s.is_multiple_of(4) {
                     p.push(format!("bufferViews[{i}].byteStride: {s} is not a multiple of 4 in 4..=252"));
                 }
             }
@@ -594,10 +594,15 @@ impl<'a> Gltf<'a> {
                 }
             }
         }
+        let mut parent_of: Vec<Option<usize>> = vec![None; r.nodes.len()];
         for (i, node) in r.nodes.iter().enumerate() {
             for &c in &node.children {
-                if c >= r.nodes.len() {
-                    p.push(format!("nodes[{i}].children: node {c} does not exist"));
+                match parent_of.get_mut(c) {
+                    None => p.push(format!("nodes[{i}].children: node {c} does not exist")),
+                    Some(Some(first)) => p.push(format!(
+                        "nodes[{i}].children: node {c} is already a child of node {first} (glTF nodes form trees)"
+                    )),
+                    Some(slot) => *slot = Some(i),
                 }
             }
             if let Some(m) = node.mesh {
@@ -722,7 +727,8 @@ impl<'a> Gltf<'a> {
         let mut local: BTreeMap<(usize, usize), Option<LocalPrimitive>> = BTreeMap::new();
         let mut out = Vec::new();
         let mut skipped = 0u64;
-        // Depth-first over the node tree; `path` detects cycles.
+        // Depth-first over the node tree. `validate` ensured no node has two parents, so a walk
+        // deeper than the node count can only be a cycle.
         let mut stack: Vec<(usize, DMat4, usize)> = roots.iter().rev().map(|&n| (n, base, 0)).collect();
         while let Some((n, parent, depth)) = stack.pop() {
             if depth > r.nodes.len() {
@@ -732,14 +738,14 @@ impl<'a> Gltf<'a> {
             let world = parent * node_matrix(node);
             if let Some(m) = node.mesh {
                 for k in 0..r.meshes[m].primitives.len() {
-                    if !local.contains_key(&(m, k)) {
+                    if let std::collections::btree_map::Entry::Vacant(slot) = local.entry((m, k)) {
                         let decoded = self
                             .local_primitive(m, k)
                             .map_err(|e| format!("meshes[{m}].primitives[{k}]: {e}"))?;
                         if decoded.is_none() {
                             skipped += 1;
                         }
-                        local.insert((m, k), decoded);
+                        slot.insert(decoded);
                     }
                     if let Some(Some(lp)) = local.get(&(m, k)) {
                         let positions = lp
@@ -952,6 +958,26 @@ mod tests {
         b[4..8].copy_from_slice(&1u32.to_le_bytes());
         assert!(parse_glb(&b, &no_uri).err().unwrap().contains("glTF version 1"));
         assert!(parse_glb(b"b3dm", &no_uri).err().unwrap().contains("not a GLB"));
+    }
+
+    #[test]
+    fn validation_reports_every_problem_with_its_path() {
+        let no_uri = |_: &str| -> Result<Vec<u8>, String> { Err("no files".into()) };
+        let json = br#"{"asset": {"version": "2.0"},
+            "nodes": [{"children": [1]}, {"mesh": 3}, {"children": [1, 9]}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 4}}]}],
+            "accessors": [{"bufferView": 2, "componentType": 5126, "count": 1, "type": "VEC3"}]}"#;
+        let e = parse_gltf_json(json, &no_uri).err().unwrap();
+        for part in [
+            "5 problem(s)",
+            "accessors[0].bufferView: bufferView 2 does not exist",
+            "meshes[0].primitives[0].attributes[\"POSITION\"]: accessor 4 does not exist",
+            "nodes[1].mesh: mesh 3 does not exist",
+            "nodes[2].children: node 1 is already a child of node 0",
+            "nodes[2].children: node 9 does not exist",
+        ] {
+            assert!(e.contains(part), "{part:?} missing from {e}");
+        }
     }
 
     #[test]

@@ -17,6 +17,8 @@
 //! `"<content>#batch<N>"`; geometry without feature IDs is split into connected components
 //! ([`crate::lod::split::split_connected`], honouring [`ReadOptions::weld_tolerance_m`]) with ids
 //! `"<content>#cc<N>"`, where `<content>` is the content's path relative to the root tileset.
+//! Components are found per content, so an ID-less mesh cut by tile boundaries stays cut there.
+//! [`ReadOptions::lod`] is ignored: a tileset holds one geometry per feature.
 //!
 //! # Frame
 //! Positions are ECEF metres ([`Frame::Ecef`]): for a vertex `p` of a node with global matrix `N`,
