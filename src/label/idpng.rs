@@ -88,8 +88,11 @@ pub fn write_id_png(path: &Path, ids: &[u32], width: u32, height: u32) -> Result
 /// A decoded ID map.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct IdMap {
+    /// Width, pixels.
     pub width: u32,
+    /// Height, pixels.
     pub height: u32,
+    /// Row-major building IDs (0 = background).
     pub ids: Vec<u32>,
 }
 

@@ -28,12 +28,16 @@ pub enum OverlayError {
 /// An 8-bit RGB image, row-major.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct RgbImage {
+    /// Width, pixels.
     pub width: u32,
+    /// Height, pixels.
     pub height: u32,
+    /// Row-major R, G, B bytes.
     pub rgb: Vec<u8>,
 }
 
 impl RgbImage {
+    /// An image of one colour.
     pub fn filled(width: u32, height: u32, colour: [u8; 3]) -> Self {
         RgbImage { width, height, rgb: colour.repeat(width as usize * height as usize) }
     }
@@ -295,7 +299,7 @@ mod tests {
         let inner: std::collections::BTreeSet<[u8; 3]> =
             (0..5).flat_map(|y| (0..7).map(move |x| (x, y))).map(|(x, y)| img.get(x, y)).collect();
         assert_eq!(inner.len(), 1, "{inner:?}");
-        let zero = shade_depth(&vec![0.0; 48], &k);
+        let zero = shade_depth(&[0.0; 48], &k);
         assert_eq!(zero.get(3, 3), [40, 40, 40]);
     }
 

@@ -49,7 +49,9 @@ pub const DEFAULT_MIN_AREA_PX: u64 = 16;
 
 /// File names inside `<workdir>/<area>/<camera>/`.
 pub const POSES_FILE: &str = "poses.jsonl";
+/// Where the ID maps and instance lists go.
 pub const MASKS_DIR: &str = "masks";
+/// Where the RGB stage writes frames (preview backdrops).
 pub const RGB_DIR: &str = "rgb";
 
 /// Frames per contact sheet (4 columns × 3 rows) and the width of one tile.
@@ -86,7 +88,9 @@ pub enum StageError {
 /// `--shard i/N`: frames whose index in poses.jsonl is ≡ i (mod N).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Shard {
+    /// This shard, 0-based, below `count`.
     pub index: u32,
+    /// Number of shards (≥ 1).
     pub count: u32,
 }
 
@@ -134,16 +138,23 @@ impl std::fmt::Display for Shard {
 pub struct MaskPlan {
     /// `<workdir>/<area>/<camera>`: holds poses.jsonl, receives masks/.
     pub camera_dir: PathBuf,
+    /// Pixel connectivity of components.
     pub connectivity: Connectivity,
     /// Components below this many pixels are left out of the instance lists.
     pub min_area_px: u64,
+    /// Compute `visible_fraction` (one extra render per visible building).
     pub visible_fraction: bool,
+    /// Write `<frame>.depth.exr`.
     pub depth: bool,
     /// Frames shown in contact sheets (0 = none).
     pub preview: usize,
+    /// Re-render frames whose outputs verify.
     pub force: bool,
+    /// Which frames of poses.jsonl this run takes.
     pub shard: Shard,
+    /// At most this many frames of the shard.
     pub limit: Option<usize>,
+    /// Clip planes.
     pub range: DepthRange,
 }
 
@@ -164,10 +175,12 @@ impl MaskPlan {
         }
     }
 
+    /// `poses.jsonl`.
     pub fn poses_path(&self) -> PathBuf {
         self.camera_dir.join(POSES_FILE)
     }
 
+    /// `masks/`.
     pub fn masks_dir(&self) -> PathBuf {
         self.camera_dir.join(MASKS_DIR)
     }
@@ -196,6 +209,7 @@ impl MaskPlan {
 /// A frame that could not be written; the others went on.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrameFailure {
+    /// Frame name.
     pub frame: String,
     /// The error with its causes, `: `-separated.
     pub error: String,
@@ -208,15 +222,19 @@ pub struct MaskReport {
     pub frames_total: usize,
     /// Frames in this shard (after `limit`).
     pub frames_selected: usize,
+    /// Frames rendered and written in this run.
     pub rendered: usize,
     /// Frames whose outputs already existed and verified.
     pub skipped: usize,
+    /// Frames that could not be written, by name.
     pub failed: Vec<FrameFailure>,
     /// Instances (components above the minimum area) written.
     pub instances: u64,
+    /// Wall time of the whole stage, seconds.
     pub seconds: f64,
     /// Rendered frames per second of wall time, including labelling and writing.
     pub frames_per_s: f64,
+    /// Contact sheets written.
     pub previews: Vec<PathBuf>,
 }
 

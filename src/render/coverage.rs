@@ -43,13 +43,18 @@ struct Slot {
 /// A pixel rectangle `[x0, x1) × [y0, y1)`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PixelRect {
+    /// First column, pixels.
     pub x0: u32,
+    /// First row, pixels.
     pub y0: u32,
+    /// One past the last column, pixels.
     pub x1: u32,
+    /// One past the last row, pixels.
     pub y1: u32,
 }
 
 impl PixelRect {
+    /// Whether the rectangle holds no pixel.
     pub fn is_empty(&self) -> bool {
         self.x0 >= self.x1 || self.y0 >= self.y1
     }

@@ -30,6 +30,7 @@ pub(crate) struct Pipelines {
     pub coverage_draw: wgpu::RenderPipeline,
     /// Bind group 0 of `coverage.wgsl`: the ID texture and a slot with a dynamic offset.
     pub coverage_layout: wgpu::BindGroupLayout,
+    /// The per-building pixel count of `coverage.wgsl`.
     pub coverage_count: wgpu::ComputePipeline,
 }
 
@@ -121,10 +122,12 @@ impl Renderer {
         &self.adapter
     }
 
+    /// The wgpu device (for callers that add their own passes).
     pub fn device(&self) -> &wgpu::Device {
         &self.device
     }
 
+    /// The device's queue.
     pub fn queue(&self) -> &wgpu::Queue {
         &self.queue
     }
@@ -234,7 +237,7 @@ impl Pipelines {
                 cache: None,
             })
         };
-        let ids = render("ids pipeline", "fs_ids", &[id_target.clone()], true);
+        let ids = render("ids pipeline", "fs_ids", std::slice::from_ref(&id_target), true);
         let ids_depth =
             render("ids+depth pipeline", "fs_ids_depth", &[id_target.clone(), depth_target], true);
         let coverage_draw = render("coverage draw pipeline", "fs_ids", &[id_target], false);

@@ -14,6 +14,7 @@ use crate::scene::{SceneMesh, MAX_BUILDING_ID};
 pub struct GpuVertex {
     /// ENU metres relative to the area origin.
     pub position_m: [f32; 3],
+    /// 24-bit building ID (1..=2²⁴ − 1).
     pub building_id: u32,
 }
 
@@ -29,12 +30,15 @@ impl GpuVertex {
 /// Where one building's triangles sit in the index buffer, and its bounds.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BuildingRange {
+    /// 24-bit building ID.
     pub building_id: u32,
     /// First index and number of indices (3 per triangle) in the index buffer.
     pub first_index: u32,
+    /// Number of indices (3 per triangle).
     pub index_count: u32,
     /// Axis-aligned bounds of its vertices, ENU metres relative to the area origin.
     pub min_m: [f32; 3],
+    /// Upper corner of the bounds, ENU metres.
     pub max_m: [f32; 3],
 }
 
@@ -71,7 +75,7 @@ impl GpuScene {
                 mesh.building_ids.len()
             ));
         }
-        if mesh.indices.len() % 3 != 0 {
+        if !mesh.indices.len().is_multiple_of(3) {
             return bad(format!("{} indices is not a multiple of 3", mesh.indices.len()));
         }
         if mesh.indices.len() > u32::MAX as usize || mesh.positions_m.len() > u32::MAX as usize {
@@ -127,9 +131,9 @@ impl GpuScene {
             let b = buildings.last_mut().expect("a range was pushed for this building");
             for &i in tri {
                 let p = mesh.positions_m[i as usize];
-                for k in 0..3 {
-                    b.min_m[k] = b.min_m[k].min(p[k]);
-                    b.max_m[k] = b.max_m[k].max(p[k]);
+                for (k, &c) in p.iter().enumerate() {
+                    b.min_m[k] = b.min_m[k].min(c);
+                    b.max_m[k] = b.max_m[k].max(c);
                 }
             }
             b.index_count += 3;

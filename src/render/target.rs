@@ -12,7 +12,9 @@ use super::RenderError;
 /// A rendered frame: building IDs (0 = background) and, when asked for, linear depth.
 #[derive(Debug, Clone, PartialEq)]
 pub struct IdImage {
+    /// Frame width, pixels.
     pub width: u32,
+    /// Frame height, pixels.
     pub height: u32,
     /// Row-major, top row first, one building ID per pixel.
     pub ids: Vec<u32>,
@@ -31,8 +33,11 @@ pub fn padded_bytes_per_row(width_px: u32) -> u32 {
 /// linear-depth texture, their staging buffers and the view uniform with its bind group.
 #[derive(Debug)]
 pub struct IdTarget {
+    /// Target width, pixels.
     pub width: u32,
+    /// Target height, pixels.
     pub height: u32,
+    /// Whether the linear-depth texture exists.
     pub with_depth: bool,
     pub(crate) id_texture: wgpu::Texture,
     pub(crate) id_view: wgpu::TextureView,

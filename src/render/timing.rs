@@ -8,6 +8,7 @@ use super::{GpuScene, RenderError, RenderOptions, Renderer, View};
 /// Wall-clock timings of one batch.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RenderTimings {
+    /// Frames rendered.
     pub frames: usize,
     /// Time from the call to the last frame read back, seconds.
     pub total_s: f64,

@@ -33,7 +33,9 @@ use crate::camera::{Intrinsics, Pose};
 /// One frame: the camera intrinsics and its pose in the area's ENU frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct View {
+    /// Pixel grid and pinhole (pixels).
     pub intrinsics: Intrinsics,
+    /// Camera pose in the area's ENU frame (metres, OpenCV camera axes).
     pub pose: Pose,
 }
 
@@ -43,7 +45,9 @@ pub struct View {
 /// Metres along the optical axis.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DepthRange {
+    /// Near clipping plane, metres (> 0).
     pub near_m: f64,
+    /// Far clipping plane, metres (> near).
     pub far_m: f64,
 }
 
