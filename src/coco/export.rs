@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 
 use crate::camera::PoseRecord;
-use crate::label::{label_components, FrameInstances};
+use crate::label::{label_components, Connectivity, FrameInstances};
 use crate::scene::{BuildingRecord, Manifest};
 use crate::util::{FileError, Progress};
 
@@ -314,11 +314,14 @@ fn process_frame(
         .collect();
     if kept.len() != inst.instances.len() {
         return Err(mismatch(format!(
-            "it lists {} instances, the ID map has {} components of at least {} px ({:?}-connectivity)",
+            "it lists {} instances, the ID map has {} components of at least {} px ({}-connectivity)",
             inst.instances.len(),
             kept.len(),
             inst.min_component_area_px,
-            inst.connectivity
+            match inst.connectivity {
+                Connectivity::Four => 4,
+                Connectivity::Eight => 8,
+            }
         )));
     }
     for (n, (&ci, e)) in kept.iter().zip(&inst.instances).enumerate() {
