@@ -511,7 +511,7 @@ fn image_root(workdir: &Path, out_dir: &Path) -> String {
     }
 }
 
-/// Builds the three datasets without writing anything.
+/// Builds the three datasets without writing anything; `info.image_root` is set to `image_root`.
 ///
 /// # Errors
 /// [`CocoError::Layout`] when there is no prepared area, for an unknown split or inconsistent names;
@@ -662,9 +662,13 @@ pub fn build(plan: &ExportPlan, image_root: &str, progress: &dyn Progress) -> Re
 /// # Errors
 /// As [`build`], plus I/O errors naming the file.
 pub fn export(plan: &ExportPlan, progress: &dyn Progress) -> Result<(Export, Vec<PathBuf>), CocoError> {
+    // Build first, so that a failing export leaves no empty output directory behind.
+    let mut ex = build(plan, "..", progress)?;
     crate::util::create_dir_all(&plan.out_dir)?;
     let root = image_root(&plan.workdir, &plan.out_dir);
-    let ex = build(plan, &root, progress)?;
+    for (_, ds) in &mut ex.datasets {
+        ds.info.image_root = root.clone();
+    }
     let mut written = Vec::new();
     for (split, ds) in &ex.datasets {
         let path = plan.out_dir.join(split.file_name());
