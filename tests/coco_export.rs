@@ -604,7 +604,7 @@ fn an_instance_file_that_disagrees_with_its_id_map_is_reported() {
     assert!(msg.contains("1 of 12 frames could not be exported, so nothing was written"), "{msg}");
     assert!(msg.contains("delta_f001.instances.json") && msg.contains("delta_f001.png"), "{msg}");
     assert!(msg.contains("instances[0] is building"), "{msg}");
-    assert!(!p.out_dir.join("instances_train.json").exists());
+    assert!(!p.out_dir.exists(), "a failed export leaves no output directory");
 }
 
 #[test]
@@ -649,4 +649,45 @@ fn results_written_by_pycocotools_read_back_exactly() {
             assert_eq!(raw[pr.index]["image_id"].as_u64().unwrap(), ann.image_id);
         }
     }
+}
+
+fn schema_errors(schema_file: &str, instance: &Value) -> Vec<String> {
+    let schema_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas").join(schema_file);
+    let schema: Value = serde_json::from_slice(&std::fs::read(&schema_path).unwrap()).unwrap();
+    let validator = jsonschema::validator_for(&schema).expect("schema compiles");
+    validator.iter_errors(instance).map(|e| e.instance_path.to_string()).collect()
+}
+
+#[test]
+fn schemas_reject_broken_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let wd = tmp.path().join("runs");
+    write_area(&wd, &AreaSpec::new("alpha", "train", 1));
+    let (ex, _) = export(&plan(&wd, "coco"), &NoProgress).unwrap();
+    let good = serde_json::to_value(&ex.datasets[0].1).unwrap();
+    assert!(schema_errors("coco_instances.schema.json", &good).is_empty());
+    let mut bad = good.clone();
+    bad["annotations"][0]["bbox"] = serde_json::json!([1.0, 2.0, 3.0]);
+    bad["annotations"][1]["category_id"] = serde_json::json!(2);
+    bad["annotations"][2]["segmentation"]["counts"] = serde_json::json!("12z");
+    bad["images"][0]["connectivity"] = serde_json::json!("6");
+    let mut errs = schema_errors("coco_instances.schema.json", &bad);
+    errs.sort();
+    errs.dedup();
+    assert_eq!(
+        errs,
+        [
+            "/annotations/0/bbox",
+            "/annotations/1/category_id",
+            "/annotations/2/segmentation",
+            "/images/0/connectivity"
+        ]
+    );
+
+    let results = serde_json::json!([
+        {"image_id": 1, "category_id": 1, "score": 0.5, "segmentation": {"size": [2, 2], "counts": "4"}},
+        {"image_id": 1, "category_id": 0, "score": 0.5, "segmentation": {"size": [2, 2], "counts": "4"}},
+        {"image_id": 1, "category_id": 1, "segmentation": {"size": [2, 2], "counts": [4]}}
+    ]);
+    assert_eq!(schema_errors("coco_results.schema.json", &results), ["/1/category_id", "/2"]);
 }

@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 
 use crate::camera::PoseRecord;
-use crate::label::{label_components, FrameInstances};
+use crate::label::{label_components, Connectivity, FrameInstances};
 use crate::scene::{BuildingRecord, Manifest};
 use crate::util::{FileError, Progress};
 
@@ -314,11 +314,14 @@ fn process_frame(
         .collect();
     if kept.len() != inst.instances.len() {
         return Err(mismatch(format!(
-            "it lists {} instances, the ID map has {} components of at least {} px ({:?}-connectivity)",
+            "it lists {} instances, the ID map has {} components of at least {} px ({}-connectivity)",
             inst.instances.len(),
             kept.len(),
             inst.min_component_area_px,
-            inst.connectivity
+            match inst.connectivity {
+                Connectivity::Four => 4,
+                Connectivity::Eight => 8,
+            }
         )));
     }
     for (n, (&ci, e)) in kept.iter().zip(&inst.instances).enumerate() {
@@ -508,7 +511,7 @@ fn image_root(workdir: &Path, out_dir: &Path) -> String {
     }
 }
 
-/// Builds the three datasets without writing anything.
+/// Builds the three datasets without writing anything; `info.image_root` is set to `image_root`.
 ///
 /// # Errors
 /// [`CocoError::Layout`] when there is no prepared area, for an unknown split or inconsistent names;
@@ -659,9 +662,13 @@ pub fn build(plan: &ExportPlan, image_root: &str, progress: &dyn Progress) -> Re
 /// # Errors
 /// As [`build`], plus I/O errors naming the file.
 pub fn export(plan: &ExportPlan, progress: &dyn Progress) -> Result<(Export, Vec<PathBuf>), CocoError> {
+    // Build first, so that a failing export leaves no empty output directory behind.
+    let mut ex = build(plan, "..", progress)?;
     crate::util::create_dir_all(&plan.out_dir)?;
     let root = image_root(&plan.workdir, &plan.out_dir);
-    let ex = build(plan, &root, progress)?;
+    for (_, ds) in &mut ex.datasets {
+        ds.info.image_root = root.clone();
+    }
     let mut written = Vec::new();
     for (split, ds) in &ex.datasets {
         let path = plan.out_dir.join(split.file_name());

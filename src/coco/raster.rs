@@ -43,9 +43,9 @@ impl RgbImage {
     pub fn blend(&mut self, x: i64, y: i64, c: Rgb, alpha: f32) {
         if x >= 0 && y >= 0 && (x as u32) < self.width && (y as u32) < self.height {
             let i = (y as usize * self.width as usize + x as usize) * 3;
-            for k in 0..3 {
-                let v = self.data[i + k] as f32 * (1.0 - alpha) + c[k] as f32 * alpha;
-                self.data[i + k] = v.round().clamp(0.0, 255.0) as u8;
+            for (d, &s) in self.data[i..i + 3].iter_mut().zip(&c) {
+                let v = *d as f32 * (1.0 - alpha) + s as f32 * alpha;
+                *d = v.round().clamp(0.0, 255.0) as u8;
             }
         }
     }

@@ -167,6 +167,18 @@ fn check_len(len: usize, height: u32, width: u32) -> Result<(), RleError> {
 /// Encodes a row-major binary mask (one byte per pixel, non-zero = inside) — `pycocotools.mask.encode`
 /// of the same mask as a 0/1 array.
 ///
+/// ```
+/// // A 3 × 2 px block in a 4 × 5 px image (golden vector `rect_4x5`, from pycocotools).
+/// let mask = [0, 0, 0, 0, 0, //
+///             0, 1, 1, 1, 0, //
+///             0, 1, 1, 1, 0, //
+///             0, 0, 0, 0, 0u8];
+/// let rle = insgen::coco::rle::encode(&mask, 4, 5).unwrap();
+/// assert_eq!(rle.counts, [5, 2, 2, 2, 2, 2, 5]); // column-major runs, zeros first
+/// assert_eq!(rle.to_string(), "5220003");
+/// assert_eq!((rle.area(), rle.to_bbox()), (6, [1.0, 1.0, 3.0, 2.0])); // px, [x, y, w, h] px
+/// ```
+///
 /// pycocotools starts a new run at every change of byte value, so it must be given 0/1 masks; here every
 /// non-zero byte counts as 1.
 ///
@@ -398,7 +410,8 @@ impl Rle {
     /// The union of masks of equal size (`rleMerge` with `intersect = 0`).
     ///
     /// # Errors
-    /// [`RleError::MergeSize`] when the sizes differ (pycocotools silently returns a 0×0 RLE).
+    /// [`RleError::MergeSize`] when the sizes differ (pycocotools silently returns a 0×0 RLE),
+    /// [`RleError::CountSum`] for an RLE whose counts do not cover its image (pycocotools loops forever).
     pub fn union(rles: &[Rle]) -> Result<Rle, RleError> {
         merge(rles, false)
     }
@@ -406,7 +419,7 @@ impl Rle {
     /// The intersection of masks of equal size (`rleMerge` with `intersect = 1`).
     ///
     /// # Errors
-    /// [`RleError::MergeSize`] when the sizes differ.
+    /// As [`Rle::union`].
     pub fn intersection(rles: &[Rle]) -> Result<Rle, RleError> {
         merge(rles, true)
     }
@@ -417,7 +430,8 @@ impl Rle {
 /// give the 0×0 RLE `[]`, like pycocotools.
 ///
 /// # Errors
-/// [`RleError::MergeSize`] when the sizes differ.
+/// [`RleError::MergeSize`] when the sizes differ, [`RleError::CountSum`] for an RLE whose counts do not
+/// cover its image.
 pub fn merge(rles: &[Rle], intersect: bool) -> Result<Rle, RleError> {
     let Some(first) = rles.first() else {
         return Ok(Rle { size: [0, 0], counts: Vec::new() });
@@ -737,6 +751,8 @@ mod tests {
             let r = encode(&[0, 1, 1, 0], 2, 2).unwrap();
             assert_eq!(Rle::union(std::slice::from_ref(&r)).unwrap(), r);
             assert_eq!(Rle::union(&[]).unwrap(), Rle { size: [0, 0], counts: vec![] });
+            let broken = Rle { size: [2, 2], counts: vec![1, 1] };
+            assert!(matches!(Rle::union(&[r.clone(), broken]), Err(RleError::CountSum { sum: 2, .. })));
             let other = encode(&[0; 6], 2, 3).unwrap();
             assert!(matches!(Rle::union(&[r, other]), Err(RleError::MergeSize { .. })));
         }
