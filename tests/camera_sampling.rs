@@ -130,10 +130,8 @@ mod regular {
         let out = run("cam3", Trajectory::Regular, &cfg, None, 2);
         check_common(&out, &cfg, [400.0, 500.0]);
         assert!(out.stats.sequences >= 6, "{:?}", out.stats);
-        let (along, across) = (
-            [30f64.to_radians().sin(), 30f64.to_radians().cos()],
-            [30f64.to_radians().cos(), -30f64.to_radians().sin()],
-        );
+        // Across-track unit vector of lines heading 30° clockwise from north.
+        let across = [30f64.to_radians().cos(), -30f64.to_radians().sin()];
         let mut offsets = Vec::new();
         let mut by_seq: std::collections::BTreeMap<u32, Vec<&PoseRecord>> = Default::default();
         for r in &out.poses {
@@ -163,7 +161,6 @@ mod regular {
             }
             let c = first.pose().centre_m;
             offsets.push(c[0] * across[0] + c[1] * across[1]);
-            let _ = along;
         }
         // Lines are 150 m apart across track.
         offsets.sort_by(f64::total_cmp);

@@ -19,7 +19,7 @@ use rand_chacha::ChaCha8Rng;
 use super::sample::{Ctx, Frame, RunCollector, SampleStats};
 use super::{CameraError, Pose, Trajectory};
 
-/// One straight segment of a survey line: start point, unit direction, frame positions along it.
+/// One straight piece of a survey line: its flight heading and the frame positions in flight order.
 #[derive(Debug, Clone)]
 pub(crate) struct Segment {
     pub yaw_deg: f64,
