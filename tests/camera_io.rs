@@ -14,14 +14,28 @@ use insgen::camera::{CameraError, CameraSpec, Pose, Trajectory};
 use insgen::geo::{ecef_to_geodetic, geodetic_to_ecef, EnuFrame, Geodetic};
 use insgen::util::NoProgress;
 
+/// Largest element-wise difference of two rotation matrices (≈ the angle between them in radians for
+/// small angles). Used instead of `rotation_error_deg`, whose arccos cannot resolve angles below
+/// ~1e-6° in f64.
+fn rot_diff(a: &Pose, b: &Pose) -> f64 {
+    let mut d: f64 = 0.0;
+    for i in 0..3 {
+        for j in 0..3 {
+            d = d.max((a.r_world_from_cam[i][j] - b.r_world_from_cam[i][j]).abs());
+        }
+    }
+    d
+}
+
 fn repo(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
 }
 
 fn sampled(camera: &str, count: usize) -> (tempfile::TempDir, SampleOutput) {
     let scene = cs::city();
-    let out = sample_area(&scene, &cs::preset(camera), &SamplingConfig::default(), Some(count), 21, &NoProgress)
-        .unwrap_or_else(|e| panic!("{e}"));
+    let out =
+        sample_area(&scene, &cs::preset(camera), &SamplingConfig::default(), Some(count), 21, &NoProgress)
+            .unwrap_or_else(|e| panic!("{e}"));
     let tmp = tempfile::tempdir().unwrap();
     write_sample(tmp.path(), &scene, &out).unwrap();
     (tmp, out)
@@ -33,8 +47,13 @@ mod presets {
     #[test]
     fn focal_lengths_from_fov_and_sensor() {
         // Paper table; hand computations: f_px = (W/2) / tan(hfov/2) = f_mm · W / sensor_w.
-        // cam2/cam3: 960 / tan 12.5° = 4330.0 px; cam1: 800 / tan 22.5° = 1931.37 px.
-        let expect = [("cam1", 1600, 1200, 1931.37, 19.3137), ("cam2", 1920, 1080, 4330.0, 53.5825), ("cam3", 1920, 1080, 4330.0, 53.5825)];
+        // cam2/cam3: 960 / tan 12.5° = 4330.28 px (≈ 4330.0), 11.88 mm / tan 12.5° = 53.5872 mm;
+        // cam1: 800 / tan 22.5° = 1931.37 px, 8 mm / tan 22.5° = 19.3137 mm.
+        let expect = [
+            ("cam1", 1600, 1200, 1931.37, 19.3137),
+            ("cam2", 1920, 1080, 4330.28, 53.5872),
+            ("cam3", 1920, 1080, 4330.28, 53.5872),
+        ];
         for (name, w, h, f_px, f_mm) in expect {
             let c = CameraSpec::preset(name).unwrap();
             let k = c.intrinsics;
@@ -84,7 +103,12 @@ mod colmap {
             assert_eq!(im.qvec, r.colmap_qvec);
             assert_eq!(im.tvec, r.colmap_tvec);
             let (a, b) = (im.pose(), r.pose());
-            assert!(a.translation_error_m(&b) < 1e-9 && a.rotation_error_deg(&b) < 1e-6);
+            assert!(
+                a.translation_error_m(&b) < 1e-9 && rot_diff(&a, &b) < 1e-12,
+                "{} m {}",
+                a.translation_error_m(&b),
+                rot_diff(&a, &b)
+            );
         }
     }
 
@@ -92,14 +116,18 @@ mod colmap {
     fn lodloc_lists() {
         let tmp = tempfile::tempdir().unwrap();
         let q = tmp.path().join("queries.txt");
-        std::fs::write(&q, "q1.jpg PINHOLE 1920 1080 4330 4330 960 540\nq2.jpg SIMPLE_PINHOLE 640 480 500 320 240\n").unwrap();
+        std::fs::write(
+            &q,
+            "q1.jpg PINHOLE 1920 1080 4330 4330 960 540\nq2.jpg SIMPLE_PINHOLE 640 480 500 320 240\n",
+        )
+        .unwrap();
         let list = insgen::camera::colmap::read_query_list(&q).unwrap();
         assert_eq!(list.len(), 2);
         assert_eq!(list[1].1.intrinsics().unwrap().fy_px, 500.0);
         let pose = Pose::from_ypr_deg(10.0, 20.0, 0.0, [1.0, 2.0, 300.0]);
         let im = insgen::camera::colmap::ColmapImage::from_pose(0, 0, "q1.jpg", &pose);
         let p = tmp.path().join("poses.txt");
-        std::fs::write(&p, insgen::camera::colmap::format_pose_list(&[im.clone()])).unwrap();
+        std::fs::write(&p, insgen::camera::colmap::format_pose_list(std::slice::from_ref(&im))).unwrap();
         assert_eq!(insgen::camera::colmap::read_pose_list(&p).unwrap(), vec![im]);
         std::fs::write(&p, "q1.jpg 1 0 0\n").unwrap();
         let e = insgen::camera::colmap::read_pose_list(&p).unwrap_err().to_string();
@@ -120,7 +148,7 @@ mod records {
             let pose = r.pose();
             // ENU 4×4 ↔ COLMAP.
             let from_colmap = Pose::from_colmap(r.colmap_qvec, r.colmap_tvec);
-            assert!(pose.translation_error_m(&from_colmap) < 1e-9 && pose.rotation_error_deg(&from_colmap) < 1e-6);
+            assert!(pose.translation_error_m(&from_colmap) < 1e-9 && rot_diff(&pose, &from_colmap) < 1e-12);
             // ENU ↔ ECEF.
             let ecef = enu.enu_to_ecef(pose.centre_m);
             assert!((0..3).all(|k| (ecef[k] - r.ecef_m[k]).abs() < 1e-6), "{ecef:?} {:?}", r.ecef_m);
@@ -133,10 +161,11 @@ mod records {
             assert!((g.lat_deg - r.lat_deg).abs() < 1e-10 && (g.h_m - r.h_m).abs() < 1e-6);
             // ENU ↔ yaw/pitch/roll.
             let from_ypr = Pose::from_ypr_deg(r.yaw_deg, r.pitch_deg, r.roll_deg, pose.centre_m);
-            assert!(pose.rotation_error_deg(&from_ypr) < 1e-6, "{}: ypr {:?}", r.name, (r.yaw_deg, r.pitch_deg));
+            assert!(rot_diff(&pose, &from_ypr) < 1e-12, "{}: ypr {:?}", r.name, (r.yaw_deg, r.pitch_deg));
             // The rotation block is orthonormal with determinant +1.
             let m = pose.r_world_from_cam;
-            let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+                - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
                 + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
             assert!((det - 1.0).abs() < 1e-12);
             // Heights: ellipsoidal h ≈ origin h + ENU up (the curvature drop is r²/2R < 0.2 m within 1.5 km).
@@ -160,7 +189,12 @@ mod records {
         for (line, r) in text.lines().zip(&out.poses) {
             let v: Vec<f64> = line.split_whitespace().map(|t| t.parse().unwrap()).collect();
             // 1e-9° ≈ 0.1 mm; 1 mm in height.
-            assert!((v[0] - r.lat_deg).abs() < 1e-9 && (v[1] - r.lon_deg).abs() < 1e-9 && (v[2] - r.h_m).abs() < 1e-3, "{line} vs {r:?}");
+            assert!(
+                (v[0] - r.lat_deg).abs() < 1e-9
+                    && (v[1] - r.lon_deg).abs() < 1e-9
+                    && (v[2] - r.h_m).abs() < 1e-3,
+                "{line} vs {r:?}"
+            );
         }
         assert_eq!(text.lines().count(), out.poses.len());
     }
@@ -239,7 +273,12 @@ mod flight_plan {
         let mut buf = vec![0; reader.output_buffer_size()];
         let info = reader.next_frame(&mut buf).unwrap();
         assert_eq!(info.color_type, png::ColorType::Rgb);
-        let text = reader.info().uncompressed_latin1_text.iter().map(|t| (t.keyword.clone(), t.text.clone())).collect();
+        let text = reader
+            .info()
+            .uncompressed_latin1_text
+            .iter()
+            .map(|t| (t.keyword.clone(), t.text.clone()))
+            .collect();
         (info.width, info.height, buf, text)
     }
 
@@ -256,13 +295,11 @@ mod flight_plan {
             let i = 3 * (y * w as usize + x);
             [rgb[i], rgb[i + 1], rgb[i + 2]]
         };
-        // The last camera drawn is visible at its position, in its view-angle colour.
-        let last = out.poses.last().unwrap();
-        let c = last.pose().centre_m;
-        let expect = if last.pitch_deg > 1.0 { [225, 110, 20] } else { [30, 90, 200] };
-        assert_eq!(px(c[0], c[1]), expect);
-        // Building pixels: the shaded share of the picture matches the box footprints inside it
-        // (within 10 %: cameras, paths and outlines cover some of them).
+        // Nadir cameras are drawn last (blue disc at their position); tilted ones show as orange rings.
+        let nadir = out.poses.iter().rev().find(|r| r.pitch_deg <= 1.0).expect("a nadir pose");
+        let c = nadir.pose().centre_m;
+        assert_eq!(px(c[0], c[1]), [30, 90, 200]);
+        assert!(rgb.chunks_exact(3).any(|p| p == [225, 110, 20]), "no tilted camera drawn");
         // A building pixel has the ramp colour (205, 205, 210) → (45, 55, 90) at some t in [0, 1].
         let on_ramp = |p: &[u8]| {
             let t = (205.0 - p[0] as f64) / 160.0;
@@ -274,7 +311,9 @@ mod flight_plan {
         let (e0, e1, n0, n1) = (-668.0, -668.0 + w as f64 * mpp, 518.0 - h as f64 * mpp, 518.0);
         let footprint: f64 = cs::boxes()
             .iter()
-            .map(|(lo, hi)| ((hi[0].min(e1) - lo[0].max(e0)).max(0.0)) * ((hi[1].min(n1) - lo[1].max(n0)).max(0.0)))
+            .map(|(lo, hi)| {
+                ((hi[0].min(e1) - lo[0].max(e0)).max(0.0)) * ((hi[1].min(n1) - lo[1].max(n0)).max(0.0))
+            })
             .sum();
         let expect_px = footprint / (mpp * mpp);
         assert!((shaded / expect_px - 1.0).abs() < 0.1, "{shaded} shaded pixels vs {expect_px} expected");
@@ -286,7 +325,9 @@ mod flight_plan {
     #[test]
     fn boxes_stand_in_for_a_missing_mesh() {
         let scene = cs::city_with(cs::area_polygon(), false);
-        let out = sample_area(&scene, &cs::preset("cam3"), &SamplingConfig::default(), Some(10), 1, &NoProgress).unwrap();
+        let out =
+            sample_area(&scene, &cs::preset("cam3"), &SamplingConfig::default(), Some(10), 1, &NoProgress)
+                .unwrap();
         let tmp = tempfile::tempdir().unwrap();
         let p = tmp.path().join("fp.png");
         insgen::camera::flight_plan::write_flight_plan(&p, &scene, &out.poses).unwrap();
@@ -320,7 +361,12 @@ mod cli {
         let e = Plan::new(&args("delft", "cam2"), &global(&work, &scenes)).unwrap_err();
         let msg = format!("{e:#}");
         assert!(msg.starts_with("unknown area \"delft\": no prepared scene at"), "{msg}");
-        assert!(msg.contains(": tokyo\n") && msg.contains(": delft, tokyo") && msg.contains("insgen prepare --area delft"), "{msg}");
+        assert!(
+            msg.contains(": tokyo\n")
+                && msg.contains(": delft, tokyo")
+                && msg.contains("insgen prepare --area delft"),
+            "{msg}"
+        );
     }
 
     #[test]
@@ -333,7 +379,11 @@ mod cli {
         let e = Plan::new(&args("boxcity", "cam9"), &global(&work, &scenes)).unwrap_err();
         assert!(format!("{e:#}").contains("expected one of the presets cam1, cam2, cam3"), "{e:#}");
 
-        std::fs::write(scenes.join("boxcity.toml"), "[area]\nname = \"x\"\n[sampling.regular]\nline_spacing_m = 120.0\n").unwrap();
+        std::fs::write(
+            scenes.join("boxcity.toml"),
+            "[area]\nname = \"x\"\n[sampling.regular]\nline_spacing_m = 120.0\n",
+        )
+        .unwrap();
         let mut a = args("boxcity", "cam2");
         a.strategy = Some(Trajectory::Regular);
         let plan = Plan::new(&a, &global(&work, &scenes)).unwrap();
@@ -342,12 +392,25 @@ mod cli {
         assert_eq!(plan.out_dir, work.join("boxcity/cam2"));
         let out = execute(&plan, &cs::city(), &NoProgress).unwrap();
         assert_eq!(out.poses.len(), 12);
-        for f in ["poses.jsonl", "priors.jsonl", "colmap/cameras.txt", "colmap/images.txt", "camera.json", "sampling.json", "flight_plan.png"] {
+        for f in [
+            "poses.jsonl",
+            "priors.jsonl",
+            "colmap/cameras.txt",
+            "colmap/images.txt",
+            "camera.json",
+            "sampling.json",
+            "flight_plan.png",
+        ] {
             assert!(plan.out_dir.join(f).is_file(), "{f} missing");
         }
 
-        std::fs::write(scenes.join("boxcity.toml"), "[sampling.grid]\nheight_range_m = [300.0, 100.0]\n").unwrap();
+        std::fs::write(scenes.join("boxcity.toml"), "[sampling.grid]\nheight_range_m = [300.0, 100.0]\n")
+            .unwrap();
         let e = Plan::new(&args("boxcity", "cam2"), &global(&work, &scenes)).unwrap_err();
-        assert!(format!("{e:#}").contains("boxcity.toml:\n  - grid.height_range_m = [300, 100]: impossible height range"), "{e:#}");
+        assert!(
+            format!("{e:#}")
+                .contains("boxcity.toml:\n  - grid.height_range_m = [300, 100]: impossible height range"),
+            "{e:#}"
+        );
     }
 }

@@ -14,7 +14,13 @@ use insgen::camera::{CameraError, Pose, PoseRecord, Trajectory};
 use insgen::geo::EnuFrame;
 use insgen::util::NoProgress;
 
-fn run(camera: &str, strategy: Trajectory, cfg: &SamplingConfig, count: Option<usize>, seed: u64) -> SampleOutput {
+fn run(
+    camera: &str,
+    strategy: Trajectory,
+    cfg: &SamplingConfig,
+    count: Option<usize>,
+    seed: u64,
+) -> SampleOutput {
     let scene = cs::city();
     sample_area(&scene, &cs::with_strategy(camera, strategy), cfg, count, seed, &NoProgress)
         .unwrap_or_else(|e| panic!("{e}"))
@@ -34,7 +40,12 @@ fn check_common(out: &SampleOutput, cfg: &SamplingConfig, height_range_m: [f64; 
             r.name
         );
         let top = cs::tallest_near([c[0], c[1]], cfg.clearance_radius_m);
-        assert!(c[2] >= top + cfg.clearance_m - 1e-9, "{}: {} m is within the clearance over {top} m", r.name, c[2]);
+        assert!(
+            c[2] >= top + cfg.clearance_m - 1e-9,
+            "{}: {} m is within the clearance over {top} m",
+            r.name,
+            c[2]
+        );
         assert!(r.roll_deg.abs() < 1e-6, "{}: roll {}", r.name, r.roll_deg);
     }
     assert_eq!(out.poses.len(), out.priors.len());
@@ -50,11 +61,11 @@ mod grid {
         cfg.grid.spacing_m = 150.0;
         let out = run("cam2", Trajectory::Grid, &cfg, None, 1);
         check_common(&out, &cfg, [200.0, 500.0]);
-        // Every pose sits on the 150 m lattice, which the polygon's bounding box (1200 × 900 m) centres
-        // at offsets 0 mod 150 from its south-west corner (−600, −450).
+        // Every pose sits on the 150 m lattice cell-centred in the polygon's 1200 × 900 m bounding box:
+        // 8 × 6 nodes from (−525, −375) (hand computation: −600 + (1200 − 7 · 150) / 2 = −525).
         for r in &out.poses {
             let c = r.pose().centre_m;
-            for (v, o) in [(c[0], -600.0), (c[1], -450.0)] {
+            for (v, o) in [(c[0], -525.0), (c[1], -375.0)] {
                 let k = (v - o) / 150.0;
                 assert!((k - k.round()).abs() < 1e-9, "{} off the lattice: {c:?}", r.name);
             }
@@ -62,12 +73,16 @@ mod grid {
             assert_eq!(r.index, 0);
         }
         // Lattice nodes inside the L, counted independently; both view angles are tried at each.
-        let nodes: usize = (0..=8)
-            .flat_map(|i| (0..=6).map(move |j| [-600.0 + 150.0 * i as f64, -450.0 + 150.0 * j as f64]))
+        let nodes: usize = (0..8)
+            .flat_map(|i| (0..6).map(move |j| [-525.0 + 150.0 * i as f64, -375.0 + 150.0 * j as f64]))
             .filter(|p| cs::inside(&cs::area_polygon(), *p))
             .count();
         let candidates = 2 * nodes;
-        assert!(out.poses.len() <= candidates && out.poses.len() * 10 >= candidates * 8, "{} of {candidates}", out.poses.len());
+        assert!(
+            out.poses.len() <= candidates && out.poses.len() * 10 >= candidates * 8,
+            "{} of {candidates}",
+            out.poses.len()
+        );
         let nadir = out.poses.iter().filter(|r| r.pitch_deg < 1.0).count();
         assert!(nadir > 0 && nadir < out.poses.len());
         // The tower (top 260 m above ground) forces higher flights right next to it.
@@ -91,7 +106,15 @@ mod grid {
             let y = r.yaw_deg;
             assert!([0.0, 90.0, 180.0, 270.0, 360.0].iter().any(|v| (y - v).abs() < 1e-6), "yaw {y}");
         }
-        // More than the 2 × 58 (node, angle) pairs: later rounds reuse nodes at new heights and yaws.
+        // 250 is more than the (node, view angle) pairs of the 100 m lattice (88 nodes inside the L:
+        // 12 × 9 from (−550, −400), less the 5 × 4 in the cut-away corner, whose edge y = 100 holds a
+        // row of nodes that counts as outside), so later rounds reuse nodes at new heights and yaws.
+        let nodes = (0..12)
+            .flat_map(|i| (0..9).map(move |j| [-550.0 + 100.0 * i as f64, -400.0 + 100.0 * j as f64]))
+            .filter(|p| cs::inside(&cs::area_polygon(), *p))
+            .count();
+        assert_eq!(nodes, 88);
+        assert!(out.poses.len() > 2 * nodes);
         let names: std::collections::BTreeSet<&str> = out.poses.iter().map(|r| r.name.as_str()).collect();
         assert_eq!(names.len(), 250, "frame names must be unique");
     }
@@ -107,7 +130,8 @@ mod regular {
         let out = run("cam3", Trajectory::Regular, &cfg, None, 2);
         check_common(&out, &cfg, [400.0, 500.0]);
         assert!(out.stats.sequences >= 6, "{:?}", out.stats);
-        let (along, across) = ([30f64.to_radians().sin(), 30f64.to_radians().cos()], [30f64.to_radians().cos(), -30f64.to_radians().sin()]);
+        // Across-track unit vector of lines heading 30° clockwise from north.
+        let across = [30f64.to_radians().cos(), -30f64.to_radians().sin()];
         let mut offsets = Vec::new();
         let mut by_seq: std::collections::BTreeMap<u32, Vec<&PoseRecord>> = Default::default();
         for r in &out.poses {
@@ -117,7 +141,11 @@ mod regular {
             let first = frames[0];
             assert!(first.pitch_deg.abs() < 1e-9 || (first.pitch_deg - 45.0).abs() < 1e-9);
             // Yaw follows the track: 30° or 210°, constant on the line, as are height and tilt.
-            assert!((first.yaw_deg - 30.0).abs() < 1e-6 || (first.yaw_deg - 210.0).abs() < 1e-6, "{}", first.yaw_deg);
+            assert!(
+                (first.yaw_deg - 30.0).abs() < 1e-6 || (first.yaw_deg - 210.0).abs() < 1e-6,
+                "{}",
+                first.yaw_deg
+            );
             for w in frames.windows(2) {
                 assert_eq!(w[1].index, w[0].index + 1, "sequence {seq}");
                 assert!((w[1].yaw_deg - w[0].yaw_deg).abs() < 1e-6);
@@ -126,11 +154,13 @@ mod regular {
                 let (a, b) = (w[0].pose().centre_m, w[1].pose().centre_m);
                 // The next frame is 50 m ahead in the flight (yaw) direction.
                 let yaw = w[0].yaw_deg.to_radians();
-                assert!((b[0] - a[0] - 50.0 * yaw.sin()).abs() < 1e-6 && (b[1] - a[1] - 50.0 * yaw.cos()).abs() < 1e-6);
+                assert!(
+                    (b[0] - a[0] - 50.0 * yaw.sin()).abs() < 1e-6
+                        && (b[1] - a[1] - 50.0 * yaw.cos()).abs() < 1e-6
+                );
             }
             let c = first.pose().centre_m;
             offsets.push(c[0] * across[0] + c[1] * across[1]);
-            let _ = along;
         }
         // Lines are 150 m apart across track.
         offsets.sort_by(f64::total_cmp);
@@ -192,7 +222,10 @@ mod irregular {
             assert!(wrap(dir - b.yaw_deg).abs() < 1e-6, "heading {} vs track {dir}", b.yaw_deg);
             if let Some((seq, t)) = prev_turn {
                 if seq == a.sequence {
-                    assert!((turn - t).abs() <= ic.max_turn_change_deg_per_frame + 1e-6, "turn rate jumps {t} → {turn}");
+                    assert!(
+                        (turn - t).abs() <= ic.max_turn_change_deg_per_frame + 1e-6,
+                        "turn rate jumps {t} → {turn}"
+                    );
                 }
             }
             prev_turn = Some((a.sequence, turn));
@@ -218,7 +251,8 @@ mod determinism {
         let mut v = Vec::new();
         for sub in ["", "colmap"] {
             let d = dir.join(sub);
-            let mut names: Vec<_> = std::fs::read_dir(&d).unwrap().filter_map(|e| e.ok()).map(|e| e.path()).collect();
+            let mut names: Vec<_> =
+                std::fs::read_dir(&d).unwrap().filter_map(|e| e.ok()).map(|e| e.path()).collect();
             names.sort();
             for p in names.into_iter().filter(|p| p.is_file()) {
                 v.push((p.strip_prefix(dir).unwrap().display().to_string(), std::fs::read(&p).unwrap()));
@@ -267,7 +301,9 @@ mod projection {
 
     /// Hand-written pinhole projection from yaw/pitch (roll 0), independent of `camera::pose`:
     /// forward f = (sin ψ sin θ, cos ψ sin θ, −cos θ), right r = (cos ψ, −sin ψ, 0), down d = f × r.
-    fn pinhole(fx: f64, fy: f64, cx: f64, cy: f64, yaw_deg: f64, pitch_deg: f64, c: [f64; 3], p: [f64; 3]) -> [f64; 2] {
+    /// `k` = [fx, fy, cx, cy] in pixels.
+    fn pinhole(k: [f64; 4], yaw_deg: f64, pitch_deg: f64, c: [f64; 3], p: [f64; 3]) -> [f64; 2] {
+        let [fx, fy, cx, cy] = k;
         let (sy, cyw) = yaw_deg.to_radians().sin_cos();
         let (sp, cp) = pitch_deg.to_radians().sin_cos();
         let f = [sy * sp, cyw * sp, -cp];
@@ -286,7 +322,10 @@ mod projection {
         let pose = Pose::from_ypr_deg(0.0, 0.0, 0.0, [0.0, 0.0, 500.0]);
         let f = 960.0 / 12.5f64.to_radians().tan();
         let uv = cam.project_enu(&pose, [10.0, 20.0, 100.0]).unwrap();
-        assert!((uv[0] - (960.0 + f * 0.025)).abs() < 1e-9 && (uv[1] - (540.0 - f * 0.05)).abs() < 1e-9, "{uv:?}");
+        assert!(
+            (uv[0] - (960.0 + f * 0.025)).abs() < 1e-9 && (uv[1] - (540.0 - f * 0.05)).abs() < 1e-9,
+            "{uv:?}"
+        );
         assert!(cam.project_enu(&pose, [0.0, 0.0, 600.0]).is_none(), "a point above the camera is behind it");
     }
 
@@ -306,8 +345,12 @@ mod projection {
                 if !(0.0..k.width_px as f64).contains(&uv[0]) || !(0.0..k.height_px as f64).contains(&uv[1]) {
                     continue;
                 }
-                let hand = pinhole(k.fx_px, k.fy_px, k.cx_px, k.cy_px, r.yaw_deg, r.pitch_deg, pose.centre_m, corner);
-                assert!((uv[0] - hand[0]).abs() < 1e-6 && (uv[1] - hand[1]).abs() < 1e-6, "{uv:?} vs {hand:?}");
+                let kk = [k.fx_px, k.fy_px, k.cx_px, k.cy_px];
+                let hand = pinhole(kk, r.yaw_deg, r.pitch_deg, pose.centre_m, corner);
+                assert!(
+                    (uv[0] - hand[0]).abs() < 1e-6 && (uv[1] - hand[1]).abs() < 1e-6,
+                    "{uv:?} vs {hand:?}"
+                );
                 // The viewing ray through the pixel of the box centre's top hits a building box.
                 let top_centre = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0, hi[2]];
                 if let Some(px) = cam.project_enu(&pose, top_centre) {
@@ -337,8 +380,20 @@ mod priors {
         let k = cs::preset("cam2").intrinsics;
         let truth: Vec<PoseRecord> = (0..2000)
             .map(|i| {
-                let pose = Pose::from_ypr_deg((i as f64 * 37.0) % 360.0, 45.0, 0.0, [i as f64 % 300.0, 50.0, 400.0]);
-                PoseRecord::new(format!("f{i}"), "a", "cam2", Trajectory::Grid, i, 0, k, &pose, &enu, cs::GROUND_M)
+                let pose =
+                    Pose::from_ypr_deg((i as f64 * 37.0) % 360.0, 45.0, 0.0, [i as f64 % 300.0, 50.0, 400.0]);
+                PoseRecord::new(
+                    format!("f{i}"),
+                    "a",
+                    "cam2",
+                    Trajectory::Grid,
+                    i,
+                    0,
+                    k,
+                    &pose,
+                    &enu,
+                    cs::GROUND_M,
+                )
             })
             .collect();
         let noise = PriorNoise {
@@ -363,7 +418,11 @@ mod priors {
         for a in 0..6 {
             let (m, s) = mean_sd(&d[a]);
             // Standard error of the mean σ/√2000 = 2.2 % of σ: allow 4 of them; σ within 5 %.
-            assert!((m - bias[a]).abs() < 4.0 * sigma[a] / 2000f64.sqrt(), "axis {a}: mean {m} vs bias {}", bias[a]);
+            assert!(
+                (m - bias[a]).abs() < 4.0 * sigma[a] / 2000f64.sqrt(),
+                "axis {a}: mean {m} vs bias {}",
+                bias[a]
+            );
             assert!((s / sigma[a] - 1.0).abs() < 0.05, "axis {a}: sd {s} vs σ {}", sigma[a]);
         }
     }
@@ -375,7 +434,8 @@ mod errors {
     #[test]
     fn empty_polygon() {
         let scene = cs::city_with(vec![[0.0, 0.0], [10.0, 0.0]], false);
-        let e = sample_area(&scene, &cs::preset("cam2"), &SamplingConfig::default(), None, 0, &NoProgress).unwrap_err();
+        let e = sample_area(&scene, &cs::preset("cam2"), &SamplingConfig::default(), None, 0, &NoProgress)
+            .unwrap_err();
         assert!(matches!(e, CameraError::Area { .. }), "{e}");
         assert!(e.to_string().contains("2 vertices"), "{e}");
     }
@@ -401,7 +461,10 @@ mod errors {
         let e = sample_area(&cs::city(), &cs::preset("cam2"), &cfg, Some(10), 0, &NoProgress).unwrap_err();
         let msg = e.to_string();
         assert!(matches!(e, CameraError::TooFewPoses { placed: 0, wanted: 10, .. }), "{msg}");
-        assert!(msg.contains("too close to buildings") && msg.contains("raise the grid height range"), "{msg}");
+        assert!(
+            msg.contains("too close to buildings") && msg.contains("raise the grid height range"),
+            "{msg}"
+        );
     }
 
     #[test]

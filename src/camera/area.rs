@@ -129,7 +129,10 @@ impl AreaPolygon {
         let mut margin = margin_m;
         loop {
             for _ in 0..200 {
-                let p = [rng.gen_range(self.min_m[0]..=self.max_m[0]), rng.gen_range(self.min_m[1]..=self.max_m[1])];
+                let p = [
+                    rng.gen_range(self.min_m[0]..=self.max_m[0]),
+                    rng.gen_range(self.min_m[1]..=self.max_m[1]),
+                ];
                 if self.contains_with_margin(p, margin) {
                     return Some(p);
                 }
@@ -189,8 +192,11 @@ mod tests {
 
     fn l_shape() -> AreaPolygon {
         // An L: 200 × 100 bar plus a 100 × 100 block on its left end (area 30 000 m²).
-        AreaPolygon::new("t", &[[0.0, 0.0], [200.0, 0.0], [200.0, 100.0], [100.0, 100.0], [100.0, 200.0], [0.0, 200.0]])
-            .unwrap()
+        AreaPolygon::new(
+            "t",
+            &[[0.0, 0.0], [200.0, 0.0], [200.0, 100.0], [100.0, 100.0], [100.0, 200.0], [0.0, 200.0]],
+        )
+        .unwrap()
     }
 
     #[test]

@@ -128,7 +128,8 @@ pub fn format_images_txt(images: &[ColmapImage]) -> String {
     for im in images {
         let [qw, qx, qy, qz] = im.qvec;
         let [tx, ty, tz] = im.tvec;
-        let _ = writeln!(s, "{} {qw} {qx} {qy} {qz} {tx} {ty} {tz} {} {}", im.image_id, im.camera_id, im.name);
+        let _ =
+            writeln!(s, "{} {qw} {qx} {qy} {qz} {tx} {ty} {tz} {} {}", im.image_id, im.camera_id, im.name);
         s.push('\n');
     }
     s
@@ -146,7 +147,11 @@ pub fn write_images_txt(path: &Path, images: &[ColmapImage]) -> Result<(), Camer
 
 fn read_text(path: &Path) -> Result<String, CameraError> {
     let bytes = crate::util::read_file(path)?;
-    String::from_utf8(bytes).map_err(|e| CameraError::Colmap { path: path.into(), line: 0, what: format!("not UTF-8: {e}") })
+    String::from_utf8(bytes).map_err(|e| CameraError::Colmap {
+        path: path.into(),
+        line: 0,
+        what: format!("not UTF-8: {e}"),
+    })
 }
 
 /// Reads a `cameras.txt` file.
@@ -218,7 +223,7 @@ pub fn parse_images_txt(text: &str, path: &Path) -> Result<Vec<ColmapImage>, Cam
         if expect_points {
             // The POINTS2D line of the previous image: (X, Y, POINT3D_ID) triples, possibly none.
             expect_points = false;
-            if tok.len() % 3 != 0 || tok.iter().any(|t| t.parse::<f64>().is_err()) {
+            if !tok.len().is_multiple_of(3) || tok.iter().any(|t| t.parse::<f64>().is_err()) {
                 return Err(err(format!(
                     "expected the POINTS2D line (X Y POINT3D_ID triples, or empty) of image {}, got {line:?}",
                     out.last().map_or(0, |im| im.image_id)

@@ -238,7 +238,8 @@ impl SamplingConfig {
     pub fn from_scene_toml(text: &str, path: Option<&Path>) -> Result<Self, CameraError> {
         let origin = path.map(Path::to_path_buf);
         let fail = |issues: Vec<String>| CameraError::Config { origin: origin.clone(), issues };
-        let doc: toml::Table = toml::from_str(text).map_err(|e| fail(vec![e.to_string().trim().to_string()]))?;
+        let doc: toml::Table =
+            toml::from_str(text).map_err(|e| fail(vec![e.to_string().trim().to_string()]))?;
         let cfg = match doc.get("sampling") {
             None => SamplingConfig::default(),
             Some(v) => v
@@ -285,7 +286,8 @@ impl SamplingConfig {
             issues.push(format!("min_building_fraction = {}: must be in [0, 1]", self.min_building_fraction));
         }
         if self.visibility_rays.contains(&0) || self.visibility_rays.iter().any(|&n| n > 256) {
-            issues.push(format!("visibility_rays = {:?}: each count must be in 1..=256", self.visibility_rays));
+            issues
+                .push(format!("visibility_rays = {:?}: each count must be in 1..=256", self.visibility_rays));
         }
         if self.max_attempts_per_pose == 0 {
             issues.push("max_attempts_per_pose = 0: must be at least 1".to_string());
@@ -303,7 +305,9 @@ impl SamplingConfig {
             let r = self.irregular.pitch_range_deg;
             issues.push(format!("irregular.pitch_range_deg = [{}, {}]: {why}", r[0], r[1]));
         }
-        for (field, list) in [("grid.pitch_deg", &self.grid.pitch_deg), ("regular.pitch_deg", &self.regular.pitch_deg)] {
+        for (field, list) in
+            [("grid.pitch_deg", &self.grid.pitch_deg), ("regular.pitch_deg", &self.regular.pitch_deg)]
+        {
             if list.is_empty() {
                 issues.push(format!("{field} = []: give at least one view angle"));
             }

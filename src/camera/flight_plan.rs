@@ -6,8 +6,8 @@
 //!   point per pixel, shaded from light grey (ground level) to dark slate (tallest roof); without a mesh,
 //!   the building boxes of `buildings.json`;
 //! - each sequence's path (consecutive camera positions joined, one colour per sequence);
-//! - each camera as a disc (blue: nadir, orange: tilted) with a tick in its view direction, longer the
-//!   more it is tilted;
+//! - each camera as a disc (blue, radius 2: nadir; orange, radius 3: tilted more than 1°) with a tick
+//!   in its view direction, longer the more it is tilted;
 //! - a scale bar (bottom left; its length, a round number of metres, is also in the image's
 //!   `tEXt` chunk `scale_bar_m`, with the `metres_per_px` of the drawing).
 //!
@@ -63,7 +63,10 @@ impl Canvas {
 
     /// ENU (east, north) metres → continuous pixel coordinates (x right, y down).
     pub fn to_px(&self, p_m: [f64; 2]) -> [f64; 2] {
-        [(p_m[0] - self.top_left_m[0]) * self.scale_px_per_m, (self.top_left_m[1] - p_m[1]) * self.scale_px_per_m]
+        [
+            (p_m[0] - self.top_left_m[0]) * self.scale_px_per_m,
+            (self.top_left_m[1] - p_m[1]) * self.scale_px_per_m,
+        ]
     }
 
     /// The colour at pixel (x, y), or `None` outside.
@@ -256,14 +259,18 @@ pub fn draw_flight_plan(scene: &PreparedScene, poses: &[PoseRecord]) -> (Canvas,
         hi = [50.0, 50.0];
     }
     let pad = 0.04 * (hi[0] - lo[0]).max(hi[1] - lo[1]) + 20.0;
-    let mut canvas = Canvas::new([lo[0] - pad, lo[1] - pad], [hi[0] + pad, hi[1] + pad], MAX_SIDE_PX, OUTSIDE);
+    let mut canvas =
+        Canvas::new([lo[0] - pad, lo[1] - pad], [hi[0] + pad, hi[1] + pad], MAX_SIDE_PX, OUTSIDE);
 
     let ring_px: Vec<[f64; 2]> = m.area_polygon_enu_m.iter().map(|p| canvas.to_px(*p)).collect();
     if ring_px.len() >= 3 {
         canvas.fill_polygon(&ring_px, INSIDE);
     }
     let tops = building_heights(&canvas, scene);
-    let (z_lo, z_hi) = tops.iter().filter(|z| !z.is_nan()).fold((m.ground_enu_m, f64::NEG_INFINITY), |(a, b), &z| (a.min(z), b.max(z)));
+    let (z_lo, z_hi) = tops
+        .iter()
+        .filter(|z| !z.is_nan())
+        .fold((m.ground_enu_m, f64::NEG_INFINITY), |(a, b), &z| (a.min(z), b.max(z)));
     let span = (z_hi - z_lo).max(1.0);
     for (i, z) in tops.iter().enumerate() {
         if z.is_nan() {
@@ -285,16 +292,25 @@ pub fn draw_flight_plan(scene: &PreparedScene, poses: &[PoseRecord]) -> (Canvas,
             canvas.line(canvas.to_px([a[0], a[1]]), canvas.to_px([b[0], b[1]]), 1, col);
         }
     }
-    // Cameras and their view directions.
+    // Cameras and their view directions: ticks first, then tilted cameras (radius 3), then nadir ones
+    // (radius 2) on top, so that a nadir and a tilted pose at one grid node both stay visible.
     for r in poses {
         let c = r.pose().centre_m;
         let at = canvas.to_px([c[0], c[1]]);
-        let tilted = r.pitch_deg > 1.0;
-        let col = if tilted { TILTED } else { NADIR };
         let len_px = 7.0 + 18.0 * r.pitch_deg.to_radians().sin();
         let yaw = r.yaw_deg.to_radians();
         canvas.line(at, [at[0] + len_px * yaw.sin(), at[1] - len_px * yaw.cos()], 1, INK);
-        canvas.disc(at, 2, col);
+    }
+    for nadir_pass in [false, true] {
+        for r in poses.iter().filter(|r| (r.pitch_deg <= 1.0) == nadir_pass) {
+            let c = r.pose().centre_m;
+            let at = canvas.to_px([c[0], c[1]]);
+            if nadir_pass {
+                canvas.disc(at, 2, NADIR);
+            } else {
+                canvas.disc(at, 3, TILTED);
+            }
+        }
     }
     // Scale bar.
     let width_m = canvas.width_px as f64 * canvas.metres_per_px();
@@ -311,7 +327,11 @@ pub fn draw_flight_plan(scene: &PreparedScene, poses: &[PoseRecord]) -> (Canvas,
 ///
 /// # Errors
 /// [`CameraError::File`] for I/O, [`CameraError::Png`] for encoding.
-pub fn write_flight_plan(path: &Path, scene: &PreparedScene, poses: &[PoseRecord]) -> Result<(), CameraError> {
+pub fn write_flight_plan(
+    path: &Path,
+    scene: &PreparedScene,
+    poses: &[PoseRecord],
+) -> Result<(), CameraError> {
     let (canvas, bar_m) = draw_flight_plan(scene, poses);
     let text = [
         ("Title", format!("insgen flight plan: {} ({} frames)", scene.manifest.area, poses.len())),
@@ -339,7 +359,8 @@ mod tests {
     fn polygon_fill_and_lines() {
         let mut c = Canvas::new([0.0, 0.0], [10.0, 10.0], 10, [0, 0, 0]);
         // Square from (2, 2) to (6, 6) metres = pixels x 2..6, y 4..8 (north up).
-        let ring: Vec<[f64; 2]> = [[2.0, 2.0], [6.0, 2.0], [6.0, 6.0], [2.0, 6.0]].iter().map(|p| c.to_px(*p)).collect();
+        let ring: Vec<[f64; 2]> =
+            [[2.0, 2.0], [6.0, 2.0], [6.0, 6.0], [2.0, 6.0]].iter().map(|p| c.to_px(*p)).collect();
         c.fill_polygon(&ring, [9, 9, 9]);
         let filled = (0..100).filter(|i| c.rgb[3 * i] == 9).count();
         assert_eq!(filled, 16);

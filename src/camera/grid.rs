@@ -1,6 +1,6 @@
 //! Grid strategy (cam2): independent poses on a uniform lattice over the area polygon.
 //!
-//! The lattice (spacing `grid.spacing_m`, centred on the polygon's bounding box) keeps the nodes
+//! The lattice (spacing `grid.spacing_m`, cell-centred on the polygon's bounding box) keeps the nodes
 //! inside the polygon by at least `grid.margin_m`. Every node gets one pose per view angle in
 //! `grid.pitch_deg`; each pose draws its yaw (from `grid.yaw_deg`, or uniformly) and its height above
 //! ground uniformly in `grid.height_range_m`, raised where needed to the clearance over nearby
@@ -18,17 +18,20 @@ use rand_chacha::ChaCha8Rng;
 use super::sample::{Ctx, Frame, SampleStats};
 use super::{CameraError, Pose, Trajectory};
 
-/// Lattice nodes inside the polygon (south to north, west to east).
+/// Lattice nodes inside the polygon (south to north, west to east). The lattice is cell-centred on
+/// the polygon's bounding box: n = max(1, ⌊extent / spacing⌋) nodes per axis, their span centred, so
+/// no node sits on the bounding box itself.
 pub(crate) fn lattice_nodes(ctx: &Ctx, spacing_m: f64, margin_m: f64) -> Vec<[f64; 2]> {
     let (lo, hi) = (ctx.poly.min_m, ctx.poly.max_m);
-    let n = [((hi[0] - lo[0]) / spacing_m).floor() as usize, ((hi[1] - lo[1]) / spacing_m).floor() as usize];
+    let count = |k: usize| (((hi[k] - lo[k]) / spacing_m).floor() as usize).max(1);
+    let n = [count(0), count(1)];
     let start = [
-        lo[0] + 0.5 * ((hi[0] - lo[0]) - n[0] as f64 * spacing_m),
-        lo[1] + 0.5 * ((hi[1] - lo[1]) - n[1] as f64 * spacing_m),
+        lo[0] + 0.5 * ((hi[0] - lo[0]) - (n[0] - 1) as f64 * spacing_m),
+        lo[1] + 0.5 * ((hi[1] - lo[1]) - (n[1] - 1) as f64 * spacing_m),
     ];
     let mut nodes = Vec::new();
-    for j in 0..=n[1] {
-        for i in 0..=n[0] {
+    for j in 0..n[1] {
+        for i in 0..n[0] {
             let p = [start[0] + i as f64 * spacing_m, start[1] + j as f64 * spacing_m];
             if ctx.poly.contains_with_margin(p, margin_m) {
                 nodes.push(p);

@@ -77,7 +77,8 @@ pub(crate) fn sample(
     let margin = ic.waypoint_margin_m;
     let no_room = || CameraError::Area {
         area: ctx.area.to_string(),
-        what: "no point inside the area polygon found for a trajectory (is the polygon a sliver?)".to_string(),
+        what: "no point inside the area polygon found for a trajectory (is the polygon a sliver?)"
+            .to_string(),
     };
     let draw = |rng: &mut ChaCha8Rng, lo: f64, hi: f64| if lo < hi { rng.gen_range(lo..=hi) } else { lo };
     let new_targets = |rng: &mut ChaCha8Rng, from: [f64; 2]| -> Result<Targets, CameraError> {
@@ -145,7 +146,8 @@ pub(crate) fn sample(
                 .fold(f64::NEG_INFINITY, f64::max);
             let target_h = tg.height_agl_m.max(need).clamp(h_lo, h_hi);
             let c_max = ic.max_climb_m_per_frame;
-            s.height_agl_m = (s.height_agl_m + (target_h - s.height_agl_m).clamp(-c_max, c_max)).clamp(h_lo, h_hi);
+            s.height_agl_m =
+                (s.height_agl_m + (target_h - s.height_agl_m).clamp(-c_max, c_max)).clamp(h_lo, h_hi);
             // Tilt: towards its target, a new target once reached.
             let p_max = ic.max_pitch_deg_per_frame;
             s.pitch_deg = (s.pitch_deg + (tg.pitch_deg - s.pitch_deg).clamp(-p_max, p_max)).clamp(t_lo, t_hi);

@@ -11,12 +11,12 @@
 //! | preset | resolution | sensor [mm]    | hFOV | focal [mm] | focal [px] | strategy  |
 //! |--------|------------|----------------|------|------------|------------|-----------|
 //! | cam1   | 1600×1200  | 16 × 12        | 45°  | 19.314     | 1931.37    | irregular |
-//! | cam2   | 1920×1080  | 23.76 × 13.365 | 25°  | 53.582     | 4330.0     | grid      |
-//! | cam3   | 1920×1080  | 23.76 × 13.365 | 25°  | 53.582     | 4330.0     | regular   |
+//! | cam2   | 1920×1080  | 23.76 × 13.365 | 25°  | 53.587     | 4330.28    | grid      |
+//! | cam3   | 1920×1080  | 23.76 × 13.365 | 25°  | 53.587     | 4330.28    | regular   |
 //!
-//! focal_mm = (sensor_width_mm / 2) / tan(hfov / 2); fx_px = focal_mm · W / sensor_width_mm and
-//! fy_px = focal_mm · H / sensor_height_mm (square pixels for all three presets: 0.01 mm and
-//! 0.012375 mm pitch); principal point at the image centre (W / 2, H / 2).
+//! focal_mm = (sensor_width_mm / 2) / tan(hfov / 2); fx_px = focal_mm · W / sensor_width_mm
+//! = (W / 2) / tan(hfov / 2) and fy_px = focal_mm · H / sensor_height_mm (square pixels for all three
+//! presets: 0.01 mm and 0.012375 mm pitch, so fy = fx); principal point at the image centre (W / 2, H / 2).
 //!
 //! Custom camera files follow `schemas/camera.schema.json`; `scenes/cameras/example.toml` is a worked
 //! example.
@@ -80,11 +80,17 @@ impl CameraSpec {
         strategy: Trajectory,
     ) -> Self {
         let focal_mm = focal_mm_from_hfov(sensor_width_mm, hfov_deg);
+        // fx from the field of view directly (identical to `Intrinsics::from_hfov`); fy from the pixel
+        // aspect (pitch_x / pitch_y), snapped to 1 when the pixels are square to within 1e-9 so that
+        // rounding in the sensor sizes does not make fx and fy differ in the last bits.
+        let fx_px = 0.5 * width_px as f64 / (0.5 * hfov_deg.to_radians()).tan();
+        let aspect = (sensor_width_mm / width_px as f64) / (sensor_height_mm / height_px as f64);
+        let fy_px = if (aspect - 1.0).abs() < 1e-9 { fx_px } else { fx_px * aspect };
         let intrinsics = Intrinsics {
             width_px,
             height_px,
-            fx_px: focal_mm * width_px as f64 / sensor_width_mm,
-            fy_px: focal_mm * height_px as f64 / sensor_height_mm,
+            fx_px,
+            fy_px,
             cx_px: 0.5 * width_px as f64,
             cy_px: 0.5 * height_px as f64,
         };
@@ -159,7 +165,8 @@ impl CameraSpec {
     /// [`CameraError::CameraFile`] with one entry per problem (field name and offending value).
     pub fn from_toml_str(text: &str, path: &Path) -> Result<Self, CameraError> {
         let fail = |issues: Vec<String>| CameraError::CameraFile { path: PathBuf::from(path), issues };
-        let raw: RawCamera = toml::from_str(text).map_err(|e| fail(vec![e.to_string().trim().to_string()]))?;
+        let raw: RawCamera =
+            toml::from_str(text).map_err(|e| fail(vec![e.to_string().trim().to_string()]))?;
         raw.into_spec().map_err(fail)
     }
 
@@ -218,7 +225,9 @@ impl RawCamera {
                 issues.push(format!("{field} = {v}: must be in 1..={MAX_SIDE_PX}"));
             }
         }
-        for (field, v) in [("sensor_width_mm", self.sensor_width_mm), ("sensor_height_mm", self.sensor_height_mm)] {
+        for (field, v) in
+            [("sensor_width_mm", self.sensor_width_mm), ("sensor_height_mm", self.sensor_height_mm)]
+        {
             if !(v.is_finite() && v > 0.0) {
                 issues.push(format!("{field} = {v}: must be a positive number of millimetres"));
             }
@@ -262,7 +271,8 @@ impl RawCamera {
                 }
             }
         }
-        for (field, v, side) in [("cx_px", self.cx_px, self.width_px), ("cy_px", self.cy_px, self.height_px)] {
+        for (field, v, side) in [("cx_px", self.cx_px, self.width_px), ("cy_px", self.cy_px, self.height_px)]
+        {
             if let Some(v) = v {
                 if !(v.is_finite() && v >= 0.0 && v <= side as f64) {
                     issues.push(format!("{field} = {v}: must lie inside the image, in [0, {side}] pixels"));
@@ -309,17 +319,21 @@ mod tests {
     #[test]
     fn presets_match_the_paper_table() {
         // Hand computations: cam1 f = 8 mm / tan(22.5°) = 19.3137 mm = 1931.37 px (0.01 mm pitch);
-        // cam2 f = 11.88 mm / tan(12.5°) = 53.5825 mm = 4330.0 px (0.012375 mm pitch).
+        // cam2 f = 11.88 mm / tan(12.5°) = 53.5872 mm = 4330.28 px (0.012375 mm pitch), the brief's
+        // "4330.0 px" to four significant digits.
         let c1 = CameraSpec::preset("cam1").unwrap();
         assert!((c1.focal_mm - 8.0 / 22.5f64.to_radians().tan()).abs() < 1e-12);
         assert!((c1.intrinsics.fx_px - 1931.37).abs() < 0.01, "{}", c1.intrinsics.fx_px);
         assert!((c1.intrinsics.fx_px - c1.intrinsics.fy_px).abs() < 1e-9);
         assert_eq!((c1.intrinsics.cx_px, c1.intrinsics.cy_px), (800.0, 600.0));
         let c2 = CameraSpec::preset("cam2").unwrap();
-        assert!((c2.focal_mm - 53.5825).abs() < 1e-4, "{}", c2.focal_mm);
-        assert!((c2.intrinsics.fx_px - 4330.0).abs() < 0.05, "{}", c2.intrinsics.fx_px);
+        assert!((c2.focal_mm - 53.5872).abs() < 1e-4, "{}", c2.focal_mm);
+        assert!((c2.intrinsics.fx_px - 4330.28).abs() < 0.005, "{}", c2.intrinsics.fx_px);
+        assert!((c2.intrinsics.fx_px - 4330.0).abs() < 0.5);
         assert!((c2.intrinsics.fy_px - c2.intrinsics.fx_px).abs() < 1e-9);
         assert_eq!(CameraSpec::preset("cam3").unwrap().intrinsics, c2.intrinsics);
+        assert_eq!(c2.intrinsics, Intrinsics::from_hfov(1920, 1080, 25.0));
+        assert_eq!(c1.intrinsics, Intrinsics::from_hfov(1600, 1200, 45.0));
         assert_eq!(c2.strategy, Trajectory::Grid);
     }
 

@@ -154,8 +154,9 @@ impl std::str::FromStr for Trajectory {
 pub fn write_jsonl(path: &std::path::Path, records: &[PoseRecord]) -> Result<(), crate::util::FileError> {
     let mut bytes = Vec::new();
     for r in records {
-        serde_json::to_writer(&mut bytes, r)
-            .map_err(|e| crate::util::FileError::new("serialising JSON for", path, std::io::Error::other(e)))?;
+        serde_json::to_writer(&mut bytes, r).map_err(|e| {
+            crate::util::FileError::new("serialising JSON for", path, std::io::Error::other(e))
+        })?;
         bytes.push(b'\n');
     }
     crate::util::write_bytes_atomic(path, &bytes)
@@ -173,8 +174,11 @@ pub fn read_jsonl(path: &std::path::Path) -> Result<Vec<PoseRecord>, super::Came
         if line.iter().all(u8::is_ascii_whitespace) {
             continue;
         }
-        let rec = serde_json::from_slice(line)
-            .map_err(|source| super::CameraError::Jsonl { path: path.to_path_buf(), line: i + 1, source })?;
+        let rec = serde_json::from_slice(line).map_err(|source| super::CameraError::Jsonl {
+            path: path.to_path_buf(),
+            line: i + 1,
+            source,
+        })?;
         out.push(rec);
     }
     Ok(out)

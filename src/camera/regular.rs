@@ -19,7 +19,7 @@ use rand_chacha::ChaCha8Rng;
 use super::sample::{Ctx, Frame, RunCollector, SampleStats};
 use super::{CameraError, Pose, Trajectory};
 
-/// One straight segment of a survey line: start point, unit direction, frame positions along it.
+/// One straight piece of a survey line: its flight heading and the frame positions in flight order.
 #[derive(Debug, Clone)]
 pub(crate) struct Segment {
     pub yaw_deg: f64,
@@ -41,7 +41,8 @@ pub(crate) fn plan_pass(ctx: &Ctx, heading_deg: f64, shift_frac: f64) -> Vec<Seg
         a_hi = a_hi.max(a);
     }
     let n_lines = (((a_hi - a_lo) / r.line_spacing_m).ceil() as usize).max(1);
-    let first = 0.5 * (a_lo + a_hi) - 0.5 * (n_lines as f64 - 1.0) * r.line_spacing_m + shift_frac * r.line_spacing_m;
+    let first =
+        0.5 * (a_lo + a_hi) - 0.5 * (n_lines as f64 - 1.0) * r.line_spacing_m + shift_frac * r.line_spacing_m;
     let mut segments = Vec::new();
     for k in 0..n_lines {
         let a = first + k as f64 * r.line_spacing_m;
@@ -95,13 +96,17 @@ pub(crate) fn sample(
     loop {
         let before = runs.frames.len();
         let pitch = r.pitch_deg[pass % r.pitch_deg.len()];
-        let segments =
-            if pass < r.pitch_deg.len() { first_pass.clone() } else { plan_pass(ctx, heading, rng.gen_range(-0.5..0.5)) };
+        let segments = if pass < r.pitch_deg.len() {
+            first_pass.clone()
+        } else {
+            plan_pass(ctx, heading, rng.gen_range(-0.5..0.5))
+        };
         for seg in &segments {
             if runs.full() || stats.candidates >= budget {
                 break;
             }
-            let need = seg.points.iter().map(|p| ctx.required_height_agl_m(*p)).fold(f64::NEG_INFINITY, f64::max);
+            let need =
+                seg.points.iter().map(|p| ctx.required_height_agl_m(*p)).fold(f64::NEG_INFINITY, f64::max);
             let lo = h_lo.max(need).min(h_hi);
             let h = if lo < h_hi { rng.gen_range(lo..=h_hi) } else { h_hi };
             for p in &seg.points {
@@ -118,7 +123,9 @@ pub(crate) fn sample(
         let progressed = runs.frames.len() > before;
         let done = match count {
             None => pass >= r.pitch_deg.len(),
-            Some(_) => runs.full() || stats.candidates >= budget || (!progressed && pass >= r.pitch_deg.len()),
+            Some(_) => {
+                runs.full() || stats.candidates >= budget || (!progressed && pass >= r.pitch_deg.len())
+            }
         };
         if done {
             break;

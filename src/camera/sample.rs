@@ -150,7 +150,13 @@ impl Ctx<'_> {
     }
 
     /// The error for a strategy that could not place `wanted` poses.
-    pub fn too_few(&self, strategy: Trajectory, placed: usize, wanted: usize, stats: &SampleStats) -> CameraError {
+    pub fn too_few(
+        &self,
+        strategy: Trajectory,
+        placed: usize,
+        wanted: usize,
+        stats: &SampleStats,
+    ) -> CameraError {
         let hint = if stats.rejected_clearance >= stats.rejected_visibility.max(stats.rejected_outside) {
             format!(
                 "raise the {strategy} height range or lower clearance_m in the scene file's [sampling] table \
@@ -266,11 +272,17 @@ pub fn sample_area(
     let m = &scene.manifest;
     let area = m.area.as_str();
     if count == Some(0) {
-        return Err(CameraError::Config { origin: None, issues: vec!["--count 0: ask for at least one pose".into()] });
+        return Err(CameraError::Config {
+            origin: None,
+            issues: vec!["--count 0: ask for at least one pose".into()],
+        });
     }
     let poly = AreaPolygon::new(area, &m.area_polygon_enu_m)?;
     if !m.ground_enu_m.is_finite() {
-        return Err(CameraError::Area { area: area.into(), what: format!("ground_enu_m = {} is not finite", m.ground_enu_m) });
+        return Err(CameraError::Area {
+            area: area.into(),
+            what: format!("ground_enu_m = {} is not finite", m.ground_enu_m),
+        });
     }
     let ctx = Ctx {
         area,
@@ -291,7 +303,8 @@ pub fn sample_area(
     };
     progress.finish();
 
-    let enu = EnuFrame::new(Geodetic { lat_deg: m.origin.lat_deg, lon_deg: m.origin.lon_deg, h_m: m.origin.h_m });
+    let enu =
+        EnuFrame::new(Geodetic { lat_deg: m.origin.lat_deg, lon_deg: m.origin.lon_deg, h_m: m.origin.h_m });
     let poses: Vec<PoseRecord> = frames
         .iter()
         .map(|f| {
@@ -356,7 +369,11 @@ struct SamplingRecord<'a> {
 ///
 /// # Errors
 /// [`CameraError::File`] naming the file that could not be written; [`CameraError::Png`].
-pub fn write_sample(dir: &Path, scene: &PreparedScene, out: &SampleOutput) -> Result<Vec<PathBuf>, CameraError> {
+pub fn write_sample(
+    dir: &Path,
+    scene: &PreparedScene,
+    out: &SampleOutput,
+) -> Result<Vec<PathBuf>, CameraError> {
     let mut written = Vec::new();
     let p = dir.join(POSES_FILE);
     super::record::write_jsonl(&p, &out.poses)?;

@@ -74,14 +74,18 @@ impl Plan {
     pub fn new(args: &Args, global: &super::Global) -> anyhow::Result<Plan> {
         let area = args.area.trim();
         if area.is_empty() || area.contains(['/', '\\']) || area == "." || area == ".." {
-            anyhow::bail!("--area {:?}: expected an area name (as in <scenes>/<area>.toml), not a path", args.area);
+            anyhow::bail!(
+                "--area {:?}: expected an area name (as in <scenes>/<area>.toml), not a path",
+                args.area
+            );
         }
         let scene_dir = global.workdir.join(area).join("scene");
         let manifest = scene_dir.join(crate::scene::artifact::MANIFEST_FILE);
         if !manifest.is_file() {
             anyhow::bail!("{}", unknown_area_message(area, &global.workdir, &global.scenes, &manifest));
         }
-        let mut camera = CameraSpec::resolve(&args.camera).with_context(|| format!("--camera {}", args.camera))?;
+        let mut camera =
+            CameraSpec::resolve(&args.camera).with_context(|| format!("--camera {}", args.camera))?;
         if let Some(s) = args.strategy {
             camera.strategy = s;
         }
@@ -121,7 +125,8 @@ fn unknown_area_message(area: &str, workdir: &Path, scenes: &Path, manifest: &Pa
         v
     };
     let prepared = list(workdir, &|p| {
-        p.join("scene").join(crate::scene::artifact::MANIFEST_FILE)
+        p.join("scene")
+            .join(crate::scene::artifact::MANIFEST_FILE)
             .is_file()
             .then(|| p.file_name().map(|n| n.to_string_lossy().into_owned()))
             .flatten()
@@ -197,12 +202,15 @@ mod tests {
 
     #[test]
     fn flags_parse() {
-        let t = T::try_parse_from(["x", "--area", "demo", "--camera", "cam1", "--count", "5", "--seed", "9"]).unwrap();
+        let t = T::try_parse_from(["x", "--area", "demo", "--camera", "cam1", "--count", "5", "--seed", "9"])
+            .unwrap();
         assert_eq!((t.args.area.as_str(), t.args.camera.as_str()), ("demo", "cam1"));
         assert_eq!((t.args.count, t.args.seed, t.args.strategy), (Some(5), 9, None));
-        let t = T::try_parse_from(["x", "--area", "a", "--camera", "c.toml", "--strategy", "regular"]).unwrap();
+        let t =
+            T::try_parse_from(["x", "--area", "a", "--camera", "c.toml", "--strategy", "regular"]).unwrap();
         assert_eq!(t.args.strategy, Some(Trajectory::Regular));
-        let e = T::try_parse_from(["x", "--area", "a", "--camera", "cam1", "--strategy", "spiral"]).unwrap_err();
+        let e =
+            T::try_parse_from(["x", "--area", "a", "--camera", "cam1", "--strategy", "spiral"]).unwrap_err();
         assert!(e.to_string().contains("expected one of grid, regular, irregular"), "{e}");
         assert!(T::try_parse_from(["x", "--camera", "cam1"]).is_err());
     }
