@@ -4,6 +4,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
+export NODEVICE_SELECT=1  # silence Mesa device-select warnings on headless machines
 export INSGEN_PYTHON="${INSGEN_PYTHON:-$(pwd)/.venv/bin/python}"
 cargo fmt --check
 cargo test --no-fail-fast "$@"

@@ -23,14 +23,14 @@
 //!   [i, i+1) × [j, j+1) and its centre is (i + 0.5, j + 0.5) — the COLMAP and rasteriser convention.
 //! - Camera axes are OpenCV's (x right, y down, z forward).
 
-pub mod util;
-pub mod geo;
-pub mod lod;
-pub mod scene;
-pub mod camera;
-pub mod render;
-pub mod label;
-pub mod coco;
 pub mod blender;
-pub mod loc;
+pub mod camera;
 pub mod cli;
+pub mod coco;
+pub mod geo;
+pub mod label;
+pub mod loc;
+pub mod lod;
+pub mod render;
+pub mod scene;
+pub mod util;

@@ -80,7 +80,8 @@ fn hertogenbosch_needs_and_accepts_explicit_crs() {
 #[test]
 fn unknown_epsg_and_missing_source_are_clear_errors() {
     let Some(file) = shared_data("nl_delft_lod1/delft.city.json") else { return };
-    let bad_crs = format!("name = \"x\"\n[[sources]]\npath = \"{}\"\ncrs = \"EPSG:999999\"\n", file.display());
+    let bad_crs =
+        format!("name = \"x\"\n[[sources]]\npath = \"{}\"\ncrs = \"EPSG:999999\"\n", file.display());
     let missing = "name = \"y\"\n[[sources]]\npath = \"nope/missing.gml\"\n".to_string();
     let dir = scratch_with_scenes(&[("x", bad_crs), ("y", missing)]);
     let out = insgen(dir.path(), &["prepare", "--area", "x"]);
@@ -89,7 +90,11 @@ fn unknown_epsg_and_missing_source_are_clear_errors() {
     assert!(err.contains("999999") && err.contains("delft.city.json"), "{err}");
     let out = insgen(dir.path(), &["prepare", "--area", "y"]);
     assert_eq!(out.status.code(), Some(1));
-    assert!(stderr(&out).contains("missing.gml") && stderr(&out).contains("does not exist"), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("missing.gml") && stderr(&out).contains("does not exist"),
+        "{}",
+        stderr(&out)
+    );
     assert!(!dir.path().join("runs").exists(), "partial output left behind");
     // Unknown area lists the available ones.
     let out = insgen(dir.path(), &["prepare", "--area", "z"]);

@@ -58,10 +58,7 @@ impl Intrinsics {
         if p_cam[2] <= 0.0 {
             return None;
         }
-        Some([
-            self.fx_px * p_cam[0] / p_cam[2] + self.cx_px,
-            self.fy_px * p_cam[1] / p_cam[2] + self.cy_px,
-        ])
+        Some([self.fx_px * p_cam[0] / p_cam[2] + self.cx_px, self.fy_px * p_cam[1] / p_cam[2] + self.cy_px])
     }
 
     /// Horizontal field of view in degrees.

@@ -193,7 +193,10 @@ mod tests {
         // x right = east, y down = south, z forward = down.
         let r = p.r_world_from_cam;
         let cols = [[r[0][0], r[1][0], r[2][0]], [r[0][1], r[1][1], r[2][1]], [r[0][2], r[1][2], r[2][2]]];
-        assert_eq!(cols, [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]].map(|c| c.map(|v: f64| v + 0.0)));
+        assert_eq!(
+            cols,
+            [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]].map(|c| c.map(|v: f64| v + 0.0))
+        );
         // A point 10 m north of the nadir point projects above the image centre (negative y).
         let c = p.world_to_cam([0.0, 10.0, 0.0]);
         assert!(close(c[0], 0.0, 1e-12) && close(c[1], -10.0, 1e-12) && close(c[2], 100.0, 1e-12));
@@ -208,10 +211,15 @@ mod tests {
 
     #[test]
     fn ypr_round_trip() {
-        for &(y, p, r) in &[(0.0, 0.0, 0.0), (33.0, 45.0, 0.0), (271.5, 12.0, -3.0), (359.0, 70.0, 5.0), (120.0, 0.0, 0.0)] {
+        for &(y, p, r) in
+            &[(0.0, 0.0, 0.0), (33.0, 45.0, 0.0), (271.5, 12.0, -3.0), (359.0, 70.0, 5.0), (120.0, 0.0, 0.0)]
+        {
             let pose = Pose::from_ypr_deg(y, p, r, [1.0, 2.0, 3.0]);
             let [y2, p2, r2] = pose.ypr_deg();
-            assert!(close(y, y2, 1e-9) && close(p, p2, 1e-9) && close(r, r2, 1e-9), "{y} {p} {r} → {y2} {p2} {r2}");
+            assert!(
+                close(y, y2, 1e-9) && close(p, p2, 1e-9) && close(r, r2, 1e-9),
+                "{y} {p} {r} → {y2} {p2} {r2}"
+            );
         }
     }
 

@@ -62,8 +62,22 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     step(
         global,
         &[
-            "eval-loc", "--area", "demo-test", "--camera", &args.camera, "--oracle", "--limit", &q, "--cost", "instance", "--cost",
-            "semantic", "--render-width", "320", "--coarse-width", "160",
+            "eval-loc",
+            "--area",
+            "demo-test",
+            "--camera",
+            &args.camera,
+            "--oracle",
+            "--limit",
+            &q,
+            "--cost",
+            "instance",
+            "--cost",
+            "semantic",
+            "--render-width",
+            "320",
+            "--coarse-width",
+            "160",
         ],
     )?;
     eprintln!(

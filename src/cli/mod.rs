@@ -23,8 +23,10 @@ use clap::{Parser, Subcommand};
 /// Synthetic building-instance datasets for UAV visual localization against LoD city models.
 #[derive(Debug, Parser)]
 #[command(name = "insgen", version, about, max_term_width = 100)]
-#[command(after_long_help = "Typical run:\n  insgen prepare --area demo\n  insgen sample --area demo --camera cam2\n  \
-insgen render-masks --area demo --camera cam2\n  insgen export-coco\n\nOr all at once on the embedded city: insgen demo")]
+#[command(
+    after_long_help = "Typical run:\n  insgen prepare --area demo\n  insgen sample --area demo --camera cam2\n  \
+insgen render-masks --area demo --camera cam2\n  insgen export-coco\n\nOr all at once on the embedded city: insgen demo"
+)]
 pub struct Cli {
     #[command(flatten)]
     pub global: Global,
@@ -56,7 +58,8 @@ impl Global {
     /// The progress reporter for this run.
     pub fn progress(&self) -> progress::Bar {
         use std::io::IsTerminal;
-        let visible = !self.quiet && !self.no_progress && self.verbose == 0 && std::io::stderr().is_terminal();
+        let visible =
+            !self.quiet && !self.no_progress && self.verbose == 0 && std::io::stderr().is_terminal();
         progress::Bar::new(visible)
     }
 }

@@ -10,8 +10,10 @@ use crate::scene::{self, config::find_scene};
 /// Reads an area's building models (scenes/<area>.toml), geo-references them into the area's ENU frame
 /// and writes <workdir>/<area>/scene/{scene.glb, manifest.json, buildings.json}.
 #[derive(Debug, Clone, clap::Args)]
-#[command(after_long_help = "Examples:\n  insgen prepare --area demo\n  insgen prepare --area tokyo --area niiza\n  \
-insgen prepare --scene my/area.toml")]
+#[command(
+    after_long_help = "Examples:\n  insgen prepare --area demo\n  insgen prepare --area tokyo --area niiza\n  \
+insgen prepare --scene my/area.toml"
+)]
 pub struct Args {
     /// Area name (a file <scenes>/<NAME>.toml); repeat for several.
     #[arg(long = "area", value_name = "NAME", required_unless_present = "scene")]

@@ -72,7 +72,8 @@ pub fn ecef_to_geodetic(p: [f64; 3]) -> Geodetic {
     let pp = f_ / (3.0 * (s + 1.0 / s + 1.0).powi(2) * g * g);
     let q = (1.0 + 2.0 * e2 * e2 * pp).sqrt();
     let r0 = -(pp * e2 * r) / (1.0 + q)
-        + (0.5 * a * a * (1.0 + 1.0 / q) - pp * (1.0 - e2) * z * z / (q * (1.0 + q)) - 0.5 * pp * r * r).sqrt();
+        + (0.5 * a * a * (1.0 + 1.0 / q) - pp * (1.0 - e2) * z * z / (q * (1.0 + q)) - 0.5 * pp * r * r)
+            .sqrt();
     let u = ((r - e2 * r0).powi(2) + z * z).sqrt();
     let v = ((r - e2 * r0).powi(2) + (1.0 - e2) * z * z).sqrt();
     let z0 = b * b * z / (a * v);

@@ -173,7 +173,10 @@ mod tests {
     fn grid(rows: &[&str]) -> (Vec<u32>, u32, u32) {
         let h = rows.len() as u32;
         let w = rows[0].len() as u32;
-        let ids = rows.iter().flat_map(|r| r.bytes().map(|b| if b == b'.' { 0 } else { (b - b'0') as u32 })).collect();
+        let ids = rows
+            .iter()
+            .flat_map(|r| r.bytes().map(|b| if b == b'.' { 0 } else { (b - b'0') as u32 }))
+            .collect();
         (ids, w, h)
     }
 

@@ -1,8 +1,8 @@
 //! Labels from instance-ID maps: connected components and per-frame instance lists.
 
 pub mod components;
-pub mod instances;
 pub mod idpng;
+pub mod instances;
 pub mod overlay;
 pub mod stage;
 

@@ -29,7 +29,9 @@ pub enum Weighting {
 }
 
 /// Which cost to use.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize, clap::ValueEnum, Default)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize, clap::ValueEnum, Default,
+)]
 #[serde(rename_all = "lowercase")]
 pub enum CostKind {
     /// Best-match Dice per query instance (InsLoD-Loc).
@@ -62,8 +64,10 @@ impl Query {
     /// Builds a query from a label image (0 = background, j ≥ 1 = instance j − 1) and per-instance
     /// scores (`scores[j]` for label j + 1). Box areas are computed from the pixels.
     pub fn from_labels(width: u32, height: u32, labels: &[u32], scores: &[f64]) -> Query {
-        let mut instances: Vec<QueryInstance> =
-            scores.iter().map(|&s| QueryInstance { pixels: Vec::new(), score: s, bbox_area_px: 0.0 }).collect();
+        let mut instances: Vec<QueryInstance> = scores
+            .iter()
+            .map(|&s| QueryInstance { pixels: Vec::new(), score: s, bbox_area_px: 0.0 })
+            .collect();
         for (i, &l) in labels.iter().enumerate() {
             if l > 0 && (l as usize) <= instances.len() {
                 instances[l as usize - 1].pixels.push(i as u32);
@@ -94,7 +98,11 @@ impl Query {
         }
         let score = self.instances.iter().map(|i| i.score).sum::<f64>() / self.instances.len() as f64;
         let bbox_area_px = bbox_area(&pixels, self.width);
-        Query { width: self.width, height: self.height, instances: vec![QueryInstance { pixels, score, bbox_area_px }] }
+        Query {
+            width: self.width,
+            height: self.height,
+            instances: vec![QueryInstance { pixels, score, bbox_area_px }],
+        }
     }
 }
 
@@ -203,7 +211,14 @@ impl Scorer {
     }
 
     /// The cost of `kind` (the merged ablation expects `q` already merged with [`Query::merged`]).
-    pub fn cost(&mut self, kind: CostKind, q: &Query, rendered: &[u32], k_max: u32, weighting: Weighting) -> f64 {
+    pub fn cost(
+        &mut self,
+        kind: CostKind,
+        q: &Query,
+        rendered: &[u32],
+        k_max: u32,
+        weighting: Weighting,
+    ) -> f64 {
         match kind {
             CostKind::Instance | CostKind::Merged => self.instance_cost(q, rendered, k_max, weighting),
             CostKind::Semantic => self.semantic_iou(q, rendered),
@@ -290,6 +305,9 @@ mod tests {
         let merged = [1, 1, 1, 1];
         let mut s = Scorer::default();
         assert_eq!(s.semantic_iou(&q, &right), s.semantic_iou(&q, &merged));
-        assert!(s.instance_cost(&q, &right, 2, Weighting::Conf) > s.instance_cost(&q, &merged, 1, Weighting::Conf) + 0.2);
+        assert!(
+            s.instance_cost(&q, &right, 2, Weighting::Conf)
+                > s.instance_cost(&q, &merged, 1, Weighting::Conf) + 0.2
+        );
     }
 }

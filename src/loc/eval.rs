@@ -131,9 +131,14 @@ pub fn cull(buildings: &[BuildingRecord], pose: &Pose, k: &Intrinsics, margin: f
         .filter(|b| {
             let (lo, hi) = (b.bbox_min_enu_m, b.bbox_max_enu_m);
             let mut front = 0;
-            let (mut u0, mut u1, mut v0, mut v1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+            let (mut u0, mut u1, mut v0, mut v1) =
+                (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
             for c in 0..8 {
-                let p = [if c & 1 == 0 { lo[0] } else { hi[0] }, if c & 2 == 0 { lo[1] } else { hi[1] }, if c & 4 == 0 { lo[2] } else { hi[2] }];
+                let p = [
+                    if c & 1 == 0 { lo[0] } else { hi[0] },
+                    if c & 2 == 0 { lo[1] } else { hi[1] },
+                    if c & 4 == 0 { lo[2] } else { hi[2] },
+                ];
                 let q = pose.world_to_cam(p);
                 if q[2] > raster::NEAR_M {
                     front += 1;
@@ -199,7 +204,13 @@ impl Evaluate for CpuEvaluator<'_> {
 }
 
 /// Loads the oracle query of a frame (ground-truth components, degraded) at intrinsics `k`.
-fn oracle_query(masks_dir: &Path, frame: &str, k: &Intrinsics, d: &Degradation, seed: u64) -> Result<Query, EvalError> {
+fn oracle_query(
+    masks_dir: &Path,
+    frame: &str,
+    k: &Intrinsics,
+    d: &Degradation,
+    seed: u64,
+) -> Result<Query, EvalError> {
     let path = masks_dir.join(format!("{frame}.png"));
     let map = crate::label::idpng::read_id_png(&path).map_err(|e| EvalError::Input {
         path: path.clone(),
@@ -231,11 +242,16 @@ fn group_of(t: Trajectory) -> &'static str {
 ///
 /// # Errors
 /// Missing or malformed inputs (poses, priors, masks), naming the file.
-pub fn evaluate(scene: &PreparedScene, opts: &EvalOptions, progress: &dyn Progress) -> Result<Summary, EvalError> {
+pub fn evaluate(
+    scene: &PreparedScene,
+    opts: &EvalOptions,
+    progress: &dyn Progress,
+) -> Result<Summary, EvalError> {
     let gt_path = opts.camera_dir.join("poses.jsonl");
     let prior_path = opts.camera_dir.join("priors.jsonl");
     let gts = read_jsonl(&gt_path)?;
-    let priors: BTreeMap<String, PoseRecord> = read_jsonl(&prior_path)?.into_iter().map(|p| (p.name.clone(), p)).collect();
+    let priors: BTreeMap<String, PoseRecord> =
+        read_jsonl(&prior_path)?.into_iter().map(|p| (p.name.clone(), p)).collect();
     let masks_dir = opts.camera_dir.join("masks");
     let out_dir = opts.camera_dir.join("loc").join(&opts.tag);
     let mut queries: Vec<&PoseRecord> = gts.iter().collect();
@@ -259,7 +275,11 @@ pub fn evaluate(scene: &PreparedScene, opts: &EvalOptions, progress: &dyn Progre
         })?;
         let gt_pose = gt.pose();
         let prior_pose = prior.pose();
-        prior_errors.push((gt_pose.translation_error_m(&prior_pose), gt_pose.rotation_error_deg(&prior_pose), gt.trajectory));
+        prior_errors.push((
+            gt_pose.translation_error_m(&prior_pose),
+            gt_pose.rotation_error_deg(&prior_pose),
+            gt.trajectory,
+        ));
         let k_fine = at_width(&gt.intrinsics, opts.render_width_px);
         let k_coarse = at_width(&gt.intrinsics, opts.coarse_width_px);
         let seed = frame_seed(opts.seed, &gt.name);
@@ -272,11 +292,33 @@ pub fn evaluate(scene: &PreparedScene, opts: &EvalOptions, progress: &dyn Progre
         let prior_h = Hypothesis { centre_m: prior_pose.centre_m, yaw_deg: prior_yaw };
         for &kind in &opts.costs {
             let t0 = Instant::now();
-            let (qf, qc) = if kind == CostKind::Merged { (q_fine.merged(), q_coarse.merged()) } else { (q_fine.clone(), q_coarse.clone()) };
-            let mk = |k: Intrinsics, q| CpuEvaluator { scene: &cpu, k, pitch_deg: pitch, roll_deg: roll, query: q, kind, weighting: opts.weighting, k_max: kept.len() as u32 };
+            let (qf, qc) = if kind == CostKind::Merged {
+                (q_fine.merged(), q_coarse.merged())
+            } else {
+                (q_fine.clone(), q_coarse.clone())
+            };
+            let mk = |k: Intrinsics, q| CpuEvaluator {
+                scene: &cpu,
+                k,
+                pitch_deg: pitch,
+                roll_deg: roll,
+                query: q,
+                kind,
+                weighting: opts.weighting,
+                k_max: kept.len() as u32,
+            };
             let mut fine_eval = mk(k_fine, &qf);
             let mut coarse_eval = mk(k_coarse, &qc);
-            let r: SearchResult = match search::search(&mut coarse_eval, &mut fine_eval, prior_h, &opts.coarse, &opts.fine, opts.select, opts.refine, seed) {
+            let r: SearchResult = match search::search(
+                &mut coarse_eval,
+                &mut fine_eval,
+                prior_h,
+                &opts.coarse,
+                &opts.fine,
+                opts.select,
+                opts.refine,
+                seed,
+            ) {
                 Ok(r) => r,
                 Err(never) => match never {},
             };
@@ -307,10 +349,20 @@ pub fn evaluate(scene: &PreparedScene, opts: &EvalOptions, progress: &dyn Progre
             });
             progress.inc(1);
             let done: Vec<&QueryResult> = results.iter().filter(|r| r.cost == opts.costs[0]).collect();
-            let ok = done.iter().filter(|r| r.translation_error_m < 2.0 && r.rotation_error_deg < 2.0).count();
+            let ok =
+                done.iter().filter(|r| r.translation_error_m < 2.0 && r.rotation_error_deg < 2.0).count();
             progress.message(&format!("recall@2m2° {:.1}%", 100.0 * ok as f64 / done.len().max(1) as f64));
             if qi < opts.overlays && kind == opts.costs[0] {
-                write_overlay(&out_dir, &gt.name, &cpu, &k_fine, &qf, [&prior_pose, &est, &gt_pose], pitch, roll)?;
+                write_overlay(
+                    &out_dir,
+                    &gt.name,
+                    &cpu,
+                    &k_fine,
+                    &qf,
+                    [&prior_pose, &est, &gt_pose],
+                    pitch,
+                    roll,
+                )?;
             }
         }
     }
@@ -326,7 +378,8 @@ pub fn evaluate(scene: &PreparedScene, opts: &EvalOptions, progress: &dyn Progre
     };
     let mut push_rows = |method: &str, errs: &[(f64, f64, Trajectory)]| {
         for g in &groups {
-            let e: Vec<(f64, f64)> = errs.iter().filter(|e| group_of(e.2) == *g).map(|e| (e.0, e.1)).collect();
+            let e: Vec<(f64, f64)> =
+                errs.iter().filter(|e| group_of(e.2) == *g).map(|e| (e.0, e.1)).collect();
             rows.push(metrics::row(method, g, &e));
         }
         if groups.len() > 1 {
@@ -336,8 +389,11 @@ pub fn evaluate(scene: &PreparedScene, opts: &EvalOptions, progress: &dyn Progre
     };
     push_rows("prior", &prior_errors);
     for &kind in &opts.costs {
-        let errs: Vec<(f64, f64, Trajectory)> =
-            results.iter().filter(|r| r.cost == kind).map(|r| (r.translation_error_m, r.rotation_error_deg, r.trajectory)).collect();
+        let errs: Vec<(f64, f64, Trajectory)> = results
+            .iter()
+            .filter(|r| r.cost == kind)
+            .map(|r| (r.translation_error_m, r.rotation_error_deg, r.trajectory))
+            .collect();
         let name = match kind {
             CostKind::Instance => format!("instance ({:?})", opts.weighting).to_lowercase(),
             CostKind::Semantic => "semantic IoU (LoD-Loc v2)".to_string(),
@@ -356,7 +412,10 @@ pub fn evaluate(scene: &PreparedScene, opts: &EvalOptions, progress: &dyn Progre
     // Write outputs.
     let mut jsonl = String::new();
     for r in &results {
-        jsonl.push_str(&serde_json::to_string(r).map_err(|e| EvalError::Input { path: out_dir.clone(), what: e.to_string() })?);
+        jsonl.push_str(
+            &serde_json::to_string(r)
+                .map_err(|e| EvalError::Input { path: out_dir.clone(), what: e.to_string() })?,
+        );
         jsonl.push('\n');
     }
     util::write_bytes_atomic(&out_dir.join("results.jsonl"), jsonl.as_bytes())?;
@@ -416,7 +475,10 @@ fn write_overlay(
                 let i = y * w + x;
                 let l = qlab[i];
                 let edge = l != 0
-                    && ((x > 0 && qlab[i - 1] != l) || (x + 1 < w && qlab[i + 1] != l) || (y > 0 && qlab[i - w] != l) || (y + 1 < h && qlab[i + w] != l));
+                    && ((x > 0 && qlab[i - 1] != l)
+                        || (x + 1 < w && qlab[i + 1] != l)
+                        || (y > 0 && qlab[i - w] != l)
+                        || (y + 1 < h && qlab[i + w] != l));
                 let c = if edge { [255, 255, 255] } else { palette(frame.ids[i]) };
                 let o = (y * total_w + panel * (w + gap) + x) * 3;
                 rgb[o..o + 3].copy_from_slice(&c);
@@ -428,8 +490,12 @@ fn write_overlay(
         let mut enc = png::Encoder::new(wr, total_w as u32, h as u32);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
-        let mut writer = enc.write_header().map_err(|e| util::FileError::new("encoding PNG", &path, std::io::Error::other(e)))?;
-        writer.write_image_data(&rgb).map_err(|e| util::FileError::new("encoding PNG", &path, std::io::Error::other(e)))?;
+        let mut writer = enc
+            .write_header()
+            .map_err(|e| util::FileError::new("encoding PNG", &path, std::io::Error::other(e)))?;
+        writer
+            .write_image_data(&rgb)
+            .map_err(|e| util::FileError::new("encoding PNG", &path, std::io::Error::other(e)))?;
         writer.finish().map_err(|e| util::FileError::new("encoding PNG", &path, std::io::Error::other(e)))?;
         Ok::<(), EvalError>(())
     })

@@ -64,7 +64,14 @@ pub fn markdown(rows: &[Row]) -> String {
     for r in rows {
         s.push_str(&format!(
             "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.2} | {:.2} |\n",
-            r.method, r.queries, r.group, r.recall_pct[0], r.recall_pct[1], r.recall_pct[2], r.median_translation_m, r.median_rotation_deg
+            r.method,
+            r.queries,
+            r.group,
+            r.recall_pct[0],
+            r.recall_pct[1],
+            r.recall_pct[2],
+            r.median_translation_m,
+            r.median_rotation_deg
         ));
     }
     s

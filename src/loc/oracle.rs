@@ -250,12 +250,15 @@ mod tests {
 
     #[test]
     fn merge_split_drop_fp() {
-        let merged = degrade(8, 4, &two_blocks(), 2, &Degradation { merge_fraction: 0.5, ..Default::default() }, 3);
+        let merged =
+            degrade(8, 4, &two_blocks(), 2, &Degradation { merge_fraction: 0.5, ..Default::default() }, 3);
         assert_eq!(merged.instances.len(), 1);
         assert_eq!(merged.instances[0].pixels.len(), 32);
-        let split = degrade(8, 4, &two_blocks(), 2, &Degradation { split_fraction: 0.5, ..Default::default() }, 3);
+        let split =
+            degrade(8, 4, &two_blocks(), 2, &Degradation { split_fraction: 0.5, ..Default::default() }, 3);
         assert_eq!(split.instances.len(), 3);
-        let dropped = degrade(8, 4, &two_blocks(), 2, &Degradation { drop_fraction: 0.5, ..Default::default() }, 3);
+        let dropped =
+            degrade(8, 4, &two_blocks(), 2, &Degradation { drop_fraction: 0.5, ..Default::default() }, 3);
         assert_eq!(dropped.instances.len(), 1);
         let mut bg = vec![0u32; 100 * 100];
         bg[0] = 1;

@@ -238,7 +238,8 @@ mod tests {
         // centred on the principal point (32, 24) → exactly 400 pixel centres inside.
         let mut m = SceneMesh::default();
         quad(&mut m, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]], 7);
-        let k = Intrinsics { width_px: 64, height_px: 48, fx_px: 100.0, fy_px: 100.0, cx_px: 32.0, cy_px: 24.0 };
+        let k =
+            Intrinsics { width_px: 64, height_px: 48, fx_px: 100.0, fy_px: 100.0, cx_px: 32.0, cy_px: 24.0 };
         let pose = Pose::from_ypr_deg(0.0, 0.0, 0.0, [0.0, 0.0, 100.0]);
         let scene = CpuScene::new(&m, [0.0, 0.0, 50.0]);
         let mut f = Frame::default();
@@ -256,7 +257,8 @@ mod tests {
         let mut m = SceneMesh::default();
         quad(&mut m, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]], 1);
         quad(&mut m, [[-5.0, -5.0, 30.0], [5.0, -5.0, 30.0], [5.0, 5.0, 30.0], [-5.0, 5.0, 30.0]], 2);
-        let k = Intrinsics { width_px: 64, height_px: 48, fx_px: 100.0, fy_px: 100.0, cx_px: 32.0, cy_px: 24.0 };
+        let k =
+            Intrinsics { width_px: 64, height_px: 48, fx_px: 100.0, fy_px: 100.0, cx_px: 32.0, cy_px: 24.0 };
         let pose = Pose::from_ypr_deg(0.0, 0.0, 0.0, [0.0, 0.0, 100.0]);
         let mut f = Frame::default();
         render_ids(&CpuScene::new(&m, [0.0; 3]), &pose, &k, &mut f);
@@ -272,7 +274,8 @@ mod tests {
         // A wall crossing the camera plane: half in front, half behind; nothing wraps around.
         let mut m = SceneMesh::default();
         quad(&mut m, [[-50.0, 10.0, -50.0], [50.0, 10.0, -50.0], [50.0, 10.0, 50.0], [-50.0, 10.0, 50.0]], 3);
-        let k = Intrinsics { width_px: 32, height_px: 32, fx_px: 16.0, fy_px: 16.0, cx_px: 16.0, cy_px: 16.0 };
+        let k =
+            Intrinsics { width_px: 32, height_px: 32, fx_px: 16.0, fy_px: 16.0, cx_px: 16.0, cy_px: 16.0 };
         // Looking north, horizontal: the wall at y = 10 fills the view.
         let pose = Pose::from_ypr_deg(0.0, 90.0, 0.0, [0.0, 0.0, 0.0]);
         let mut f = Frame::default();

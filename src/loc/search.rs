@@ -47,7 +47,14 @@ pub struct CoarseParams {
 impl Default for CoarseParams {
     /// Covers the default prior noise model (σ ≈ 6 m horizontal, 3 m vertical, 2° yaw) to about 2.5σ.
     fn default() -> Self {
-        CoarseParams { xy_range_m: 15.0, xy_step_m: 5.0, z_range_m: 8.0, z_step_m: 4.0, yaw_range_deg: 4.0, yaw_step_deg: 2.0 }
+        CoarseParams {
+            xy_range_m: 15.0,
+            xy_step_m: 5.0,
+            z_range_m: 8.0,
+            z_step_m: 4.0,
+            yaw_range_deg: 4.0,
+            yaw_step_deg: 2.0,
+        }
     }
 }
 
@@ -69,7 +76,15 @@ pub struct FineParams {
 impl Default for FineParams {
     fn default() -> Self {
         // 2 beams × (2 kept + 2 × 12 perturbations) = 52 candidates per iteration.
-        FineParams { iterations: 40, beams: 2, keep_per_beam: 2, perturbations: 12, sigma_m: 1.5, yaw_deg: 2.0, gamma: 0.3 }
+        FineParams {
+            iterations: 40,
+            beams: 2,
+            keep_per_beam: 2,
+            perturbations: 12,
+            sigma_m: 1.5,
+            yaw_deg: 2.0,
+            gamma: 0.3,
+        }
     }
 }
 
@@ -156,7 +171,13 @@ pub fn search<E: Evaluate>(
     };
     let (coarse_best, coarse_score) = pool[0];
     if !refine {
-        return Ok(SearchResult { best: coarse_best, best_score: coarse_score, coarse_best, coarse_score, hypotheses_scored: scored_count });
+        return Ok(SearchResult {
+            best: coarse_best,
+            best_score: coarse_score,
+            coarse_best,
+            coarse_score,
+            hypotheses_scored: scored_count,
+        });
     }
     pool.truncate(keep);
     while pool.len() < keep {
@@ -225,7 +246,17 @@ mod tests {
         let prior = Hypothesis { centre_m: [18.0, 2.0, 304.0], yaw_deg: 48.0 };
         let mut bowl = Bowl { target, calls: 0 };
         let mut coarse = Bowl { target, calls: 0 };
-        let r = search(&mut coarse, &mut bowl, prior, &CoarseParams::default(), &FineParams::default(), true, true, 7).unwrap();
+        let r = search(
+            &mut coarse,
+            &mut bowl,
+            prior,
+            &CoarseParams::default(),
+            &FineParams::default(),
+            true,
+            true,
+            7,
+        )
+        .unwrap();
         let dt: f64 = (0..3).map(|k| (r.best.centre_m[k] - target.centre_m[k]).powi(2)).sum::<f64>().sqrt();
         assert!(dt < 0.5, "translation error {dt} m");
         assert!((r.best.yaw_deg - target.yaw_deg).abs() < 0.3, "yaw {}", r.best.yaw_deg);
@@ -240,7 +271,17 @@ mod tests {
         let prior = Hypothesis { centre_m: [3.0, 3.0, 203.0], yaw_deg: 1.0 };
         let run = |seed| {
             let b = || Bowl { target, calls: 0 };
-            search(&mut b(), &mut b(), prior, &CoarseParams::default(), &FineParams::default(), false, true, seed).unwrap()
+            search(
+                &mut b(),
+                &mut b(),
+                prior,
+                &CoarseParams::default(),
+                &FineParams::default(),
+                false,
+                true,
+                seed,
+            )
+            .unwrap()
         };
         assert_eq!(run(1), run(1));
         assert_ne!(run(1).best, run(2).best);
@@ -251,11 +292,31 @@ mod tests {
         let target = Hypothesis { centre_m: [0.0, 0.0, 200.0], yaw_deg: 0.0 };
         let prior = Hypothesis { centre_m: [9.0, 0.0, 200.0], yaw_deg: 0.0 };
         let b = || Bowl { target, calls: 0 };
-        let r = search(&mut b(), &mut b(), prior, &CoarseParams::default(), &FineParams::default(), true, false, 0).unwrap();
+        let r = search(
+            &mut b(),
+            &mut b(),
+            prior,
+            &CoarseParams::default(),
+            &FineParams::default(),
+            true,
+            false,
+            0,
+        )
+        .unwrap();
         // No refine: the coarse best is on the 5 m grid: x = 9 − 10 = −1.
         assert_eq!(r.best, r.coarse_best);
         assert!((r.best.centre_m[0] + 1.0).abs() < 1e-12, "{:?}", r.best);
-        let r = search(&mut b(), &mut b(), prior, &CoarseParams::default(), &FineParams::default(), false, true, 0).unwrap();
+        let r = search(
+            &mut b(),
+            &mut b(),
+            prior,
+            &CoarseParams::default(),
+            &FineParams::default(),
+            false,
+            true,
+            0,
+        )
+        .unwrap();
         assert_eq!(r.coarse_best, prior);
     }
 

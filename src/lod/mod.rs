@@ -75,7 +75,6 @@ pub enum Frame {
 
 pub use crate::geo::AxisConvention;
 
-
 /// Counters a reader reports besides the buildings.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct ReadStats {

@@ -125,22 +125,30 @@ impl PreparedScene {
         let hint = "run `insgen prepare --area <name>` first";
         let manifest_path = dir.join(MANIFEST_FILE);
         if !manifest_path.is_file() {
-            return Err(SceneError::Artifact { path: manifest_path, what: format!("no prepared scene here; {hint}") });
+            return Err(SceneError::Artifact {
+                path: manifest_path,
+                what: format!("no prepared scene here; {hint}"),
+            });
         }
-        let read_json = |name: &str| -> Result<Vec<u8>, SceneError> { Ok(crate::util::read_file(&dir.join(name))?) };
-        let manifest: Manifest = serde_json::from_slice(&read_json(MANIFEST_FILE)?).map_err(|e| SceneError::Artifact {
-            path: dir.join(MANIFEST_FILE),
-            what: format!("not a valid manifest ({e}); {hint} again"),
-        })?;
+        let read_json =
+            |name: &str| -> Result<Vec<u8>, SceneError> { Ok(crate::util::read_file(&dir.join(name))?) };
+        let manifest: Manifest =
+            serde_json::from_slice(&read_json(MANIFEST_FILE)?).map_err(|e| SceneError::Artifact {
+                path: dir.join(MANIFEST_FILE),
+                what: format!("not a valid manifest ({e}); {hint} again"),
+            })?;
         let buildings: Vec<BuildingRecord> =
             serde_json::from_slice(&read_json(BUILDINGS_FILE)?).map_err(|e| SceneError::Artifact {
                 path: dir.join(BUILDINGS_FILE),
                 what: format!("not a valid building table ({e}); {hint} again"),
             })?;
         let glb_path = dir.join(GLB_FILE);
-        let mesh = super::glb::read_glb(&glb_path)
-            .map_err(|e| SceneError::Artifact { path: glb_path.clone(), what: format!("{e}; {hint} again") })?;
-        if buildings.len() as u64 != manifest.buildings || mesh.triangle_count() as u64 != manifest.triangles {
+        let mesh = super::glb::read_glb(&glb_path).map_err(|e| SceneError::Artifact {
+            path: glb_path.clone(),
+            what: format!("{e}; {hint} again"),
+        })?;
+        if buildings.len() as u64 != manifest.buildings || mesh.triangle_count() as u64 != manifest.triangles
+        {
             return Err(SceneError::Artifact {
                 path: dir.to_path_buf(),
                 what: format!(

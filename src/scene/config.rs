@@ -165,8 +165,8 @@ impl SceneConfig {
     pub fn load(path: &Path) -> Result<SceneConfig, SceneError> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| SceneError::File(crate::util::FileError::new("reading", path, e)))?;
-        let cfg: SceneConfig =
-            toml::from_str(&text).map_err(|e| SceneError::Config { path: path.into(), what: e.to_string() })?;
+        let cfg: SceneConfig = toml::from_str(&text)
+            .map_err(|e| SceneError::Config { path: path.into(), what: e.to_string() })?;
         cfg.validate(path)?;
         Ok(cfg)
     }
@@ -195,7 +195,9 @@ impl SceneConfig {
             }
             if let Some(t) = s.weld_tolerance_m {
                 if !(t.is_finite() && t >= 0.0) {
-                    return err(format!("sources[{i}].weld_tolerance_m = {t}: must be a non-negative number"));
+                    return err(format!(
+                        "sources[{i}].weld_tolerance_m = {t}: must be a non-negative number"
+                    ));
                 }
             }
         }
@@ -215,10 +217,14 @@ impl SceneConfig {
         }
         if let Some(a) = &self.area {
             match (&a.bbox_deg, &a.polygon_deg) {
-                (Some(_), Some(_)) => return err("[area] give either bbox_deg or polygon_deg, not both".into()),
+                (Some(_), Some(_)) => {
+                    return err("[area] give either bbox_deg or polygon_deg, not both".into())
+                }
                 (Some(b), None) => {
                     if !(b[0] < b[2] && b[1] < b[3]) || b.iter().any(|v| !v.is_finite()) {
-                        return err(format!("[area] bbox_deg = {b:?}: expected [lon_min, lat_min, lon_max, lat_max]"));
+                        return err(format!(
+                            "[area] bbox_deg = {b:?}: expected [lon_min, lat_min, lon_max, lat_max]"
+                        ));
                     }
                 }
                 (None, Some(p)) => {
@@ -296,11 +302,15 @@ mod tests {
         assert!(e.contains("does not match the file name"), "{e}");
         let e = parse("name = \"x\"\nsources = []\n").unwrap_err().to_string();
         assert!(e.contains("no [[sources]]"), "{e}");
-        let e = parse("name = \"x\"\n[[sources]]\npath = \"a\"\n[geoid]\nmodel = \"constant\"\n").unwrap_err().to_string();
+        let e = parse("name = \"x\"\n[[sources]]\npath = \"a\"\n[geoid]\nmodel = \"constant\"\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("undulation_m"), "{e}");
         let e = parse("name = \"x\"\n[[sources]]\npath = \"a\"\nfromat = \"x\"\n").unwrap_err().to_string();
         assert!(e.contains("fromat"), "{e}");
-        let e = parse("name = \"x\"\n[[sources]]\npath = \"a\"\n[area]\nbbox_deg = [1, 1, 0, 0]\n").unwrap_err().to_string();
+        let e = parse("name = \"x\"\n[[sources]]\npath = \"a\"\n[area]\nbbox_deg = [1, 1, 0, 0]\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("bbox_deg"), "{e}");
     }
 

@@ -69,10 +69,11 @@ impl GeoidSlot<'_> {
                         Some(p) => self.scene_file.parent().unwrap_or(Path::new(".")).join(p),
                         None => Geoid::find_egm96().ok_or_else(|| SceneError::Georef {
                             path: self.scene_file.into(),
-                            what: "orthometric source heights need a geoid, but the EGM96 grid (egm96_15.gtx, \
+                            what:
+                                "orthometric source heights need a geoid, but the EGM96 grid (egm96_15.gtx, \
                                    Debian package proj-data) was not found: run scripts/setup.sh, or set \
                                    [geoid] model = \"constant\" with undulation_m"
-                                .into(),
+                                    .into(),
                             source: None,
                         })?,
                     };
@@ -89,7 +90,11 @@ impl GeoidSlot<'_> {
     }
 }
 
-fn read_one(scene_file: &Path, cfg: &SceneConfig, src: &SourceConfig) -> Result<(SourceModel, String), SceneError> {
+fn read_one(
+    scene_file: &Path,
+    cfg: &SceneConfig,
+    src: &SourceConfig,
+) -> Result<(SourceModel, String), SceneError> {
     if src.format.as_deref() == Some("procedural") {
         let model = procedural_source(scene_file, src.procedural.clone().unwrap_or_default())?;
         return Ok((model, "procedural".into()));
@@ -110,7 +115,10 @@ fn read_one(scene_file: &Path, cfg: &SceneConfig, src: &SourceConfig) -> Result<
     };
     let opts = ReadOptions { lod: src.lod.clone(), weld_tolerance_m: src.weld_tolerance_m };
     let model = lod::read_source(&path, format, &opts)?;
-    let fmt = format.or_else(|| Format::from_path(&path)).map(|f| format!("{f:?}").to_lowercase()).unwrap_or_default();
+    let fmt = format
+        .or_else(|| Format::from_path(&path))
+        .map(|f| format!("{f:?}").to_lowercase())
+        .unwrap_or_default();
     Ok((model, fmt))
 }
 
@@ -119,12 +127,16 @@ fn read_one(scene_file: &Path, cfg: &SceneConfig, src: &SourceConfig) -> Result<
 /// `origin = { easting_m, northing_m }` in the generator's CRS.
 fn procedural_source(scene_file: &Path, mut table: toml::Table) -> Result<SourceModel, SceneError> {
     use super::procedural::{generate, PlaneOrigin, ProceduralSpec};
-    let cfg_err = |what: String| SceneError::Config { path: scene_file.into(), what: format!("[sources.procedural] {what}") };
+    let cfg_err = |what: String| SceneError::Config {
+        path: scene_file.into(),
+        what: format!("[sources.procedural] {what}"),
+    };
     let origin: PlaneOrigin = match table.remove("origin") {
         Some(v) => v.try_into().map_err(|e: toml::de::Error| cfg_err(format!("origin: {e}")))?,
         None => PlaneOrigin::default(),
     };
-    let spec: ProceduralSpec = toml::Value::Table(table).try_into().map_err(|e: toml::de::Error| cfg_err(e.to_string()))?;
+    let spec: ProceduralSpec =
+        toml::Value::Table(table).try_into().map_err(|e: toml::de::Error| cfg_err(e.to_string()))?;
     Ok(generate(&spec, origin)?)
 }
 
@@ -139,7 +151,8 @@ fn georeference(
 ) -> Result<(Vec<EcefBuilding>, String, u64), SceneError> {
     let path = model.path.clone();
     let mut dropped = 0u64;
-    let georef_err = |what: String, e: Option<geo::GeoError>| SceneError::Georef { path: path.clone(), what, source: e };
+    let georef_err =
+        |what: String, e: Option<geo::GeoError>| SceneError::Georef { path: path.clone(), what, source: e };
 
     enum Conv {
         Ecef,
@@ -152,7 +165,10 @@ fn georeference(
                 (Some(over), file) => {
                     if let Some(f) = file {
                         if f != over {
-                            log::warn!("{}: file declares CRS {f}, scene file overrides with {over}", path.display());
+                            log::warn!(
+                                "{}: file declares CRS {f}, scene file overrides with {over}",
+                                path.display()
+                            );
                         }
                     }
                     over.clone()
@@ -199,7 +215,10 @@ fn georeference(
                     if p.iter().all(|v| v.is_finite()) {
                         Ok(p)
                     } else {
-                        Err(georef_err(format!("building {}: non-finite coordinate {p:?}", b.source_id), None))
+                        Err(georef_err(
+                            format!("building {}: non-finite coordinate {p:?}", b.source_id),
+                            None,
+                        ))
                     }
                 }
                 Conv::Crs { tf, axes, .. } => {
@@ -220,7 +239,9 @@ fn georeference(
                 let tris: Vec<[u32; 3]> = m
                     .triangles
                     .into_iter()
-                    .filter(|t| t.iter().all(|&i| (i as usize) < pos.len()) && triangle_area_m2(&pos, *t) > 1e-9)
+                    .filter(|t| {
+                        t.iter().all(|&i| (i as usize) < pos.len()) && triangle_area_m2(&pos, *t) > 1e-9
+                    })
                     .collect();
                 dropped += (n_before - tris.len()) as u64;
                 (pos, tris)
@@ -315,10 +336,13 @@ pub fn point_in_polygon(p: [f64; 2], poly: &[[f64; 2]]) -> bool {
 /// Signed area of a 2D ring (positive = counter-clockwise).
 fn signed_area(poly: &[[f64; 2]]) -> f64 {
     let n = poly.len();
-    (0..n).map(|i| {
-        let (a, b) = (poly[i], poly[(i + 1) % n]);
-        a[0] * b[1] - b[0] * a[1]
-    }).sum::<f64>() * 0.5
+    (0..n)
+        .map(|i| {
+            let (a, b) = (poly[i], poly[(i + 1) % n]);
+            a[0] * b[1] - b[0] * a[1]
+        })
+        .sum::<f64>()
+        * 0.5
 }
 
 /// Footprint of a triangle set: area (m²) and centroid (ENU) of the union of the triangles' ground
@@ -382,7 +406,11 @@ pub fn footprint(positions: &[[f64; 3]], triangles: &[[u32; 3]]) -> (f64, [f64; 
 ///
 /// # Errors
 /// [`SceneError`] naming the scene file or source and what is wrong; nothing is written on error.
-pub fn prepare(scene_file: &Path, out_dir: &Path, progress: &dyn Progress) -> Result<PrepareReport, SceneError> {
+pub fn prepare(
+    scene_file: &Path,
+    out_dir: &Path,
+    progress: &dyn Progress,
+) -> Result<PrepareReport, SceneError> {
     let t0 = Instant::now();
     let cfg = SceneConfig::load(scene_file)?;
     let mut geoid = GeoidSlot { cfg: &cfg, scene_file, geoid: None };
@@ -402,7 +430,8 @@ pub fn prepare(scene_file: &Path, out_dir: &Path, progress: &dyn Progress) -> Re
         };
         let stats = model.stats.clone();
         let model_path = model.path.clone();
-        let (mut bs, chain, dropped_here) = georeference(scene_file, src, model, &label, &mut geoid, progress)?;
+        let (mut bs, chain, dropped_here) =
+            georeference(scene_file, src, model, &label, &mut geoid, progress)?;
         log::info!("{}: {} buildings ({chain})", model_path.display(), bs.len());
         let dropped = stats.degenerate_faces + dropped_here;
         degenerate_total += dropped;
@@ -418,16 +447,33 @@ pub fn prepare(scene_file: &Path, out_dir: &Path, progress: &dyn Progress) -> Re
         buildings.append(&mut bs);
     }
     if buildings.is_empty() {
-        return Err(SceneError::Area { area: cfg.name.clone(), what: "no building with usable geometry in any source".into() });
+        return Err(SceneError::Area {
+            area: cfg.name.clone(),
+            what: "no building with usable geometry in any source".into(),
+        });
     }
 
     // Origin and ENU frame.
     let origin = match cfg.origin {
-        Some(o) => Geodetic::new(o.lat_deg, o.lon_deg, o.h_m.unwrap_or_else(|| median(buildings.iter().map(|b| b.base_h_m).collect()))),
+        Some(o) => Geodetic::new(
+            o.lat_deg,
+            o.lon_deg,
+            o.h_m.unwrap_or_else(|| median(buildings.iter().map(|b| b.base_h_m).collect())),
+        ),
         None => {
-            let lat = [buildings.iter().map(|b| b.lat_range[0]).fold(f64::INFINITY, f64::min), buildings.iter().map(|b| b.lat_range[1]).fold(f64::NEG_INFINITY, f64::max)];
-            let lon = [buildings.iter().map(|b| b.lon_range[0]).fold(f64::INFINITY, f64::min), buildings.iter().map(|b| b.lon_range[1]).fold(f64::NEG_INFINITY, f64::max)];
-            Geodetic::new(0.5 * (lat[0] + lat[1]), 0.5 * (lon[0] + lon[1]), median(buildings.iter().map(|b| b.base_h_m).collect()))
+            let lat = [
+                buildings.iter().map(|b| b.lat_range[0]).fold(f64::INFINITY, f64::min),
+                buildings.iter().map(|b| b.lat_range[1]).fold(f64::NEG_INFINITY, f64::max),
+            ];
+            let lon = [
+                buildings.iter().map(|b| b.lon_range[0]).fold(f64::INFINITY, f64::min),
+                buildings.iter().map(|b| b.lon_range[1]).fold(f64::NEG_INFINITY, f64::max),
+            ];
+            Geodetic::new(
+                0.5 * (lat[0] + lat[1]),
+                0.5 * (lon[0] + lon[1]),
+                median(buildings.iter().map(|b| b.base_h_m).collect()),
+            )
         }
     };
     let enu = EnuFrame::new(origin);
@@ -496,7 +542,10 @@ pub fn prepare(scene_file: &Path, out_dir: &Path, progress: &dyn Progress) -> Re
         log::info!("{outside} buildings lie outside the [area] polygon and were left out");
     }
     if merged.is_empty() {
-        return Err(SceneError::Area { area: cfg.name.clone(), what: "no building lies inside the [area] polygon".into() });
+        return Err(SceneError::Area {
+            area: cfg.name.clone(),
+            what: "no building lies inside the [area] polygon".into(),
+        });
     }
     if merged.len() as u64 > MAX_BUILDING_ID as u64 {
         return Err(SceneError::Area {
@@ -545,13 +594,21 @@ pub fn prepare(scene_file: &Path, out_dir: &Path, progress: &dyn Progress) -> Re
     }
     let ground_enu_m = median(bases);
     let area_polygon_enu_m = area_polygon.unwrap_or_else(|| {
-        let lo = records.iter().fold([f64::INFINITY; 2], |a, r| [a[0].min(r.bbox_min_enu_m[0]), a[1].min(r.bbox_min_enu_m[1])]);
-        let hi = records.iter().fold([f64::NEG_INFINITY; 2], |a, r| [a[0].max(r.bbox_max_enu_m[0]), a[1].max(r.bbox_max_enu_m[1])]);
+        let lo = records
+            .iter()
+            .fold([f64::INFINITY; 2], |a, r| [a[0].min(r.bbox_min_enu_m[0]), a[1].min(r.bbox_min_enu_m[1])]);
+        let hi = records.iter().fold([f64::NEG_INFINITY; 2], |a, r| {
+            [a[0].max(r.bbox_max_enu_m[0]), a[1].max(r.bbox_max_enu_m[1])]
+        });
         vec![[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]]
     });
     let geoid_used = match &geoid.geoid {
-        None | Some(Geoid::None) => GeoidUsed { model: "none".into(), grid: None, undulation_at_origin_m: 0.0 },
-        Some(g @ Geoid::Constant(n)) => GeoidUsed { model: g.name().into(), grid: None, undulation_at_origin_m: *n },
+        None | Some(Geoid::None) => {
+            GeoidUsed { model: "none".into(), grid: None, undulation_at_origin_m: 0.0 }
+        }
+        Some(g @ Geoid::Constant(n)) => {
+            GeoidUsed { model: g.name().into(), grid: None, undulation_at_origin_m: *n }
+        }
         Some(g @ Geoid::Grid(grid)) => GeoidUsed {
             model: g.name().into(),
             grid: Some(grid.path().display().to_string()),
@@ -595,8 +652,14 @@ mod tests {
     fn footprint_of_box_with_courtyard() {
         // Two roof rectangles forming an L: 10×4 + 4×6 = 64 m² (hand computation).
         let p = vec![
-            [0.0, 0.0, 5.0], [10.0, 0.0, 5.0], [10.0, 4.0, 5.0], [0.0, 4.0, 5.0],
-            [0.0, 4.0, 5.0], [4.0, 4.0, 5.0], [4.0, 10.0, 5.0], [0.0, 10.0, 5.0],
+            [0.0, 0.0, 5.0],
+            [10.0, 0.0, 5.0],
+            [10.0, 4.0, 5.0],
+            [0.0, 4.0, 5.0],
+            [0.0, 4.0, 5.0],
+            [4.0, 4.0, 5.0],
+            [4.0, 10.0, 5.0],
+            [0.0, 10.0, 5.0],
         ];
         let t = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
         let (a, c) = footprint(&p, &t);

@@ -132,7 +132,12 @@ mod tests {
         // Roof at ECEF-like magnitudes: a 30 m square with a 10 m courtyard → 800 m².
         let o = [-3_957_000.0, 3_310_000.0, 3_700_000.0];
         let sq = |s: f64, c: f64| {
-            vec![[o[0] + c, o[1] + c, o[2]], [o[0] + c + s, o[1] + c, o[2]], [o[0] + c + s, o[1] + c + s, o[2]], [o[0] + c, o[1] + c + s, o[2]]]
+            vec![
+                [o[0] + c, o[1] + c, o[2]],
+                [o[0] + c + s, o[1] + c, o[2]],
+                [o[0] + c + s, o[1] + c + s, o[2]],
+                [o[0] + c, o[1] + c + s, o[2]],
+            ]
         };
         let (mut p, mut t) = (Vec::new(), Vec::new());
         assert!(triangulate_polygon(&sq(30.0, 0.0), &[sq(10.0, 10.0)], &mut p, &mut t));

@@ -62,6 +62,14 @@ where
         w.flush().map_err(|e| FileError::new("writing", path, e))?;
     }
     tmp.as_file().sync_all().map_err(|e| FileError::new("syncing", path, e))?;
+    // tempfile creates 0600 files; outputs are data for others to read, so give them the usual 0644.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        tmp.as_file()
+            .set_permissions(fs::Permissions::from_mode(0o644))
+            .map_err(|e| FileError::new("setting permissions of", path, e))?;
+    }
     tmp.persist(path).map_err(|e| FileError::new("renaming into place", path, e.error))?;
     Ok(())
 }

@@ -49,11 +49,13 @@ pub fn stdout(o: &Output) -> String {
 
 /// Validates a JSON value against a schema file in `schemas/`, panicking with every error.
 pub fn assert_schema(schema_file: &str, value: &serde_json::Value) {
-    let schema: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(repo().join("schemas").join(schema_file)).expect("schema exists"))
-            .expect("schema is JSON");
+    let schema: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(repo().join("schemas").join(schema_file)).expect("schema exists"),
+    )
+    .expect("schema is JSON");
     let validator = jsonschema::validator_for(&schema).expect("schema compiles");
-    let errors: Vec<String> = validator.iter_errors(value).map(|e| format!("{} at {}", e, e.instance_path)).collect();
+    let errors: Vec<String> =
+        validator.iter_errors(value).map(|e| format!("{} at {}", e, e.instance_path)).collect();
     assert!(errors.is_empty(), "{schema_file}: {} errors:\n{}", errors.len(), errors.join("\n"));
 }
 
@@ -70,7 +72,8 @@ pub fn scratch_with_scenes(scenes: &[(&str, String)]) -> tempfile::TempDir {
 /// The repository's `scenes/<name>.toml` with its relative source paths made absolute, so it can be
 /// prepared from a scratch directory.
 pub fn repo_scene(name: &str) -> String {
-    let text = std::fs::read_to_string(repo().join("scenes").join(format!("{name}.toml"))).expect("scene exists");
+    let text =
+        std::fs::read_to_string(repo().join("scenes").join(format!("{name}.toml"))).expect("scene exists");
     let base = repo().join("scenes");
     text.lines()
         .map(|l| {
