@@ -286,20 +286,16 @@ fn rgb_job_renders_resumes_and_repeats_exactly() {
         let mean = luma.iter().sum::<f64>() / luma.len() as f64;
         let mad = luma.iter().map(|v| (v - mean).abs()).sum::<f64>() / luma.len() as f64;
         assert!(mad > 5.0 && mean > 20.0 && mean < 235.0, "{}: mean {mean}, deviation {mad}", f.name);
-        // Buildings are visible where the reference puts them: their pixels differ from the ground's.
+        // The picture is aligned with the buildings: neighbouring pixels on either side of a reference ID
+        // boundary differ in colour much more than neighbours within one ID region, and less so when the
+        // reference is shifted by 2 px (a misaligned camera).
         let ids = reference_ids(&boxes, &f.intrinsics, &f.pose);
-        let avg = |sel: bool| {
-            let v: Vec<f64> =
-                luma.iter().zip(&ids).filter(|(_, &id)| (id != 0) == sel).map(|(l, _)| *l).collect();
-            v.iter().sum::<f64>() / v.len().max(1) as f64
-        };
-        assert!(
-            (avg(true) - avg(false)).abs() > 3.0,
-            "{}: buildings {} vs ground {}",
-            f.name,
-            avg(true),
-            avg(false)
-        );
+        let aligned = boundary_contrast(&rgb, &ids, w as usize, h as usize);
+        let shifted: Vec<u32> =
+            (0..ids.len()).map(|i| if i % w as usize >= 2 { ids[i - 2] } else { ids[i] }).collect();
+        let misaligned = boundary_contrast(&rgb, &shifted, w as usize, h as usize);
+        eprintln!("{}: boundary contrast {aligned:.2} aligned, {misaligned:.2} shifted by 2 px", f.name);
+        assert!(aligned > 1.5 && aligned > misaligned + 0.3, "{}: {aligned} vs {misaligned}", f.name);
         assert!(p.out_dir.join(format!("{}.exr", f.name)).is_file());
     }
     let first = std::fs::read(p.out_dir.join("b.png")).unwrap();
@@ -312,6 +308,27 @@ fn rgb_job_renders_resumes_and_repeats_exactly() {
     render_frames(&p, &frames[1..], &NoProgress).unwrap();
     assert!(std::fs::read(p.out_dir.join("b.png")).unwrap() == first, "PNG rerender differs");
     assert!(std::fs::read(p.out_dir.join("b.exr")).unwrap() == first_exr, "EXR rerender differs");
+}
+
+/// Mean colour step (sum of |ΔR|, |ΔG|, |ΔB|) between neighbours with different IDs, divided by the
+/// mean step between neighbours with the same ID.
+fn boundary_contrast(rgb: &[u8], ids: &[u32], w: usize, h: usize) -> f64 {
+    let (mut across, mut within) = ((0.0, 0u32), (0.0, 0u32));
+    for y in 0..h {
+        for x in 0..w {
+            for (nx, ny) in [(x + 1, y), (x, y + 1)] {
+                if nx >= w || ny >= h {
+                    continue;
+                }
+                let (i, j) = (y * w + x, ny * w + nx);
+                let d: f64 = (0..3).map(|c| (rgb[3 * i + c] as f64 - rgb[3 * j + c] as f64).abs()).sum();
+                let acc = if ids[i] != ids[j] { &mut across } else { &mut within };
+                acc.0 += d;
+                acc.1 += 1;
+            }
+        }
+    }
+    (across.0 / across.1.max(1) as f64) / (within.0 / within.1.max(1) as f64).max(1e-9)
 }
 
 #[test]
@@ -483,7 +500,12 @@ fn bench_cam2_full_resolution() {
     p.denoise = std::env::var("INSGEN_BENCH_DENOISE").map(|v| v == "1").unwrap_or(false);
     p.threads = 0;
     p.force = true;
-    let k = Intrinsics::from_hfov(1920, 1080, 25.0);
+    // INSGEN_BENCH_RES=WxH renders the same camera at another resolution (for quick looks).
+    let (w, h) = std::env::var("INSGEN_BENCH_RES")
+        .ok()
+        .and_then(|v| v.split_once('x').and_then(|(a, b)| Some((a.parse().ok()?, b.parse().ok()?))))
+        .unwrap_or((1920, 1080));
+    let k = Intrinsics::from_hfov(1920, 1080, 25.0).scaled_to(w, h);
     let frames = vec![
         FrameRequest {
             name: "cam2_nadir".into(),
@@ -499,8 +521,8 @@ fn bench_cam2_full_resolution() {
     let s = render_frames(&p, &frames, &NoProgress).unwrap();
     for t in &s.rendered {
         eprintln!(
-            "bench cam2 1920x1080 cycles cpu {samples} spp denoise={}: {} {:.1} s",
-            p.denoise, t.name, t.seconds
+            "bench cam2 {}x{} cycles cpu {samples} spp denoise={}: {} {:.1} s wall, {:.1} s cpu",
+            k.width_px, k.height_px, p.denoise, t.name, t.seconds, t.cpu_seconds
         );
     }
     eprintln!("scene set-up {:?} s; outputs in {}", s.setup_seconds, p.out_dir.display());
@@ -542,4 +564,127 @@ fn job_files_follow_the_schema() {
     bad["frames"][0]["camera"]["pixel_aspect_x"] = serde_json::json!(0.5);
     bad["mode"] = serde_json::json!("depth");
     assert_eq!(validator.iter_errors(&bad).count(), 2);
+}
+
+/// Writes a 24-bit ID PNG (R = bits 16–23, G = 8–15, B = 0–7), the mask renderer's format.
+fn write_id_png(path: &Path, w: u32, h: u32, ids: &[u32]) {
+    let bytes: Vec<u8> = ids.iter().flat_map(|v| [(v >> 16) as u8, (v >> 8) as u8, *v as u8]).collect();
+    let mut out = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut out, w, h);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.write_header().unwrap().write_image_data(&bytes).unwrap();
+    }
+    std::fs::write(path, out).unwrap();
+}
+
+#[test]
+fn cli_renders_rgb_and_checks_alignment_against_masks() {
+    use clap::Parser;
+    use insgen::camera::{PoseRecord, Trajectory};
+    use insgen::cli::render_rgb::{run, Args};
+    use insgen::scene::artifact::{GeoidUsed, Manifest, Origin};
+
+    #[derive(Parser)]
+    struct Wrap {
+        #[command(flatten)]
+        args: Args,
+    }
+    let Some(py) = blender_python() else { return };
+    let work = tempfile::tempdir().unwrap();
+    let scene_dir = work.path().join("demo/scene");
+    let cam_dir = work.path().join("demo/cam9");
+    std::fs::create_dir_all(&scene_dir).unwrap();
+    std::fs::create_dir_all(cam_dir.join("masks")).unwrap();
+    let boxes = box_city();
+    write_scene_glb(&scene_dir, &boxes);
+    let origin = Origin { lat_deg: 35.0, lon_deg: 139.0, h_m: 40.0 };
+    let enu = EnuFrame::new(Geodetic::new(origin.lat_deg, origin.lon_deg, origin.h_m));
+    let manifest = Manifest {
+        insgen_version: "test".into(),
+        area: "demo".into(),
+        split: "test".into(),
+        origin,
+        ecef_from_enu: enu.ecef_from_enu_matrix(),
+        area_polygon_enu_m: vec![[-100.0, -100.0], [100.0, -100.0], [100.0, 100.0], [-100.0, 100.0]],
+        ground_enu_m: 0.0,
+        geoid: GeoidUsed { model: "none".into(), grid: None, undulation_at_origin_m: 0.0 },
+        sources: vec![],
+        buildings: boxes.len() as u64,
+        triangles: 12 * boxes.len() as u64,
+        degenerate_faces: 0,
+        attributions: vec![],
+    };
+    std::fs::write(scene_dir.join("manifest.json"), serde_json::to_vec_pretty(&manifest).unwrap()).unwrap();
+    // Poses and the "masks" (the f64 reference standing in for the wgpu renderer's ID maps).
+    let mut lines = String::new();
+    for (i, f) in test_frames().iter().enumerate() {
+        let rec = PoseRecord::new(
+            f.name.clone(),
+            "demo",
+            "cam9",
+            Trajectory::Grid,
+            i as u32,
+            0,
+            f.intrinsics,
+            &f.pose,
+            &enu,
+            0.0,
+        );
+        lines.push_str(&serde_json::to_string(&rec).unwrap());
+        lines.push('\n');
+        let ids = reference_ids(&boxes, &f.intrinsics, &f.pose);
+        write_id_png(
+            &cam_dir.join(format!("masks/{}.png", f.name)),
+            f.intrinsics.width_px,
+            f.intrinsics.height_px,
+            &ids,
+        );
+    }
+    std::fs::write(cam_dir.join("poses.jsonl"), lines).unwrap();
+    let global = insgen::cli::Global {
+        workdir: work.path().to_path_buf(),
+        scenes: "scenes".into(),
+        verbose: 0,
+        quiet: true,
+        no_progress: true,
+    };
+    let py_s = py.to_string_lossy().into_owned();
+    let parse = |extra: &[&str]| {
+        let mut v =
+            vec!["x", "--area", "demo", "--camera", "cam9", "--blender-python", &py_s, "--threads", "2"];
+        v.extend_from_slice(extra);
+        Wrap::try_parse_from(v).unwrap().args
+    };
+    // Alignment: IDs from Blender against the masks, report written, targets met.
+    run(&parse(&["--check-alignment"]), &global).unwrap();
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(cam_dir.join("alignment/report.json")).unwrap()).unwrap();
+    assert_eq!(report["frames"], 3);
+    assert_eq!(report["pass"], true);
+    assert!(std::fs::read_to_string(cam_dir.join("alignment/report.md"))
+        .unwrap()
+        .contains("**Result: PASS**"));
+    // A corrupted mask makes the check fail with the report's path in the message.
+    let f0 = &test_frames()[0];
+    let mut ids = reference_ids(&boxes, &f0.intrinsics, &f0.pose);
+    for v in ids.iter_mut().step_by(3) {
+        *v = 0;
+    }
+    write_id_png(
+        &cam_dir.join("masks/nadir_offcentre.png"),
+        f0.intrinsics.width_px,
+        f0.intrinsics.height_px,
+        &ids,
+    );
+    let e = run(&parse(&["--check-alignment"]), &global).unwrap_err().to_string();
+    assert!(e.contains("alignment below target") && e.contains("report.md"), "{e}");
+    // RGB through the CLI: the second shard of two gets frame 1 only.
+    run(&parse(&["--shard", "1/2", "--samples", "2", "--no-denoise"]), &global).unwrap();
+    let rgb: Vec<String> = std::fs::read_dir(cam_dir.join("rgb"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(rgb, vec!["tilt45.png".to_string()]);
 }

@@ -21,7 +21,8 @@ this script is generated: every value comes from the job. The script
 
 Protocol: lines on stdout starting with "INSGEN " followed by a JSON object:
     {"ready": {"models": n, "seconds": t, "bounds": [...]}}   after the scene is built
-    {"done": "<frame>", "seconds": t}                          after a frame's files are written
+    {"done": "<frame>", "seconds": t, "cpu_seconds": c}         after a frame's files are written
+                                                               (wall-clock and CPU time of all threads)
     {"error": "<message>", "frame": "<frame or null>"}          before exiting with status 1
 Everything else on stdout/stderr is Blender's own logging.
 """
@@ -313,8 +314,8 @@ FACADE_COLORS = [
     (0.48, 0.40, 0.30), (0.70, 0.66, 0.55), (0.42, 0.44, 0.47), (0.30, 0.20, 0.14), (0.82, 0.80, 0.78),
 ]
 ROOF_COLORS = [
-    (0.20, 0.20, 0.21), (0.40, 0.40, 0.40), (0.30, 0.12, 0.08), (0.55, 0.55, 0.52), (0.12, 0.16, 0.12),
-    (0.45, 0.43, 0.38), (0.65, 0.65, 0.66),
+    (0.10, 0.10, 0.11), (0.22, 0.22, 0.21), (0.05, 0.05, 0.055), (0.30, 0.29, 0.27), (0.06, 0.09, 0.04),
+    (0.20, 0.07, 0.04), (0.16, 0.17, 0.18), (0.36, 0.35, 0.33), (0.13, 0.12, 0.10),
 ]
 GLASS_COLORS = [(0.05, 0.08, 0.12), (0.08, 0.10, 0.10), (0.10, 0.14, 0.20), (0.04, 0.05, 0.06)]
 
@@ -407,13 +408,24 @@ def building_material(bpy, look):
     wall_color = socket(wall_scaled.outputs, "Result_Color")
 
     glass = palette(nt, r_glass, GLASS_COLORS)
+    # Roofs: a palette colour with stains, and rooftop clutter (plant rooms, vents, solar panels) as
+    # Voronoi cells of ~6 m, a per-building share of which is lighter or darker than the membrane.
     roof_base = palette(nt, r_roof, ROOF_COLORS)
     roof_noise = node(nt, "ShaderNodeTexNoise")
-    roof_noise.inputs["Scale"].default_value = 0.3
-    roof_noise.inputs["Detail"].default_value = 4.0
+    roof_noise.inputs["Scale"].default_value = 0.15
+    roof_noise.inputs["Detail"].default_value = 6.0
     nt.links.new(geo.outputs["Position"], roof_noise.inputs["Vector"])
-    roof_color = mix_color(nt, math_node(nt, "MULTIPLY", roof_noise.outputs["Fac"], 0.35), roof_base,
-                           (0.5, 0.5, 0.48, 1.0))
+    stained = mix_color(nt, math_node(nt, "MULTIPLY", roof_noise.outputs["Fac"], 0.5), roof_base,
+                        (0.04, 0.04, 0.04, 1.0))
+    cells = node(nt, "ShaderNodeTexVoronoi", feature="F1", distance="CHEBYCHEV")
+    cells.inputs["Scale"].default_value = 0.16
+    nt.links.new(geo.outputs["Position"], cells.inputs["Vector"])
+    cell_rand = node(nt, "ShaderNodeSeparateColor")
+    nt.links.new(cells.outputs["Color"], cell_rand.inputs["Color"])
+    clutter = math_node(nt, "MULTIPLY", math_node(nt, "LESS_THAN", cell_rand.outputs["Red"], 0.18),
+                        math_node(nt, "LESS_THAN", cells.outputs["Distance"], 0.28))
+    clutter_color = mix_color(nt, cell_rand.outputs["Green"], (0.45, 0.45, 0.44, 1.0), (0.03, 0.04, 0.07, 1.0))
+    roof_color = mix_color(nt, clutter, stained, clutter_color)
 
     color = mix_color(nt, window, wall_color, glass)
     color = mix_color(nt, roof, color, roof_color)
@@ -681,11 +693,13 @@ def main(argv):
         for frame in job["frames"]:
             current = frame["name"]
             t0 = time.time()
+            c0 = time.process_time()
             apply_camera(scene, cam, frame)
             set_visibility(placed, frame)
             bpy.ops.render.render(write_still=False)
             save(bpy, scene, frame, job["mode"])
-            emit({"done": current, "seconds": round(time.time() - t0, 3)})
+            emit({"done": current, "seconds": round(time.time() - t0, 3),
+                  "cpu_seconds": round(time.process_time() - c0, 3)})
     except Exception as e:  # reported with the frame, then the traceback for the log
         emit({"error": f"{type(e).__name__}: {e}", "frame": current})
         traceback.print_exc()

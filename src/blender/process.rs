@@ -116,8 +116,9 @@ impl Launcher {
 pub enum Event {
     /// The scene is built; `bounds` (when the job asked) gives each model's ENU bounds [min, max] in metres.
     Ready { models: usize, seconds: f64, bounds: Option<Vec<Option<[[f64; 3]; 2]>>> },
-    /// A frame's files are written to its temporary paths.
-    Done { frame: String, seconds: f64 },
+    /// A frame's files are written to its temporary paths; wall-clock seconds and CPU seconds (all
+    /// threads of the process) spent on it.
+    Done { frame: String, seconds: f64, cpu_seconds: f64 },
     /// The script failed (it exits non-zero afterwards).
     Error { message: String, frame: Option<String> },
 }
@@ -139,6 +140,8 @@ struct EventJson {
     #[serde(default)]
     seconds: Option<f64>,
     #[serde(default)]
+    cpu_seconds: Option<f64>,
+    #[serde(default)]
     error: Option<String>,
     #[serde(default)]
     frame: Option<String>,
@@ -154,7 +157,11 @@ pub fn parse_event(line: &str) -> Option<Result<Event, String>> {
     Some(if let Some(r) = ev.ready {
         Ok(Event::Ready { models: r.models, seconds: r.seconds, bounds: r.bounds })
     } else if let Some(frame) = ev.done {
-        Ok(Event::Done { frame, seconds: ev.seconds.unwrap_or(f64::NAN) })
+        Ok(Event::Done {
+            frame,
+            seconds: ev.seconds.unwrap_or(f64::NAN),
+            cpu_seconds: ev.cpu_seconds.unwrap_or(f64::NAN),
+        })
     } else if let Some(message) = ev.error {
         Ok(Event::Error { message, frame: ev.frame })
     } else {
@@ -386,8 +393,8 @@ mod tests {
     fn protocol_lines() {
         assert_eq!(parse_event("12:00 | INFO: glTF import"), None);
         assert_eq!(
-            parse_event(r#"INSGEN {"done": "f_0001", "seconds": 1.5}"#),
-            Some(Ok(Event::Done { frame: "f_0001".into(), seconds: 1.5 }))
+            parse_event(r#"INSGEN {"done": "f_0001", "seconds": 1.5, "cpu_seconds": 2.75}"#),
+            Some(Ok(Event::Done { frame: "f_0001".into(), seconds: 1.5, cpu_seconds: 2.75 }))
         );
         assert_eq!(
             parse_event(r#"INSGEN {"ready": {"models": 2, "seconds": 0.5}}"#),
@@ -449,7 +456,7 @@ mod tests {
 echo 'INSGEN {"ready": {"models": 1, "seconds": 0.1}}'
 echo 'some stderr' >&2
 echo 'INSGEN {"done": "a", "seconds": 0.2}'
-echo 'INSGEN {"done": "b", "seconds": 0.3}'"#,
+echo 'INSGEN {"done": "b", "seconds": 0.3, "cpu_seconds": 0.5}'"#,
             );
             let mut seen = Vec::new();
             run_job(&l, Path::new("script.py"), Path::new("job.json"), |e| {
@@ -458,7 +465,7 @@ echo 'INSGEN {"done": "b", "seconds": 0.3}'"#,
             })
             .unwrap();
             assert_eq!(seen.len(), 3);
-            assert_eq!(seen[2], Event::Done { frame: "b".into(), seconds: 0.3 });
+            assert_eq!(seen[2], Event::Done { frame: "b".into(), seconds: 0.3, cpu_seconds: 0.5 });
         }
 
         #[test]

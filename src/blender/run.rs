@@ -89,7 +89,10 @@ pub struct RenderPlan {
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrameTiming {
     pub name: String,
+    /// Wall-clock seconds (depends on other load on the machine).
     pub seconds: f64,
+    /// CPU seconds of all render threads (about `seconds × cores` on an idle machine).
+    pub cpu_seconds: f64,
 }
 
 /// What a run did.
@@ -285,7 +288,7 @@ fn look_for(plan: &RenderPlan) -> Look {
         sun_azimuth_deg: az,
         sun_elevation_deg: el,
         sun_strength: 4.0,
-        sky_strength: 0.35,
+        sky_strength: 0.18,
         exposure: 0.0,
     }
 }
@@ -474,7 +477,7 @@ fn run_batch(
                     summary.bounds = b;
                 }
             }
-            Event::Done { frame, seconds } => {
+            Event::Done { frame, seconds, cpu_seconds } => {
                 let i = *index.get(frame.as_str()).ok_or_else(|| BlenderError::Output {
                     frame: frame.clone(),
                     path: job_path.clone(),
@@ -488,7 +491,7 @@ fn run_batch(
                     })?;
                 }
                 done[i] = true;
-                summary.rendered.push(FrameTiming { name: frame, seconds });
+                summary.rendered.push(FrameTiming { name: frame, seconds, cpu_seconds });
                 progress.inc(1);
             }
             Event::Error { .. } => {}
