@@ -4,28 +4,30 @@
 //! exactly when the f64 projection covers it, i.e. the rendered silhouette lies within 0.5 px of the
 //! projected one.
 //!
-//! TODO(lead): un-ignore once `PreparedScene::load` and the scene stage are merged and CI prepares
-//! `runs/tokyo/scene` (from ../shared/data/jp_tokyo_shibuya_plateau_3dtiles) before the tests.
+//! It also holds the Shibuya half of the CPU-rasteriser agreement check (`render_cpu_agreement.rs`).
+//! The scene is prepared once per test binary from `scenes/tokyo.toml` (../shared/data; skipped with
+//! a printed reason when absent, a failure under CI=true).
 
 mod render_common;
+mod util;
 
-use std::path::Path;
+use std::sync::OnceLock;
 
 use insgen::camera::{Intrinsics, Pose};
 use insgen::render::{RenderOptions, View};
 use insgen::scene::{PreparedScene, SceneMesh};
-use render_common::renderer;
+use render_common::{assert_cpu_agrees_with_wgpu, poses_at_tallest, renderer};
 
-fn prepared_scene(rel: &str) -> Option<std::path::PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join(rel);
-    if p.join("manifest.json").exists() {
-        return Some(p);
-    }
-    if std::env::var("CI").map(|v| v == "true").unwrap_or(false) {
-        panic!("CI: missing {} (run `insgen prepare --area tokyo`)", p.display());
-    }
-    eprintln!("skipping: {} is absent (run `insgen prepare --area tokyo`)", p.display());
-    None
+/// The prepared Shibuya scene, shared by the tests of this binary (None when the data is absent).
+fn shibuya() -> Option<&'static PreparedScene> {
+    static SCENE: OnceLock<Option<PreparedScene>> = OnceLock::new();
+    SCENE
+        .get_or_init(|| {
+            util::shared_data("jp_tokyo_shibuya_plateau_3dtiles/tileset.json")?;
+            let dir = tempfile::tempdir().expect("temp dir");
+            Some(util::prepare_repo_scene("tokyo", &dir.path().join("scene")))
+        })
+        .as_ref()
 }
 
 fn dist_to_segment(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
@@ -58,18 +60,40 @@ fn check_building(mesh: &SceneMesh, id: u32, view: &View) -> (usize, usize) {
         })
         .collect();
     let (w, h) = (k.width_px as usize, k.height_px as usize);
+    // Per pixel: within 0.5 px of a projected edge (not checked), and inside a projected triangle.
+    // Each triangle and edge only visits the pixels of its own bounding box.
+    let mut near_edge = vec![false; w * h];
+    let mut expected = vec![false; w * h];
+    let span = |lo: f64, hi: f64, n: usize| {
+        let a = (lo - 1.0).floor().max(0.0) as usize;
+        let b = ((hi + 1.0).ceil().max(0.0) as usize).min(n);
+        a..b
+    };
+    for t in &tris {
+        let (xs, ys) = (t.map(|p| p[0]), t.map(|p| p[1]));
+        let min = |v: [f64; 3]| v[0].min(v[1]).min(v[2]);
+        let max = |v: [f64; 3]| v[0].max(v[1]).max(v[2]);
+        for y in span(min(ys), max(ys), h) {
+            for x in span(min(xs), max(xs), w) {
+                let c = [x as f64 + 0.5, y as f64 + 0.5];
+                if (0..3).any(|e| dist_to_segment(c, t[e], t[(e + 1) % 3]) <= 0.5) {
+                    near_edge[y * w + x] = true;
+                }
+                if inside(c, t) {
+                    expected[y * w + x] = true;
+                }
+            }
+        }
+    }
     let (mut covered, mut checked) = (0, 0);
     for y in 0..h {
         for x in 0..w {
-            let c = [x as f64 + 0.5, y as f64 + 0.5];
-            let near_edge =
-                tris.iter().any(|t| (0..3).any(|e| dist_to_segment(c, t[e], t[(e + 1) % 3]) <= 0.5));
-            if near_edge {
+            let i = y * w + x;
+            if near_edge[i] {
                 continue;
             }
-            let expected = tris.iter().any(|t| inside(c, t));
-            let got = img.ids[y * w + x] == id;
-            assert_eq!(got, expected, "building {id}, pixel ({x}, {y})");
+            let got = img.ids[i] == id;
+            assert_eq!(got, expected[i], "building {id}, pixel ({x}, {y})");
             covered += got as usize;
             checked += 1;
         }
@@ -78,10 +102,8 @@ fn check_building(mesh: &SceneMesh, id: u32, view: &View) -> (usize, usize) {
 }
 
 #[test]
-#[ignore = "needs prepared tokyo scene"]
 fn shibuya_silhouettes_match_the_f64_projection() {
-    let Some(dir) = prepared_scene("runs/tokyo/scene") else { return };
-    let scene = PreparedScene::load(&dir).expect("loading the prepared Shibuya scene");
+    let Some(scene) = shibuya() else { return };
     let mut tallest: Vec<_> = scene.buildings.iter().collect();
     tallest.sort_by(|a, b| b.height_m.total_cmp(&a.height_m).then(a.id.cmp(&b.id)));
     let k = Intrinsics::from_hfov(1920, 1080, 25.0).scaled_to(480, 270);
@@ -97,4 +119,10 @@ fn shibuya_silhouettes_match_the_f64_projection() {
             assert!(covered > 20, "building {} should be visible", b.id);
         }
     }
+}
+
+#[test]
+fn cpu_rasteriser_agrees_with_wgpu_on_shibuya() {
+    let Some(scene) = shibuya() else { return };
+    assert_cpu_agrees_with_wgpu("tokyo", scene, &poses_at_tallest(scene, 8));
 }

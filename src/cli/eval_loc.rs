@@ -4,26 +4,63 @@ use anyhow::Context;
 
 use super::Global;
 use crate::loc::cost::{CostKind, Weighting};
-use crate::loc::eval::{self, EvalOptions};
+use std::path::PathBuf;
+
+use crate::loc::eval::{self, EvalOptions, QueryPoses};
 use crate::loc::oracle::Degradation;
+use crate::loc::query::{load_predictions, QuerySource};
 use crate::loc::search::{CoarseParams, FineParams};
 use crate::scene::PreparedScene;
 
 /// Localizes every query of <workdir>/<area>/<camera> (poses.jsonl = ground truth, priors.jsonl =
-/// priors) against the area's instanced LoD model, and writes results.jsonl, est_poses_*.txt,
-/// summary.{md,json} and overlays/ under <workdir>/<area>/<camera>/loc/<tag>/.
+/// priors, or the LoD-Loc/COLMAP lists given with --query-list/--gt-poses/--prior-poses) against the
+/// area's instanced LoD model, and writes results.jsonl, est_poses_*.txt, summary.{md,json} and
+/// overlays/ under <workdir>/<area>/<camera>/loc/<tag>/ (or --out).
+///
+/// The query instances are either the ground-truth masks (--oracle, masks/<frame>.png from
+/// render-masks, optionally degraded) or a segmentation model's COCO results file (--predictions; its
+/// image ids are resolved through the COCO instances files from export-coco).
 #[derive(Debug, Clone, clap::Args)]
 #[command(after_long_help = "Examples:\n  insgen eval-loc --area demo-test --camera cam2 --oracle\n  \
 insgen eval-loc --area demo-test --camera cam2 --oracle --cost instance --cost semantic\n  \
-insgen eval-loc --area demo-test --camera cam2 --oracle --erode 2 --drop 0.1 --merge 0.1")]
+insgen eval-loc --area demo-test --camera cam2 --oracle --erode 2 --drop 0.1 --merge 0.1\n  \
+insgen eval-loc --area demo-test --camera cam2 --predictions model/segm_results.json\n  \
+insgen eval-loc --area tokyo --camera uav --oracle --masks uav/masks --query-list uav/queries.txt \\\n      \
+--gt-poses uav/gt.txt --prior-poses uav/prior.txt --out uav/loc")]
+#[command(group(clap::ArgGroup::new("source").required(true).args(["oracle", "predictions"])))]
 pub struct Args {
     #[arg(long, value_name = "NAME")]
     pub area: String,
     #[arg(long, value_name = "PRESET")]
     pub camera: String,
     /// Use the ground-truth masks (masks/<frame>.png) as the query, with the degradations below.
-    #[arg(long, required = true)]
+    #[arg(long)]
     pub oracle: bool,
+    /// Directory of the ground-truth ID maps for --oracle [default: <camera dir>/masks].
+    #[arg(long, value_name = "DIR", requires = "oracle")]
+    pub masks: Option<PathBuf>,
+    /// A COCO results file (list of {image_id, segmentation: RLE, score}) with predicted instances.
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["erode", "dilate", "drop", "merge", "split", "false_positives", "score_jitter"])]
+    pub predictions: Option<PathBuf>,
+    /// COCO instances file(s) mapping the results' image ids to frames [default:
+    /// <workdir>/coco/instances_{train,val,test}.json].
+    #[arg(long = "coco", value_name = "FILE", requires = "predictions")]
+    pub coco_files: Vec<PathBuf>,
+    /// Ignore predictions scoring below this.
+    #[arg(long, value_name = "SCORE", default_value_t = 0.0, requires = "predictions")]
+    pub min_score: f64,
+    /// LoD-Loc query list (NAME MODEL W H PARAMS[]) instead of <camera dir>/poses.jsonl.
+    #[arg(long, value_name = "FILE", requires_all = ["gt_poses", "prior_poses"])]
+    pub query_list: Option<PathBuf>,
+    /// Ground-truth poses (NAME QW QX QY QZ TX TY TZ, world-to-camera, area ENU) for --query-list.
+    #[arg(long, value_name = "FILE", requires = "query_list")]
+    pub gt_poses: Option<PathBuf>,
+    /// Prior poses in the same format, for --query-list.
+    #[arg(long, value_name = "FILE", requires = "query_list")]
+    pub prior_poses: Option<PathBuf>,
+    /// Output directory [default: <camera dir>/loc/<tag>].
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
     /// Cost(s) to evaluate; repeat to compare (each gives rows of the table).
     #[arg(long = "cost", value_enum, default_values_t = [CostKind::Instance])]
     pub costs: Vec<CostKind>,
@@ -94,7 +131,13 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         anyhow::ensure!((0.0..=1.0).contains(&f), "{name} {f}: a fraction lies in [0, 1]");
     }
     let tag = args.tag.clone().unwrap_or_else(|| {
-        let mut t = String::from(if degradation.is_perfect() { "oracle" } else { "degraded" });
+        let mut t = String::from(if args.predictions.is_some() {
+            "predictions"
+        } else if degradation.is_perfect() {
+            "oracle"
+        } else {
+            "degraded"
+        });
         if args.no_refine {
             t.push_str("-norefine");
         }
@@ -103,11 +146,50 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         }
         t
     });
+    let camera_dir = area_dir.join(&args.camera);
+    let source = match &args.predictions {
+        Some(results) => {
+            let coco_files: Vec<PathBuf> = if args.coco_files.is_empty() {
+                ["train", "val", "test"]
+                    .iter()
+                    .map(|s| global.workdir.join("coco").join(format!("instances_{s}.json")))
+                    .filter(|p| p.is_file())
+                    .collect()
+            } else {
+                args.coco_files.clone()
+            };
+            anyhow::ensure!(
+                !coco_files.is_empty(),
+                "--predictions needs the COCO instances file the predictions refer to: none in {} (run \
+                 `insgen export-coco`) and no --coco given",
+                global.workdir.join("coco").display()
+            );
+            QuerySource::Predictions(load_predictions(
+                results,
+                &coco_files,
+                &args.area,
+                &args.camera,
+                args.min_score,
+            )?)
+        }
+        None => QuerySource::Oracle {
+            masks_dir: args.masks.clone().unwrap_or_else(|| camera_dir.join("masks")),
+            degradation,
+        },
+    };
+    let queries = match (&args.query_list, &args.gt_poses, &args.prior_poses) {
+        (Some(q), Some(g), Some(p)) => {
+            QueryPoses::Colmap { intrinsics: q.clone(), gt: g.clone(), prior: p.clone() }
+        }
+        _ => QueryPoses::Sample { camera_dir: camera_dir.clone() },
+    };
+    let out_dir = args.out.clone().unwrap_or_else(|| camera_dir.join("loc").join(&tag));
     let opts = EvalOptions {
-        camera_dir: area_dir.join(&args.camera),
+        queries,
+        out_dir: out_dir.clone(),
         costs: args.costs.clone(),
         weighting: args.weighting,
-        degradation,
+        source,
         coarse: CoarseParams::default(),
         fine: FineParams { iterations: args.iterations, ..FineParams::default() },
         select: !args.no_select,
@@ -117,7 +199,6 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         coarse_width_px: args.coarse_width,
         limit: args.limit,
         overlays: args.overlays,
-        tag: tag.clone(),
     };
     let progress = global.progress();
     let summary = eval::evaluate(&scene, &opts, &progress)
@@ -129,7 +210,7 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
             summary.queries,
             summary.median_seconds_per_query,
             summary.hypotheses_per_second,
-            opts.camera_dir.join("loc").join(tag).display()
+            out_dir.display()
         );
     }
     Ok(())

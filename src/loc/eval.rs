@@ -3,7 +3,7 @@
 //!
 //! Per query: the query instances (oracle ground-truth masks with degradations, or predictions) at the
 //! render resolution; the scene culled to the buildings the prior could see (with a margin covering the
-//! search range) and renumbered densely; hypotheses rendered by the CPU rasteriser ([`super::raster`]) in
+//! search range) and renumbered densely; hypotheses rendered by the CPU rasteriser ([`crate::render::cpu`]) in
 //! parallel and scored with [`super::cost`]; the search of [`super::search`]; errors against the ground
 //! truth.
 //!
@@ -22,11 +22,11 @@ use serde::{Deserialize, Serialize};
 
 use super::cost::{CostKind, Query, Scorer, Weighting};
 use super::metrics::{self, Row};
-use super::oracle::{self, Degradation};
-use super::raster::{self, CpuScene, Frame};
+use super::query::{QueryError, QuerySource};
 use super::search::{self, CoarseParams, Evaluate, FineParams, Hypothesis, SearchResult};
+use crate::camera::colmap::{self, ColmapCamera};
 use crate::camera::{Intrinsics, Pose, PoseRecord, Trajectory};
-use crate::label::{label_components, Connectivity};
+use crate::render::cpu::{self as raster, CpuScene, Frame};
 use crate::scene::{BuildingRecord, PreparedScene, SceneMesh};
 use crate::util::{self, Progress};
 
@@ -35,6 +35,8 @@ use crate::util::{self, Progress};
 pub enum EvalError {
     #[error(transparent)]
     File(#[from] util::FileError),
+    #[error(transparent)]
+    Query(#[from] QueryError),
     #[error("{}: {what}", path.display())]
     Input { path: PathBuf, what: String },
 }
@@ -42,12 +44,15 @@ pub enum EvalError {
 /// Options of an evaluation run.
 #[derive(Debug, Clone)]
 pub struct EvalOptions {
-    /// `<workdir>/<area>/<camera>`.
-    pub camera_dir: PathBuf,
+    /// The queries' poses and priors.
+    pub queries: QueryPoses,
+    /// Where results go (`<workdir>/<area>/<camera>/loc/<tag>` from the CLI).
+    pub out_dir: PathBuf,
     /// Costs to evaluate (each gives a row of the table).
     pub costs: Vec<CostKind>,
     pub weighting: Weighting,
-    pub degradation: Degradation,
+    /// Oracle masks (degraded) or predictions.
+    pub source: QuerySource,
     pub coarse: CoarseParams,
     pub fine: FineParams,
     pub select: bool,
@@ -59,8 +64,6 @@ pub struct EvalOptions {
     pub coarse_width_px: u32,
     pub limit: Option<usize>,
     pub overlays: usize,
-    /// Output sub-directory name under `loc/`.
-    pub tag: String,
 }
 
 /// One line of `results.jsonl`.
@@ -68,7 +71,8 @@ pub struct EvalOptions {
 pub struct QueryResult {
     pub name: String,
     pub cost: CostKind,
-    pub trajectory: Trajectory,
+    /// Table group: `grid` or `sequence` (sampled queries), `query` (COLMAP lists).
+    pub group: String,
     pub estimate: [f64; 4],
     pub prior_translation_error_m: f64,
     pub prior_rotation_error_deg: f64,
@@ -106,19 +110,6 @@ fn read_jsonl(path: &Path) -> Result<Vec<PoseRecord>, EvalError> {
 pub fn at_width(k: &Intrinsics, width_px: u32) -> Intrinsics {
     let h = ((k.height_px as f64) * width_px as f64 / k.width_px as f64).round().max(1.0) as u32;
     k.scaled_to(width_px, h)
-}
-
-/// Nearest-neighbour resize of an ID map (sampling the source at the target pixel centres).
-pub fn resize_nearest(ids: &[u32], w: u32, h: u32, tw: u32, th: u32) -> Vec<u32> {
-    let mut out = vec![0u32; (tw * th) as usize];
-    for y in 0..th {
-        let sy = (((y as f64 + 0.5) * h as f64 / th as f64) as u32).min(h - 1);
-        for x in 0..tw {
-            let sx = (((x as f64 + 0.5) * w as f64 / tw as f64) as u32).min(w - 1);
-            out[(y * tw + x) as usize] = ids[(sy * w + sx) as usize];
-        }
-    }
-    out
 }
 
 /// Buildings whose bounding box may be seen from `pose` with a margin of `margin` image widths on each
@@ -203,24 +194,6 @@ impl Evaluate for CpuEvaluator<'_> {
     }
 }
 
-/// Loads the oracle query of a frame (ground-truth components, degraded) at intrinsics `k`.
-fn oracle_query(
-    masks_dir: &Path,
-    frame: &str,
-    k: &Intrinsics,
-    d: &Degradation,
-    seed: u64,
-) -> Result<Query, EvalError> {
-    let path = masks_dir.join(format!("{frame}.png"));
-    let map = crate::label::idpng::read_id_png(&path).map_err(|e| EvalError::Input {
-        path: path.clone(),
-        what: format!("{e}; run `insgen render-masks` for this camera first"),
-    })?;
-    let ids = resize_nearest(&map.ids, map.width, map.height, k.width_px, k.height_px);
-    let lab = label_components(&ids, k.width_px, k.height_px, Connectivity::Eight);
-    Ok(oracle::degrade(k.width_px, k.height_px, &lab.labels, lab.components.len() as u32, d, seed))
-}
-
 fn frame_seed(seed: u64, name: &str) -> u64 {
     // FNV-1a of the frame name mixed with the run seed: stable across runs and platforms.
     let mut h: u64 = 0xcbf2_9ce4_8422_2325 ^ seed;
@@ -238,57 +211,146 @@ fn group_of(t: Trajectory) -> &'static str {
     }
 }
 
+/// One query: name (frame), intrinsics, ground truth, prior, and its group in the table.
+#[derive(Debug, Clone)]
+pub struct QueryPose {
+    pub name: String,
+    pub intrinsics: Intrinsics,
+    pub gt: Pose,
+    pub prior: Pose,
+    /// `grid` or `sequence` for sampled queries, `query` for COLMAP lists.
+    pub group: String,
+}
+
+/// Where the query poses come from.
+#[derive(Debug, Clone)]
+pub enum QueryPoses {
+    /// `poses.jsonl` (ground truth) and `priors.jsonl` of a camera directory, from `insgen sample`.
+    Sample { camera_dir: PathBuf },
+    /// The LoD-Loc lists: intrinsics (`NAME MODEL W H PARAMS[]`), ground-truth and prior poses
+    /// (`NAME QW QX QY QZ TX TY TZ`, world-to-camera in the area's ENU frame).
+    Colmap { intrinsics: PathBuf, gt: PathBuf, prior: PathBuf },
+}
+
+/// Reads the queries, in the ground-truth file's order.
+///
+/// # Errors
+/// Unreadable or malformed files; a query without a prior; a camera model that is not a pinhole.
+pub fn load_queries(src: &QueryPoses) -> Result<Vec<QueryPose>, EvalError> {
+    match src {
+        QueryPoses::Sample { camera_dir } => {
+            let gt_path = camera_dir.join("poses.jsonl");
+            let prior_path = camera_dir.join("priors.jsonl");
+            let gts = read_jsonl(&gt_path)?;
+            let priors: BTreeMap<String, PoseRecord> =
+                read_jsonl(&prior_path)?.into_iter().map(|p| (p.name.clone(), p)).collect();
+            gts.iter()
+                .map(|gt| {
+                    let prior = priors.get(&gt.name).ok_or_else(|| EvalError::Input {
+                        path: prior_path.clone(),
+                        what: format!("no prior for query {}", gt.name),
+                    })?;
+                    Ok(QueryPose {
+                        name: gt.name.clone(),
+                        intrinsics: gt.intrinsics,
+                        gt: gt.pose(),
+                        prior: prior.pose(),
+                        group: group_of(gt.trajectory).to_string(),
+                    })
+                })
+                .collect()
+        }
+        QueryPoses::Colmap { intrinsics, gt, prior } => {
+            let bad = |path: &Path, e: crate::camera::CameraError| EvalError::Input {
+                path: path.to_path_buf(),
+                what: e.to_string(),
+            };
+            let cams = colmap::read_query_list(intrinsics).map_err(|e| bad(intrinsics, e))?;
+            let cams: BTreeMap<String, ColmapCamera> = cams.into_iter().collect();
+            let priors: BTreeMap<String, Pose> = colmap::read_pose_list(prior)
+                .map_err(|e| bad(prior, e))?
+                .into_iter()
+                .map(|im| (im.name.clone(), im.pose()))
+                .collect();
+            colmap::read_pose_list(gt)
+                .map_err(|e| bad(gt, e))?
+                .into_iter()
+                .map(|im| {
+                    let cam = cams.get(&im.name).ok_or_else(|| EvalError::Input {
+                        path: intrinsics.clone(),
+                        what: format!("no intrinsics for query {}", im.name),
+                    })?;
+                    let k = cam.intrinsics().ok_or_else(|| EvalError::Input {
+                        path: intrinsics.clone(),
+                        what: format!(
+                            "query {}: camera model {} is not a pinhole (SIMPLE_PINHOLE or PINHOLE)",
+                            im.name, cam.model
+                        ),
+                    })?;
+                    let p = priors.get(&im.name).ok_or_else(|| EvalError::Input {
+                        path: prior.clone(),
+                        what: format!("no prior for query {}", im.name),
+                    })?;
+                    Ok(QueryPose {
+                        name: im.name.clone(),
+                        intrinsics: k,
+                        gt: im.pose(),
+                        prior: *p,
+                        group: "query".to_string(),
+                    })
+                })
+                .collect()
+        }
+    }
+}
+
 /// Runs the evaluation.
 ///
 /// # Errors
-/// Missing or malformed inputs (poses, priors, masks), naming the file.
+/// Missing or malformed inputs (poses, priors, masks, predictions), naming the file.
 pub fn evaluate(
     scene: &PreparedScene,
     opts: &EvalOptions,
     progress: &dyn Progress,
 ) -> Result<Summary, EvalError> {
-    let gt_path = opts.camera_dir.join("poses.jsonl");
-    let prior_path = opts.camera_dir.join("priors.jsonl");
-    let gts = read_jsonl(&gt_path)?;
-    let priors: BTreeMap<String, PoseRecord> =
-        read_jsonl(&prior_path)?.into_iter().map(|p| (p.name.clone(), p)).collect();
-    let masks_dir = opts.camera_dir.join("masks");
-    let out_dir = opts.camera_dir.join("loc").join(&opts.tag);
-    let mut queries: Vec<&PoseRecord> = gts.iter().collect();
+    let mut queries = load_queries(&opts.queries)?;
+    let out_dir = opts.out_dir.clone();
     if let Some(n) = opts.limit {
         queries.truncate(n);
     }
     if queries.is_empty() {
-        return Err(EvalError::Input { path: gt_path, what: "no queries".into() });
+        return Err(EvalError::Input {
+            path: match &opts.queries {
+                QueryPoses::Sample { camera_dir } => camera_dir.join("poses.jsonl"),
+                QueryPoses::Colmap { gt, .. } => gt.clone(),
+            },
+            what: "no queries".into(),
+        });
     }
 
     let mut results: Vec<QueryResult> = Vec::new();
     let mut est_lines: BTreeMap<CostKind, String> = BTreeMap::new();
-    let mut prior_errors: Vec<(f64, f64, Trajectory)> = Vec::new();
+    let mut prior_errors: Vec<(f64, f64, String)> = Vec::new();
     let mut total_hyp = 0u64;
     let mut total_s = 0.0;
     progress.start((queries.len() * opts.costs.len()) as u64, "queries");
     for (qi, gt) in queries.iter().enumerate() {
-        let prior = priors.get(&gt.name).ok_or_else(|| EvalError::Input {
-            path: prior_path.clone(),
-            what: format!("no prior for query {}", gt.name),
-        })?;
-        let gt_pose = gt.pose();
-        let prior_pose = prior.pose();
+        let gt_pose = gt.gt;
+        let prior_pose = gt.prior;
         prior_errors.push((
             gt_pose.translation_error_m(&prior_pose),
             gt_pose.rotation_error_deg(&prior_pose),
-            gt.trajectory,
+            gt.group.clone(),
         ));
         let k_fine = at_width(&gt.intrinsics, opts.render_width_px);
         let k_coarse = at_width(&gt.intrinsics, opts.coarse_width_px);
         let seed = frame_seed(opts.seed, &gt.name);
-        let q_fine = oracle_query(&masks_dir, &gt.name, &k_fine, &opts.degradation, seed)?;
-        let q_coarse = oracle_query(&masks_dir, &gt.name, &k_coarse, &opts.degradation, seed)?;
+        let q_fine = opts.source.query(&gt.name, &k_fine, seed)?;
+        let q_coarse = opts.source.query(&gt.name, &k_coarse, seed)?;
         let kept = cull(&scene.buildings, &prior_pose, &k_fine, 0.5);
         let sub = dense_subscene(&scene.mesh, &kept);
         let cpu = CpuScene::new(&sub, prior_pose.centre_m);
-        let [prior_yaw, pitch, roll] = prior.pose().ypr_deg();
+        let [prior_yaw, pitch, roll] = prior_pose.ypr_deg();
         let prior_h = Hypothesis { centre_m: prior_pose.centre_m, yaw_deg: prior_yaw };
         for &kind in &opts.costs {
             let t0 = Instant::now();
@@ -309,18 +371,29 @@ pub fn evaluate(
             };
             let mut fine_eval = mk(k_fine, &qf);
             let mut coarse_eval = mk(k_coarse, &qc);
-            let r: SearchResult = match search::search(
-                &mut coarse_eval,
-                &mut fine_eval,
-                prior_h,
-                &opts.coarse,
-                &opts.fine,
-                opts.select,
-                opts.refine,
-                seed,
-            ) {
-                Ok(r) => r,
-                Err(never) => match never {},
+            let r: SearchResult = if qf.instances.is_empty() {
+                // Nothing to align (no instance in the query): the prior stands.
+                SearchResult {
+                    best: prior_h,
+                    best_score: 0.0,
+                    coarse_best: prior_h,
+                    coarse_score: 0.0,
+                    hypotheses_scored: 0,
+                }
+            } else {
+                match search::search(
+                    &mut coarse_eval,
+                    &mut fine_eval,
+                    prior_h,
+                    &opts.coarse,
+                    &opts.fine,
+                    opts.select,
+                    opts.refine,
+                    seed,
+                ) {
+                    Ok(r) => r,
+                    Err(never) => match never {},
+                }
             };
             let est = r.best.pose(pitch, roll);
             let secs = t0.elapsed().as_secs_f64();
@@ -335,7 +408,7 @@ pub fn evaluate(
             results.push(QueryResult {
                 name: gt.name.clone(),
                 cost: kind,
-                trajectory: gt.trajectory,
+                group: gt.group.clone(),
                 estimate: [r.best.centre_m[0], r.best.centre_m[1], r.best.centre_m[2], r.best.yaw_deg],
                 prior_translation_error_m: gt_pose.translation_error_m(&prior_pose),
                 prior_rotation_error_deg: gt_pose.rotation_error_deg(&prior_pose),
@@ -371,15 +444,14 @@ pub fn evaluate(
     // Table: the prior first, then each cost; per group and overall.
     let mut rows = Vec::new();
     let groups: Vec<&str> = {
-        let mut g: Vec<&str> = queries.iter().map(|q| group_of(q.trajectory)).collect();
+        let mut g: Vec<&str> = queries.iter().map(|q| q.group.as_str()).collect();
         g.sort();
         g.dedup();
         g
     };
-    let mut push_rows = |method: &str, errs: &[(f64, f64, Trajectory)]| {
+    let mut push_rows = |method: &str, errs: &[(f64, f64, String)]| {
         for g in &groups {
-            let e: Vec<(f64, f64)> =
-                errs.iter().filter(|e| group_of(e.2) == *g).map(|e| (e.0, e.1)).collect();
+            let e: Vec<(f64, f64)> = errs.iter().filter(|e| e.2 == *g).map(|e| (e.0, e.1)).collect();
             rows.push(metrics::row(method, g, &e));
         }
         if groups.len() > 1 {
@@ -389,10 +461,10 @@ pub fn evaluate(
     };
     push_rows("prior", &prior_errors);
     for &kind in &opts.costs {
-        let errs: Vec<(f64, f64, Trajectory)> = results
+        let errs: Vec<(f64, f64, String)> = results
             .iter()
             .filter(|r| r.cost == kind)
-            .map(|r| (r.translation_error_m, r.rotation_error_deg, r.trajectory))
+            .map(|r| (r.translation_error_m, r.rotation_error_deg, r.group.clone()))
             .collect();
         let name = match kind {
             CostKind::Instance => format!("instance ({:?})", opts.weighting).to_lowercase(),
@@ -426,7 +498,7 @@ pub fn evaluate(
     util::write_json_atomic(&out_dir.join("summary.json"), &summary)?;
     let md = format!(
         "# Localization on {}\n\n{} queries; median {:.2} s per query; {:.0} hypotheses/s.\n\n{}",
-        opts.camera_dir.display(),
+        out_dir.display(),
         summary.queries,
         summary.median_seconds_per_query,
         summary.hypotheses_per_second,
@@ -504,14 +576,6 @@ fn write_overlay(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn nearest_resize_samples_pixel_centres() {
-        // 4×2 → 2×1: target pixel centres map to source x = 1, 3 (row 1).
-        let ids = [1, 2, 3, 4, 5, 6, 7, 8];
-        assert_eq!(resize_nearest(&ids, 4, 2, 2, 1), vec![6, 8]);
-        assert_eq!(resize_nearest(&ids, 4, 2, 4, 2), ids.to_vec());
-    }
 
     #[test]
     fn dense_ids_are_contiguous() {

@@ -8,5 +8,5 @@ pub mod cost;
 pub mod eval;
 pub mod metrics;
 pub mod oracle;
-pub mod raster;
+pub mod query;
 pub mod search;

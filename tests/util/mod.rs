@@ -87,3 +87,12 @@ pub fn repo_scene(name: &str) -> String {
         .collect::<Vec<_>>()
         .join("\n")
 }
+
+/// Prepares the repository's `scenes/<name>.toml` into `dir` through the library and loads it.
+pub fn prepare_repo_scene(name: &str, dir: &Path) -> insgen::scene::PreparedScene {
+    let scenes = scratch_with_scenes(&[(name, repo_scene(name))]);
+    let file = scenes.path().join("scenes").join(format!("{name}.toml"));
+    insgen::scene::prepare::prepare(&file, dir, &insgen::util::NoProgress)
+        .unwrap_or_else(|e| panic!("preparing {name}: {e}"));
+    insgen::scene::PreparedScene::load(dir).unwrap_or_else(|e| panic!("loading {name}: {e}"))
+}

@@ -193,6 +193,39 @@ fn raster_triangle(
     };
     let e = [edge(bx, by, cx, cy), edge(cx, cy, ax, ay), edge(ax, ay, bx, by)];
     let inv_area = 1.0 / area as f64;
+    // Common case: every coordinate within ±2^24 sub-pixels (±65536 px), so the edge functions fit
+    // in i64 and step incrementally; otherwise (a sliver grazing the near plane) evaluate in i128.
+    let small = [ax, ay, bx, by, cx, cy].iter().all(|v| v.abs() < 1 << 24);
+    if small {
+        let e64 = e.map(|(dx, dy, ex, ey, bias)| (dx as i64, dy as i64, ex as i64, ey as i64, bias as i64));
+        let (px0, py0) = (x0 * one + half, y0 * one + half);
+        let mut row_e = e64.map(|(dx, dy, ex, ey, _)| dx * (py0 - ey) - dy * (px0 - ex));
+        let step_x = e64.map(|(_, dy, _, _, _)| -dy * one);
+        let step_y = e64.map(|(dx, _, _, _, _)| dx * one);
+        let bias = e64.map(|t| t.4);
+        let (az, bz, cz) = (az * inv_area, bz * inv_area, cz * inv_area);
+        for yi in y0..=y1 {
+            let row = yi as usize * w;
+            let mut v = row_e;
+            for xi in x0..=x1 {
+                if v[0] >= bias[0] && v[1] >= bias[1] && v[2] >= bias[2] {
+                    let z = (v[0] as f64 * az + v[1] as f64 * bz + v[2] as f64 * cz) as f32;
+                    let i = row + xi as usize;
+                    if z > inv_z[i] {
+                        inv_z[i] = z;
+                        ids[i] = id;
+                    }
+                }
+                v[0] += step_x[0];
+                v[1] += step_x[1];
+                v[2] += step_x[2];
+            }
+            row_e[0] += step_y[0];
+            row_e[1] += step_y[1];
+            row_e[2] += step_y[2];
+        }
+        return;
+    }
     for yi in y0..=y1 {
         let py = (yi * one + half) as i128;
         let row = yi as usize * w;

@@ -1,0 +1,233 @@
+//! Where the localizer's query instances come from, at the resolution the hypotheses are rendered:
+//! - the **oracle**: the ground-truth ID map of the frame (`masks/<frame>.png` from `render-masks`),
+//!   resized nearest-neighbour, split into connected components and degraded ([`super::oracle`]);
+//! - **predictions**: a segmentation model's COCO results file (RLE + score at any resolution), each
+//!   mask resized nearest-neighbour to the render resolution; image ids are mapped to frames through
+//!   the COCO instances file(s) that `export-coco` wrote (their `images[]` carry `area_name`, `camera`
+//!   and `frame`).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use super::cost::{bbox_area, Query, QueryInstance};
+use super::oracle::{self, Degradation};
+use crate::camera::Intrinsics;
+use crate::coco::results::{read_results, Prediction};
+use crate::label::{label_components, Connectivity};
+
+/// Errors while building queries.
+#[derive(Debug, thiserror::Error)]
+pub enum QueryError {
+    #[error(transparent)]
+    Coco(#[from] crate::coco::CocoError),
+    #[error("{}: {what}", path.display())]
+    Input { path: PathBuf, what: String },
+}
+
+/// The predictions of one area/camera, by frame name.
+#[derive(Debug, Clone, Default)]
+pub struct FramePredictions {
+    pub by_frame: BTreeMap<String, Vec<Prediction>>,
+    /// The results file (for messages).
+    pub path: PathBuf,
+    /// Predictions below this score are ignored.
+    pub min_score: f64,
+}
+
+/// Where queries come from.
+#[derive(Debug, Clone)]
+pub enum QuerySource {
+    /// Ground-truth masks in `masks_dir`, degraded.
+    Oracle { masks_dir: PathBuf, degradation: Degradation },
+    /// A segmentation model's predictions.
+    Predictions(FramePredictions),
+}
+
+/// Nearest-neighbour resize of a row-major image (sampling the source at the target pixel centres).
+pub fn resize_nearest<T: Copy + Default>(src: &[T], w: u32, h: u32, tw: u32, th: u32) -> Vec<T> {
+    let xs: Vec<usize> =
+        (0..tw).map(|x| (((x as f64 + 0.5) * w as f64 / tw as f64) as u32).min(w - 1) as usize).collect();
+    let mut out = vec![T::default(); (tw * th) as usize];
+    for y in 0..th {
+        let sy = (((y as f64 + 0.5) * h as f64 / th as f64) as u32).min(h - 1) as usize;
+        let src_row = &src[sy * w as usize..(sy + 1) * w as usize];
+        let dst_row = &mut out[(y * tw) as usize..((y + 1) * tw) as usize];
+        for (d, &sx) in dst_row.iter_mut().zip(&xs) {
+            *d = src_row[sx];
+        }
+    }
+    out
+}
+
+impl QuerySource {
+    /// The query of `frame` at intrinsics `k` (`seed` drives the oracle's degradations).
+    ///
+    /// # Errors
+    /// A missing or unreadable mask (oracle), naming the file and the command that writes it.
+    pub fn query(&self, frame: &str, k: &Intrinsics, seed: u64) -> Result<Query, QueryError> {
+        match self {
+            QuerySource::Oracle { masks_dir, degradation } => {
+                oracle_query(masks_dir, frame, k, degradation, seed)
+            }
+            QuerySource::Predictions(p) => {
+                Ok(predictions_query(p.by_frame.get(frame).map(Vec::as_slice).unwrap_or(&[]), k, p.min_score))
+            }
+        }
+    }
+}
+
+fn oracle_query(
+    masks_dir: &Path,
+    frame: &str,
+    k: &Intrinsics,
+    d: &Degradation,
+    seed: u64,
+) -> Result<Query, QueryError> {
+    let path = masks_dir.join(format!("{frame}.png"));
+    let map = crate::label::idpng::read_id_png(&path).map_err(|e| QueryError::Input {
+        path: path.clone(),
+        what: format!("{e}; run `insgen render-masks` for this camera first"),
+    })?;
+    let ids = resize_nearest(&map.ids, map.width, map.height, k.width_px, k.height_px);
+    let lab = label_components(&ids, k.width_px, k.height_px, Connectivity::Eight);
+    Ok(oracle::degrade(k.width_px, k.height_px, &lab.labels, lab.components.len() as u32, d, seed))
+}
+
+/// The query made of `preds` (any resolution) resized to `k`; predictions scoring below `min_score`
+/// or vanishing at the target resolution are left out. Box areas are the predictions' own, scaled to
+/// the target resolution.
+pub fn predictions_query(preds: &[Prediction], k: &Intrinsics, min_score: f64) -> Query {
+    let (tw, th) = (k.width_px, k.height_px);
+    let mut instances = Vec::new();
+    for p in preds.iter().filter(|p| p.score >= min_score) {
+        let [h, w] = p.size();
+        if h == 0 || w == 0 {
+            continue;
+        }
+        let mask = resize_nearest(&p.mask(), w, h, tw, th);
+        let pixels: Vec<u32> =
+            mask.iter().enumerate().filter(|(_, &m)| m != 0).map(|(i, _)| i as u32).collect();
+        if pixels.is_empty() {
+            continue;
+        }
+        let scale = (tw as f64 / w as f64) * (th as f64 / h as f64);
+        let bbox_area_px = if p.bbox_area_px > 0.0 { p.bbox_area_px * scale } else { bbox_area(&pixels, tw) };
+        instances.push(QueryInstance { pixels, score: p.score, bbox_area_px });
+    }
+    Query { width: tw, height: th, instances }
+}
+
+/// The part of a COCO instances file that maps image ids to frames.
+#[derive(Debug, Deserialize)]
+struct ImagesOnly {
+    images: Vec<ImageRef>,
+}
+
+#[derive(Debug, Deserialize)]
+struct ImageRef {
+    id: u64,
+    #[serde(default)]
+    area_name: Option<String>,
+    #[serde(default)]
+    camera: Option<String>,
+    #[serde(default)]
+    frame: Option<String>,
+}
+
+/// Reads a results file and keeps the predictions of `area`/`camera`, keyed by frame name, using the
+/// image lists of `instances_files` (COCO files written by `export-coco`).
+///
+/// # Errors
+/// Unreadable or invalid files, or a results file none of whose image ids belong to the area/camera
+/// (almost always the wrong file).
+pub fn load_predictions(
+    results_path: &Path,
+    instances_files: &[PathBuf],
+    area: &str,
+    camera: &str,
+    min_score: f64,
+) -> Result<FramePredictions, QueryError> {
+    let results = read_results(results_path)?;
+    let mut frames: BTreeMap<u64, String> = BTreeMap::new();
+    for f in instances_files {
+        let bytes = crate::util::read_file(f).map_err(crate::coco::CocoError::from)?;
+        let images: ImagesOnly = serde_json::from_slice(&bytes).map_err(|e| QueryError::Input {
+            path: f.clone(),
+            what: format!("not a COCO instances file: {e}"),
+        })?;
+        for im in images.images {
+            if im.area_name.as_deref() == Some(area) && im.camera.as_deref() == Some(camera) {
+                if let Some(frame) = im.frame {
+                    frames.insert(im.id, frame);
+                }
+            }
+        }
+    }
+    if frames.is_empty() {
+        return Err(QueryError::Input {
+            path: instances_files.first().cloned().unwrap_or_default(),
+            what: format!("no image of area {area:?}, camera {camera:?} in the COCO instances file(s)"),
+        });
+    }
+    let mut by_frame: BTreeMap<String, Vec<Prediction>> = BTreeMap::new();
+    for (image_id, preds) in results.by_image {
+        if let Some(frame) = frames.get(&image_id) {
+            by_frame.entry(frame.clone()).or_default().extend(preds);
+        }
+    }
+    if by_frame.is_empty() {
+        return Err(QueryError::Input {
+            path: results_path.to_path_buf(),
+            what: format!(
+                "none of its image ids belongs to area {area:?}, camera {camera:?} (ids come from the COCO \
+                 instances file the predictions were made for)"
+            ),
+        });
+    }
+    Ok(FramePredictions { by_frame, path: results_path.to_path_buf(), min_score })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::coco::rle::encode;
+
+    #[test]
+    fn nearest_resize_samples_pixel_centres() {
+        // 4×2 → 2×1: target pixel centres map to source x = 1, 3 (row 1).
+        let ids = [1u32, 2, 3, 4, 5, 6, 7, 8];
+        assert_eq!(resize_nearest(&ids, 4, 2, 2, 1), vec![6, 8]);
+        assert_eq!(resize_nearest(&ids, 4, 2, 4, 2), ids.to_vec());
+        // Upsampling repeats pixels.
+        assert_eq!(resize_nearest(&[1u8, 2], 2, 1, 4, 1), vec![1, 1, 2, 2]);
+    }
+
+    fn pred(mask: &[u8], h: u32, w: u32, score: f64) -> Prediction {
+        Prediction { index: 0, category_id: 1, score, rle: encode(mask, h, w).unwrap(), bbox_area_px: 0.0 }
+    }
+
+    #[test]
+    fn predictions_are_resized_filtered_and_scaled() {
+        // 4×4 prediction, left half set → at 2×2 the left column.
+        let mut m = vec![0u8; 16];
+        for y in 0..4 {
+            m[y * 4] = 1;
+            m[y * 4 + 1] = 1;
+        }
+        let k = Intrinsics { width_px: 2, height_px: 2, fx_px: 2.0, fy_px: 2.0, cx_px: 1.0, cy_px: 1.0 };
+        let mut with_box = pred(&m, 4, 4, 0.9);
+        with_box.bbox_area_px = 8.0;
+        let q = predictions_query(&[with_box, pred(&m, 4, 4, 0.2)], &k, 0.5);
+        assert_eq!(q.instances.len(), 1, "the 0.2 prediction is below --min-score");
+        assert_eq!(q.instances[0].pixels, vec![0, 2]);
+        assert_eq!(q.instances[0].score, 0.9);
+        // 8 px² at 4×4 → 2 px² at 2×2.
+        assert!((q.instances[0].bbox_area_px - 2.0).abs() < 1e-12);
+        // A one-pixel prediction that no target pixel centre samples vanishes.
+        let mut dot = vec![0u8; 16];
+        dot[0] = 1;
+        assert!(predictions_query(&[pred(&dot, 4, 4, 1.0)], &k, 0.0).instances.is_empty());
+    }
+}
