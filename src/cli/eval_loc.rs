@@ -64,8 +64,8 @@ pub struct Args {
     /// Cost(s) to evaluate; repeat to compare (each gives rows of the table).
     #[arg(long = "cost", value_enum, default_values_t = [CostKind::Instance])]
     pub costs: Vec<CostKind>,
-    /// Instance weighting: by confidence score or by box area.
-    #[arg(long, value_enum, default_value_t = Weighting::Conf)]
+    /// Instance weighting: by box area (the paper's main tables) or by confidence score.
+    #[arg(long, value_enum, default_value_t = Weighting::Area)]
     pub weighting: Weighting,
     /// Erode the oracle masks by K pixels (at the render resolution).
     #[arg(long, value_name = "K", default_value_t = 0, conflicts_with = "dilate")]
@@ -94,12 +94,24 @@ pub struct Args {
     /// Fine stage from the raw prior (ablation).
     #[arg(long)]
     pub no_select: bool,
+    /// Skip the local pattern search after the particle filter (the paper's search exactly).
+    #[arg(long)]
+    pub no_polish: bool,
     /// Width of the fine-stage renders in pixels.
     #[arg(long, value_name = "PX", default_value_t = 640)]
     pub render_width: u32,
     /// Width of the coarse-stage renders in pixels.
     #[arg(long, value_name = "PX", default_value_t = 320)]
     pub coarse_width: u32,
+    /// Coarse grid in x and y: ±RANGE metres in steps of STEP [default: 20/5].
+    #[arg(long, value_name = "RANGE/STEP", value_parser = parse_range_step)]
+    pub coarse_xy: Option<(f64, f64)>,
+    /// Coarse grid in z: ±RANGE metres in steps of STEP [default: 10/5].
+    #[arg(long, value_name = "RANGE/STEP", value_parser = parse_range_step)]
+    pub coarse_z: Option<(f64, f64)>,
+    /// Coarse grid in yaw: ±RANGE degrees in steps of STEP [default: 7.5/1.25].
+    #[arg(long, value_name = "RANGE/STEP", value_parser = parse_range_step)]
+    pub coarse_yaw: Option<(f64, f64)>,
     /// Particle-filter iterations.
     #[arg(long, value_name = "N", default_value_t = 40)]
     pub iterations: u32,
@@ -114,6 +126,17 @@ pub struct Args {
     /// Output sub-directory under loc/ (default: derived from the options).
     #[arg(long, value_name = "NAME")]
     pub tag: Option<String>,
+}
+
+/// Parses `RANGE/STEP` (both ≥ 0, STEP > 0 unless RANGE = 0).
+fn parse_range_step(s: &str) -> Result<(f64, f64), String> {
+    let (r, st) = s.split_once('/').ok_or_else(|| format!("{s:?}: expected RANGE/STEP, e.g. 20/5"))?;
+    let r: f64 = r.trim().parse().map_err(|_| format!("{s:?}: RANGE {r:?} is not a number"))?;
+    let st: f64 = st.trim().parse().map_err(|_| format!("{s:?}: STEP {st:?} is not a number"))?;
+    if !(r.is_finite() && st.is_finite() && r >= 0.0 && (st > 0.0 || r == 0.0)) {
+        return Err(format!("{s:?}: RANGE must be ≥ 0 and STEP > 0"));
+    }
+    Ok((r, st))
 }
 
 pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
@@ -143,6 +166,9 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         }
         if args.no_select {
             t.push_str("-noselect");
+        }
+        if args.no_polish {
+            t.push_str("-nopolish");
         }
         t
     });
@@ -190,8 +216,14 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         costs: args.costs.clone(),
         weighting: args.weighting,
         source,
-        coarse: CoarseParams::default(),
-        fine: FineParams { iterations: args.iterations, ..FineParams::default() },
+        coarse: {
+            let d = CoarseParams::default();
+            let (xy_range_m, xy_step_m) = args.coarse_xy.unwrap_or((d.xy_range_m, d.xy_step_m));
+            let (z_range_m, z_step_m) = args.coarse_z.unwrap_or((d.z_range_m, d.z_step_m));
+            let (yaw_range_deg, yaw_step_deg) = args.coarse_yaw.unwrap_or((d.yaw_range_deg, d.yaw_step_deg));
+            CoarseParams { xy_range_m, xy_step_m, z_range_m, z_step_m, yaw_range_deg, yaw_step_deg }
+        },
+        fine: FineParams { iterations: args.iterations, polish: !args.no_polish, ..FineParams::default() },
         select: !args.no_select,
         refine: !args.no_refine,
         seed: args.seed,

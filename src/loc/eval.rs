@@ -79,6 +79,13 @@ pub struct QueryResult {
     pub translation_error_m: f64,
     pub rotation_error_deg: f64,
     pub best_cost: f64,
+    /// The cost of the ground-truth pose (at the fine resolution): how well the query can be explained
+    /// at all. A best cost above it with a large error means the cost is ambiguous; below it, the search
+    /// missed.
+    pub cost_at_gt: f64,
+    /// Errors of the coarse stage's best hypothesis.
+    pub coarse_translation_error_m: f64,
+    pub coarse_rotation_error_deg: f64,
     pub hypotheses: u64,
     pub seconds: f64,
     pub query_instances: usize,
@@ -176,6 +183,15 @@ pub struct CpuEvaluator<'a> {
     pub k_max: u32,
 }
 
+impl CpuEvaluator<'_> {
+    /// The cost of a full pose (any pitch and roll), e.g. the ground truth.
+    pub fn cost_of_pose(&self, pose: &Pose) -> f64 {
+        let mut frame = Frame::default();
+        raster::render_ids(self.scene, pose, &self.k, &mut frame);
+        Scorer::default().cost(self.kind, self.query, &frame.ids, self.k_max, self.weighting)
+    }
+}
+
 impl Evaluate for CpuEvaluator<'_> {
     type Error = std::convert::Infallible;
     fn evaluate(&mut self, hyps: &[Hypothesis]) -> Result<Vec<f64>, Self::Error> {
@@ -192,6 +208,18 @@ impl Evaluate for CpuEvaluator<'_> {
             )
             .collect())
     }
+}
+
+/// Where the optical axis of `pose` meets the horizontal plane at `ground_m` (None when it looks
+/// at or above the horizon or the point lies more than 20 km away).
+pub fn look_at_ground(pose: &Pose, ground_m: f64) -> Option<[f64; 3]> {
+    let d = crate::camera::pose::mat_vec(&pose.r_world_from_cam, [0.0, 0.0, 1.0]);
+    let c = pose.centre_m;
+    if d[2] >= -1e-6 || !ground_m.is_finite() {
+        return None;
+    }
+    let t = (ground_m - c[2]) / d[2];
+    (t > 0.0 && t < 20_000.0).then(|| [c[0] + t * d[0], c[1] + t * d[1], ground_m])
 }
 
 fn frame_seed(seed: u64, name: &str) -> u64 {
@@ -352,6 +380,7 @@ pub fn evaluate(
         let cpu = CpuScene::new(&sub, prior_pose.centre_m);
         let [prior_yaw, pitch, roll] = prior_pose.ypr_deg();
         let prior_h = Hypothesis { centre_m: prior_pose.centre_m, yaw_deg: prior_yaw };
+        let pivot = look_at_ground(&prior_pose, scene.manifest.ground_enu_m);
         for &kind in &opts.costs {
             let t0 = Instant::now();
             let (qf, qc) = if kind == CostKind::Merged {
@@ -390,13 +419,16 @@ pub fn evaluate(
                     opts.select,
                     opts.refine,
                     seed,
+                    pivot,
                 ) {
                     Ok(r) => r,
                     Err(never) => match never {},
                 }
             };
-            let est = r.best.pose(pitch, roll);
             let secs = t0.elapsed().as_secs_f64();
+            let est = r.best.pose(pitch, roll);
+            let coarse_est = r.coarse_best.pose(pitch, roll);
+            let cost_at_gt = fine_eval.cost_of_pose(&gt_pose);
             total_hyp += r.hypotheses_scored;
             total_s += secs;
             let q = est.colmap_qvec();
@@ -415,6 +447,9 @@ pub fn evaluate(
                 translation_error_m: gt_pose.translation_error_m(&est),
                 rotation_error_deg: gt_pose.rotation_error_deg(&est),
                 best_cost: r.best_score,
+                cost_at_gt,
+                coarse_translation_error_m: gt_pose.translation_error_m(&coarse_est),
+                coarse_rotation_error_deg: gt_pose.rotation_error_deg(&coarse_est),
                 hypotheses: r.hypotheses_scored,
                 seconds: secs,
                 query_instances: qf.instances.len(),
