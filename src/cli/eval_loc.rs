@@ -115,6 +115,9 @@ pub struct Args {
     /// Particle-filter iterations.
     #[arg(long, value_name = "N", default_value_t = 40)]
     pub iterations: u32,
+    /// Particle-filter iterations scored at the coarse width before switching to the render width.
+    #[arg(long, value_name = "N", default_value_t = 20)]
+    pub lowres_iterations: u32,
     #[arg(long, value_name = "SEED", default_value_t = 0)]
     pub seed: u64,
     /// Evaluate only the first N queries.
@@ -223,7 +226,12 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
             let (yaw_range_deg, yaw_step_deg) = args.coarse_yaw.unwrap_or((d.yaw_range_deg, d.yaw_step_deg));
             CoarseParams { xy_range_m, xy_step_m, z_range_m, z_step_m, yaw_range_deg, yaw_step_deg }
         },
-        fine: FineParams { iterations: args.iterations, polish: !args.no_polish, ..FineParams::default() },
+        fine: FineParams {
+            iterations: args.iterations,
+            lowres_iterations: args.lowres_iterations,
+            polish: !args.no_polish,
+            ..FineParams::default()
+        },
         select: !args.no_select,
         refine: !args.no_refine,
         seed: args.seed,

@@ -72,6 +72,9 @@ pub struct FineParams {
     pub sigma_m: f64,
     pub yaw_deg: f64,
     pub gamma: f64,
+    /// The first this many iterations score at the coarse stage's (lower) resolution; the pool is
+    /// re-scored at the fine resolution when the switch happens.
+    pub lowres_iterations: u32,
     /// After the particle filter, a deterministic local pattern search (not in the paper; off with
     /// `--no-polish`): see [`polish`].
     pub polish: bool,
@@ -88,6 +91,7 @@ impl Default for FineParams {
             sigma_m: 1.5,
             yaw_deg: 2.0,
             gamma: 0.3,
+            lowres_iterations: 20,
             polish: true,
         }
     }
@@ -194,7 +198,17 @@ pub fn search<E: Evaluate>(
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let unit = Normal::new(0.0, 1.0).expect("σ = 1 is valid");
     let n_iter = fine.iterations.max(1);
+    let lowres = fine.lowres_iterations.min(n_iter);
+    // Scores in `pool` come from the coarse evaluator until they are re-scored at the fine one.
+    let mut pool_is_fine = false;
     for i in 0..n_iter {
+        if i >= lowres && !pool_is_fine {
+            let hyps: Vec<Hypothesis> = pool.iter().map(|p| p.0).collect();
+            let s = eval.evaluate(&hyps)?;
+            scored_count += hyps.len() as u64;
+            pool = rank(hyps.into_iter().zip(s).collect());
+            pool_is_fine = true;
+        }
         let s = fine.gamma.max((n_iter - i) as f64 / n_iter as f64);
         let mut fresh: Vec<Hypothesis> = Vec::new();
         for &(h, _) in &pool {
@@ -209,7 +223,7 @@ pub fn search<E: Evaluate>(
                 });
             }
         }
-        let scores = eval.evaluate(&fresh)?;
+        let scores = if pool_is_fine { eval.evaluate(&fresh)? } else { coarse_eval.evaluate(&fresh)? };
         scored_count += fresh.len() as u64;
         let mut all = pool.clone();
         all.extend(fresh.into_iter().zip(scores));
@@ -217,6 +231,12 @@ pub fn search<E: Evaluate>(
         // b·keep_per_beam … (b+1)·keep_per_beam − 1).
         pool = rank(all);
         pool.truncate(keep);
+    }
+    if !pool_is_fine {
+        let hyps: Vec<Hypothesis> = pool.iter().map(|p| p.0).collect();
+        let s = eval.evaluate(&hyps)?;
+        scored_count += hyps.len() as u64;
+        pool = rank(hyps.into_iter().zip(s).collect());
     }
     let (mut best, mut best_score) = pool[0];
     if fine.polish {
@@ -343,7 +363,7 @@ mod tests {
         assert!(dt < 0.5, "translation error {dt} m");
         assert!((r.best.yaw_deg - target.yaw_deg).abs() < 0.3, "yaw {}", r.best.yaw_deg);
         let grid = coarse_grid(&prior, &CoarseParams::default()).len() as u64;
-        assert!(r.hypotheses_scored >= grid + 40 * 48, "{}", r.hypotheses_scored);
+        assert!(r.hypotheses_scored >= grid + 40 * 48 + 4, "{}", r.hypotheses_scored);
         assert_eq!(coarse.calls + bowl.calls, r.hypotheses_scored);
     }
 

@@ -206,19 +206,36 @@ fn raster_triangle(
         let (az, bz, cz) = (az * inv_area, bz * inv_area, cz * inv_area);
         for yi in y0..=y1 {
             let row = yi as usize * w;
-            let mut v = row_e;
-            for xi in x0..=x1 {
-                if v[0] >= bias[0] && v[1] >= bias[1] && v[2] >= bias[2] {
+            // The covered span of this row, solved exactly from the three edge functions
+            // e_n(x) = row_e[n] + (x − x0)·step_x[n] ≥ bias[n] (integer arithmetic, no per-pixel test).
+            let (mut lo, mut hi) = (0i64, x1 - x0);
+            for n in 0..3 {
+                let (e0, sx, b) = (row_e[n], step_x[n], bias[n]);
+                if sx == 0 {
+                    if e0 < b {
+                        hi = -1;
+                    }
+                } else if sx > 0 {
+                    // x − x0 ≥ ceil((b − e0) / sx)
+                    lo = lo.max((b - e0).div_euclid(sx) + ((b - e0).rem_euclid(sx) != 0) as i64);
+                } else {
+                    // x − x0 ≤ floor((e0 − b) / −sx)
+                    hi = hi.min((e0 - b).div_euclid(-sx));
+                }
+            }
+            if lo <= hi {
+                let mut v = [0, 1, 2].map(|n| row_e[n] + lo * step_x[n]);
+                for xi in x0 + lo..=x0 + hi {
                     let z = (v[0] as f64 * az + v[1] as f64 * bz + v[2] as f64 * cz) as f32;
                     let i = row + xi as usize;
                     if z > inv_z[i] {
                         inv_z[i] = z;
                         ids[i] = id;
                     }
+                    v[0] += step_x[0];
+                    v[1] += step_x[1];
+                    v[2] += step_x[2];
                 }
-                v[0] += step_x[0];
-                v[1] += step_x[1];
-                v[2] += step_x[2];
             }
             row_e[0] += step_y[0];
             row_e[1] += step_y[1];
