@@ -224,17 +224,19 @@ fn raster_triangle(
                 }
             }
             if lo <= hi {
-                let mut v = [0, 1, 2].map(|n| row_e[n] + lo * step_x[n]);
-                for xi in x0 + lo..=x0 + hi {
-                    let z = (v[0] as f64 * az + v[1] as f64 * bz + v[2] as f64 * cz) as f32;
-                    let i = row + xi as usize;
-                    if z > inv_z[i] {
-                        inv_z[i] = z;
-                        ids[i] = id;
+                // 1/z is affine in screen space: start exactly at the span's first pixel, then step.
+                let v = [0, 1, 2].map(|n| (row_e[n] + lo * step_x[n]) as f64);
+                let mut z = v[0] * az + v[1] * bz + v[2] * cz;
+                let dz = step_x[0] as f64 * az + step_x[1] as f64 * bz + step_x[2] as f64 * cz;
+                let start = row + (x0 + lo) as usize;
+                let end = row + (x0 + hi) as usize;
+                for (zb, idb) in inv_z[start..=end].iter_mut().zip(&mut ids[start..=end]) {
+                    let zf = z as f32;
+                    if zf > *zb {
+                        *zb = zf;
+                        *idb = id;
                     }
-                    v[0] += step_x[0];
-                    v[1] += step_x[1];
-                    v[2] += step_x[2];
+                    z += dz;
                 }
             }
             row_e[0] += step_y[0];
