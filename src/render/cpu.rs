@@ -16,33 +16,77 @@ use crate::scene::SceneMesh;
 pub const NEAR_M: f64 = 0.1;
 
 /// A mesh prepared for repeated CPU rasterisation: positions relative to an anchor (f64 → f32 after
-/// subtracting), per-triangle IDs.
+/// subtracting), grouped by building (contiguous vertices and triangles with a bounding box each), so
+/// a frame transforms only the buildings its frustum can see.
 #[derive(Debug, Clone)]
 pub struct CpuScene {
     anchor_m: [f64; 3],
-    /// Positions relative to `anchor_m`, metres.
+    /// Positions relative to `anchor_m`, metres, building by building.
     positions: Vec<[f32; 3]>,
     triangles: Vec<[u32; 3]>,
-    tri_ids: Vec<u32>,
+    groups: Vec<Group>,
+}
+
+/// One building's share of a [`CpuScene`].
+#[derive(Debug, Clone)]
+struct Group {
+    id: u32,
+    vertices: std::ops::Range<usize>,
+    triangles: std::ops::Range<usize>,
+    /// Bounding box relative to the anchor, metres.
+    min: [f32; 3],
+    max: [f32; 3],
 }
 
 impl CpuScene {
     /// Builds a CPU scene from a mesh; `anchor_m` should be near the cameras (e.g. the prior centre).
+    /// Vertices are duplicated per building where two buildings share one (IDs are per vertex).
     pub fn new(mesh: &SceneMesh, anchor_m: [f64; 3]) -> CpuScene {
-        let positions = mesh
-            .positions_m
-            .iter()
-            .map(|p| {
-                [
-                    (p[0] as f64 - anchor_m[0]) as f32,
-                    (p[1] as f64 - anchor_m[1]) as f32,
-                    (p[2] as f64 - anchor_m[2]) as f32,
-                ]
-            })
-            .collect();
-        let triangles: Vec<[u32; 3]> = mesh.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
-        let tri_ids = triangles.iter().map(|t| mesh.building_ids[t[0] as usize]).collect();
-        CpuScene { anchor_m, positions, triangles, tri_ids }
+        let rel = |p: [f32; 3]| {
+            [
+                (p[0] as f64 - anchor_m[0]) as f32,
+                (p[1] as f64 - anchor_m[1]) as f32,
+                (p[2] as f64 - anchor_m[2]) as f32,
+            ]
+        };
+        // Triangles by building (stable, so the draw order within a building is the mesh's).
+        let mut order: Vec<usize> = (0..mesh.indices.len() / 3).collect();
+        let tri_id = |t: usize| mesh.building_ids[mesh.indices[3 * t] as usize];
+        order.sort_by_key(|&t| tri_id(t));
+        let mut positions = Vec::new();
+        let mut triangles = Vec::with_capacity(order.len());
+        let mut groups: Vec<Group> = Vec::new();
+        let mut remap: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
+        for &t in &order {
+            let id = tri_id(t);
+            if groups.last().is_none_or(|g| g.id != id) {
+                remap.clear();
+                groups.push(Group {
+                    id,
+                    vertices: positions.len()..positions.len(),
+                    triangles: triangles.len()..triangles.len(),
+                    min: [f32::INFINITY; 3],
+                    max: [f32::NEG_INFINITY; 3],
+                });
+            }
+            let g = groups.last_mut().expect("pushed above");
+            let tri = [0, 1, 2].map(|j| {
+                let v = mesh.indices[3 * t + j];
+                *remap.entry(v).or_insert_with(|| {
+                    let p = rel(mesh.positions_m[v as usize]);
+                    for a in 0..3 {
+                        g.min[a] = g.min[a].min(p[a]);
+                        g.max[a] = g.max[a].max(p[a]);
+                    }
+                    positions.push(p);
+                    (positions.len() - 1) as u32
+                })
+            });
+            triangles.push(tri);
+            g.vertices.end = positions.len();
+            g.triangles.end = triangles.len();
+        }
+        CpuScene { anchor_m, positions, triangles, groups }
     }
 
     pub fn triangle_count(&self) -> usize {
@@ -56,6 +100,16 @@ pub struct Frame {
     pub ids: Vec<u32>,
     inv_z: Vec<f32>,
     cam: Vec<[f32; 3]>,
+    /// Per vertex in front of the near plane: snapped screen position and 1/z.
+    screen: Vec<Screen>,
+}
+
+/// A vertex on screen: position in 1/256 px (integers, so edge functions are exact) and 1/z.
+#[derive(Debug, Clone, Copy, Default)]
+struct Screen {
+    x: i64,
+    y: i64,
+    inv_z: f64,
 }
 
 #[derive(Clone, Copy)]
@@ -86,28 +140,77 @@ pub fn render_ids(scene: &CpuScene, pose: &Pose, k: &Intrinsics, frame: &mut Fra
     ];
     let rf = r.map(|row| row.map(|v| v as f32));
     let rtf = rt.map(|v| v as f32);
-    frame.cam.clear();
-    frame.cam.extend(scene.positions.iter().map(|p| {
+    let to_cam = |p: &[f32; 3]| {
         [
             rf[0][0] * p[0] + rf[0][1] * p[1] + rf[0][2] * p[2] + rtf[0],
             rf[1][0] * p[0] + rf[1][1] * p[1] + rf[1][2] * p[2] + rtf[1],
             rf[2][0] * p[0] + rf[2][1] * p[1] + rf[2][2] * p[2] + rtf[2],
         ]
-    }));
+    };
     let near = NEAR_M as f32;
+    let n = scene.positions.len();
+    frame.cam.resize(n, [0.0; 3]);
+    frame.screen.resize(n, Screen::default());
+    // Pixel centres span [half, (n − 1)·one + half] in sub-pixel units.
+    let (one, half) = (1i64 << SUBPIXEL_BITS, 1i64 << (SUBPIXEL_BITS - 1));
+    let (xmax, ymax) = ((w as i64 - 1) * one + half, (h as i64 - 1) * one + half);
+    let (wf, hf) = (w as f32, h as f32);
     let mut poly: Vec<ClipVert> = Vec::with_capacity(4);
-    for (ti, tri) in scene.triangles.iter().enumerate() {
-        let v = tri.map(|i| frame.cam[i as usize]);
-        let behind = v.iter().filter(|p| p[2] < near).count();
-        if behind == 3 {
+    for g in &scene.groups {
+        // Building-level frustum test on the 8 box corners (all behind the near plane, or all in
+        // front and entirely to one side of the image → invisible).
+        let mut behind = 0;
+        let (mut u0, mut u1, mut v0, mut v1) = (f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY);
+        for c in 0..8 {
+            let p = [
+                if c & 1 == 0 { g.min[0] } else { g.max[0] },
+                if c & 2 == 0 { g.min[1] } else { g.max[1] },
+                if c & 4 == 0 { g.min[2] } else { g.max[2] },
+            ];
+            let q = to_cam(&p);
+            if q[2] < near {
+                behind += 1;
+                continue;
+            }
+            let (u, v) = (k.fx_px as f32 * q[0] / q[2] + k.cx_px as f32, k.fy_px as f32 * q[1] / q[2] + k.cy_px as f32);
+            u0 = u0.min(u);
+            u1 = u1.max(u);
+            v0 = v0.min(v);
+            v1 = v1.max(v);
+        }
+        if behind == 8 || (behind == 0 && (u1 < -1.0 || u0 > wf + 1.0 || v1 < -1.0 || v0 > hf + 1.0)) {
             continue;
         }
-        let id = scene.tri_ids[ti];
-        if behind == 0 {
-            let a = v.map(|p| ClipVert { x: p[0] as f64, y: p[1] as f64, z: p[2] as f64 });
-            raster_triangle(k, a[0], a[1], a[2], id, &mut frame.ids, &mut frame.inv_z, w, h);
-            continue;
+        // Transform and project this building's vertices once (shared by its triangles).
+        for vi in g.vertices.clone() {
+            let q = to_cam(&scene.positions[vi]);
+            frame.cam[vi] = q;
+            frame.screen[vi] = if q[2] >= near {
+                project(k, ClipVert { x: q[0] as f64, y: q[1] as f64, z: q[2] as f64 })
+            } else {
+                Screen::default()
+            };
         }
+        let id = g.id;
+        for tri in &scene.triangles[g.triangles.clone()] {
+            let v = tri.map(|i| frame.cam[i as usize]);
+            let behind = v.iter().filter(|p| p[2] < near).count();
+            if behind == 3 {
+                continue;
+            }
+            if behind == 0 {
+                let [a, b, c] = tri.map(|i| frame.screen[i as usize]);
+                // Off-screen triangles leave before any set-up.
+                if a.x.max(b.x).max(c.x) < half
+                    || a.x.min(b.x).min(c.x) > xmax
+                    || a.y.max(b.y).max(c.y) < half
+                    || a.y.min(b.y).min(c.y) > ymax
+                {
+                    continue;
+                }
+                raster_fixed(a, b, c, id, &mut frame.ids, &mut frame.inv_z, w, h);
+                continue;
+            }
         // Clip against z = near (Sutherland–Hodgman) and fan-triangulate.
         poly.clear();
         for e in 0..3 {
@@ -125,8 +228,10 @@ pub fn render_ids(scene: &CpuScene, pose: &Pose, k: &Intrinsics, frame: &mut Fra
                 });
             }
         }
-        for i in 1..poly.len().saturating_sub(1) {
-            raster_triangle(k, poly[0], poly[i], poly[i + 1], id, &mut frame.ids, &mut frame.inv_z, w, h);
+            for i in 1..poly.len().saturating_sub(1) {
+                let [a, b, c] = [poly[0], poly[i], poly[i + 1]].map(|p| project(k, p));
+                raster_fixed(a, b, c, id, &mut frame.ids, &mut frame.inv_z, w, h);
+            }
         }
     }
 }
@@ -135,29 +240,37 @@ pub fn render_ids(scene: &CpuScene, pose: &Pose, k: &Intrinsics, frame: &mut Fra
 const SUBPIXEL_BITS: u32 = 8;
 const SUBPIXEL: f64 = (1 << SUBPIXEL_BITS) as f64;
 
+/// Screen position snapped to 1/256 px in integers: edge functions are then exact, so a shared edge is
+/// decided identically for both triangles (watertight, no double coverage). Saturates far off-screen
+/// (points grazing the near plane); such triangles are rejected before integer maths.
+#[inline]
+fn project(k: &Intrinsics, p: ClipVert) -> Screen {
+    let u = k.fx_px * p.x / p.z + k.cx_px;
+    let v = k.fy_px * p.y / p.z + k.cy_px;
+    Screen { x: round_fixed(u * SUBPIXEL), y: round_fixed(v * SUBPIXEL), inv_z: 1.0 / p.z }
+}
+
+/// Rounds to the nearest integer, ties to even (as the GPU's float → fixed-point snapping), without a
+/// libm call: adding 1.5·2^52 pushes the fraction out of the mantissa. Values beyond ±2^50 saturate
+/// (they are rejected later as absurd projections).
+#[inline]
+fn round_fixed(x: f64) -> i64 {
+    const MAGIC: f64 = 6_755_399_441_055_744.0; // 1.5 · 2^52
+    if x.abs() < (1u64 << 50) as f64 {
+        ((x + MAGIC) - MAGIC) as i64
+    } else if x > 0.0 {
+        1 << 50
+    } else {
+        -(1 << 50)
+    }
+}
+
 #[allow(clippy::too_many_arguments)]
 #[inline]
-fn raster_triangle(
-    k: &Intrinsics,
-    a: ClipVert,
-    b: ClipVert,
-    c: ClipVert,
-    id: u32,
-    ids: &mut [u32],
-    inv_z: &mut [f32],
-    w: usize,
-    h: usize,
-) {
-    // Screen positions snapped to 1/256 px in integers: edge functions are then exact, so a shared
-    // edge is decided identically for both triangles (watertight, no double coverage).
-    let proj = |p: ClipVert| {
-        let u = k.fx_px * p.x / p.z + k.cx_px;
-        let v = k.fy_px * p.y / p.z + k.cy_px;
-        ((u * SUBPIXEL).round() as i64, (v * SUBPIXEL).round() as i64, 1.0 / p.z)
-    };
-    let (ax, ay, az) = proj(a);
-    let (mut bx, mut by, mut bz) = proj(b);
-    let (mut cx, mut cy, mut cz) = proj(c);
+fn raster_fixed(a: Screen, b: Screen, c: Screen, id: u32, ids: &mut [u32], inv_z: &mut [f32], w: usize, h: usize) {
+    let (ax, ay, az) = (a.x, a.y, a.inv_z);
+    let (mut bx, mut by, mut bz) = (b.x, b.y, b.inv_z);
+    let (mut cx, mut cy, mut cz) = (c.x, c.y, c.inv_z);
     // Reject absurd projections (points grazing the near plane far off-screen) before integer maths.
     let lim = 1i64 << 40;
     if [ax, ay, bx, by, cx, cy].iter().any(|v| v.abs() > lim) {
