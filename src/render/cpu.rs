@@ -276,7 +276,15 @@ fn raster_fixed(a: Screen, b: Screen, c: Screen, id: u32, ids: &mut [u32], inv_z
     if [ax, ay, bx, by, cx, cy].iter().any(|v| v.abs() > lim) {
         return;
     }
-    let mut area = (bx - ax) as i128 * (cy - ay) as i128 - (cx - ax) as i128 * (by - ay) as i128;
+    // Coordinates within ±2^24 sub-pixels (±65536 px, the common case) keep every product below
+    // 2^50, so the area and the edge functions fit in i64; otherwise (a sliver grazing the near
+    // plane) they are evaluated in i128.
+    let small = [ax, ay, bx, by, cx, cy].iter().all(|v| v.abs() < 1 << 24);
+    let mut area = if small {
+        ((bx - ax) * (cy - ay) - (cx - ax) * (by - ay)) as i128
+    } else {
+        (bx - ax) as i128 * (cy - ay) as i128 - (cx - ax) as i128 * (by - ay) as i128
+    };
     if area == 0 {
         return;
     }
@@ -288,9 +296,10 @@ fn raster_fixed(a: Screen, b: Screen, c: Screen, id: u32, ids: &mut [u32], inv_z
     }
     let half = (1i64 << SUBPIXEL_BITS) / 2;
     let one = 1i64 << SUBPIXEL_BITS;
-    // Pixel xi's centre is xi·one + half; covered range of centres within the bounding box.
-    let first = |lo: i64| ((lo - half) as f64 / one as f64).ceil().max(0.0) as i64;
-    let last = |hi: i64, n: usize| ((hi - half) as f64 / one as f64).floor().min(n as f64 - 1.0) as i64;
+    // Pixel xi's centre is xi·one + half; covered range of centres within the bounding box
+    // (exact integer ceil/floor divisions).
+    let first = |lo: i64| ((lo - half).div_euclid(one) + ((lo - half).rem_euclid(one) != 0) as i64).max(0);
+    let last = |hi: i64, n: usize| (hi - half).div_euclid(one).min(n as i64 - 1);
     let (x0, x1) = (first(ax.min(bx).min(cx)), last(ax.max(bx).max(cx), w));
     let (y0, y1) = (first(ay.min(by).min(cy)), last(ay.max(by).max(cy), h));
     if x0 > x1 || y0 > y1 {
@@ -305,10 +314,7 @@ fn raster_fixed(a: Screen, b: Screen, c: Screen, id: u32, ids: &mut [u32], inv_z
         (dx as i128, dy as i128, x0 as i128, y0 as i128, if top_left { 0i128 } else { 1i128 })
     };
     let e = [edge(bx, by, cx, cy), edge(cx, cy, ax, ay), edge(ax, ay, bx, by)];
-    let inv_area = 1.0 / area as f64;
-    // Common case: every coordinate within ±2^24 sub-pixels (±65536 px), so the edge functions fit
-    // in i64 and step incrementally; otherwise (a sliver grazing the near plane) evaluate in i128.
-    let small = [ax, ay, bx, by, cx, cy].iter().all(|v| v.abs() < 1 << 24);
+    let inv_area = 1.0 / if small { area as i64 as f64 } else { area as f64 };
     if small {
         let e64 = e.map(|(dx, dy, ex, ey, bias)| (dx as i64, dy as i64, ex as i64, ey as i64, bias as i64));
         let (px0, py0) = (x0 * one + half, y0 * one + half);
