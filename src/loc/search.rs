@@ -267,7 +267,10 @@ fn moves(h: &Hypothesis, step_m: f64, step_deg: f64, pivot_m: Option<[f64; 3]>) 
             let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
             if n > 1e-9 {
                 let k = sign * step_m / n;
-                out.push(Hypothesis { centre_m: [c[0] + k * d[0], c[1] + k * d[1], c[2] + k * d[2]], yaw_deg: h.yaw_deg });
+                out.push(Hypothesis {
+                    centre_m: [c[0] + k * d[0], c[1] + k * d[1], c[2] + k * d[2]],
+                    yaw_deg: h.yaw_deg,
+                });
             }
             // Orbit: yaw + δ turns the view clockwise seen from above (Pose::from_ypr_deg), so the
             // centre turns clockwise about the pivot by the same angle.
@@ -303,7 +306,10 @@ pub fn polish<E: Evaluate>(
             let s = eval.evaluate(&cand)?;
             scored += cand.len() as u64;
             // Strictly better only (ties keep the current pose: deterministic, no drifting on plateaus).
-            let (i, &v) = s.iter().enumerate().fold((usize::MAX, &best_score), |acc, (i, v)| if *v > *acc.1 { (i, v) } else { acc });
+            let (i, &v) =
+                s.iter()
+                    .enumerate()
+                    .fold((usize::MAX, &best_score), |acc, (i, v)| if *v > *acc.1 { (i, v) } else { acc });
             if i == usize::MAX {
                 break;
             }

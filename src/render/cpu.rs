@@ -160,7 +160,8 @@ pub fn render_ids(scene: &CpuScene, pose: &Pose, k: &Intrinsics, frame: &mut Fra
         // Building-level frustum test on the 8 box corners (all behind the near plane, or all in
         // front and entirely to one side of the image → invisible).
         let mut behind = 0;
-        let (mut u0, mut u1, mut v0, mut v1) = (f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY);
+        let (mut u0, mut u1, mut v0, mut v1) =
+            (f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY);
         for c in 0..8 {
             let p = [
                 if c & 1 == 0 { g.min[0] } else { g.max[0] },
@@ -172,7 +173,10 @@ pub fn render_ids(scene: &CpuScene, pose: &Pose, k: &Intrinsics, frame: &mut Fra
                 behind += 1;
                 continue;
             }
-            let (u, v) = (k.fx_px as f32 * q[0] / q[2] + k.cx_px as f32, k.fy_px as f32 * q[1] / q[2] + k.cy_px as f32);
+            let (u, v) = (
+                k.fx_px as f32 * q[0] / q[2] + k.cx_px as f32,
+                k.fy_px as f32 * q[1] / q[2] + k.cy_px as f32,
+            );
             u0 = u0.min(u);
             u1 = u1.max(u);
             v0 = v0.min(v);
@@ -211,23 +215,23 @@ pub fn render_ids(scene: &CpuScene, pose: &Pose, k: &Intrinsics, frame: &mut Fra
                 raster_fixed(a, b, c, id, &mut frame.ids, &mut frame.inv_z, w, h);
                 continue;
             }
-        // Clip against z = near (Sutherland–Hodgman) and fan-triangulate.
-        poly.clear();
-        for e in 0..3 {
-            let (p, q) = (v[e], v[(e + 1) % 3]);
-            let (pin, qin) = (p[2] >= near, q[2] >= near);
-            if pin {
-                poly.push(ClipVert { x: p[0] as f64, y: p[1] as f64, z: p[2] as f64 });
+            // Clip against z = near (Sutherland–Hodgman) and fan-triangulate.
+            poly.clear();
+            for e in 0..3 {
+                let (p, q) = (v[e], v[(e + 1) % 3]);
+                let (pin, qin) = (p[2] >= near, q[2] >= near);
+                if pin {
+                    poly.push(ClipVert { x: p[0] as f64, y: p[1] as f64, z: p[2] as f64 });
+                }
+                if pin != qin {
+                    let s = (NEAR_M - p[2] as f64) / (q[2] as f64 - p[2] as f64);
+                    poly.push(ClipVert {
+                        x: p[0] as f64 + s * (q[0] as f64 - p[0] as f64),
+                        y: p[1] as f64 + s * (q[1] as f64 - p[1] as f64),
+                        z: NEAR_M,
+                    });
+                }
             }
-            if pin != qin {
-                let s = (NEAR_M - p[2] as f64) / (q[2] as f64 - p[2] as f64);
-                poly.push(ClipVert {
-                    x: p[0] as f64 + s * (q[0] as f64 - p[0] as f64),
-                    y: p[1] as f64 + s * (q[1] as f64 - p[1] as f64),
-                    z: NEAR_M,
-                });
-            }
-        }
             for i in 1..poly.len().saturating_sub(1) {
                 let [a, b, c] = [poly[0], poly[i], poly[i + 1]].map(|p| project(k, p));
                 raster_fixed(a, b, c, id, &mut frame.ids, &mut frame.inv_z, w, h);
@@ -267,7 +271,16 @@ fn round_fixed(x: f64) -> i64 {
 
 #[allow(clippy::too_many_arguments)]
 #[inline]
-fn raster_fixed(a: Screen, b: Screen, c: Screen, id: u32, ids: &mut [u32], inv_z: &mut [f32], w: usize, h: usize) {
+fn raster_fixed(
+    a: Screen,
+    b: Screen,
+    c: Screen,
+    id: u32,
+    ids: &mut [u32],
+    inv_z: &mut [f32],
+    w: usize,
+    h: usize,
+) {
     let (ax, ay, az) = (a.x, a.y, a.inv_z);
     let (mut bx, mut by, mut bz) = (b.x, b.y, b.inv_z);
     let (mut cx, mut cy, mut cz) = (c.x, c.y, c.inv_z);

@@ -1,0 +1,229 @@
+//! `insgen eval-loc` end to end on the held-out demo district: prepare → sample (cam2, grid) →
+//! render-masks → eval-loc from the default priors must localize every query to (2 m, 2°) with the
+//! oracle masks; the same queries given as a COCO results file (predictions) or as LoD-Loc/COLMAP
+//! lists must give the same estimates; outputs validate against their schemas; a results file for
+//! another dataset fails with a clear error.
+
+mod util;
+
+use std::path::Path;
+
+use serde_json::Value;
+use util::{assert_schema, insgen, repo_scene, scratch_with_scenes, stderr};
+
+const QUERIES: &str = "3";
+
+fn ok(cwd: &Path, args: &[&str]) {
+    let out = insgen(cwd, args);
+    assert!(out.status.success(), "insgen {}: {}", args.join(" "), stderr(&out));
+}
+
+fn results(path: &Path) -> Vec<Value> {
+    std::fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("JSON line"))
+        .collect()
+}
+
+fn estimates(rows: &[Value]) -> Vec<(String, Vec<f64>)> {
+    rows.iter()
+        .map(|r| {
+            let est = r["estimate"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+            (r["name"].as_str().unwrap().to_string(), est)
+        })
+        .collect()
+}
+
+#[test]
+fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
+    let dir = scratch_with_scenes(&[("demo-test", repo_scene("demo-test"))]);
+    let cwd = dir.path();
+    ok(cwd, &["prepare", "--area", "demo-test"]);
+    ok(cwd, &["sample", "--area", "demo-test", "--camera", "cam2", "--count", QUERIES]);
+    ok(cwd, &["render-masks", "--area", "demo-test", "--camera", "cam2"]);
+    let cam = cwd.join("runs/demo-test/cam2");
+
+    // 1. Oracle masks from poses.jsonl / priors.jsonl.
+    ok(
+        cwd,
+        &[
+            "--no-progress",
+            "eval-loc",
+            "--area",
+            "demo-test",
+            "--camera",
+            "cam2",
+            "--oracle",
+            "--overlays",
+            "1",
+        ],
+    );
+    let out = cam.join("loc/oracle");
+    let oracle = results(&out.join("results.jsonl"));
+    assert_eq!(oracle.len(), 3);
+    for r in &oracle {
+        assert_schema("loc_result.schema.json", r);
+        let (t, rot) =
+            (r["translation_error_m"].as_f64().unwrap(), r["rotation_error_deg"].as_f64().unwrap());
+        let (pt, prot) = (
+            r["prior_translation_error_m"].as_f64().unwrap(),
+            r["prior_rotation_error_deg"].as_f64().unwrap(),
+        );
+        assert!(t < 2.0 && rot < 2.0, "{}: {t} m / {rot}° from a prior {pt} m / {prot}° off", r["name"]);
+        assert!(t < pt, "{}: the estimate must beat the prior", r["name"]);
+        // The search never scores below what it started from: its best is at least the cost at the
+        // ground truth minus the sampling gap.
+        assert!(r["best_cost"].as_f64().unwrap() > 0.9, "{r}");
+    }
+    let summary: Value = serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
+    assert_schema("loc_summary.schema.json", &summary);
+    let rows = summary["rows"].as_array().unwrap();
+    assert_eq!(rows[0]["method"], "prior");
+    assert_eq!(rows[1]["recall_pct"][0].as_f64().unwrap(), 100.0, "{}", rows[1]);
+    assert!(std::fs::read_to_string(out.join("summary.md")).unwrap().contains("| prior |"));
+    // est_poses: NAME qw qx qy qz tx ty tz, unit quaternions.
+    let est = std::fs::read_to_string(out.join("est_poses_instance.txt")).unwrap();
+    assert_eq!(est.lines().count(), 3);
+    for line in est.lines() {
+        let f: Vec<f64> = line.split_whitespace().skip(1).map(|v| v.parse().unwrap()).collect();
+        assert_eq!(f.len(), 7, "{line}");
+        assert!((f[..4].iter().map(|q| q * q).sum::<f64>() - 1.0).abs() < 1e-9, "{line}");
+    }
+    assert!(out.join("overlays").read_dir().unwrap().count() == 1, "one overlay PNG");
+
+    // 2. The ground truth as a segmentation model's COCO results (score 1, compressed RLE).
+    ok(cwd, &["export-coco"]);
+    let coco: Value =
+        serde_json::from_slice(&std::fs::read(cwd.join("runs/coco/instances_test.json")).unwrap()).unwrap();
+    let preds: Vec<Value> = coco["annotations"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|a| {
+            serde_json::json!({
+                "image_id": a["image_id"], "category_id": a["category_id"],
+                "segmentation": a["segmentation"], "bbox": a["bbox"], "score": 1.0
+            })
+        })
+        .collect();
+    let preds_path = cwd.join("preds.json");
+    std::fs::write(&preds_path, serde_json::to_vec(&preds).unwrap()).unwrap();
+    ok(
+        cwd,
+        &[
+            "eval-loc",
+            "--area",
+            "demo-test",
+            "--camera",
+            "cam2",
+            "--predictions",
+            "preds.json",
+            "--overlays",
+            "0",
+        ],
+    );
+    let predicted = results(&cam.join("loc/predictions/results.jsonl"));
+    for (p, o) in predicted.iter().zip(&oracle) {
+        assert_eq!(p["name"], o["name"]);
+        assert!(p["translation_error_m"].as_f64().unwrap() < 2.0, "{p}");
+        // The same masks (COCO drops components below 16 px, the oracle keeps them): close results.
+        assert!(
+            (p["translation_error_m"].as_f64().unwrap() - o["translation_error_m"].as_f64().unwrap()).abs()
+                < 1.0
+        );
+    }
+
+    // 3. The LoD-Loc lists (intrinsics, ground truth, priors) instead of poses.jsonl: same estimates.
+    let lists = |file: &str| -> (String, String) {
+        let (mut k, mut p) = (String::new(), String::new());
+        for line in std::fs::read_to_string(cam.join(file)).unwrap().lines() {
+            let r: Value = serde_json::from_str(line).unwrap();
+            let i = &r["intrinsics"];
+            k.push_str(&format!(
+                "{} PINHOLE {} {} {} {} {} {}\n",
+                r["name"].as_str().unwrap(),
+                i["width_px"],
+                i["height_px"],
+                i["fx_px"],
+                i["fy_px"],
+                i["cx_px"],
+                i["cy_px"]
+            ));
+            let q = r["colmap_qvec"].as_array().unwrap();
+            let t = r["colmap_tvec"].as_array().unwrap();
+            p.push_str(&format!(
+                "{} {} {} {} {} {} {} {}\n",
+                r["name"].as_str().unwrap(),
+                q[0],
+                q[1],
+                q[2],
+                q[3],
+                t[0],
+                t[1],
+                t[2]
+            ));
+        }
+        (k, p)
+    };
+    let (intrinsics, gt) = lists("poses.jsonl");
+    let (_, prior) = lists("priors.jsonl");
+    std::fs::write(cwd.join("queries.txt"), intrinsics).unwrap();
+    std::fs::write(cwd.join("gt.txt"), gt).unwrap();
+    std::fs::write(cwd.join("prior.txt"), prior).unwrap();
+    ok(
+        cwd,
+        &[
+            "eval-loc",
+            "--area",
+            "demo-test",
+            "--camera",
+            "cam2",
+            "--oracle",
+            "--query-list",
+            "queries.txt",
+            "--gt-poses",
+            "gt.txt",
+            "--prior-poses",
+            "prior.txt",
+            "--out",
+            "colmap-loc",
+            "--overlays",
+            "0",
+        ],
+    );
+    let colmap = results(&cwd.join("colmap-loc/results.jsonl"));
+    assert_eq!(colmap[0]["group"], "query");
+    for ((n1, e1), (n2, e2)) in estimates(&colmap).iter().zip(&estimates(&oracle)) {
+        assert_eq!(n1, n2);
+        // Poses round-trip through the COLMAP text exactly up to the quaternion's last bits.
+        for (a, b) in e1.iter().zip(e2) {
+            assert!((a - b).abs() < 1e-3, "{n1}: {e1:?} vs {e2:?}");
+        }
+    }
+
+    // 4. A results file whose image ids belong to another dataset: a clear error, no output.
+    std::fs::write(
+        cwd.join("other.json"),
+        r#"[{"image_id": 999, "category_id": 1, "segmentation": {"size": [4, 4], "counts": "52203"}, "score": 0.9}]"#,
+    )
+    .unwrap();
+    let out = insgen(
+        cwd,
+        &[
+            "eval-loc",
+            "--area",
+            "demo-test",
+            "--camera",
+            "cam2",
+            "--predictions",
+            "other.json",
+            "--tag",
+            "bad",
+        ],
+    );
+    assert!(!out.status.success());
+    let e = stderr(&out);
+    assert!(e.contains("other.json") && e.contains("none of its image ids"), "{e}");
+    assert!(!cam.join("loc/bad").exists(), "nothing written on error");
+}
