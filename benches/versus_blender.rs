@@ -38,8 +38,8 @@ fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// Runs the insgen binary; panics with its stderr on failure.
-fn insgen(work: &Path, args: &[&str]) -> String {
+/// Runs the insgen binary; returns whether it succeeded and its stdout + stderr.
+fn insgen_status(work: &Path, args: &[&str]) -> (bool, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_insgen"))
         .arg("--workdir")
         .arg(work)
@@ -50,8 +50,14 @@ fn insgen(work: &Path, args: &[&str]) -> String {
         .output()
         .expect("insgen runs");
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "insgen {}: {stderr}", args.join(" "));
-    String::from_utf8_lossy(&out.stdout).into_owned() + &stderr
+    (out.status.success(), String::from_utf8_lossy(&out.stdout).into_owned() + &stderr)
+}
+
+/// Runs the insgen binary; panics with its output on failure.
+fn insgen(work: &Path, args: &[&str]) -> String {
+    let (ok, text) = insgen_status(work, args);
+    assert!(ok, "insgen {}: {text}", args.join(" "));
+    text
 }
 
 fn median(mut v: Vec<f64>) -> f64 {

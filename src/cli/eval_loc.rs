@@ -67,10 +67,10 @@ pub struct Args {
     /// Instance weighting: by box area (the paper's main tables) or by confidence score.
     #[arg(long, value_enum, default_value_t = Weighting::Area)]
     pub weighting: Weighting,
-    /// Erode the oracle masks by K pixels (at the render resolution).
+    /// Erode the oracle masks by K pixels (at the masks' own resolution).
     #[arg(long, value_name = "K", default_value_t = 0, conflicts_with = "dilate")]
     pub erode: u32,
-    /// Dilate the oracle masks by K pixels.
+    /// Dilate the oracle masks by K pixels (at the masks' own resolution).
     #[arg(long, value_name = "K", default_value_t = 0)]
     pub dilate: u32,
     /// Fraction of instances dropped.

@@ -1,6 +1,8 @@
 //! Where the localizer's query instances come from, at the resolution the hypotheses are rendered:
 //! - the **oracle**: the ground-truth ID map of the frame (`masks/<frame>.png` from `render-masks`),
-//!   resized nearest-neighbour, split into connected components and degraded ([`super::oracle`]);
+//!   resized nearest-neighbour and split into connected components; degradations
+//!   ([`super::oracle`]) apply at the mask's own resolution (a segmenter errs in image pixels) before
+//!   the resize;
 //! - **predictions**: a segmentation model's COCO results file (RLE + score at any resolution), each
 //!   mask resized nearest-neighbour to the render resolution; image ids are mapped to frames through
 //!   the COCO instances file(s) that `export-coco` wrote (their `images[]` carry `area_name`, `camera`
@@ -90,9 +92,24 @@ fn oracle_query(
         path: path.clone(),
         what: format!("{e}; run `insgen render-masks` for this camera first"),
     })?;
-    let ids = resize_nearest(&map.ids, map.width, map.height, k.width_px, k.height_px);
-    let lab = label_components(&ids, k.width_px, k.height_px, Connectivity::Eight);
-    Ok(oracle::degrade(k.width_px, k.height_px, &lab.labels, lab.components.len() as u32, d, seed))
+    if d.is_perfect() {
+        // What a perfect segmenter run at the render resolution would output.
+        let ids = resize_nearest(&map.ids, map.width, map.height, k.width_px, k.height_px);
+        let lab = label_components(&ids, k.width_px, k.height_px, Connectivity::Eight);
+        return Ok(oracle::degrade(k.width_px, k.height_px, &lab.labels, lab.components.len() as u32, d, seed));
+    }
+    // A segmenter's errors are in image pixels: degrade at the mask's own resolution, then resize.
+    let lab = label_components(&map.ids, map.width, map.height, Connectivity::Eight);
+    let q = oracle::degrade(map.width, map.height, &lab.labels, lab.components.len() as u32, d, seed);
+    let mut labels = vec![0u32; map.ids.len()];
+    for (j, inst) in q.instances.iter().enumerate() {
+        for &p in &inst.pixels {
+            labels[p as usize] = j as u32 + 1;
+        }
+    }
+    let small = resize_nearest(&labels, map.width, map.height, k.width_px, k.height_px);
+    let scores: Vec<f64> = q.instances.iter().map(|i| i.score).collect();
+    Ok(Query::from_labels(k.width_px, k.height_px, &small, &scores))
 }
 
 /// The query made of `preds` (any resolution) resized to `k`; predictions scoring below `min_score`
