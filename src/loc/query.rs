@@ -96,7 +96,14 @@ fn oracle_query(
         // What a perfect segmenter run at the render resolution would output.
         let ids = resize_nearest(&map.ids, map.width, map.height, k.width_px, k.height_px);
         let lab = label_components(&ids, k.width_px, k.height_px, Connectivity::Eight);
-        return Ok(oracle::degrade(k.width_px, k.height_px, &lab.labels, lab.components.len() as u32, d, seed));
+        return Ok(oracle::degrade(
+            k.width_px,
+            k.height_px,
+            &lab.labels,
+            lab.components.len() as u32,
+            d,
+            seed,
+        ));
     }
     // A segmenter's errors are in image pixels: degrade at the mask's own resolution, then resize.
     let lab = label_components(&map.ids, map.width, map.height, Connectivity::Eight);
