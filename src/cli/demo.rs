@@ -53,7 +53,12 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     }
     let blender_python = std::path::Path::new(".venv-blender/bin/python");
     if !args.no_rgb && blender_python.exists() {
-        step(global, &["render-rgb", "--area", "demo", "--camera", &args.camera, "--limit", "2"])?;
+        // One frame at 16 samples: a cam2 frame at full resolution takes minutes on 2 cores
+        // (bench/versus_blender.md); render more with `insgen render-rgb`.
+        step(
+            global,
+            &["render-rgb", "--area", "demo", "--camera", &args.camera, "--limit", "1", "--samples", "16"],
+        )?;
     } else if !args.no_rgb {
         eprintln!("==> skipping render-rgb: .venv-blender is missing (scripts/setup.sh installs it)");
     }
