@@ -13,6 +13,8 @@ N_TOKYO="${2:-20}"
 cargo build --release --quiet --bin insgen
 B="target/release/insgen --no-progress -q"
 OUT=bench/loc_report.md
+TMP=target/loc_report.md.tmp
+mkdir -p target
 areas=(demo-test)
 [ -f ../shared/data/jp_tokyo_shibuya_plateau_3dtiles/tileset.json ] && areas+=(tokyo)
 {
@@ -24,7 +26,7 @@ areas=(demo-test)
   echo "±20 m / 5 m, ±10 m / 5 m, ±7.5° / 2.5° at 320 px; particle filter 40 × 52 (first 20 iterations at 320 px,"
   echo "then 640 px), then the local polish. Cost: best-match Dice, area weighting. Seconds are wall-clock per query and cost."
   echo
-} > "$OUT.tmp"
+} > "$TMP"
 for area in "${areas[@]}"; do
   n=$N_DEMO; [ "$area" = tokyo ] && n=$N_TOKYO
   for cam in cam2 cam3; do
@@ -40,11 +42,11 @@ for area in "${areas[@]}"; do
       $B eval-loc --area "$area" --camera "$cam" --oracle --limit "$n" --erode 2 --drop 0.1 --merge 0.1 \
         --cost instance --cost semantic --tag report-degraded
     for tag in report-oracle report-degraded; do
-      echo "## $area / $cam ($( [ $cam = cam2 ] && echo grid || echo sequence )), $tag" >> "$OUT.tmp"
-      tail -n +3 "runs/$area/$cam/loc/$tag/summary.md" >> "$OUT.tmp"
-      echo >> "$OUT.tmp"
+      echo "## $area / $cam ($( [ $cam = cam2 ] && echo grid || echo sequence )), $tag" >> "$TMP"
+      tail -n +3 "runs/$area/$cam/loc/$tag/summary.md" >> "$TMP"
+      echo >> "$TMP"
     done
   done
 done
-mv "$OUT.tmp" "$OUT"
+mv "$TMP" "$OUT"
 echo "written $OUT"
