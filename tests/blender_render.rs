@@ -308,6 +308,13 @@ fn rgb_job_renders_resumes_and_repeats_exactly() {
     render_frames(&p, &frames[1..], &NoProgress).unwrap();
     assert!(std::fs::read(p.out_dir.join("b.png")).unwrap() == first, "PNG rerender differs");
     assert!(std::fs::read(p.out_dir.join("b.exr")).unwrap() == first_exr, "EXR rerender differs");
+    // Resume after the poses changed (e.g. `sample` ran again): only the moved frame is redone.
+    p.force = false;
+    let mut moved = frames.clone();
+    moved[0].pose = Pose::from_ypr_deg(30.0, 0.0, 0.0, [5.0, 0.0, 120.0]);
+    let s = render_frames(&p, &moved, &NoProgress).unwrap();
+    assert_eq!((s.rendered.len(), s.skipped.len()), (1, 1), "a moved pose must not reuse its old frame");
+    assert_eq!(s.rendered[0].name, "a");
 }
 
 /// Mean colour step (sum of |ΔR|, |ΔG|, |ΔB|) between neighbours with different IDs, divided by the

@@ -254,6 +254,7 @@ fn write_area(workdir: &Path, spec: &AreaSpec) {
             connectivity: spec.connectivity,
             min_component_area_px: spec.min_component_area_px,
             instances,
+            pose_sha256: None,
         };
         write_json(&cam.join(format!("masks/{name}.instances.json")), &fi);
         if i < spec.rgb_frames {

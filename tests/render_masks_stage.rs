@@ -173,6 +173,29 @@ fn writes_masks_that_match_a_direct_render_and_resumes() {
     plan.connectivity = Connectivity::Four;
     let changed = stage::render_masks(&plan, &scene, r, &NoProgress).unwrap();
     assert_eq!(changed.rendered, 6, "a different connectivity must not reuse old instance lists");
+
+    // Poses sampled again under the same frame names: only the frame whose pose moved is redone.
+    let mut recs = recs;
+    let moved = Pose::from_ypr_deg(10.0, 0.0, 0.0, [5.0, 0.0, 180.0]);
+    recs[3] = PoseRecord::new(
+        "f003".into(),
+        "boxes",
+        "test",
+        Trajectory::Grid,
+        3,
+        0,
+        recs[3].intrinsics,
+        &moved,
+        &EnuFrame::new(Geodetic::new(35.658, 139.701, 40.0)),
+        0.0,
+    );
+    write_poses(&plan.camera_dir, &recs);
+    let resampled = stage::render_masks(&plan, &scene, r, &NoProgress).unwrap();
+    assert_eq!((resampled.rendered, resampled.skipped), (1, 5), "a moved pose must not reuse its old mask");
+    let direct = r
+        .render(&gpu, &View { intrinsics: recs[3].intrinsics, pose: moved }, &RenderOptions::default())
+        .unwrap();
+    assert_eq!(idpng::read_id_png(&plan.png_path("f003")).unwrap().ids, direct.ids);
 }
 
 #[test]

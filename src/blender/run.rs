@@ -257,11 +257,52 @@ fn finalize_output(o: &Output, k: &Intrinsics) -> Result<(), String> {
     std::fs::remove_file(&o.tmp).map_err(|e| format!("removing {}: {e}", o.tmp.display()))
 }
 
-/// Whether all of a frame's outputs exist and verify (the resume test).
+/// Fingerprint of what a frame's outputs depend on: its camera and the plan's render settings (hex
+/// SHA-256 of their exact `Debug` text, which round-trips f64).
+pub fn frame_fingerprint(plan: &RenderPlan, f: &FrameRequest) -> String {
+    use sha2::Digest;
+    let source = match &plan.source {
+        SceneSource::Lod { glb } => format!("lod {}", glb.display()),
+        SceneSource::Tileset { tileset, enu, select } => {
+            format!("tileset {} {enu:?} {select:?}", tileset.display())
+        }
+    };
+    let text = format!(
+        "{:?} {:?} {:?} {:?} {} {} {} {} {} {} {} {source}",
+        f.intrinsics,
+        f.pose,
+        plan.mode,
+        plan.engine,
+        plan.samples,
+        plan.seed,
+        plan.denoise,
+        plan.exr,
+        plan.look_seed,
+        plan.ground_enu_m,
+        plan.clip_start_m,
+    );
+    hex::encode(sha2::Sha256::digest(text.as_bytes()))
+}
+
+/// Where the fingerprint of a finished frame is kept (`<work_dir>/done/<mode>/<frame>.sha256`).
+fn stamp_path(plan: &RenderPlan, name: &str) -> PathBuf {
+    let mode = match plan.mode {
+        Mode::Rgb => "rgb",
+        Mode::Ids => "ids",
+    };
+    plan.work_dir.join("done").join(mode).join(format!("{name}.sha256"))
+}
+
+/// Whether all of a frame's outputs exist, verify, and were rendered from the same camera and
+/// settings (the resume test: frames whose pose changed since, e.g. after `sample` ran again, are
+/// redone).
 pub fn frame_complete(plan: &RenderPlan, f: &FrameRequest) -> bool {
-    frame_outputs(plan, &f.name)
-        .iter()
-        .all(|o| o.path.is_file() && verify_output(o.kind, &o.path, &f.intrinsics).is_ok())
+    let stamp_ok = std::fs::read_to_string(stamp_path(plan, &f.name))
+        .is_ok_and(|s| s.trim() == frame_fingerprint(plan, f));
+    stamp_ok
+        && frame_outputs(plan, &f.name)
+            .iter()
+            .all(|o| o.path.is_file() && verify_output(o.kind, &o.path, &f.intrinsics).is_ok())
 }
 
 /// Sun direction for a look seed: azimuth uniform in [0°, 360°), elevation uniform in [30°, 65°].
@@ -490,6 +531,13 @@ fn run_batch(
                         what,
                     })?;
                 }
+                let stamp = stamp_path(plan, &frame);
+                crate::util::write_bytes_atomic(&stamp, frame_fingerprint(plan, &batch[i]).as_bytes())
+                    .map_err(|e| BlenderError::Output {
+                        frame: frame.clone(),
+                        path: stamp.clone(),
+                        what: e.to_string(),
+                    })?;
                 done[i] = true;
                 summary.rendered.push(FrameTiming { name: frame, seconds, cpu_seconds });
                 progress.inc(1);

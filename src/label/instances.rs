@@ -37,4 +37,8 @@ pub struct FrameInstances {
     pub min_component_area_px: u64,
     /// Components in raster order of their first pixel.
     pub instances: Vec<InstanceEntry>,
+    /// SHA-256 (hex) of the frame's pose record as `render-masks` read it: a resumed run re-renders
+    /// frames whose pose or intrinsics changed since (e.g. after `sample` ran again).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pose_sha256: Option<String>,
 }

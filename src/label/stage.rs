@@ -292,7 +292,15 @@ pub fn read_poses(path: &Path) -> Result<Vec<PoseRecord>, StageError> {
     Ok(out)
 }
 
-/// Whether a frame's outputs exist and match what this plan would write.
+/// SHA-256 (hex) of a pose record's JSON: what a frame's outputs were rendered from.
+pub fn pose_digest(rec: &PoseRecord) -> String {
+    use sha2::Digest;
+    let json = serde_json::to_vec(rec).expect("a pose record serialises");
+    hex::encode(sha2::Sha256::digest(&json))
+}
+
+/// Whether a frame's outputs exist and match what this plan would write (same pose, size and
+/// settings).
 fn outputs_verify(plan: &MaskPlan, rec: &PoseRecord) -> bool {
     let k = &rec.intrinsics;
     match idpng::read_id_png_size(&plan.png_path(&rec.name)) {
@@ -302,6 +310,7 @@ fn outputs_verify(plan: &MaskPlan, rec: &PoseRecord) -> bool {
     let Ok(bytes) = std::fs::read(plan.instances_path(&rec.name)) else { return false };
     let Ok(fi) = serde_json::from_slice::<FrameInstances>(&bytes) else { return false };
     let settings_match = fi.frame == rec.name
+        && fi.pose_sha256.as_deref() == Some(pose_digest(rec).as_str())
         && (fi.width, fi.height) == (k.width_px, k.height_px)
         && fi.connectivity == plan.connectivity
         && fi.min_component_area_px == plan.min_area_px
@@ -391,6 +400,7 @@ pub fn frame_instances(
         connectivity,
         min_component_area_px: min_area_px,
         instances,
+        pose_sha256: None,
     }
 }
 
@@ -545,7 +555,7 @@ fn write_frame(
     source_ids: &BTreeMap<u32, String>,
 ) -> Result<u64, StageError> {
     let image = &job.image;
-    let instances = frame_instances(
+    let mut instances = frame_instances(
         &rec.name,
         image,
         plan.connectivity,
@@ -553,6 +563,7 @@ fn write_frame(
         source_ids,
         job.amodal_px.as_ref(),
     );
+    instances.pose_sha256 = Some(pose_digest(rec));
     if let Some(depth) = &image.depth_m {
         write_depth_exr(&plan.depth_path(&rec.name), depth, image.width, image.height)?;
     }
