@@ -293,6 +293,11 @@ fn stamp_path(plan: &RenderPlan, name: &str) -> PathBuf {
     plan.work_dir.join("done").join(mode).join(format!("{name}.sha256"))
 }
 
+/// Records that `f` was rendered under `plan` (after its outputs are in place).
+pub fn write_stamp(plan: &RenderPlan, f: &FrameRequest) -> Result<(), crate::util::FileError> {
+    crate::util::write_bytes_atomic(&stamp_path(plan, &f.name), frame_fingerprint(plan, f).as_bytes())
+}
+
 /// Whether all of a frame's outputs exist, verify, and were rendered from the same camera and
 /// settings (the resume test: frames whose pose changed since, e.g. after `sample` ran again, are
 /// redone).
@@ -636,7 +641,12 @@ mod tests {
         write_png(&p.out_dir.join("a.png"), 8, 5);
         assert!(!frame_complete(&p, &f), "wrong height accepted");
         write_png(&p.out_dir.join("a.png"), 8, 6);
+        assert!(!frame_complete(&p, &f), "a frame without the fingerprint of its pose was accepted");
+        write_stamp(&p, &f).unwrap();
         assert!(frame_complete(&p, &f));
+        let mut moved = f.clone();
+        moved.pose.centre_m[0] += 0.001;
+        assert!(!frame_complete(&p, &moved), "a moved pose was accepted");
         p.exr = true;
         assert!(!frame_complete(&p, &f), "missing EXR accepted");
     }
@@ -649,6 +659,7 @@ mod tests {
         p.exr = false;
         std::fs::create_dir_all(&p.out_dir).unwrap();
         write_png(&p.out_dir.join("a.png"), 8, 6);
+        write_stamp(&p, &frame("a")).unwrap();
         let s = render_frames(&p, &[frame("a")], &crate::util::NoProgress).unwrap();
         assert_eq!(s.skipped, vec!["a".to_string()]);
         assert!(s.rendered.is_empty());
