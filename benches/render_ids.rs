@@ -212,8 +212,8 @@ fn main() {
          block, 25 m pitch)\n- poses: 300 m above ground, alternating nadir and 45° tilt, random yaw\n\n\
          | what | frame size | frames | frames/s | ms/frame |\n|---|---|---|---|---|\n{}\n\n\
          CPU work per frame (single thread, median of 5):\n{}\n\n\
-         Blender side by side: call `insgen::render::time_render` with the same views (hook for the \
-         Blender helper).\n",
+         Blender side by side on the real areas: `cargo bench --bench versus_blender` \
+         (bench/versus_blender.md).\n",
         if quick { " -- --quick" } else { "" },
         renderer.adapter(),
         if cfg!(debug_assertions) {
