@@ -212,7 +212,7 @@ fn bench_area(
                 if !cam_dir.join("masks").join(format!("{}.png", r0.name)).is_file() {
                     insgen(work, &["render-masks", "--area", area, "--camera", "cam2", "--limit", "1"]);
                 }
-                let q = source.query(&r0.name, &k, 0).expect("oracle query");
+                let q = source.queries(&r0.name, &[k], 0).expect("oracle query").remove(0);
                 let kept = cull(&scene.buildings, &pose, &k, 0.5);
                 let sub = dense_subscene(&scene.mesh, &kept);
                 let cpu = CpuScene::new(&sub, pose.centre_m);

@@ -25,6 +25,7 @@ use super::metrics::{self, Row};
 use super::query::{QueryError, QuerySource};
 use super::search::{self, CoarseParams, Evaluate, FineParams, Hypothesis, SearchResult};
 use crate::camera::colmap::{self, ColmapCamera};
+use crate::camera::record::read_jsonl;
 use crate::camera::{Intrinsics, Pose, PoseRecord, Trajectory};
 use crate::render::cpu::{self as raster, CpuScene, Frame};
 use crate::scene::{BuildingRecord, PreparedScene, SceneMesh};
@@ -37,6 +38,8 @@ pub enum EvalError {
     File(#[from] util::FileError),
     #[error(transparent)]
     Query(#[from] QueryError),
+    #[error(transparent)]
+    Camera(#[from] crate::camera::CameraError),
     #[error("{}: {what}", path.display())]
     Input { path: PathBuf, what: String },
 }
@@ -99,18 +102,6 @@ pub struct Summary {
     pub queries: usize,
     pub median_seconds_per_query: f64,
     pub hypotheses_per_second: f64,
-}
-
-fn read_jsonl(path: &Path) -> Result<Vec<PoseRecord>, EvalError> {
-    let text = std::fs::read_to_string(path).map_err(|e| util::FileError::new("reading", path, e))?;
-    text.lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty())
-        .map(|(i, l)| {
-            serde_json::from_str(l)
-                .map_err(|e| EvalError::Input { path: path.into(), what: format!("line {}: {e}", i + 1) })
-        })
-        .collect()
 }
 
 /// Intrinsics scaled to `width_px` (height rounded to keep the aspect ratio).
@@ -289,19 +280,11 @@ pub fn load_queries(src: &QueryPoses) -> Result<Vec<QueryPose>, EvalError> {
                 .collect()
         }
         QueryPoses::Colmap { intrinsics, gt, prior } => {
-            let bad = |path: &Path, e: crate::camera::CameraError| EvalError::Input {
-                path: path.to_path_buf(),
-                what: e.to_string(),
-            };
-            let cams = colmap::read_query_list(intrinsics).map_err(|e| bad(intrinsics, e))?;
+            let cams = colmap::read_query_list(intrinsics)?;
             let cams: BTreeMap<String, ColmapCamera> = cams.into_iter().collect();
-            let priors: BTreeMap<String, Pose> = colmap::read_pose_list(prior)
-                .map_err(|e| bad(prior, e))?
-                .into_iter()
-                .map(|im| (im.name.clone(), im.pose()))
-                .collect();
-            colmap::read_pose_list(gt)
-                .map_err(|e| bad(gt, e))?
+            let priors: BTreeMap<String, Pose> =
+                colmap::read_pose_list(prior)?.into_iter().map(|im| (im.name.clone(), im.pose())).collect();
+            colmap::read_pose_list(gt)?
                 .into_iter()
                 .map(|im| {
                     let cam = cams.get(&im.name).ok_or_else(|| EvalError::Input {
@@ -373,8 +356,11 @@ pub fn evaluate(
         let k_fine = at_width(&gt.intrinsics, opts.render_width_px);
         let k_coarse = at_width(&gt.intrinsics, opts.coarse_width_px);
         let seed = frame_seed(opts.seed, &gt.name);
-        let q_fine = opts.source.query(&gt.name, &k_fine, seed)?;
-        let q_coarse = opts.source.query(&gt.name, &k_coarse, seed)?;
+        let [q_fine, q_coarse]: [Query; 2] = opts
+            .source
+            .queries(&gt.name, &[k_fine, k_coarse], seed)?
+            .try_into()
+            .expect("one query per resolution asked for");
         let kept = cull(&scene.buildings, &prior_pose, &k_fine, 0.5);
         let sub = dense_subscene(&scene.mesh, &kept);
         let cpu = CpuScene::new(&sub, prior_pose.centre_m);

@@ -64,29 +64,31 @@ pub fn resize_nearest<T: Copy + Default>(src: &[T], w: u32, h: u32, tw: u32, th:
 }
 
 impl QuerySource {
-    /// The query of `frame` at intrinsics `k` (`seed` drives the oracle's degradations).
+    /// The query of `frame` at each of the intrinsics `ks` (e.g. the fine and the coarse resolution);
+    /// the mask is read and degraded once. `seed` drives the oracle's degradations.
     ///
     /// # Errors
     /// A missing or unreadable mask (oracle), naming the file and the command that writes it.
-    pub fn query(&self, frame: &str, k: &Intrinsics, seed: u64) -> Result<Query, QueryError> {
+    pub fn queries(&self, frame: &str, ks: &[Intrinsics], seed: u64) -> Result<Vec<Query>, QueryError> {
         match self {
             QuerySource::Oracle { masks_dir, degradation } => {
-                oracle_query(masks_dir, frame, k, degradation, seed)
+                oracle_queries(masks_dir, frame, ks, degradation, seed)
             }
             QuerySource::Predictions(p) => {
-                Ok(predictions_query(p.by_frame.get(frame).map(Vec::as_slice).unwrap_or(&[]), k, p.min_score))
+                let preds = p.by_frame.get(frame).map(Vec::as_slice).unwrap_or(&[]);
+                Ok(ks.iter().map(|k| predictions_query(preds, k, p.min_score)).collect())
             }
         }
     }
 }
 
-fn oracle_query(
+fn oracle_queries(
     masks_dir: &Path,
     frame: &str,
-    k: &Intrinsics,
+    ks: &[Intrinsics],
     d: &Degradation,
     seed: u64,
-) -> Result<Query, QueryError> {
+) -> Result<Vec<Query>, QueryError> {
     let path = masks_dir.join(format!("{frame}.png"));
     let map = crate::label::idpng::read_id_png(&path).map_err(|e| QueryError::Input {
         path: path.clone(),
@@ -94,18 +96,17 @@ fn oracle_query(
     })?;
     if d.is_perfect() {
         // What a perfect segmenter run at the render resolution would output.
-        let ids = resize_nearest(&map.ids, map.width, map.height, k.width_px, k.height_px);
-        let lab = label_components(&ids, k.width_px, k.height_px, Connectivity::Eight);
-        return Ok(oracle::degrade(
-            k.width_px,
-            k.height_px,
-            &lab.labels,
-            lab.components.len() as u32,
-            d,
-            seed,
-        ));
+        return Ok(ks
+            .iter()
+            .map(|k| {
+                let ids = resize_nearest(&map.ids, map.width, map.height, k.width_px, k.height_px);
+                let lab = label_components(&ids, k.width_px, k.height_px, Connectivity::Eight);
+                oracle::degrade(k.width_px, k.height_px, &lab.labels, lab.components.len() as u32, d, seed)
+            })
+            .collect());
     }
-    // A segmenter's errors are in image pixels: degrade at the mask's own resolution, then resize.
+    // A segmenter's errors are in image pixels: degrade once at the mask's own resolution, then
+    // resize to each target.
     let lab = label_components(&map.ids, map.width, map.height, Connectivity::Eight);
     let q = oracle::degrade(map.width, map.height, &lab.labels, lab.components.len() as u32, d, seed);
     let mut labels = vec![0u32; map.ids.len()];
@@ -114,9 +115,14 @@ fn oracle_query(
             labels[p as usize] = j as u32 + 1;
         }
     }
-    let small = resize_nearest(&labels, map.width, map.height, k.width_px, k.height_px);
     let scores: Vec<f64> = q.instances.iter().map(|i| i.score).collect();
-    Ok(Query::from_labels(k.width_px, k.height_px, &small, &scores))
+    Ok(ks
+        .iter()
+        .map(|k| {
+            let small = resize_nearest(&labels, map.width, map.height, k.width_px, k.height_px);
+            Query::from_labels(k.width_px, k.height_px, &small, &scores)
+        })
+        .collect())
 }
 
 /// The query made of `preds` (any resolution) resized to `k`; predictions scoring below `min_score`
