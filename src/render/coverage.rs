@@ -203,18 +203,7 @@ impl Renderer {
                 (submission, staging, rx)
             })?;
             first_chunk = false;
-            self.device
-                .poll(wgpu::PollType::Wait { submission_index: Some(submission), timeout: None })
-                .map_err(|e| RenderError::ReadBack { what: "coverage counts", detail: e.to_string() })?;
-            match rx.try_recv() {
-                Ok(Ok(())) => {}
-                other => {
-                    return Err(RenderError::ReadBack {
-                        what: "coverage counts",
-                        detail: format!("mapping failed: {other:?}"),
-                    })
-                }
-            }
+            super::target::wait_mapped(&self.device, submission, &rx, 1, "coverage counts")?;
             {
                 let data = staging
                     .get_mapped_range(..)

@@ -237,6 +237,51 @@ pub(crate) fn draw_ids(
     pass.pop_debug_group();
 }
 
+/// How long [`wait_mapped`] waits for map callbacks after the GPU finished before it gives up.
+const MAP_CALLBACK_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(120);
+
+/// Waits for `submission`, then for `expected` map callbacks on `mapped`.
+///
+/// A finished submission does not mean the callbacks already ran: when several threads share a
+/// device, another thread's `poll` may be the one running them, concurrently with ours. So after the
+/// wait we block on the channel (polling again now and then) instead of expecting the messages to
+/// be there already.
+///
+/// # Errors
+/// [`RenderError::ReadBack`] when polling fails (device lost), a mapping fails, or the callbacks do
+/// not arrive within [`MAP_CALLBACK_TIMEOUT`].
+pub(crate) fn wait_mapped(
+    device: &wgpu::Device,
+    submission: wgpu::SubmissionIndex,
+    mapped: &mpsc::Receiver<Result<(), wgpu::BufferAsyncError>>,
+    expected: usize,
+    what: &'static str,
+) -> Result<(), RenderError> {
+    device
+        .poll(wgpu::PollType::Wait { submission_index: Some(submission), timeout: None })
+        .map_err(|e| RenderError::ReadBack { what, detail: e.to_string() })?;
+    let deadline = std::time::Instant::now() + MAP_CALLBACK_TIMEOUT;
+    let mut received = 0;
+    while received < expected {
+        match mapped.recv_timeout(std::time::Duration::from_millis(5)) {
+            Ok(Ok(())) => received += 1,
+            Ok(Err(e)) => return Err(RenderError::ReadBack { what, detail: e.to_string() }),
+            Err(mpsc::RecvTimeoutError::Timeout) if std::time::Instant::now() < deadline => {
+                device
+                    .poll(wgpu::PollType::Poll)
+                    .map_err(|e| RenderError::ReadBack { what, detail: e.to_string() })?;
+            }
+            Err(e) => {
+                return Err(RenderError::ReadBack {
+                    what,
+                    detail: format!("the staging buffer was not mapped after the wait ({e})"),
+                })
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Waits for `submission`, reads the mapped staging buffers, strips the row padding and unmaps.
 ///
 /// # Errors
@@ -247,22 +292,8 @@ pub(crate) fn read_back(
     submission: wgpu::SubmissionIndex,
     mapped: mpsc::Receiver<Result<(), wgpu::BufferAsyncError>>,
 ) -> Result<IdImage, RenderError> {
-    device
-        .poll(wgpu::PollType::Wait { submission_index: Some(submission), timeout: None })
-        .map_err(|e| RenderError::ReadBack { what: "a frame", detail: e.to_string() })?;
     let expected = 1 + target.staging_depth.is_some() as usize;
-    for _ in 0..expected {
-        match mapped.try_recv() {
-            Ok(Ok(())) => {}
-            Ok(Err(e)) => return Err(RenderError::ReadBack { what: "a frame", detail: e.to_string() }),
-            Err(e) => {
-                return Err(RenderError::ReadBack {
-                    what: "a frame",
-                    detail: format!("the staging buffer was not mapped after the wait ({e})"),
-                })
-            }
-        }
-    }
+    wait_mapped(device, submission, &mapped, expected, "a frame")?;
     let strip = |buffer: &wgpu::Buffer| -> Result<Vec<u32>, RenderError> {
         let mut out = Vec::with_capacity(target.width as usize * target.height as usize);
         {
