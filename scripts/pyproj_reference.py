@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Reference values from pyproj for insgen's CRS layer and geoid tests (tests/geo_pyproj.rs).
+"""Reference values from pyproj for insgen's CRS layer and geoid tests (tests/it/geo_pyproj.rs).
 
 Reads one JSON request on stdin, writes one JSON answer on stdout (one process for all codes):
 

@@ -11,7 +11,7 @@
 //! `rleToBbox`, `rleMerge`, `rleToString`, `rleFrString`), including its corner cases: an empty mask of
 //! `h × w` is `[h·w]`, a full one `[0, h·w]`, a 0-pixel image `[0]`; a bounding box of an empty mask is
 //! `[0, 0, 0, 0]`. The unit tests check the golden vectors produced by pycocotools; the integration test
-//! `tests/coco_rle.rs` compares against `pycocotools.mask` live.
+//! `tests/it/coco_rle.rs` compares against `pycocotools.mask` live.
 //!
 //! Encoding works from row-major images (as rendered) without transposing anything: a column's runs
 //! start and end exactly where the pixel differs from the one above, so one sequential pass comparing
@@ -558,7 +558,7 @@ mod tests {
         use super::*;
 
         /// The vectors of `../shared/fixtures/coco_rle_golden.json` (computed with pycocotools 2.0)
-        /// that are small enough to inline; the full file is checked in `tests/coco_rle.rs`.
+        /// that are small enough to inline; the full file is checked in `tests/it/coco_rle.rs`.
         #[test]
         fn small_cases_from_pycocotools() {
             let rect = [0, 0, 0, 0, 0, 0, 1, 1, 1, 0, 0, 1, 1, 1, 0, 0, 0, 0, 0, 0];

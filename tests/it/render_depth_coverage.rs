@@ -1,7 +1,7 @@
 //! Linear depth, amodal coverage (the denominator of visible_fraction), clipping and input validation
 //! of the renderer, against the f64 reference of tests/render_common.
 
-mod render_common;
+use crate::render_common;
 
 use insgen::camera::{Intrinsics, Pose};
 use insgen::render::{DepthRange, RenderError, RenderOptions, View};

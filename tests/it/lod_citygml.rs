@@ -15,17 +15,7 @@ fn fixture(name: &str) -> PathBuf {
     p
 }
 
-fn shared_data(rel: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(rel);
-    if p.exists() {
-        return Some(p);
-    }
-    if std::env::var("CI").map(|v| v == "true").unwrap_or(false) {
-        panic!("CI: missing {}", p.display());
-    }
-    eprintln!("skipping: {} is absent", p.display());
-    None
-}
+use crate::util::shared_data;
 
 fn read(path: &Path, lod: Option<&str>) -> Result<SourceModel, LodError> {
     citygml::read(path, &ReadOptions { lod: lod.map(str::to_string), ..ReadOptions::default() })

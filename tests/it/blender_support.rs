@@ -26,17 +26,7 @@ pub fn blender_python() -> Option<PathBuf> {
 }
 
 /// Real data under `../shared/data`, skipping (or failing under CI=true) when absent.
-pub fn shared_data(rel: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(rel);
-    if p.exists() {
-        return Some(p);
-    }
-    if std::env::var("CI").map(|v| v == "true").unwrap_or(false) {
-        panic!("CI: missing {}", p.display());
-    }
-    eprintln!("skipping: {} is absent", p.display());
-    None
-}
+pub use crate::util::shared_data;
 
 /// An axis-aligned box building in ENU metres.
 #[derive(Debug, Clone, Copy)]

@@ -4,7 +4,7 @@
 //! lists must give the same estimates; outputs validate against their schemas; a results file for
 //! another dataset fails with a clear error.
 
-mod util;
+use crate::util;
 
 use std::path::Path;
 

@@ -2,7 +2,7 @@
 //! render and with connected components, resumption, --force, --shard, --limit, --depth,
 //! --visible-fraction, --preview, and bad poses.
 
-mod render_common;
+use crate::render_common;
 
 use std::path::Path;
 

@@ -8,8 +8,8 @@
 //! The scene is prepared once per test binary from `scenes/tokyo.toml` (../shared/data; skipped with
 //! a printed reason when absent, a failure under CI=true).
 
-mod render_common;
-mod util;
+use crate::render_common;
+use crate::util;
 
 use std::sync::OnceLock;
 

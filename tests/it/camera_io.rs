@@ -1,7 +1,7 @@
 //! Camera files: presets and custom TOML, COLMAP round trip, pose-record representations (checked
 //! against pyproj), JSON Schemas, the flight-plan picture and the `sample` command's planning.
 
-mod camera_support;
+use crate::camera_support;
 
 use std::path::{Path, PathBuf};
 

@@ -1,7 +1,7 @@
 //! `insgen prepare` end to end: real areas (building counts, schemas, GLB read-back), determinism, and
 //! the bad-input corpus at the scene level (missing/unknown CRS, missing source, no partial output).
 
-mod util;
+use crate::util;
 
 use insgen::scene::PreparedScene;
 use util::*;

@@ -12,7 +12,7 @@
 //!
 //! Tests skip with a reason when the bpy interpreter is missing (and fail under CI=true).
 
-mod blender_support;
+use crate::blender_support;
 
 use std::path::{Path, PathBuf};
 

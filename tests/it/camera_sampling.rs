@@ -4,7 +4,7 @@
 //! in `camera_support`, a hand-written pinhole projection from yaw/pitch, and the noise model's own
 //! parameters for the prior statistics.
 
-mod camera_support;
+use crate::camera_support;
 
 use camera_support as cs;
 use insgen::camera::config::{PriorNoise, SamplingConfig};

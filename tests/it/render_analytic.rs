@@ -4,7 +4,7 @@
 //! from an edge a difference may be (0.1 px: the rasteriser's sub-pixel snapping is 1/256 px) and how
 //! many edge pixels may differ (2 %: a half-pixel shift of the projection would flip about half).
 
-mod render_common;
+use crate::render_common;
 
 use insgen::camera::{Intrinsics, Pose};
 use insgen::render::{RenderOptions, View};

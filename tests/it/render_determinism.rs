@@ -1,7 +1,7 @@
 //! Same inputs → same outputs: rendering twice gives identical ID maps, the frames-in-flight ring
 //! gives the same frame as a lone render, and writing an ID map twice gives byte-identical PNGs.
 
-mod render_common;
+use crate::render_common;
 
 use insgen::camera::{Intrinsics, Pose};
 use insgen::label::idpng;

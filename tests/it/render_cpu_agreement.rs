@@ -4,8 +4,8 @@
 //! faces; anything systematic (a half-pixel shift, a flipped axis, a wrong principal point) would fail
 //! by orders of magnitude. The same check on Shibuya is in `render_shibuya.rs`.
 
-mod render_common;
-mod util;
+use crate::render_common;
+use crate::util;
 
 use render_common::{assert_cpu_agrees_with_wgpu, poses_at_tallest};
 

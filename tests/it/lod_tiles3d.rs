@@ -13,17 +13,7 @@ use insgen::lod::tiles3d::{self, TilesReport};
 use insgen::lod::{read_source, Format, Frame, Geometry, LodError, ReadOptions, SourceModel, TriMesh};
 use serde_json::json;
 
-fn shared_data(rel: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(rel);
-    if p.exists() {
-        return Some(p);
-    }
-    if std::env::var("CI").map(|v| v == "true").unwrap_or(false) {
-        panic!("CI: missing {}", p.display());
-    }
-    eprintln!("skipping: {} is absent", p.display());
-    None
-}
+use crate::util::shared_data;
 
 fn fixture(rel: &str) -> PathBuf {
     let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/tiles3d").join(rel);
