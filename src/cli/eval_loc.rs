@@ -103,6 +103,11 @@ pub struct Args {
     /// Width of the coarse-stage renders in pixels.
     #[arg(long, value_name = "PX", default_value_t = 320)]
     pub coarse_width: u32,
+    /// Render every coarse yaw directly instead of warping it out of one wide render per grid
+    /// position (a rotation about the camera centre is a homography; the warp differs only at
+    /// silhouette edges, by resampling).
+    #[arg(long)]
+    pub no_yaw_fan: bool,
     /// Coarse grid in x and y: ±RANGE metres in steps of STEP [default: 20/5].
     #[arg(long, value_name = "RANGE/STEP", value_parser = parse_range_step)]
     pub coarse_xy: Option<(f64, f64)>,
@@ -173,6 +178,9 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         if args.no_polish {
             t.push_str("-nopolish");
         }
+        if args.no_yaw_fan {
+            t.push_str("-nofan");
+        }
         t
     });
     let camera_dir = area_dir.join(&args.camera);
@@ -237,6 +245,7 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         seed: args.seed,
         render_width_px: args.render_width,
         coarse_width_px: args.coarse_width,
+        yaw_fan: !args.no_yaw_fan,
         limit: args.limit,
         overlays: args.overlays,
     };

@@ -11,6 +11,10 @@
 //! All intersections come from one pass over the query pixels, accumulating a joint histogram of
 //! (query instance, rendered instance). Rendered IDs must be *dense* (1..=K, 0 = background): the
 //! localizer renders a culled sub-scene renumbered that way, so the histogram is a flat array.
+//!
+//! Query instances are stored as runs of consecutive pixels, and the histograms count runs of equal
+//! rendered IDs rather than single pixels: a rendered frame is long spans of one building or of
+//! background, so this is about one comparison per pixel instead of a dependent memory increment.
 
 use serde::{Deserialize, Serialize};
 
@@ -43,41 +47,88 @@ pub enum CostKind {
     Merged,
 }
 
-/// One query instance: its pixels (row-major indices into the query image), score and box area.
+/// One query instance: its pixels as runs of consecutive row-major indices, score and box area.
 #[derive(Debug, Clone, PartialEq)]
 pub struct QueryInstance {
-    pub pixels: Vec<u32>,
+    /// `[start, end)` index ranges into the query image, ascending and disjoint.
+    spans: Vec<[u32; 2]>,
+    area_px: u32,
     pub score: f64,
     /// Bounding-box area in pixels (w × h).
     pub bbox_area_px: f64,
 }
 
-/// The query: instances at a fixed resolution.
+impl QueryInstance {
+    /// An instance from its pixel indices (ascending, no repeats).
+    pub fn new(pixels: &[u32], score: f64, bbox_area_px: f64) -> QueryInstance {
+        debug_assert!(pixels.windows(2).all(|w| w[0] < w[1]), "pixels must be ascending");
+        let mut spans: Vec<[u32; 2]> = Vec::new();
+        for &p in pixels {
+            match spans.last_mut() {
+                Some(last) if last[1] == p => last[1] = p + 1,
+                _ => spans.push([p, p + 1]),
+            }
+        }
+        QueryInstance { spans, area_px: pixels.len() as u32, score, bbox_area_px }
+    }
+
+    /// The runs of consecutive pixels, `[start, end)`.
+    pub fn spans(&self) -> &[[u32; 2]] {
+        &self.spans
+    }
+
+    /// The pixel indices, ascending.
+    pub fn pixels(&self) -> impl Iterator<Item = u32> + '_ {
+        self.spans.iter().flat_map(|&[a, b]| a..b)
+    }
+
+    /// Number of pixels.
+    pub fn area_px(&self) -> u32 {
+        self.area_px
+    }
+}
+
+/// The query: instances at a fixed resolution (built with [`Query::new`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Query {
     pub width: u32,
     pub height: u32,
     pub instances: Vec<QueryInstance>,
+    /// The union of the instances' pixels as runs (predicted instances may overlap).
+    union: Vec<[u32; 2]>,
 }
 
 impl Query {
+    /// A query from its instances (any overlap allowed).
+    pub fn new(width: u32, height: u32, instances: Vec<QueryInstance>) -> Query {
+        let mut spans: Vec<[u32; 2]> = instances.iter().flat_map(|i| i.spans().iter().copied()).collect();
+        spans.sort_unstable();
+        let mut union: Vec<[u32; 2]> = Vec::with_capacity(spans.len());
+        for [a, b] in spans {
+            match union.last_mut() {
+                Some(last) if a <= last[1] => last[1] = last[1].max(b),
+                _ => union.push([a, b]),
+            }
+        }
+        Query { width, height, instances, union }
+    }
+
     /// Builds a query from a label image (0 = background, j ≥ 1 = instance j − 1) and per-instance
     /// scores (`scores[j]` for label j + 1). Box areas are computed from the pixels.
     pub fn from_labels(width: u32, height: u32, labels: &[u32], scores: &[f64]) -> Query {
-        let mut instances: Vec<QueryInstance> = scores
-            .iter()
-            .map(|&s| QueryInstance { pixels: Vec::new(), score: s, bbox_area_px: 0.0 })
-            .collect();
+        let mut pixels: Vec<Vec<u32>> = vec![Vec::new(); scores.len()];
         for (i, &l) in labels.iter().enumerate() {
-            if l > 0 && (l as usize) <= instances.len() {
-                instances[l as usize - 1].pixels.push(i as u32);
+            if l > 0 && (l as usize) <= pixels.len() {
+                pixels[l as usize - 1].push(i as u32);
             }
         }
-        for inst in &mut instances {
-            inst.bbox_area_px = bbox_area(&inst.pixels, width);
-        }
-        instances.retain(|i| !i.pixels.is_empty());
-        Query { width, height, instances }
+        let instances = pixels
+            .iter()
+            .zip(scores)
+            .filter(|(p, _)| !p.is_empty())
+            .map(|(p, &s)| QueryInstance::new(p, s, bbox_area(p, width)))
+            .collect();
+        Query::new(width, height, instances)
     }
 
     /// All query instances merged into one (score = mean score) — the "merged" ablation's query.
@@ -85,7 +136,7 @@ impl Query {
         let mut seen = vec![false; (self.width * self.height) as usize];
         let mut pixels = Vec::new();
         for inst in &self.instances {
-            for &p in &inst.pixels {
+            for p in inst.pixels() {
                 if !seen[p as usize] {
                     seen[p as usize] = true;
                     pixels.push(p);
@@ -94,15 +145,11 @@ impl Query {
         }
         pixels.sort_unstable();
         if pixels.is_empty() {
-            return Query { width: self.width, height: self.height, instances: Vec::new() };
+            return Query::new(self.width, self.height, Vec::new());
         }
         let score = self.instances.iter().map(|i| i.score).sum::<f64>() / self.instances.len() as f64;
         let bbox_area_px = bbox_area(&pixels, self.width);
-        Query {
-            width: self.width,
-            height: self.height,
-            instances: vec![QueryInstance { pixels, score, bbox_area_px }],
-        }
+        Query::new(self.width, self.height, vec![QueryInstance::new(&pixels, score, bbox_area_px)])
     }
 }
 
@@ -129,47 +176,58 @@ pub struct Scorer {
     render_area: Vec<u32>,
 }
 
+/// Adds the length of every run of equal values in `ids` to `counts[value]`; values ≥ `counts.len()`
+/// are not counted.
+#[inline]
+fn count_runs(ids: &[u32], counts: &mut [u32]) {
+    let Some(&first) = ids.first() else { return };
+    let (mut cur, mut run) = (first, 0u32);
+    for &r in ids {
+        if r == cur {
+            run += 1;
+        } else {
+            if let Some(c) = counts.get_mut(cur as usize) {
+                *c += run;
+            }
+            (cur, run) = (r, 1);
+        }
+    }
+    if let Some(c) = counts.get_mut(cur as usize) {
+        *c += run;
+    }
+}
+
 impl Scorer {
     /// Instance cost (higher is better, in [0, 1]) of a rendered dense-ID image with `k_max` instances.
     /// An empty query scores 0.
     pub fn instance_cost(&mut self, q: &Query, rendered: &[u32], k_max: u32, weighting: Weighting) -> f64 {
         debug_assert_eq!(rendered.len(), (q.width * q.height) as usize);
         let k1 = k_max as usize + 1;
+        let n = q.instances.len();
+        let weight = |i: &QueryInstance| match weighting {
+            Weighting::Conf => i.score,
+            Weighting::Area => i.bbox_area_px,
+        };
+        let total_w: f64 = q.instances.iter().map(weight).sum();
+        if n == 0 || total_w <= 0.0 {
+            return 0.0;
+        }
+        // IDs above k_max (should not happen) count as background.
         self.render_area.clear();
         self.render_area.resize(k1, 0);
-        for &r in rendered {
-            // IDs above k_max (should not happen) count as background.
-            if (r as usize) < k1 {
-                self.render_area[r as usize] += 1;
-            }
-        }
-        let n = q.instances.len();
+        count_runs(rendered, &mut self.render_area);
         self.hist.clear();
         self.hist.resize(n * k1, 0);
         for (j, inst) in q.instances.iter().enumerate() {
             let row = &mut self.hist[j * k1..(j + 1) * k1];
-            for &p in &inst.pixels {
-                let r = rendered[p as usize] as usize;
-                if r < k1 {
-                    row[r] += 1;
-                }
+            for &[a, b] in inst.spans() {
+                count_runs(&rendered[a as usize..b as usize], row);
             }
-        }
-        let total_w: f64 = q
-            .instances
-            .iter()
-            .map(|i| match weighting {
-                Weighting::Conf => i.score,
-                Weighting::Area => i.bbox_area_px,
-            })
-            .sum();
-        if n == 0 || total_w <= 0.0 {
-            return 0.0;
         }
         let mut c = 0.0;
         for (j, inst) in q.instances.iter().enumerate() {
             let row = &self.hist[j * k1..(j + 1) * k1];
-            let qa = inst.pixels.len() as f64;
+            let qa = inst.area_px() as f64;
             let mut best = 0.0f64;
             for k in 1..k1 {
                 if row[k] == 0 {
@@ -178,11 +236,7 @@ impl Scorer {
                 let d = 2.0 * row[k] as f64 / (qa + self.render_area[k] as f64 + DICE_EPS);
                 best = best.max(d);
             }
-            let w = match weighting {
-                Weighting::Conf => inst.score,
-                Weighting::Area => inst.bbox_area_px,
-            };
-            c += w / total_w * best;
+            c += weight(inst) / total_w * best;
         }
         c
     }
@@ -190,19 +244,13 @@ impl Scorer {
     /// Semantic IoU of the union of the query masks with the union of rendered buildings; 0 when both
     /// are empty.
     pub fn semantic_iou(&mut self, q: &Query, rendered: &[u32]) -> f64 {
-        let mut query_mask = vec![false; rendered.len()];
-        for inst in &q.instances {
-            for &p in &inst.pixels {
-                query_mask[p as usize] = true;
-            }
+        let covered = |ids: &[u32]| ids.iter().map(|&r| (r != 0) as u64).sum::<u64>();
+        let (mut query_px, mut inter) = (0u64, 0u64);
+        for &[a, b] in &q.union {
+            query_px += (b - a) as u64;
+            inter += covered(&rendered[a as usize..b as usize]);
         }
-        let (mut inter, mut uni) = (0u64, 0u64);
-        for (i, &r) in rendered.iter().enumerate() {
-            let a = query_mask[i];
-            let b = r != 0;
-            inter += (a && b) as u64;
-            uni += (a || b) as u64;
-        }
+        let uni = query_px + covered(rendered) - inter;
         if uni == 0 {
             0.0
         } else {
@@ -289,10 +337,34 @@ mod tests {
     }
 
     #[test]
+    fn semantic_iou_counts_overlapping_predictions_once() {
+        // Two predictions overlapping in pixels 2 and 3 of a 6×1 image: union {1, 2, 3, 4}.
+        let q = Query::new(
+            6,
+            1,
+            vec![QueryInstance::new(&[1, 2, 3], 0.9, 3.0), QueryInstance::new(&[2, 3, 4], 0.8, 3.0)],
+        );
+        let mut s = Scorer::default();
+        // Rendered {3, 4, 5}: ∩ = {3, 4} = 2, ∪ = {1, …, 5} = 5.
+        assert!((s.semantic_iou(&q, &[0, 0, 0, 1, 1, 1]) - 0.4).abs() < 1e-12);
+    }
+
+    #[test]
+    fn runs_are_counted_per_value() {
+        let mut counts = vec![0u32; 3];
+        // Runs 0×2, 2×3, 1×1, 7×2 (out of range: not counted), 2×1.
+        count_runs(&[0, 0, 2, 2, 2, 1, 7, 7, 2], &mut counts);
+        assert_eq!(counts, vec![2, 1, 4]);
+        count_runs(&[], &mut counts);
+        assert_eq!(counts, vec![2, 1, 4]);
+    }
+
+    #[test]
     fn merged_query_is_the_union() {
         let q = query().merged();
         assert_eq!(q.instances.len(), 1);
-        assert_eq!(q.instances[0].pixels, vec![0, 1, 6, 7]);
+        assert_eq!(q.instances[0].pixels().collect::<Vec<_>>(), vec![0, 1, 6, 7]);
+        assert_eq!(q.instances[0].spans(), &[[0, 2], [6, 8]]);
         assert_eq!(q.instances[0].bbox_area_px, 8.0);
     }
 

@@ -28,6 +28,7 @@ use crate::camera::colmap::{self, ColmapCamera};
 use crate::camera::record::read_jsonl;
 use crate::camera::{Intrinsics, Pose, PoseRecord, Trajectory};
 use crate::render::cpu::{self as raster, CpuScene, Frame};
+use crate::render::warp::RotationFan;
 use crate::scene::{BuildingRecord, PreparedScene, SceneMesh};
 use crate::util::{self, Progress};
 
@@ -65,6 +66,9 @@ pub struct EvalOptions {
     pub render_width_px: u32,
     /// Width of the coarse-stage renders.
     pub coarse_width_px: u32,
+    /// Coarse stage: render one wide view per grid position and read every yaw out of it
+    /// ([`crate::render::warp`]) instead of rendering each yaw.
+    pub yaw_fan: bool,
     pub limit: Option<usize>,
     pub overlays: usize,
 }
@@ -172,7 +176,13 @@ pub struct CpuEvaluator<'a> {
     pub kind: CostKind,
     pub weighting: Weighting,
     pub k_max: u32,
+    /// Runs of at least [`MIN_FAN`] consecutive hypotheses at one centre (the coarse grid's yaws) are
+    /// rendered once, wide, and warped per yaw ([`RotationFan`]).
+    pub yaw_fan: bool,
 }
+
+/// The shortest run of same-centre hypotheses worth a wide render.
+pub const MIN_FAN: usize = 3;
 
 impl CpuEvaluator<'_> {
     /// The cost of a full pose (any pitch and roll), e.g. the ground truth.
@@ -181,22 +191,63 @@ impl CpuEvaluator<'_> {
         raster::render_ids(self.scene, pose, &self.k, &mut frame);
         Scorer::default().cost(self.kind, self.query, &frame.ids, self.k_max, self.weighting)
     }
+
+    fn score(&self, scorer: &mut Scorer, ids: &[u32]) -> f64 {
+        scorer.cost(self.kind, self.query, ids, self.k_max, self.weighting)
+    }
+
+    /// Scores one run of hypotheses sharing a centre: through a rotation fan when it is long enough and
+    /// the fan fits, else one render each.
+    fn score_run(
+        &self,
+        run: &[Hypothesis],
+        frame: &mut Frame,
+        scorer: &mut Scorer,
+        warped: &mut Vec<u32>,
+    ) -> Vec<f64> {
+        let poses: Vec<Pose> = run.iter().map(|h| h.pose(self.pitch_deg, self.roll_deg)).collect();
+        if self.yaw_fan && run.len() >= MIN_FAN {
+            if let Some(fan) = RotationFan::new(&poses, &self.k) {
+                raster::render_ids(self.scene, &fan.pose, &fan.intrinsics, frame);
+                return (0..fan.len())
+                    .map(|i| {
+                        fan.warp(i, &frame.ids, warped);
+                        self.score(scorer, warped)
+                    })
+                    .collect();
+            }
+        }
+        poses
+            .iter()
+            .map(|pose| {
+                raster::render_ids(self.scene, pose, &self.k, frame);
+                self.score(scorer, &frame.ids)
+            })
+            .collect()
+    }
 }
 
 impl Evaluate for CpuEvaluator<'_> {
     type Error = std::convert::Infallible;
     fn evaluate(&mut self, hyps: &[Hypothesis]) -> Result<Vec<f64>, Self::Error> {
+        // Runs of consecutive hypotheses with the same centre (bit for bit); without the fan every
+        // hypothesis is its own run.
+        let mut runs: Vec<&[Hypothesis]> = Vec::new();
+        let mut start = 0;
+        for i in 1..=hyps.len() {
+            if i == hyps.len() || !self.yaw_fan || hyps[i].centre_m != hyps[start].centre_m {
+                runs.push(&hyps[start..i]);
+                start = i;
+            }
+        }
         let this = &*self;
-        Ok(hyps
+        Ok(runs
             .par_iter()
             .map_init(
-                || (Frame::default(), Scorer::default()),
-                |(frame, scorer), h| {
-                    let pose = h.pose(this.pitch_deg, this.roll_deg);
-                    raster::render_ids(this.scene, &pose, &this.k, frame);
-                    scorer.cost(this.kind, this.query, &frame.ids, this.k_max, this.weighting)
-                },
+                || (Frame::default(), Scorer::default(), Vec::new()),
+                |(frame, scorer, warped), run| this.score_run(run, frame, scorer, warped),
             )
+            .flatten_iter()
             .collect())
     }
 }
@@ -383,9 +434,10 @@ pub fn evaluate(
                 kind,
                 weighting: opts.weighting,
                 k_max: kept.len() as u32,
+                yaw_fan: false,
             };
             let mut fine_eval = mk(k_fine, &qf);
-            let mut coarse_eval = mk(k_coarse, &qc);
+            let mut coarse_eval = CpuEvaluator { yaw_fan: opts.yaw_fan, ..mk(k_coarse, &qc) };
             let r: SearchResult = if qf.instances.is_empty() {
                 // Nothing to align (no instance in the query): the prior stands.
                 SearchResult {
@@ -553,7 +605,7 @@ fn write_overlay(
     let (w, h) = (k.width_px as usize, k.height_px as usize);
     let mut qlab = vec![0u32; w * h];
     for (j, inst) in q.instances.iter().enumerate() {
-        for &p in &inst.pixels {
+        for p in inst.pixels() {
             qlab[p as usize] = j as u32 + 1;
         }
     }

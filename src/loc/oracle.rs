@@ -229,7 +229,7 @@ mod tests {
     fn perfect_oracle_is_identity() {
         let q = degrade(8, 4, &two_blocks(), 2, &Degradation::default(), 0);
         assert_eq!(q.instances.len(), 2);
-        assert_eq!(q.instances[0].pixels.len(), 16);
+        assert_eq!(q.instances[0].area_px(), 16);
         assert!(q.instances.iter().all(|i| i.score == 1.0));
     }
 
@@ -243,9 +243,9 @@ mod tests {
             }
         }
         let q = degrade(7, 7, &lab, 1, &Degradation { morph_px: -1, ..Default::default() }, 0);
-        assert_eq!(q.instances[0].pixels.len(), 9);
+        assert_eq!(q.instances[0].area_px(), 9);
         let q = degrade(7, 7, &lab, 1, &Degradation { morph_px: 1, ..Default::default() }, 0);
-        assert_eq!(q.instances[0].pixels.len(), 49);
+        assert_eq!(q.instances[0].area_px(), 49);
     }
 
     #[test]
@@ -253,7 +253,7 @@ mod tests {
         let merged =
             degrade(8, 4, &two_blocks(), 2, &Degradation { merge_fraction: 0.5, ..Default::default() }, 3);
         assert_eq!(merged.instances.len(), 1);
-        assert_eq!(merged.instances[0].pixels.len(), 32);
+        assert_eq!(merged.instances[0].area_px(), 32);
         let split =
             degrade(8, 4, &two_blocks(), 2, &Degradation { split_fraction: 0.5, ..Default::default() }, 3);
         assert_eq!(split.instances.len(), 3);

@@ -111,7 +111,7 @@ fn oracle_queries(
     let q = oracle::degrade(map.width, map.height, &lab.labels, lab.components.len() as u32, d, seed);
     let mut labels = vec![0u32; map.ids.len()];
     for (j, inst) in q.instances.iter().enumerate() {
-        for &p in &inst.pixels {
+        for p in inst.pixels() {
             labels[p as usize] = j as u32 + 1;
         }
     }
@@ -144,9 +144,9 @@ pub fn predictions_query(preds: &[Prediction], k: &Intrinsics, min_score: f64) -
         }
         let scale = (tw as f64 / w as f64) * (th as f64 / h as f64);
         let bbox_area_px = if p.bbox_area_px > 0.0 { p.bbox_area_px * scale } else { bbox_area(&pixels, tw) };
-        instances.push(QueryInstance { pixels, score: p.score, bbox_area_px });
+        instances.push(QueryInstance::new(&pixels, p.score, bbox_area_px));
     }
-    Query { width: tw, height: th, instances }
+    Query::new(tw, th, instances)
 }
 
 /// The part of a COCO instances file that maps image ids to frames.
@@ -251,7 +251,7 @@ mod tests {
         with_box.bbox_area_px = 8.0;
         let q = predictions_query(&[with_box, pred(&m, 4, 4, 0.2)], &k, 0.5);
         assert_eq!(q.instances.len(), 1, "the 0.2 prediction is below --min-score");
-        assert_eq!(q.instances[0].pixels, vec![0, 2]);
+        assert_eq!(q.instances[0].pixels().collect::<Vec<_>>(), vec![0, 2]);
         assert_eq!(q.instances[0].score, 0.9);
         // 8 px² at 4×4 → 2 px² at 2×2.
         assert!((q.instances[0].bbox_area_px - 2.0).abs() < 1e-12);

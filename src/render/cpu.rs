@@ -40,7 +40,8 @@ struct Group {
 
 impl CpuScene {
     /// Builds a CPU scene from a mesh; `anchor_m` should be near the cameras (e.g. the prior centre).
-    /// Vertices are duplicated per building where two buildings share one (IDs are per vertex).
+    /// Vertices are welded by position within a building and duplicated where two buildings share one
+    /// (IDs are per vertex).
     pub fn new(mesh: &SceneMesh, anchor_m: [f64; 3]) -> CpuScene {
         let rel = |p: [f32; 3]| {
             [
@@ -56,7 +57,9 @@ impl CpuScene {
         let mut positions = Vec::new();
         let mut triangles = Vec::with_capacity(order.len());
         let mut groups: Vec<Group> = Vec::new();
-        let mut remap: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
+        // Within a building, vertices are shared by position (bit for bit), so a triangle soup (glTF
+        // tiles repeat corners per face) transforms each corner once per frame.
+        let mut remap: std::collections::HashMap<[u32; 3], u32> = std::collections::HashMap::new();
         for &t in &order {
             let id = tri_id(t);
             if groups.last().is_none_or(|g| g.id != id) {
@@ -71,9 +74,9 @@ impl CpuScene {
             }
             let g = groups.last_mut().expect("pushed above");
             let tri = [0, 1, 2].map(|j| {
-                let v = mesh.indices[3 * t + j];
-                *remap.entry(v).or_insert_with(|| {
-                    let p = rel(mesh.positions_m[v as usize]);
+                let v = mesh.positions_m[mesh.indices[3 * t + j] as usize];
+                *remap.entry(v.map(f32::to_bits)).or_insert_with(|| {
+                    let p = rel(v);
                     for a in 0..3 {
                         g.min[a] = g.min[a].min(p[a]);
                         g.max[a] = g.max[a].max(p[a]);
@@ -154,14 +157,12 @@ pub fn render_ids(scene: &CpuScene, pose: &Pose, k: &Intrinsics, frame: &mut Fra
     // Pixel centres span [half, (n − 1)·one + half] in sub-pixel units.
     let (one, half) = (1i64 << SUBPIXEL_BITS, 1i64 << (SUBPIXEL_BITS - 1));
     let (xmax, ymax) = ((w as i64 - 1) * one + half, (h as i64 - 1) * one + half);
-    let (wf, hf) = (w as f32, h as f32);
     let mut poly: Vec<ClipVert> = Vec::with_capacity(4);
+    let frustum = Frustum::new(k, near);
     for g in &scene.groups {
-        // Building-level frustum test on the 8 box corners (all behind the near plane, or all in
-        // front and entirely to one side of the image → invisible).
-        let mut behind = 0;
-        let (mut u0, mut u1, mut v0, mut v1) =
-            (f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY);
+        // Building-level frustum test on the 8 box corners: invisible when all of them lie outside
+        // one plane of the frustum (the near plane, or a side plane one pixel beyond the image).
+        let mut outside = [true; 5];
         for c in 0..8 {
             let p = [
                 if c & 1 == 0 { g.min[0] } else { g.max[0] },
@@ -169,20 +170,12 @@ pub fn render_ids(scene: &CpuScene, pose: &Pose, k: &Intrinsics, frame: &mut Fra
                 if c & 4 == 0 { g.min[2] } else { g.max[2] },
             ];
             let q = to_cam(&p);
-            if q[2] < near {
-                behind += 1;
-                continue;
+            let inside = frustum.inside(q);
+            for (o, i) in outside.iter_mut().zip(inside) {
+                *o &= !i;
             }
-            let (u, v) = (
-                k.fx_px as f32 * q[0] / q[2] + k.cx_px as f32,
-                k.fy_px as f32 * q[1] / q[2] + k.cy_px as f32,
-            );
-            u0 = u0.min(u);
-            u1 = u1.max(u);
-            v0 = v0.min(v);
-            v1 = v1.max(v);
         }
-        if behind == 8 || (behind == 0 && (u1 < -1.0 || u0 > wf + 1.0 || v1 < -1.0 || v0 > hf + 1.0)) {
+        if outside.iter().any(|&o| o) {
             continue;
         }
         // Transform and project this building's vertices once (shared by its triangles).
@@ -215,6 +208,12 @@ pub fn render_ids(scene: &CpuScene, pose: &Pose, k: &Intrinsics, frame: &mut Fra
                 raster_fixed(a, b, c, id, &mut frame.ids, &mut frame.inv_z, w, h);
                 continue;
             }
+            // A triangle crossing the camera plane far outside the view (below the camera of an
+            // oblique view, say) is dropped when its corners all lie beyond one side plane.
+            let ins = v.map(|p| frustum.inside(p));
+            if (1..5).any(|n| ins.iter().all(|i| !i[n])) {
+                continue;
+            }
             // Clip against z = near (Sutherland–Hodgman) and fan-triangulate.
             poly.clear();
             for e in 0..3 {
@@ -237,6 +236,46 @@ pub fn render_ids(scene: &CpuScene, pose: &Pose, k: &Intrinsics, frame: &mut Fra
                 raster_fixed(a, b, c, id, &mut frame.ids, &mut frame.inv_z, w, h);
             }
         }
+    }
+}
+
+/// The view frustum in camera coordinates as five half-spaces: z ≥ near and the four side planes
+/// through the camera centre one pixel beyond the image border (u ≥ −1, u ≤ w + 1, v ≥ −1, v ≤ h + 1,
+/// written without the division by z so they hold for points behind the camera too).
+struct Frustum {
+    near: f32,
+    fx: f32,
+    fy: f32,
+    left: f32,
+    right: f32,
+    top: f32,
+    bottom: f32,
+}
+
+impl Frustum {
+    fn new(k: &Intrinsics, near: f32) -> Frustum {
+        Frustum {
+            near,
+            fx: k.fx_px as f32,
+            fy: k.fy_px as f32,
+            left: k.cx_px as f32 + 1.0,
+            right: k.width_px as f32 + 1.0 - k.cx_px as f32,
+            top: k.cy_px as f32 + 1.0,
+            bottom: k.height_px as f32 + 1.0 - k.cy_px as f32,
+        }
+    }
+
+    /// Per half-space (near, left, right, top, bottom): whether `q` lies inside it.
+    #[inline]
+    fn inside(&self, q: [f32; 3]) -> [bool; 5] {
+        let (fx, fy) = (self.fx * q[0], self.fy * q[1]);
+        [
+            q[2] >= self.near,
+            fx + self.left * q[2] >= 0.0,
+            self.right * q[2] - fx >= 0.0,
+            fy + self.top * q[2] >= 0.0,
+            self.bottom * q[2] - fy >= 0.0,
+        ]
     }
 }
 
@@ -451,6 +490,64 @@ mod tests {
         // centres) covered exactly once. The lower one keeps 400 − 196 pixels.
         assert_eq!(f.ids.iter().filter(|&&i| i == 2).count(), 196);
         assert_eq!(f.ids.iter().filter(|&&i| i == 1).count(), 400 - 196);
+    }
+
+    /// Coverage by the definition: pixel centres with every edge function > 0, or = 0 on a top or
+    /// left edge, evaluated in i128 for every pixel of the image.
+    fn covered_by_definition(t: [(i64, i64); 3], x: i64, y: i64) -> bool {
+        let one = 1i64 << SUBPIXEL_BITS;
+        let (px, py) = ((x * one + one / 2) as i128, (y * one + one / 2) as i128);
+        let [a, mut b, mut c] = t.map(|(x, y)| (x as i128, y as i128));
+        let area = (b.0 - a.0) * (c.1 - a.1) - (c.0 - a.0) * (b.1 - a.1);
+        if area == 0 {
+            return false;
+        }
+        if area < 0 {
+            std::mem::swap(&mut b, &mut c);
+        }
+        [(b, c), (c, a), (a, b)].iter().all(|&(p, q)| {
+            let (dx, dy) = (q.0 - p.0, q.1 - p.1);
+            let e = dx * (py - p.1) - dy * (px - p.0);
+            e > 0 || (e == 0 && (dy < 0 || (dy == 0 && dx > 0)))
+        })
+    }
+
+    #[test]
+    fn row_spans_cover_exactly_the_pixel_centres_inside() {
+        use rand::{Rng, SeedableRng};
+        let (w, h) = (48usize, 40usize);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let one = 1i64 << SUBPIXEL_BITS;
+        for n in 0..3000 {
+            // Small, large, thin and grid-aligned triangles (vertices on pixel centres and edges hit
+            // the top-left rule), partly off-screen.
+            let span = [3, 20, 80, 400][n % 4] * one;
+            let snap = n % 3 == 0;
+            let mut vert = || {
+                let (x, y) = (
+                    rng.gen_range(-span / 2..w as i64 * one + span / 2),
+                    rng.gen_range(-span / 2..h as i64 * one + span / 2),
+                );
+                if snap {
+                    (x / (one / 2) * (one / 2), y / (one / 2) * (one / 2))
+                } else {
+                    (x, y)
+                }
+            };
+            let t = [vert(), vert(), vert()];
+            let s = t.map(|(x, y)| Screen { x, y, inv_z: 1.0 });
+            let (mut ids, mut inv_z) = (vec![0u32; w * h], vec![0f32; w * h]);
+            raster_fixed(s[0], s[1], s[2], 1, &mut ids, &mut inv_z, w, h);
+            for y in 0..h {
+                for x in 0..w {
+                    assert_eq!(
+                        ids[y * w + x] == 1,
+                        covered_by_definition(t, x as i64, y as i64),
+                        "triangle {n} {t:?}, pixel ({x}, {y})"
+                    );
+                }
+            }
+        }
     }
 
     #[test]

@@ -28,6 +28,7 @@ pub mod scene;
 pub mod target;
 pub mod timing;
 pub mod view;
+pub mod warp;
 
 pub use batch::{RenderOptions, FRAMES_IN_FLIGHT};
 pub use device::Renderer;
