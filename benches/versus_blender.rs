@@ -225,6 +225,8 @@ fn bench_area(
                     kind: CostKind::Instance,
                     weighting: Weighting::Conf,
                     k_max: kept.len() as u32,
+                    // Distinct centres, as in the particle filter: one render per hypothesis.
+                    yaw_fan: false,
                 };
                 let hyps: Vec<Hypothesis> = (0..208)
                     .map(|i| {

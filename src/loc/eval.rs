@@ -5,7 +5,7 @@
 //! render resolution; the scene culled to the buildings the prior could see (with a margin covering the
 //! search range) and renumbered densely; hypotheses rendered by the CPU rasteriser ([`crate::render::cpu`]) in
 //! parallel and scored with [`super::cost`]; the search of [`super::search`]; errors against the ground
-//! truth.
+//! truth. The coarse grid's yaws at one position come from one wide render ([`RotationFan`]).
 //!
 //! Outputs in `<workdir>/<area>/<camera>/loc/<tag>/`: `results.jsonl` (one line per query and cost),
 //! `est_poses_<cost>.txt` (COLMAP `NAME qw qx qy qz tx ty tz`), `summary.md` / `summary.json` (recall at

@@ -14,7 +14,8 @@
 //! transform is camera-relative; both are derived in [`view`].
 //!
 //! [`cpu`] is a second backend for many small frames (the localizer's hypotheses): a fixed-point CPU
-//! rasteriser following the same conventions, tested to agree with the GPU on ≥ 99.9 % of pixels.
+//! rasteriser following the same conventions, tested to agree with the GPU on ≥ 99.9 % of pixels;
+//! [`warp`] reads views rotated about the camera centre out of one wide render.
 //!
 //! This is where f32 starts (STYLE rule 4): [`view::ViewUniform::new`] is the one place that casts the
 //! camera to f32.
