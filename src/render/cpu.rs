@@ -25,6 +25,8 @@ pub struct CpuScene {
     positions: Vec<[f32; 3]>,
     triangles: Vec<[u32; 3]>,
     groups: Vec<Group>,
+    /// Skip the back faces of closed buildings (on by default; exact, see `solid_winding`).
+    back_face_culling: bool,
 }
 
 /// One building's share of a [`CpuScene`].
@@ -36,6 +38,9 @@ struct Group {
     /// Bounding box relative to the anchor, metres.
     min: [f32; 3],
     max: [f32; 3],
+    /// A closed surface with consistent winding: +1 when its triangles wind counter-clockwise seen
+    /// from outside (positive volume), −1 when clockwise, 0 when not closed (no culling).
+    solid: i8,
 }
 
 impl CpuScene {
@@ -70,6 +75,7 @@ impl CpuScene {
                     triangles: triangles.len()..triangles.len(),
                     min: [f32::INFINITY; 3],
                     max: [f32::NEG_INFINITY; 3],
+                    solid: 0,
                 });
             }
             let g = groups.last_mut().expect("pushed above");
@@ -89,11 +95,58 @@ impl CpuScene {
             g.vertices.end = positions.len();
             g.triangles.end = triangles.len();
         }
-        CpuScene { anchor_m, positions, triangles, groups }
+        for g in &mut groups {
+            g.solid = solid_winding(&positions, &triangles[g.triangles.clone()]);
+        }
+        CpuScene { anchor_m, positions, triangles, groups, back_face_culling: true }
     }
 
     pub fn triangle_count(&self) -> usize {
         self.triangles.len()
+    }
+
+    /// Turns the culling of closed buildings' back faces on or off (for comparisons).
+    pub fn with_back_face_culling(mut self, on: bool) -> CpuScene {
+        self.back_face_culling = on;
+        self
+    }
+}
+
+/// Whether `tris` (vertices welded by position) form a closed surface with consistent winding: every
+/// directed edge (a, b) occurs once and its reverse (b, a) once. Returns the sign of the enclosed
+/// volume then (+1: counter-clockwise seen from outside), else 0.
+///
+/// For such a surface seen from outside, every pixel a back-facing triangle covers is covered by a
+/// front-facing one that is nearer (a ray leaving the solid entered it first), and the two triangles
+/// at a silhouette edge lie on the same side of it, so the top-left rule decides a centre on it alike
+/// for both: culling the back faces leaves the ID image unchanged.
+fn solid_winding(positions: &[[f32; 3]], tris: &[[u32; 3]]) -> i8 {
+    let mut edges: std::collections::HashMap<(u32, u32), u32> = std::collections::HashMap::new();
+    for t in tris {
+        if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
+            return 0;
+        }
+        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+            *edges.entry((a, b)).or_insert(0) += 1;
+        }
+    }
+    if tris.len() < 4 || edges.iter().any(|(&(a, b), &n)| n != 1 || edges.get(&(b, a)) != Some(&1)) {
+        return 0;
+    }
+    let volume: f64 = tris
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| positions[i as usize].map(f64::from));
+            a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+                + a[2] * (b[0] * c[1] - b[1] * c[0])
+        })
+        .sum();
+    if volume > 0.0 {
+        1
+    } else if volume < 0.0 {
+        -1
+    } else {
+        0
     }
 }
 
@@ -163,6 +216,7 @@ pub fn render_ids(scene: &CpuScene, pose: &Pose, k: &Intrinsics, frame: &mut Fra
         // Building-level frustum test on the 8 box corners: invisible when all of them lie outside
         // one plane of the frustum (the near plane, or a side plane one pixel beyond the image).
         let mut outside = [true; 5];
+        let mut in_front = 0;
         for c in 0..8 {
             let p = [
                 if c & 1 == 0 { g.min[0] } else { g.max[0] },
@@ -171,6 +225,7 @@ pub fn render_ids(scene: &CpuScene, pose: &Pose, k: &Intrinsics, frame: &mut Fra
             ];
             let q = to_cam(&p);
             let inside = frustum.inside(q);
+            in_front += inside[0] as u32;
             for (o, i) in outside.iter_mut().zip(inside) {
                 *o &= !i;
             }
@@ -189,6 +244,10 @@ pub fn render_ids(scene: &CpuScene, pose: &Pose, k: &Intrinsics, frame: &mut Fra
             };
         }
         let id = g.id;
+        // Back faces of a closed building entirely in front of the camera are hidden by its front
+        // faces (see `solid_winding`). On screen (y down) a face wound counter-clockwise seen from
+        // outside has a negative signed area when it faces the camera.
+        let cull = if scene.back_face_culling && in_front == 8 { g.solid as i64 } else { 0 };
         for tri in &scene.triangles[g.triangles.clone()] {
             let v = tri.map(|i| frame.cam[i as usize]);
             let behind = v.iter().filter(|p| p[2] < near).count();
@@ -204,6 +263,14 @@ pub fn render_ids(scene: &CpuScene, pose: &Pose, k: &Intrinsics, frame: &mut Fra
                     || a.y.min(b.y).min(c.y) > ymax
                 {
                     continue;
+                }
+                if cull != 0 {
+                    // Coordinates are within ±2^50: the products fit in i128.
+                    let area =
+                        (b.x - a.x) as i128 * (c.y - a.y) as i128 - (c.x - a.x) as i128 * (b.y - a.y) as i128;
+                    if area * (cull as i128) > 0 {
+                        continue;
+                    }
                 }
                 raster_fixed(a, b, c, id, &mut frame.ids, &mut frame.inv_z, w, h);
                 continue;
@@ -473,6 +540,110 @@ mod tests {
         assert_eq!(f.ids[13 * 64 + 22], 0);
         assert_eq!(f.ids[33 * 64 + 41], 7);
         assert_eq!(f.ids[34 * 64 + 41], 0);
+    }
+
+    /// A closed box, triangles counter-clockwise seen from outside (`flip` reverses them), corners
+    /// repeated per face as in glTF tiles; optionally without its floor (open).
+    fn closed_box(m: &mut SceneMesh, lo: [f32; 3], hi: [f32; 3], id: u32, flip: bool, floor: bool) {
+        let p = |i: usize| {
+            [
+                if i & 1 == 0 { lo[0] } else { hi[0] },
+                if i & 2 == 0 { lo[1] } else { hi[1] },
+                if i & 4 == 0 { lo[2] } else { hi[2] },
+            ]
+        };
+        // Faces as corner indices, counter-clockwise seen from outside.
+        let faces = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+        for (f, q) in faces.iter().enumerate() {
+            if f == 0 && !floor {
+                continue;
+            }
+            for t in [[q[0], q[1], q[2]], [q[0], q[2], q[3]]] {
+                let t = if flip { [t[0], t[2], t[1]] } else { t };
+                let base = m.positions_m.len() as u32;
+                for c in t {
+                    m.positions_m.push(p(c));
+                    m.building_ids.push(id);
+                }
+                m.indices.extend([base, base + 1, base + 2]);
+            }
+        }
+    }
+
+    #[test]
+    fn closed_buildings_are_recognised_with_their_winding() {
+        let mut m = SceneMesh::default();
+        closed_box(&mut m, [0.0; 3], [10.0, 10.0, 10.0], 1, false, true);
+        closed_box(&mut m, [20.0, 0.0, 0.0], [30.0, 10.0, 10.0], 2, true, true);
+        closed_box(&mut m, [40.0, 0.0, 0.0], [50.0, 10.0, 10.0], 3, false, false);
+        let scene = CpuScene::new(&m, [0.0; 3]);
+        assert_eq!(scene.groups.iter().map(|g| g.solid).collect::<Vec<_>>(), vec![1, -1, 0]);
+        // Welded: 8 corners per closed box, 8 for the open one too.
+        assert_eq!(scene.positions.len(), 24);
+    }
+
+    #[test]
+    fn culling_back_faces_of_closed_buildings_changes_no_pixel() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut m = SceneMesh::default();
+        // Boxes of both windings, some open (never culled), overlapping in view.
+        for id in 1..=60u32 {
+            let (x, y) = (rng.gen_range(-120.0..120.0f32), rng.gen_range(-120.0..120.0f32));
+            let (sx, sy, h) =
+                (rng.gen_range(5.0..30.0f32), rng.gen_range(5.0..30.0f32), rng.gen_range(5.0..80.0f32));
+            closed_box(&mut m, [x, y, 0.0], [x + sx, y + sy, h], id, id % 3 == 1, id % 5 != 0);
+        }
+        let culled = CpuScene::new(&m, [0.0, 0.0, 100.0]);
+        assert!(culled.groups.iter().filter(|g| g.solid != 0).count() >= 40);
+        let unculled = culled.clone().with_back_face_culling(false);
+        let k = Intrinsics {
+            width_px: 200,
+            height_px: 150,
+            fx_px: 180.0,
+            fy_px: 180.0,
+            cx_px: 100.0,
+            cy_px: 75.0,
+        };
+        let (mut a, mut b) = (Frame::default(), Frame::default());
+        let mut drawn = 0;
+        for i in 0..24 {
+            let pose = Pose::from_ypr_deg(
+                i as f64 * 15.0,
+                (i % 4) as f64 * 22.0,
+                0.0,
+                [0.0, -150.0 + i as f64 * 5.0, 160.0],
+            );
+            render_ids(&culled, &pose, &k, &mut a);
+            render_ids(&unculled, &pose, &k, &mut b);
+            assert!(a.ids == b.ids, "view {i}: culling changed the ID image");
+            drawn += a.ids.iter().filter(|&&id| id != 0).count();
+        }
+        assert!(drawn > 100_000, "the views see the boxes ({drawn} px)");
+    }
+
+    #[test]
+    fn culling_keeps_the_roof_not_the_floor() {
+        // Seen from above, a closed box shows its roof: the depth is the roof's (1/z = 1/90).
+        for flip in [false, true] {
+            let mut m = SceneMesh::default();
+            closed_box(&mut m, [-10.0, -10.0, 0.0], [10.0, 10.0, 10.0], 1, flip, true);
+            let scene = CpuScene::new(&m, [0.0; 3]);
+            assert_ne!(scene.groups[0].solid, 0);
+            let k = Intrinsics {
+                width_px: 64,
+                height_px: 48,
+                fx_px: 100.0,
+                fy_px: 100.0,
+                cx_px: 32.0,
+                cy_px: 24.0,
+            };
+            let mut f = Frame::default();
+            render_ids(&scene, &Pose::from_ypr_deg(0.0, 0.0, 0.0, [0.0, 0.0, 100.0]), &k, &mut f);
+            let centre = 24 * 64 + 32;
+            assert_eq!(f.ids[centre], 1);
+            assert!((f.inv_z[centre] - 1.0 / 90.0).abs() < 1e-6, "flip {flip}: 1/z = {}", f.inv_z[centre]);
+        }
     }
 
     #[test]

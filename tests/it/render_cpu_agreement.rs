@@ -2,7 +2,8 @@
 //! district: the two ID images agree on at least 99.9 % of pixels (issue 7). Disagreements can only
 //! come from pixel centres within float rounding of an edge and from depth ties between coplanar
 //! faces; anything systematic (a half-pixel shift, a flipped axis, a wrong principal point) would fail
-//! by orders of magnitude. The same check on Shibuya is in `render_shibuya.rs`.
+//! by orders of magnitude. Culling the back faces of closed buildings must change no pixel at all.
+//! The same checks on Shibuya are in `render_shibuya.rs`.
 
 use crate::render_common;
 use crate::util;
