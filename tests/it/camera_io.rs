@@ -175,7 +175,7 @@ mod records {
 
     #[test]
     fn geodetic_fields_match_pyproj() {
-        let Some(py) = cs::python() else { return };
+        let Some(py) = crate::util::python_with(&["pyproj"]) else { return };
         let (_tmp, out) = sampled("cam2", 10);
         let pts: Vec<String> = out.poses.iter().map(|r| format!("{:?}", r.ecef_m)).collect();
         let script = format!(

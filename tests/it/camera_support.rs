@@ -147,19 +147,3 @@ pub fn tallest_near(p: [f64; 2], r: f64) -> f64 {
         .map(|(_, hi)| hi[2])
         .fold(f64::NEG_INFINITY, f64::max)
 }
-
-/// Reads `INSGEN_PYTHON` (default `.venv/bin/python` in the repo); `None` (with a note) when absent,
-/// a panic under CI=true.
-pub fn python() -> Option<std::path::PathBuf> {
-    let p = std::env::var("INSGEN_PYTHON")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|_| std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv/bin/python"));
-    if p.exists() {
-        return Some(p);
-    }
-    if std::env::var("CI").map(|v| v == "true").unwrap_or(false) {
-        panic!("CI: missing Python interpreter {}", p.display());
-    }
-    eprintln!("skipping: Python interpreter {} is absent (set INSGEN_PYTHON)", p.display());
-    None
-}

@@ -11,7 +11,6 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use insgen::camera::{Intrinsics, Pose, PoseRecord, Trajectory};
 use insgen::coco::export::{export, ExportPlan};
@@ -32,34 +31,6 @@ use serde_json::Value;
 const W: u32 = 96;
 const H: u32 = 72;
 const BUILDINGS: u32 = 14;
-
-fn ci() -> bool {
-    std::env::var("CI").map(|v| v == "true").unwrap_or(false)
-}
-
-/// The Python interpreter with numpy and pycocotools, or `None` (skip) outside CI.
-fn python() -> Option<PathBuf> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let p =
-        std::env::var_os("INSGEN_PYTHON").map(PathBuf::from).unwrap_or_else(|| root.join(".venv/bin/python"));
-    let ok = Command::new(&p).args(["-c", "import numpy, pycocotools"]).output().map(|o| o.status.success());
-    if ok.unwrap_or(false) {
-        return Some(p);
-    }
-    let why = format!("{} cannot import numpy and pycocotools (set INSGEN_PYTHON)", p.display());
-    if ci() {
-        panic!("CI: {why}");
-    }
-    eprintln!("skipping the pycocotools part: {why}");
-    None
-}
-
-fn run_check(py: &Path, args: &[&str]) -> Value {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/coco_check.py");
-    let out = Command::new(py).arg(script).args(args).output().expect("run coco_check.py");
-    assert!(out.status.success(), "coco_check.py {args:?} failed:\n{}", String::from_utf8_lossy(&out.stderr));
-    serde_json::from_slice(&out.stdout).expect("coco_check.py prints JSON")
-}
 
 // ------------------------------------------------------------------------------------------ generator
 
@@ -335,7 +306,7 @@ fn all_entries(wd: &Path, area: &str) -> Vec<(String, InstanceEntry)> {
 }
 
 fn assert_pycocotools_exact(py: &Path, out: &Path, expect_polygons: bool) -> Value {
-    let v = run_check(py, &["dataset", out.to_str().unwrap()]);
+    let v = crate::util::coco_check(py, &["dataset", out.to_str().unwrap()]);
     for split in ["train", "val", "test"] {
         let r = &v["files"][split];
         eprintln!(
@@ -449,7 +420,7 @@ fn component_export_agrees_with_pycocotools_and_the_id_maps() {
     let md = std::fs::read_to_string(p.out_dir.join("stats.md")).unwrap();
     assert!(md.contains("| alpha | train |"), "{md}");
 
-    let Some(py) = python() else { return };
+    let Some(py) = crate::util::python_with(&["numpy", "pycocotools"]) else { return };
     let v = assert_pycocotools_exact(&py, &p.out_dir, false);
     for split in ["train", "val", "test"] {
         assert_eq!(
@@ -481,7 +452,7 @@ fn per_building_export_merges_the_parts_of_each_building() {
     for (_, d) in &ex.datasets {
         validate_schema("coco_instances.schema.json", &serde_json::to_value(d).unwrap());
     }
-    let Some(py) = python() else { return };
+    let Some(py) = crate::util::python_with(&["numpy", "pycocotools"]) else { return };
     let v = assert_pycocotools_exact(&py, &p.out_dir, false);
     assert_eq!(v["files"]["train"]["unannotated"], serde_json::json!([]));
 }
@@ -501,7 +472,7 @@ fn polygons_lose_only_the_holes() {
     for (_, d) in &ex.datasets {
         validate_schema("coco_instances.schema.json", &serde_json::to_value(d).unwrap());
     }
-    let Some(py) = python() else { return };
+    let Some(py) = crate::util::python_with(&["numpy", "pycocotools"]) else { return };
     // The exact mask (mask_rle) matches the ID map; pycocotools rasterises each polygon to the component
     // with its holes filled.
     let v = assert_pycocotools_exact(&py, &p.out_dir, true);
@@ -562,7 +533,7 @@ fn filters_keep_exactly_what_they_should() {
     assert_eq!(ex3.datasets[0].1.annotations.len(), want);
     assert!(ex3.dropped.low_visibility > 0);
 
-    let Some(py) = python() else { return };
+    let Some(py) = crate::util::python_with(&["numpy", "pycocotools"]) else { return };
     assert_pycocotools_exact(&py, &p.out_dir, false);
 }
 
@@ -629,10 +600,10 @@ fn results_written_by_pycocotools_read_back_exactly() {
     let wd = standard_workdir(tmp.path());
     let p = plan(&wd, "coco");
     let (ex, _) = export(&p, &NoProgress).unwrap();
-    let Some(py) = python() else { return };
+    let Some(py) = crate::util::python_with(&["numpy", "pycocotools"]) else { return };
     let gt = p.out_dir.join("instances_train.json");
     let res_path = tmp.path().join("results.json");
-    run_check(&py, &["results", gt.to_str().unwrap(), res_path.to_str().unwrap()]);
+    crate::util::coco_check(&py, &["results", gt.to_str().unwrap(), res_path.to_str().unwrap()]);
     let raw: Value = serde_json::from_slice(&std::fs::read(&res_path).unwrap()).unwrap();
     validate_schema("coco_results.schema.json", &raw);
     let results = read_results(&res_path).unwrap();

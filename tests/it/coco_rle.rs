@@ -5,54 +5,11 @@
 //! Python is found through `INSGEN_PYTHON` (default `<repo>/.venv/bin/python`); when it or the fixture is
 //! missing the test prints why and skips, unless `CI=true`, where it fails.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
-
 use insgen::coco::polygon::mask_to_polygons;
 use insgen::coco::rle::{encode, encode_labels, Rle};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::Value;
-
-fn ci() -> bool {
-    std::env::var("CI").map(|v| v == "true").unwrap_or(false)
-}
-
-fn shared_fixture(rel: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/fixtures").join(rel);
-    if p.exists() {
-        return Some(p);
-    }
-    if ci() {
-        panic!("CI: missing {}", p.display());
-    }
-    eprintln!("skipping: {} is absent", p.display());
-    None
-}
-
-/// The Python interpreter with numpy and pycocotools, or `None` (skip) outside CI.
-fn python() -> Option<PathBuf> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let p =
-        std::env::var_os("INSGEN_PYTHON").map(PathBuf::from).unwrap_or_else(|| root.join(".venv/bin/python"));
-    let ok = Command::new(&p).args(["-c", "import numpy, pycocotools"]).output().map(|o| o.status.success());
-    if ok.unwrap_or(false) {
-        return Some(p);
-    }
-    let why = format!("{} cannot import numpy and pycocotools (set INSGEN_PYTHON)", p.display());
-    if ci() {
-        panic!("CI: {why}");
-    }
-    eprintln!("skipping: {why}");
-    None
-}
-
-fn run_check(py: &Path, args: &[&str]) -> Value {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/coco_check.py");
-    let out = Command::new(py).arg(script).args(args).output().expect("run coco_check.py");
-    assert!(out.status.success(), "coco_check.py {args:?} failed:\n{}", String::from_utf8_lossy(&out.stderr));
-    serde_json::from_slice(&out.stdout).expect("coco_check.py prints JSON")
-}
 
 fn u32s(v: &Value) -> Vec<u32> {
     v.as_array().expect("array").iter().map(|x| x.as_u64().expect("uint") as u32).collect()
@@ -64,7 +21,7 @@ fn f64s(v: &Value) -> Vec<f64> {
 
 #[test]
 fn golden_vectors_from_pycocotools() {
-    let Some(path) = shared_fixture("coco_rle_golden.json") else { return };
+    let Some(path) = crate::util::shared_fixture("coco_rle_golden.json") else { return };
     let golden: Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
     let mut checked = 0;
     for (name, case) in golden.as_object().unwrap() {
@@ -154,7 +111,7 @@ fn random_cases() -> Vec<Case> {
 
 #[test]
 fn live_pycocotools_encode_decode_merge_agree() {
-    let Some(py) = python() else { return };
+    let Some(py) = crate::util::python_with(&["numpy", "pycocotools"]) else { return };
     let cases = random_cases();
     let dir = tempfile::tempdir().unwrap();
     let mut blob = Vec::new();
@@ -179,7 +136,8 @@ fn live_pycocotools_encode_decode_merge_agree() {
     )
     .unwrap();
     let (masks_path, index_path) = (dir.path().join("masks.bin"), dir.path().join("index.json"));
-    let v = run_check(&py, &["encode", masks_path.to_str().unwrap(), index_path.to_str().unwrap()]);
+    let v =
+        crate::util::coco_check(&py, &["encode", masks_path.to_str().unwrap(), index_path.to_str().unwrap()]);
     let theirs = v["masks"].as_array().unwrap();
     assert_eq!(theirs.len(), cases.len());
     for ((c, r), t) in cases.iter().zip(&ours).zip(theirs) {

@@ -14,7 +14,7 @@
 //! When it or pyproj is missing the test prints why and passes, except under `CI=true`, where it fails.
 
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 
 use insgen::geo::{self, AxisConvention, Crs, EnuFrame, Geodetic, Geoid, GeoidGrid, HeightKind};
@@ -26,39 +26,6 @@ const TOL_M: f64 = 0.01;
 const GEOID_TOL_M: f64 = 0.001;
 const N_POINTS: usize = 100;
 const SEED: u64 = 20_240_601;
-
-fn ci() -> bool {
-    std::env::var("CI").map(|v| v == "true").unwrap_or(false)
-}
-
-/// Skips (prints why) or, under CI=true, fails.
-fn skip(why: &str) {
-    if ci() {
-        panic!("CI: {why}");
-    }
-    eprintln!("skipping: {why}");
-}
-
-fn python() -> Option<PathBuf> {
-    let p = match std::env::var_os("INSGEN_PYTHON") {
-        Some(p) => PathBuf::from(p),
-        None => Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv/bin/python"),
-    };
-    if !p.exists() {
-        skip(&format!(
-            "Python interpreter {} is absent (set INSGEN_PYTHON or run scripts/setup.sh)",
-            p.display()
-        ));
-        return None;
-    }
-    let ok =
-        Command::new(&p).args(["-c", "import pyproj"]).output().map(|o| o.status.success()).unwrap_or(false);
-    if !ok {
-        skip(&format!("{} cannot import pyproj", p.display()));
-        return None;
-    }
-    Some(p)
-}
 
 #[derive(Deserialize)]
 struct Answer {
@@ -135,11 +102,13 @@ fn codes() -> Vec<u32> {
 
 #[test]
 fn crs_conversions_agree_with_pyproj() {
-    let Some(py) = python() else { return };
+    let Some(py) = crate::util::python_with(&["pyproj"]) else { return };
     let codes = codes();
     let grid = Geoid::find_egm96();
     if grid.is_none() {
-        skip("egm96_15.gtx is absent (Debian package proj-data); the geoid comparison is left out");
+        crate::util::skip(
+            "egm96_15.gtx is absent (Debian package proj-data); the geoid comparison is left out",
+        );
     }
     // Geoid points: a golden-angle spiral over the globe plus Tokyo, Den Haag, Delft and the antimeridian.
     let mut geoid_pts: Vec<[f64; 2]> = (0..200)

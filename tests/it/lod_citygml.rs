@@ -10,9 +10,7 @@ use insgen::lod::{
 };
 
 fn fixture(name: &str) -> PathBuf {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/citygml").join(name);
-    assert!(p.exists(), "fixture {} is missing", p.display());
-    p
+    crate::util::fixture("citygml", name)
 }
 
 use crate::util::shared_data;

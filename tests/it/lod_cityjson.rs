@@ -11,9 +11,7 @@ use insgen::lod::{
 use serde_json::Value;
 
 fn fixture(name: &str) -> PathBuf {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/cityjson").join(name);
-    assert!(p.exists(), "fixture {} is missing", p.display());
-    p
+    crate::util::fixture("cityjson", name)
 }
 
 use crate::util::shared_data;

@@ -9,10 +9,8 @@ use std::path::{Path, PathBuf};
 use insgen::lod::obj::{self, ObjAxes, ObjSidecar};
 use insgen::lod::{read_source, AxisConvention, Format, Frame, Geometry, LodError, ReadOptions, TriMesh};
 
-fn fixture(rel: &str) -> PathBuf {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/obj").join(rel);
-    assert!(p.exists(), "missing test fixture {}", p.display());
-    p
+fn fixture(name: &str) -> PathBuf {
+    crate::util::fixture("obj", name)
 }
 
 fn mesh(g: &Geometry) -> &TriMesh {

@@ -15,10 +15,8 @@ use serde_json::json;
 
 use crate::util::shared_data;
 
-fn fixture(rel: &str) -> PathBuf {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/tiles3d").join(rel);
-    assert!(p.exists(), "missing test fixture {}", p.display());
-    p
+fn fixture(name: &str) -> PathBuf {
+    crate::util::fixture("tiles3d", name)
 }
 
 fn mesh(g: &Geometry) -> &TriMesh {

@@ -29,6 +29,55 @@ pub fn shared_data(rel: &str) -> Option<PathBuf> {
     None
 }
 
+/// Prints why a check is skipped, or fails under `CI=true`.
+pub fn skip(why: &str) {
+    if under_ci() {
+        panic!("CI=true, but {why}");
+    }
+    eprintln!("skipping: {why}");
+}
+
+/// A file under `../shared/fixtures` (reference vectors), or `None` (with a printed reason) when
+/// absent; a failure under `CI=true`.
+pub fn shared_fixture(rel: &str) -> Option<PathBuf> {
+    let p = repo().join("../shared/fixtures").join(rel);
+    if p.exists() {
+        return Some(p);
+    }
+    skip(&format!("{} is absent", p.display()));
+    None
+}
+
+/// The repository's test fixture `tests/fixtures/<dir>/<name>` (which must exist).
+pub fn fixture(dir: &str, name: &str) -> PathBuf {
+    let p = repo().join("tests/fixtures").join(dir).join(name);
+    assert!(p.exists(), "test fixture {} is missing", p.display());
+    p
+}
+
+/// The Python of `INSGEN_PYTHON` (default `.venv/bin/python`) if it imports `modules`, else `None`
+/// with a printed reason (a failure under `CI=true`).
+pub fn python_with(modules: &[&str]) -> Option<PathBuf> {
+    let p = std::env::var_os("INSGEN_PYTHON")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| repo().join(".venv/bin/python"));
+    let import = format!("import {}", modules.join(", "));
+    let ok = Command::new(&p).args(["-c", &import]).output().map(|o| o.status.success()).unwrap_or(false);
+    if ok {
+        return Some(p);
+    }
+    skip(&format!("{} cannot `{import}` (set INSGEN_PYTHON or run scripts/setup.sh)", p.display()));
+    None
+}
+
+/// Runs `scripts/coco_check.py ARGS` with `py` and parses the JSON it prints.
+pub fn coco_check(py: &Path, args: &[&str]) -> serde_json::Value {
+    let script = repo().join("scripts/coco_check.py");
+    let out = Command::new(py).arg(script).args(args).output().expect("run coco_check.py");
+    assert!(out.status.success(), "coco_check.py {args:?} failed:\n{}", String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).expect("coco_check.py prints JSON")
+}
+
 /// Runs `insgen` with `args` in `cwd`; returns its output.
 pub fn insgen(cwd: &Path, args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_insgen"))
