@@ -189,7 +189,7 @@ impl CpuEvaluator<'_> {
     pub fn cost_of_pose(&self, pose: &Pose) -> f64 {
         let mut frame = Frame::default();
         raster::render_ids(self.scene, pose, &self.k, &mut frame);
-        Scorer::default().cost(self.kind, self.query, &frame.ids, self.k_max, self.weighting)
+        self.score(&mut Scorer::default(), &frame.ids)
     }
 
     fn score(&self, scorer: &mut Scorer, ids: &[u32]) -> f64 {
