@@ -5,36 +5,17 @@
 use std::path::{Path, PathBuf};
 
 use insgen::lod::{
-    citygml, clean_ring, read_source, AxisConvention, Frame, Geometry, LodError, Polygon, ReadOptions,
-    SourceBuilding, SourceModel,
+    citygml, clean_ring, read_source, AxisConvention, Frame, LodError, ReadOptions, SourceModel,
 };
+
+use crate::util::{building, polygons as polys, read_error as err_text, shared_data};
 
 fn fixture(name: &str) -> PathBuf {
     crate::util::fixture("citygml", name)
 }
 
-use crate::util::shared_data;
-
 fn read(path: &Path, lod: Option<&str>) -> Result<SourceModel, LodError> {
     citygml::read(path, &ReadOptions { lod: lod.map(str::to_string), ..ReadOptions::default() })
-}
-
-fn polys(b: &SourceBuilding) -> &[Polygon] {
-    match &b.geometry {
-        Geometry::Polygons(p) => p,
-        Geometry::Mesh(_) => panic!("{}: CityGML gives polygons", b.source_id),
-    }
-}
-
-fn building<'a>(m: &'a SourceModel, id: &str) -> &'a SourceBuilding {
-    m.buildings.iter().find(|b| b.source_id == id).unwrap_or_else(|| panic!("no building {id}"))
-}
-
-fn err_text(r: Result<SourceModel, LodError>) -> String {
-    match r {
-        Ok(m) => panic!("expected an error, read {} buildings", m.buildings.len()),
-        Err(e) => e.to_string(),
-    }
 }
 
 mod fixtures {

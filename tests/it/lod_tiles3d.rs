@@ -53,29 +53,13 @@ fn f32_bytes(v: &[f32]) -> Vec<u8> {
     v.iter().flat_map(|x| x.to_le_bytes()).collect()
 }
 
+use crate::util::glb;
+
 fn pad_to(mut v: Vec<u8>, n: usize, fill: u8) -> Vec<u8> {
     while !v.len().is_multiple_of(n) {
         v.push(fill);
     }
     v
-}
-
-/// A GLB from its JSON and BIN chunk.
-fn glb(gltf: &serde_json::Value, bin: &[u8]) -> Vec<u8> {
-    let j = pad_to(serde_json::to_vec(gltf).unwrap(), 4, b' ');
-    let b = pad_to(bin.to_vec(), 4, 0);
-    let total = 12 + 8 + j.len() + 8 + b.len();
-    let mut out = Vec::new();
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&j);
-    out.extend_from_slice(&(b.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(&b);
-    out
 }
 
 /// A b3dm around a GLB (tables padded to 8 bytes, as the spec asks).

@@ -475,30 +475,6 @@ mod validator {
 mod reader {
     use super::*;
 
-    /// Assembles a GLB from a JSON document and a BIN chunk.
-    fn make_glb(json: &Value, bin: &[u8]) -> Vec<u8> {
-        let mut j = serde_json::to_vec(json).unwrap();
-        while j.len() % 4 != 0 {
-            j.push(b' ');
-        }
-        let mut b = bin.to_vec();
-        while b.len() % 4 != 0 {
-            b.push(0);
-        }
-        let total = 12 + 8 + j.len() + 8 + b.len();
-        let mut out = Vec::with_capacity(total);
-        out.extend_from_slice(b"glTF");
-        out.extend_from_slice(&2u32.to_le_bytes());
-        out.extend_from_slice(&(total as u32).to_le_bytes());
-        out.extend_from_slice(&(j.len() as u32).to_le_bytes());
-        out.extend_from_slice(b"JSON");
-        out.extend_from_slice(&j);
-        out.extend_from_slice(&(b.len() as u32).to_le_bytes());
-        out.extend_from_slice(b"BIN\0");
-        out.extend_from_slice(&b);
-        out
-    }
-
     /// One triangle primitive: positions (glTF axes), u16 feature IDs, u16 indices, interleaved
     /// position + padding (stride 16) to exercise byteStride.
     fn other_writer_glb(with_features: bool, ids: [u16; 3], translation: [f32; 3]) -> Vec<u8> {
@@ -544,7 +520,7 @@ mod reader {
             "buffers": [{"byteLength": 68}],
             "extensionsUsed": ["EXT_mesh_features"]
         });
-        make_glb(&doc, &bin)
+        crate::util::glb(&doc, &bin)
     }
 
     #[test]

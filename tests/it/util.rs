@@ -78,6 +78,51 @@ pub fn coco_check(py: &Path, args: &[&str]) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).expect("coco_check.py prints JSON")
 }
 
+/// A GLB file from a JSON document and a BIN chunk (each padded to 4 bytes as the spec requires).
+pub fn glb(json: &serde_json::Value, bin: &[u8]) -> Vec<u8> {
+    let pad = |mut v: Vec<u8>, fill: u8| {
+        while v.len() % 4 != 0 {
+            v.push(fill);
+        }
+        v
+    };
+    let j = pad(serde_json::to_vec(json).unwrap(), b' ');
+    let b = pad(bin.to_vec(), 0);
+    let total = 12 + 8 + j.len() + 8 + b.len();
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&j);
+    out.extend_from_slice(&(b.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&b);
+    out
+}
+
+/// The building `id` of a source model (panics when absent).
+pub fn building<'a>(m: &'a insgen::lod::SourceModel, id: &str) -> &'a insgen::lod::SourceBuilding {
+    m.buildings.iter().find(|b| b.source_id == id).unwrap_or_else(|| panic!("no building {id}"))
+}
+
+/// A building's polygons (panics for a mesh: the polygon readers never give one).
+pub fn polygons(b: &insgen::lod::SourceBuilding) -> &[insgen::lod::Polygon] {
+    match &b.geometry {
+        insgen::lod::Geometry::Polygons(p) => p,
+        insgen::lod::Geometry::Mesh(_) => panic!("{}: expected polygons, read a mesh", b.source_id),
+    }
+}
+
+/// The message of a read that must fail (panics when it succeeded).
+pub fn read_error(r: Result<insgen::lod::SourceModel, insgen::lod::LodError>) -> String {
+    match r {
+        Ok(m) => panic!("expected an error, read {} buildings", m.buildings.len()),
+        Err(e) => e.to_string(),
+    }
+}
+
 /// Runs `insgen` with `args` in `cwd`; returns its output.
 pub fn insgen(cwd: &Path, args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_insgen"))
