@@ -114,15 +114,16 @@ pub struct Args {
     /// Coarse grid in z: ±RANGE metres in steps of STEP [default: 10/5].
     #[arg(long, value_name = "RANGE/STEP", value_parser = parse_range_step)]
     pub coarse_z: Option<(f64, f64)>,
-    /// Coarse grid in yaw: ±RANGE degrees in steps of STEP [default: 7.5/1.25].
+    /// Coarse grid in yaw: ±RANGE degrees in steps of STEP [default: 7.5/2.5].
     #[arg(long, value_name = "RANGE/STEP", value_parser = parse_range_step)]
     pub coarse_yaw: Option<(f64, f64)>,
     /// Particle-filter iterations.
     #[arg(long, value_name = "N", default_value_t = 40)]
     pub iterations: u32,
-    /// Particle-filter iterations scored at the coarse width before switching to the render width.
-    #[arg(long, value_name = "N", default_value_t = 20)]
-    pub lowres_iterations: u32,
+    /// Particle-filter iterations scored at the coarse width before switching to the render width
+    /// [default: those before the perturbation decay reaches its floor γ: 28 of 40].
+    #[arg(long, value_name = "N")]
+    pub lowres_iterations: Option<u32>,
     #[arg(long, value_name = "SEED", default_value_t = 0)]
     pub seed: u64,
     /// Evaluate only the first N queries.

@@ -172,7 +172,11 @@ pub fn bbox_area(pixels: &[u32], width: u32) -> f64 {
 /// Reusable buffers for scoring many hypotheses against one query.
 #[derive(Debug, Default)]
 pub struct Scorer {
-    hist: Vec<u32>,
+    /// One query instance's row of the joint histogram (indexed by rendered ID), all zero between
+    /// instances: only the IDs in `touched` are read and reset, so a score costs O(pixels), not
+    /// O(instances × buildings).
+    row: Vec<u32>,
+    touched: Vec<u32>,
     render_area: Vec<u32>,
 }
 
@@ -180,22 +184,50 @@ pub struct Scorer {
 /// are not counted.
 #[inline]
 fn count_runs(ids: &[u32], counts: &mut [u32]) {
+    for_each_run(ids, |value, run| {
+        if let Some(c) = counts.get_mut(value as usize) {
+            *c += run;
+        }
+    });
+}
+
+/// Calls `f(value, length)` for every run of equal values in `ids`, in order.
+///
+/// Rendered frames are long runs of one building or of background: blocks of [`BLOCK`] pixels that
+/// all continue the current run are skipped with one branch-free (vectorised) comparison, so the
+/// per-pixel branch, mispredicted at every run boundary, is taken only in blocks where a run ends.
+#[inline]
+fn for_each_run(ids: &[u32], mut f: impl FnMut(u32, u32)) {
     let Some(&first) = ids.first() else { return };
     let (mut cur, mut run) = (first, 0u32);
-    for &r in ids {
+    let mut blocks = ids.chunks_exact(BLOCK);
+    for block in &mut blocks {
+        if block.iter().fold(true, |same, &r| same & (r == cur)) {
+            run += BLOCK as u32;
+            continue;
+        }
+        for &r in block {
+            if r == cur {
+                run += 1;
+            } else {
+                f(cur, run);
+                (cur, run) = (r, 1);
+            }
+        }
+    }
+    for &r in blocks.remainder() {
         if r == cur {
             run += 1;
         } else {
-            if let Some(c) = counts.get_mut(cur as usize) {
-                *c += run;
-            }
+            f(cur, run);
             (cur, run) = (r, 1);
         }
     }
-    if let Some(c) = counts.get_mut(cur as usize) {
-        *c += run;
-    }
+    f(cur, run);
 }
+
+/// Pixels compared at once by [`for_each_run`].
+const BLOCK: usize = 16;
 
 impl Scorer {
     /// Instance cost (higher is better, in [0, 1]) of a rendered dense-ID image with `k_max` instances.
@@ -216,25 +248,30 @@ impl Scorer {
         self.render_area.clear();
         self.render_area.resize(k1, 0);
         count_runs(rendered, &mut self.render_area);
-        self.hist.clear();
-        self.hist.resize(n * k1, 0);
-        for (j, inst) in q.instances.iter().enumerate() {
-            let row = &mut self.hist[j * k1..(j + 1) * k1];
-            for &[a, b] in inst.spans() {
-                count_runs(&rendered[a as usize..b as usize], row);
-            }
-        }
+        self.row.clear();
+        self.row.resize(k1, 0);
         let mut c = 0.0;
-        for (j, inst) in q.instances.iter().enumerate() {
-            let row = &self.hist[j * k1..(j + 1) * k1];
+        for inst in &q.instances {
+            // This instance's histogram row, sparse: the IDs it meets, in `touched`.
+            let (row, touched) = (&mut self.row, &mut self.touched);
+            touched.clear();
+            for &[a, b] in inst.spans() {
+                for_each_run(&rendered[a as usize..b as usize], |k, run| {
+                    if k != 0 && (k as usize) < k1 {
+                        if row[k as usize] == 0 {
+                            touched.push(k);
+                        }
+                        row[k as usize] += run;
+                    }
+                });
+            }
             let qa = inst.area_px() as f64;
             let mut best = 0.0f64;
-            for k in 1..k1 {
-                if row[k] == 0 {
-                    continue;
-                }
+            for &k in touched.iter() {
+                let k = k as usize;
                 let d = 2.0 * row[k] as f64 / (qa + self.render_area[k] as f64 + DICE_EPS);
                 best = best.max(d);
+                row[k] = 0;
             }
             c += weight(inst) / total_w * best;
         }
@@ -357,6 +394,30 @@ mod tests {
         assert_eq!(counts, vec![2, 1, 4]);
         count_runs(&[], &mut counts);
         assert_eq!(counts, vec![2, 1, 4]);
+    }
+
+    #[test]
+    fn runs_are_found_across_and_within_blocks() {
+        // Against the plain definition, on runs shorter and longer than a block.
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        for _ in 0..200 {
+            let mut ids = Vec::new();
+            while ids.len() < rng.gen_range(0..300) {
+                let (v, n) = (rng.gen_range(0..4u32), rng.gen_range(1..40));
+                ids.extend(std::iter::repeat_n(v, n));
+            }
+            let mut runs = Vec::new();
+            for_each_run(&ids, |v, n| runs.push((v, n)));
+            let mut expected: Vec<(u32, u32)> = Vec::new();
+            for &v in &ids {
+                match expected.last_mut() {
+                    Some((last, n)) if *last == v => *n += 1,
+                    _ => expected.push((v, 1)),
+                }
+            }
+            assert_eq!(runs, expected);
+        }
     }
 
     #[test]

@@ -73,8 +73,9 @@ pub struct FineParams {
     pub yaw_deg: f64,
     pub gamma: f64,
     /// The first this many iterations score at the coarse stage's (lower) resolution; the pool is
-    /// re-scored at the fine resolution when the switch happens.
-    pub lowres_iterations: u32,
+    /// re-scored at the fine resolution when the switch happens. `None`: until the decay reaches its
+    /// floor γ ([`FineParams::lowres_iterations`]).
+    pub lowres_iterations: Option<u32>,
     /// After the particle filter, a deterministic local pattern search (not in the paper; off with
     /// `--no-polish`): see [`polish`].
     pub polish: bool,
@@ -91,13 +92,25 @@ impl Default for FineParams {
             sigma_m: 1.5,
             yaw_deg: 2.0,
             gamma: 0.3,
-            lowres_iterations: 20,
+            lowres_iterations: None,
             polish: true,
         }
     }
 }
 
 impl FineParams {
+    /// Iterations scored at the coarse resolution. By default those before the perturbation scale
+    /// s = max(γ, (n − i)/n) reaches its floor γ (28 of 40 for γ = 0.3): until then the pool moves
+    /// by at least σ·γ = 0.45 m and 0.6° per step, which the coarse renders resolve (a 320 px cam2
+    /// pixel is about 0.2 m at 150 m); the last iterations, at the floor, are the final precision,
+    /// scored at the fine resolution.
+    pub fn lowres_iterations(&self) -> u32 {
+        let n = self.iterations.max(1);
+        self.lowres_iterations
+            .unwrap_or_else(|| (n as f64 * (1.0 - self.gamma.clamp(0.0, 1.0)) - 1e-9).ceil() as u32)
+            .min(n)
+    }
+
     /// Candidates per iteration (kept + perturbed, all beams).
     pub fn candidates_per_iteration(&self) -> u32 {
         self.beams * self.keep_per_beam * (1 + self.perturbations)
@@ -198,7 +211,7 @@ pub fn search<E: Evaluate>(
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let unit = Normal::new(0.0, 1.0).expect("σ = 1 is valid");
     let n_iter = fine.iterations.max(1);
-    let lowres = fine.lowres_iterations.min(n_iter);
+    let lowres = fine.lowres_iterations();
     // Scores in `pool` come from the coarse evaluator until they are re-scored at the fine one.
     let mut pool_is_fine = false;
     for i in 0..n_iter {
@@ -429,6 +442,18 @@ mod tests {
         )
         .unwrap();
         assert_eq!(r.coarse_best, prior);
+    }
+
+    #[test]
+    fn low_resolution_until_the_decay_reaches_its_floor() {
+        let d = FineParams::default();
+        assert_eq!(d.lowres_iterations(), 28);
+        // s = max(0.3, (40 − i)/40) is 0.3 from i = 28 on, and above it at i = 27.
+        let s = |i: u32| d.gamma.max((d.iterations - i) as f64 / d.iterations as f64);
+        assert!(s(27) > d.gamma && s(28) == d.gamma);
+        assert_eq!(FineParams { iterations: 10, ..d.clone() }.lowres_iterations(), 7);
+        assert_eq!(FineParams { lowres_iterations: Some(50), ..d.clone() }.lowres_iterations(), 40);
+        assert_eq!(FineParams { lowres_iterations: Some(0), ..d }.lowres_iterations(), 0);
     }
 
     #[test]

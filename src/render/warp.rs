@@ -97,37 +97,47 @@ impl RotationFan {
         let (w, h) = (self.target.width_px as usize, self.target.height_px as usize);
         let (ww, wh) = (self.intrinsics.width_px as usize, self.intrinsics.height_px as usize);
         debug_assert_eq!(wide.len(), ww * wh);
-        out.clear();
+        // Every pixel is written below: no need to clear.
         out.resize(w * h, 0);
         let m = &self.homographies[i];
-        let at = |x: f64, y: f64| {
-            let p = apply(m, x, y);
-            (p[0] / p[2], p[1] / p[2])
+        // 16.16 fixed point, clamped into the canvas, so every point between two clamped ends is too.
+        let (umax, vmax) = (((ww as i64) << 16) - 1, ((wh as i64) << 16) - 1);
+        let fixed = |p: [f64; 3]| {
+            let r = 65536.0 / p[2];
+            (((p[0] * r) as i64).clamp(0, umax), ((p[1] * r) as i64).clamp(0, vmax))
         };
+        // Along a row the homogeneous point is affine in x: step it by SEGMENT pixels at a time.
+        let step = [m[0][0], m[1][0], m[2][0]].map(|v| v * SEGMENT as f64);
         for y in 0..h {
-            let yc = y as f64 + 0.5;
             let row = &mut out[y * w..(y + 1) * w];
             // Exact at both ends of every SEGMENT pixels, linear in between: over so short a stretch
             // the perspective term stays far below a hundredth of a pixel for the small rotations of
             // a fan (the canvas ratio bounds them).
-            for (s, seg) in row.chunks_mut(SEGMENT).enumerate() {
-                let x0 = (s * SEGMENT) as f64 + 0.5;
-                // 16.16 fixed point, both ends clamped into the canvas, so every point between is too.
-                let fixed = |(u, v): (f64, f64)| {
-                    (
-                        ((u * 65536.0) as i64).clamp(0, ((ww as i64) << 16) - 1),
-                        ((v * 65536.0) as i64).clamp(0, ((wh as i64) << 16) - 1),
-                    )
-                };
-                let (u0, v0) = fixed(at(x0, yc));
-                let (u1, v1) = fixed(at(x0 + SEGMENT as f64, yc));
+            let mut p = apply(m, 0.5, y as f64 + 0.5);
+            let mut start = fixed(p);
+            for seg in row.chunks_mut(SEGMENT) {
+                p = [p[0] + step[0], p[1] + step[1], p[2] + step[2]];
+                let end = fixed(p);
+                let ((u0, v0), (u1, v1)) = (start, end);
                 let (du, dv) = ((u1 - u0) / SEGMENT as i64, (v1 - v0) / SEGMENT as i64);
                 let (mut u, mut v) = (u0, v0);
-                for o in seg.iter_mut() {
-                    *o = wide[(v >> 16) as usize * ww + (u >> 16) as usize];
-                    u += du;
-                    v += dv;
+                // Every point between the clamped ends lies between them (truncated steps): when
+                // both ends fall in one canvas row, so does the whole stretch (the common case: a
+                // yaw fan tilts rows only slightly).
+                if v0 >> 16 == v1 >> 16 {
+                    let src = &wide[(v0 >> 16) as usize * ww..][..ww];
+                    for o in seg.iter_mut() {
+                        *o = src[(u >> 16) as usize];
+                        u += du;
+                    }
+                } else {
+                    for o in seg.iter_mut() {
+                        *o = wide[(v >> 16) as usize * ww + (u >> 16) as usize];
+                        u += du;
+                        v += dv;
+                    }
                 }
+                start = end;
             }
         }
     }
