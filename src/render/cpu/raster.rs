@@ -59,9 +59,10 @@ const SUBPIXEL: f64 = (1 << SUBPIXEL_BITS) as f64;
 /// (points grazing the near plane); such triangles are rejected before integer maths.
 #[inline]
 pub(super) fn project(k: &Intrinsics, p: ClipVert) -> Screen {
-    let u = k.fx_px * p.x / p.z + k.cx_px;
-    let v = k.fy_px * p.y / p.z + k.cy_px;
-    Screen { x: round_fixed(u * SUBPIXEL), y: round_fixed(v * SUBPIXEL), inv_z: 1.0 / p.z }
+    let inv_z = 1.0 / p.z;
+    let u = k.fx_px * p.x * inv_z + k.cx_px;
+    let v = k.fy_px * p.y * inv_z + k.cy_px;
+    Screen { x: round_fixed(u * SUBPIXEL), y: round_fixed(v * SUBPIXEL), inv_z }
 }
 
 /// Rounds to the nearest integer, ties to even (as the GPU's float → fixed-point snapping), without a
