@@ -26,7 +26,8 @@ areas=(demo-test)
   echo "±20 m / 5 m, ±10 m / 5 m, ±7.5° / 2.5° at 320 px (one wide render per position, its yaws warped out of it);"
   echo "particle filter 40 × 52 (the first 28 iterations, until the perturbation decay reaches its floor γ, at 320 px;"
   echo "the last 12 at 640 px), then the local polish at 640 px. Cost: best-match Dice, area weighting."
-  echo "Seconds are wall-clock per query and cost; they vary by ±15 % between runs on this shared 2-core machine."
+  echo "Seconds are the search's wall-clock per query and cost (a query's setup, shared by its costs — masks, culling, CPU"
+  echo "scene — is given after it); they vary by ±15 % between runs on this shared 2-core machine."
   echo
 } > "$TMP"
 for area in "${areas[@]}"; do

@@ -256,9 +256,10 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     if !global.quiet {
         println!("{}", crate::loc::metrics::markdown(&summary.rows));
         println!(
-            "{} queries, median {:.2} s/query, {:.0} hypotheses/s → {}",
+            "{} queries, median {:.2} s/query (+{:.2} s setup), {:.0} hypotheses/s → {}",
             summary.queries,
             summary.median_seconds_per_query,
+            summary.median_setup_seconds,
             summary.hypotheses_per_second,
             out_dir.display()
         );

@@ -94,7 +94,12 @@ pub struct QueryResult {
     pub coarse_translation_error_m: f64,
     pub coarse_rotation_error_deg: f64,
     pub hypotheses: u64,
+    /// Wall-clock seconds of the search.
     pub seconds: f64,
+    /// Wall-clock seconds of the query's preparation, shared by its costs: the query masks at both
+    /// resolutions, culling around the prior, the CPU scene (welding, closed shells, polygons).
+    #[serde(default)]
+    pub setup_seconds: f64,
     pub query_instances: usize,
     pub buildings_considered: usize,
 }
@@ -104,7 +109,11 @@ pub struct QueryResult {
 pub struct Summary {
     pub rows: Vec<Row>,
     pub queries: usize,
+    /// Median over queries and costs of the search's wall-clock seconds.
     pub median_seconds_per_query: f64,
+    /// Median over queries of the preparation shared by a query's costs (see `QueryResult`).
+    #[serde(default)]
+    pub median_setup_seconds: f64,
     pub hypotheses_per_second: f64,
 }
 
@@ -394,6 +403,7 @@ pub fn evaluate(
     let mut est_lines: BTreeMap<CostKind, String> = BTreeMap::new();
     let mut prior_errors: Vec<(f64, f64, String)> = Vec::new();
     let mut total_hyp = 0u64;
+    let mut setup_times: Vec<f64> = Vec::new();
     let mut total_s = 0.0;
     progress.start((queries.len() * opts.costs.len()) as u64, "queries");
     for (qi, gt) in queries.iter().enumerate() {
@@ -404,6 +414,7 @@ pub fn evaluate(
             gt_pose.rotation_error_deg(&prior_pose),
             gt.group.clone(),
         ));
+        let t_setup = Instant::now();
         let k_fine = at_width(&gt.intrinsics, opts.render_width_px);
         let k_coarse = at_width(&gt.intrinsics, opts.coarse_width_px);
         let seed = frame_seed(opts.seed, &gt.name);
@@ -415,6 +426,8 @@ pub fn evaluate(
         let kept = cull(&scene.buildings, &prior_pose, &k_fine, 0.5);
         let sub = dense_subscene(&scene.mesh, &kept);
         let cpu = CpuScene::new(&sub, prior_pose.centre_m);
+        let setup_secs = t_setup.elapsed().as_secs_f64();
+        setup_times.push(setup_secs);
         let [prior_yaw, pitch, roll] = prior_pose.ypr_deg();
         let prior_h = Hypothesis { centre_m: prior_pose.centre_m, yaw_deg: prior_yaw };
         let pivot = look_at_ground(&prior_pose, scene.manifest.ground_enu_m);
@@ -490,6 +503,7 @@ pub fn evaluate(
                 coarse_rotation_error_deg: gt_pose.rotation_error_deg(&coarse_est),
                 hypotheses: r.hypotheses_scored,
                 seconds: secs,
+                setup_seconds: setup_secs,
                 query_instances: qf.instances.len(),
                 buildings_considered: kept.len(),
             });
@@ -551,6 +565,7 @@ pub fn evaluate(
         rows,
         queries: queries.len(),
         median_seconds_per_query: metrics::median(&secs),
+        median_setup_seconds: metrics::median(&setup_times),
         hypotheses_per_second: if total_s > 0.0 { total_hyp as f64 / total_s } else { 0.0 },
     };
 
@@ -570,10 +585,12 @@ pub fn evaluate(
     }
     util::write_json_atomic(&out_dir.join("summary.json"), &summary)?;
     let md = format!(
-        "# Localization on {}\n\n{} queries; median {:.2} s per query; {:.0} hypotheses/s.\n\n{}",
+        "# Localization on {}\n\n{} queries; median {:.2} s per query (search; the query's setup takes {:.2} s \
+         more); {:.0} hypotheses/s.\n\n{}",
         out_dir.display(),
         summary.queries,
         summary.median_seconds_per_query,
+        summary.median_setup_seconds,
         summary.hypotheses_per_second,
         metrics::markdown(&summary.rows)
     );
