@@ -18,7 +18,7 @@ mod solid;
 
 use crate::camera::{Intrinsics, Pose};
 use crate::scene::SceneMesh;
-use raster::{project, raster_convex, raster_fixed, ClipVert, Screen, MAX_POLYGON, SUBPIXEL_BITS};
+use raster::{project, raster_convex, ClipVert, Screen, MAX_POLYGON, SUBPIXEL_BITS};
 use solid::solid_winding;
 
 /// Near clipping distance in metres (as the GPU renderer's default).
@@ -305,7 +305,7 @@ fn draw_clipped(
     }
     if v.iter().all(|p| p[2] >= near) {
         let [a, b, c] = v.map(|p| project(k, ClipVert { x: p[0] as f64, y: p[1] as f64, z: p[2] as f64 }));
-        raster_fixed(a, b, c, id, 0, &mut frame.ids, &mut frame.inv_z, w, h);
+        raster_convex(&[a, b, c], id, 0, &mut frame.ids, &mut frame.inv_z, w, h);
         return;
     }
     // A triangle crossing the camera plane far outside the view (below the camera of an
@@ -333,8 +333,20 @@ fn draw_clipped(
     }
     for i in 1..poly.len().saturating_sub(1) {
         let [a, b, c] = [poly[0], poly[i], poly[i + 1]].map(|p| project(k, p));
-        raster_fixed(a, b, c, id, 0, &mut frame.ids, &mut frame.inv_z, w, h);
+        raster_convex(&[a, b, c], id, 0, &mut frame.ids, &mut frame.inv_z, w, h);
     }
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 /// The view frustum in camera coordinates as five half-spaces: z ≥ near and the four side planes
@@ -476,34 +488,36 @@ mod tests {
         assert_eq!(CpuScene::new(&m, [0.0; 3]).groups[0].solid, 0);
     }
 
-    #[test]
-    fn culling_back_faces_of_closed_buildings_changes_no_pixel() {
+    /// 60 boxes scattered over ±120 m, of both windings, every fifth open (never culled), intersecting
+    /// in view; with `parts`, every third building has a second part sharing a wall or an edge.
+    fn random_boxes(seed: u64, parts: bool) -> SceneMesh {
         use rand::{Rng, SeedableRng};
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         let mut m = SceneMesh::default();
-        // Boxes of both windings, some open (never culled), overlapping in view; every third building
-        // has a second part sharing a wall or an edge with the first.
         for id in 1..=60u32 {
             let (x, y) = (rng.gen_range(-120.0..120.0f32), rng.gen_range(-120.0..120.0f32));
             let (sx, sy, h) =
                 (rng.gen_range(5.0..30.0f32), rng.gen_range(5.0..30.0f32), rng.gen_range(5.0..80.0f32));
             closed_box(&mut m, [x, y, 0.0], [x + sx, y + sy, h], id, id % 3 == 1, id % 5 != 0);
-            if id % 3 == 0 {
+            if parts && id % 3 == 0 {
                 let (x2, y2) = if id % 2 == 0 { (x + sx, y) } else { (x + sx, y + sy) };
                 closed_box(&mut m, [x2, y2, 0.0], [x2 + sx, y2 + sy, h], id, false, id % 5 != 0);
             }
         }
-        let culled = CpuScene::new(&m, [0.0, 0.0, 100.0]);
+        m
+    }
+
+    fn view_200x150() -> Intrinsics {
+        Intrinsics { width_px: 200, height_px: 150, fx_px: 180.0, fy_px: 180.0, cx_px: 100.0, cy_px: 75.0 }
+    }
+
+    #[test]
+    fn culling_back_faces_of_closed_buildings_changes_no_pixel() {
+        // Every third building has a second part sharing a wall or an edge with the first.
+        let culled = CpuScene::new(&random_boxes(3, true), [0.0, 0.0, 100.0]);
         assert!(culled.groups.iter().filter(|g| g.solid != 0).count() >= 40);
         let unculled = culled.clone().with_back_face_culling(false);
-        let k = Intrinsics {
-            width_px: 200,
-            height_px: 150,
-            fx_px: 180.0,
-            fy_px: 180.0,
-            cx_px: 100.0,
-            cy_px: 75.0,
-        };
+        let k = view_200x150();
         let (mut a, mut b) = (Frame::default(), Frame::default());
         let mut drawn = 0;
         for i in 0..24 {
@@ -523,28 +537,11 @@ mod tests {
 
     #[test]
     fn merged_polygons_cover_the_pixels_of_their_triangles() {
-        use rand::{Rng, SeedableRng};
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
-        let mut m = SceneMesh::default();
-        // Intersecting boxes (their walls cross, so the depth order decides many pixels), of both
-        // windings, some open.
-        for id in 1..=60u32 {
-            let (x, y) = (rng.gen_range(-120.0..120.0f32), rng.gen_range(-120.0..120.0f32));
-            let (sx, sy, h) =
-                (rng.gen_range(5.0..30.0f32), rng.gen_range(5.0..30.0f32), rng.gen_range(5.0..80.0f32));
-            closed_box(&mut m, [x, y, 0.0], [x + sx, y + sy, h], id, id % 3 == 1, id % 5 != 0);
-        }
-        let merged = CpuScene::new(&m, [0.0, 0.0, 100.0]);
+        // The boxes' walls cross, so the depth order decides many pixels.
+        let merged = CpuScene::new(&random_boxes(9, false), [0.0, 0.0, 100.0]);
         let triangles = merged.clone().with_merged_polygons(false);
         assert_eq!(merged.polygon_count() * 2, triangles.polygon_count(), "every face is one quad");
-        let k = Intrinsics {
-            width_px: 200,
-            height_px: 150,
-            fx_px: 180.0,
-            fy_px: 180.0,
-            cx_px: 100.0,
-            cy_px: 75.0,
-        };
+        let k = view_200x150();
         let (mut a, mut b) = (Frame::default(), Frame::default());
         let (mut drawn, mut differ) = (0usize, 0usize);
         for i in 0..24 {

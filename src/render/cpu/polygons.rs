@@ -6,6 +6,7 @@
 use std::collections::HashMap;
 
 use super::raster::MAX_POLYGON;
+use super::{cross, dot, sub};
 
 /// Normals closer than this (1 − cos) count as parallel: about 0.08°.
 const PARALLEL: f64 = 1e-6;
@@ -82,18 +83,6 @@ fn strictly_convex(poly: &[u32], n: [f64; 3], pos: &dyn Fn(u32) -> [f64; 3]) -> 
         let (u, v) = (sub(q, p), sub(r, q));
         dot(cross(u, v), n) > 1e-6 * dot(u, u).sqrt() * dot(v, v).sqrt()
     })
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 #[cfg(test)]

@@ -80,24 +80,6 @@ fn round_fixed(x: f64) -> i64 {
     }
 }
 
-/// Rasterises one triangle (any orientation; skipped when its signed area has the sign of `cull`,
-/// see `render_ids`), keeping the nearest surface (largest 1/z) per pixel.
-#[allow(clippy::too_many_arguments)]
-#[inline]
-pub(super) fn raster_fixed(
-    a: Screen,
-    b: Screen,
-    c: Screen,
-    id: u32,
-    cull: i64,
-    ids: &mut [u32],
-    inv_z: &mut [f32],
-    w: usize,
-    h: usize,
-) {
-    raster_convex(&[a, b, c], id, cull, ids, inv_z, w, h);
-}
-
 /// The most vertices a polygon of a `CpuScene` has.
 pub(super) const MAX_POLYGON: usize = 8;
 
@@ -402,7 +384,7 @@ mod tests {
             let t = [vert(), vert(), vert()];
             let s = t.map(|(x, y)| Screen { x, y, inv_z: 1.0 });
             let (mut ids, mut inv_z) = (vec![0u32; w * h], vec![0f32; w * h]);
-            raster_fixed(s[0], s[1], s[2], 1, 0, &mut ids, &mut inv_z, w, h);
+            raster_convex(&s, 1, 0, &mut ids, &mut inv_z, w, h);
             for y in 0..h {
                 for x in 0..w {
                     assert_eq!(

@@ -1,5 +1,7 @@
 //! Which buildings are closed solids whose back faces may be culled without changing a pixel.
 
+use super::{cross, dot, sub};
+
 /// Whether `tris` (vertices welded by position) bound solids consistently: returns the orientation
 /// (+1 when the triangles wind counter-clockwise seen from outside, −1 when clockwise) if the surface
 /// is a union of closed shells that all wind the same way, else 0 (no culling).
@@ -90,11 +92,6 @@ fn alternates_around_edge(
     back: &[u32],
     pos: &dyn Fn(u32) -> [f64; 3],
 ) -> bool {
-    let sub = |p: [f64; 3], q: [f64; 3]| [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
-    let cross = |p: [f64; 3], q: [f64; 3]| {
-        [p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0]]
-    };
-    let dot = |p: [f64; 3], q: [f64; 3]| p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
     let d = sub(pb, pa);
     // A basis (e1, e2) of the plane normal to the edge.
     let helper = if d[0].abs() <= d[1].abs() && d[0].abs() <= d[2].abs() {
