@@ -54,6 +54,21 @@ pub fn mat_vec(a: &Mat3, v: [f64; 3]) -> [f64; 3] {
     ]
 }
 
+/// a − b.
+pub fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// The cross product a × b.
+pub fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+/// The dot product a · b.
+pub fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
 /// Rotation about the z axis by `a` radians (counter-clockwise seen from +z).
 fn rot_z(a: f64) -> Mat3 {
     let (s, c) = a.sin_cos();

@@ -6,6 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
+use insgen::camera::pose::{cross, dot, sub};
 use insgen::camera::{Intrinsics, Pose};
 
 /// The interpreter with bpy: `$INSGEN_BLENDER_PYTHON`, else `<repo>/.venv-blender/bin/python`. When
@@ -182,16 +183,6 @@ pub fn reference_ids(boxes: &[BoxBuilding], k: &Intrinsics, pose: &Pose) -> Vec<
         }
     }
     ids
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 fn ray_triangle(o: [f64; 3], d: [f64; 3], t: &[[f64; 3]; 3]) -> Option<f64> {

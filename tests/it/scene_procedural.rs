@@ -5,6 +5,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
+use insgen::camera::pose::sub;
 use insgen::geo::AxisConvention;
 use insgen::lod::{Frame, Geometry, Polygon, SourceBuilding, SourceModel};
 use insgen::scene::procedural::{default_spec, generate, PlaneOrigin, ProceduralSpec, DEMO_CRS};
@@ -22,10 +23,6 @@ fn polygons(b: &SourceBuilding) -> &[Polygon] {
 
 fn rings(p: &Polygon) -> impl Iterator<Item = &Vec<[f64; 3]>> {
     std::iter::once(&p.exterior).chain(p.interiors.iter())
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
 /// Newell's normal of a ring (not normalised; its length is twice the area).

@@ -337,18 +337,6 @@ fn draw_clipped(
     }
 }
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
 /// The view frustum in camera coordinates as five half-spaces: z ≥ near and the four side planes
 /// through the camera centre one pixel beyond the image border (u ≥ −1, u ≤ w + 1, v ≥ −1, v ≤ h + 1,
 /// written without the division by z so they hold for points behind the camera too).

@@ -6,7 +6,7 @@
 use std::collections::HashMap;
 
 use super::raster::MAX_POLYGON;
-use super::{cross, dot, sub};
+use crate::camera::pose::{cross, dot, sub};
 
 /// Normals closer than this (1 − cos) count as parallel: about 0.08°.
 const PARALLEL: f64 = 1e-6;

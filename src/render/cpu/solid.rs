@@ -1,6 +1,6 @@
 //! Which buildings are closed solids whose back faces may be culled without changing a pixel.
 
-use super::{cross, dot, sub};
+use crate::camera::pose::{cross, dot, sub};
 
 /// Whether `tris` (vertices welded by position) bound solids consistently: returns the orientation
 /// (+1 when the triangles wind counter-clockwise seen from outside, −1 when clockwise) if the surface
