@@ -13,10 +13,10 @@ use std::time::Instant;
 use insgen::camera::{Intrinsics, Pose, PoseRecord, Trajectory};
 use insgen::geo::{EnuFrame, Geodetic};
 use insgen::label::stage::{self, MaskPlan};
-use insgen::label::{idpng, label_components, Connectivity};
+use insgen::label::{label_components, Connectivity};
 use insgen::render::{time_render, RenderOptions, Renderer, View};
 use insgen::scene::artifact::{GeoidUsed, Origin};
-use insgen::scene::{BuildingRecord, Manifest, PreparedScene, SceneMesh};
+use insgen::scene::{BuildingId, BuildingRecord, Manifest, PreparedScene, SceneMesh};
 use insgen::util::NoProgress;
 
 /// Deterministic pseudo-random numbers (SplitMix64) so every run renders the same city.
@@ -32,7 +32,7 @@ impl Rng {
     }
 }
 
-fn push_box(m: &mut SceneMesh, id: u32, min: [f64; 3], max: [f64; 3]) {
+fn push_box(m: &mut SceneMesh, id: BuildingId, min: [f64; 3], max: [f64; 3]) {
     let base = m.positions_m.len() as u32;
     for c in 0..8usize {
         m.positions_m.push([0, 1, 2].map(|a| if c >> a & 1 == 0 { min[a] as f32 } else { max[a] as f32 }));
@@ -53,7 +53,7 @@ fn city(side: u32) -> (SceneMesh, Vec<BuildingRecord>) {
     let half = side as f64 * 25.0 / 2.0;
     for j in 0..side {
         for i in 0..side {
-            let id = 1 + j * side + i;
+            let id = BuildingId::from_index((j * side + i) as usize).expect("a small synthetic city");
             let (x, y) = (i as f64 * 25.0 - half, j as f64 * 25.0 - half);
             let (w, d) = (14.0 + 8.0 * rng.next(), 14.0 + 8.0 * rng.next());
             let h = 8.0 + 40.0 * rng.next() + if rng.next() < 0.05 { 80.0 } else { 0.0 };
@@ -154,10 +154,10 @@ fn main() {
         let mut png_bytes = 0;
         for _ in 0..5 {
             let s = Instant::now();
-            black_box(label_components(black_box(&img.ids), img.width, img.height, Connectivity::Eight));
+            black_box(label_components(black_box(&img.ids), Connectivity::Eight));
             cc.push(s.elapsed().as_secs_f64());
             let s = Instant::now();
-            png_bytes = black_box(idpng::encode_id_png(&img.ids, img.width, img.height).expect("png")).len();
+            png_bytes = black_box(img.ids.encode_png().expect("png")).len();
             enc.push(s.elapsed().as_secs_f64());
         }
         notes.push(format!(

@@ -89,7 +89,8 @@ struct Row {
 
 fn run_case(width: u32, height: u32, buildings: u32, reps: usize, py: Option<&Path>) -> Row {
     let ids = city_ids(width, height, buildings, 42);
-    let lab = label_components(&ids, width, height, Connectivity::Eight);
+    let map = insgen::scene::IdMap::from_raw(width, height, ids).expect("24-bit synthetic IDs");
+    let lab = label_components(&map, Connectivity::Eight);
     let n = lab.components.len();
     let ours_all =
         best_of(reps, || encode_labels(black_box(&lab.labels), height, width, n).expect("valid labels"));

@@ -13,76 +13,16 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use super::error::BlenderError;
-use crate::scene::MAX_BUILDING_ID;
+use crate::scene::{BuildingId, IdMap};
 
 /// Targets of issue 6: median IoU ≥ 0.995 and 5th percentile ≥ 0.98.
 pub const TARGET_MEDIAN_IOU: f64 = 0.995;
 pub const TARGET_P5_IOU: f64 = 0.98;
 
-/// A building-ID image, row-major from the top-left pixel, 0 = background.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct IdImage {
-    pub width: u32,
-    pub height: u32,
-    pub ids: Vec<u32>,
-}
-
-/// Reads Blender's ID render: a float32 EXR whose R channel holds the building ID.
-///
-/// # Errors
-/// [`BlenderError::IdImage`] when the file is unreadable, has no float32 R channel, or holds a value
-/// that is not an integer in 0..=2^24−1.
-pub fn read_id_exr(path: &Path) -> Result<IdImage, BlenderError> {
-    let bad = |what: String| BlenderError::IdImage { path: path.to_path_buf(), what };
-    let image = exr::prelude::read_first_flat_layer_from_file(path)
-        .map_err(|e| bad(format!("cannot read EXR: {e}")))?;
-    let layer = &image.layer_data;
-    let (w, h) = (layer.size.0, layer.size.1);
-    let r =
-        layer.channel_data.list.iter().find(|c| c.name.eq("R")).ok_or_else(|| bad("no R channel".into()))?;
-    let values = match &r.sample_data {
-        exr::prelude::FlatSamples::F32(v) => v,
-        _ => return Err(bad("the R channel is not float32 (IDs above 2048 need float32)".into())),
-    };
-    let mut ids = Vec::with_capacity(values.len());
-    for (i, &v) in values.iter().enumerate() {
-        if !(v >= 0.0 && v <= MAX_BUILDING_ID as f32 && v.fract() == 0.0) {
-            return Err(bad(format!(
-                "pixel ({}, {}) holds {v}, not a building ID",
-                i % w.max(1),
-                i / w.max(1)
-            )));
-        }
-        ids.push(v as u32);
-    }
-    Ok(IdImage { width: w as u32, height: h as u32, ids })
-}
-
-/// Reads a 24-bit ID PNG (R = bits 16–23, G = 8–15, B = 0–7), the mask renderer's format.
-///
-/// # Errors
-/// [`BlenderError::IdImage`] when the file is unreadable or not 8-bit RGB.
-pub fn read_id_png(path: &Path) -> Result<IdImage, BlenderError> {
-    let bad = |what: String| BlenderError::IdImage { path: path.to_path_buf(), what };
-    let file = std::fs::File::open(path).map_err(|e| bad(format!("cannot open: {e}")))?;
-    let decoder = png::Decoder::new(std::io::BufReader::new(file));
-    let mut reader = decoder.read_info().map_err(|e| bad(format!("not a PNG: {e}")))?;
-    let mut buf = vec![0; reader.output_buffer_size()];
-    let info = reader.next_frame(&mut buf).map_err(|e| bad(format!("cannot decode PNG: {e}")))?;
-    if info.bit_depth != png::BitDepth::Eight || info.color_type != png::ColorType::Rgb {
-        return Err(bad(format!("is {:?} {:?}, expected 8-bit RGB", info.bit_depth, info.color_type)));
-    }
-    let ids = buf[..info.buffer_size()]
-        .chunks_exact(3)
-        .map(|p| ((p[0] as u32) << 16) | ((p[1] as u32) << 8) | p[2] as u32)
-        .collect();
-    Ok(IdImage { width: info.width, height: info.height, ids })
-}
-
 /// Overlap of one building between two ID images.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct BuildingIou {
-    pub building_id: u32,
+    pub building_id: BuildingId,
     /// Pixels of the building in image A (Blender), in image B (reference), in both, in either.
     pub a_px: u64,
     pub b_px: u64,
@@ -94,29 +34,30 @@ pub struct BuildingIou {
 /// Per-building IoU between `a` and `b` (same size), ordered by building ID; background is skipped.
 ///
 /// # Errors
-/// [`BlenderError::IdImage`] (naming `what`) when the sizes differ.
-pub fn building_ious(a: &IdImage, b: &IdImage, what: &Path) -> Result<Vec<BuildingIou>, BlenderError> {
-    if (a.width, a.height) != (b.width, b.height) || a.ids.len() != b.ids.len() {
-        return Err(BlenderError::IdImage {
+/// [`BlenderError::SizeMismatch`] (naming `what`) when the sizes differ.
+pub fn building_ious(a: &IdMap, b: &IdMap, what: &Path) -> Result<Vec<BuildingIou>, BlenderError> {
+    if (a.width(), a.height()) != (b.width(), b.height()) {
+        return Err(BlenderError::SizeMismatch {
             path: what.to_path_buf(),
-            what: format!("sizes differ: {}×{} vs {}×{}", a.width, a.height, b.width, b.height),
+            a: [a.width(), a.height()],
+            b: [b.width(), b.height()],
         });
     }
     // [a_px, b_px, intersection]
-    let mut counts: BTreeMap<u32, [u64; 3]> = BTreeMap::new();
-    for (&x, &y) in a.ids.iter().zip(&b.ids) {
+    let mut counts: BTreeMap<BuildingId, [u64; 3]> = BTreeMap::new();
+    for (&x, &y) in a.ids().iter().zip(b.ids()) {
         if x == y {
-            if x != 0 {
+            if !x.is_background() {
                 let c = counts.entry(x).or_default();
                 c[0] += 1;
                 c[1] += 1;
                 c[2] += 1;
             }
         } else {
-            if x != 0 {
+            if !x.is_background() {
                 counts.entry(x).or_default()[0] += 1;
             }
-            if y != 0 {
+            if !y.is_background() {
                 counts.entry(y).or_default()[1] += 1;
             }
         }
@@ -138,11 +79,11 @@ pub fn building_ious(a: &IdImage, b: &IdImage, what: &Path) -> Result<Vec<Buildi
 }
 
 /// Fraction of pixels carrying the same ID (background included) in both images of equal size.
-pub fn pixel_agreement(a: &IdImage, b: &IdImage) -> f64 {
-    if a.ids.is_empty() {
+pub fn pixel_agreement(a: &IdMap, b: &IdMap) -> f64 {
+    if a.ids().is_empty() {
         return 1.0;
     }
-    a.ids.iter().zip(&b.ids).filter(|(x, y)| x == y).count() as f64 / a.ids.len() as f64
+    a.ids().iter().zip(b.ids()).filter(|(x, y)| x == y).count() as f64 / a.ids().len() as f64
 }
 
 /// The `q`-quantile (0..=1) of ascending `sorted` values, interpolating linearly between order
@@ -297,12 +238,12 @@ impl AlignmentReport {
 mod tests {
     use super::*;
 
-    fn img(w: u32, rows: &[&[u32]]) -> IdImage {
-        IdImage {
-            width: w,
-            height: rows.len() as u32,
-            ids: rows.iter().flat_map(|r| r.iter().copied()).collect(),
-        }
+    fn img(w: u32, rows: &[&[u32]]) -> IdMap {
+        IdMap::from_raw(w, rows.len() as u32, rows.iter().flat_map(|r| r.iter().copied()).collect()).unwrap()
+    }
+
+    fn id(n: u32) -> BuildingId {
+        BuildingId::new(n).unwrap()
     }
 
     #[test]
@@ -314,10 +255,10 @@ mod tests {
         assert_eq!(r.len(), 2);
         assert_eq!(
             (r[0].building_id, r[0].a_px, r[0].b_px, r[0].intersection_px, r[0].union_px),
-            (1, 4, 4, 3, 5)
+            (id(1), 4, 4, 3, 5)
         );
         assert!((r[0].iou - 0.6).abs() < 1e-15);
-        assert_eq!((r[1].building_id, r[1].intersection_px, r[1].union_px), (2, 1, 2));
+        assert_eq!((r[1].building_id, r[1].intersection_px, r[1].union_px), (id(2), 1, 2));
         assert!((pixel_agreement(&a, &b) - 5.0 / 8.0).abs() < 1e-15);
     }
 
@@ -340,8 +281,8 @@ mod tests {
 
     #[test]
     fn summary_filters_small_unions_and_judges_targets() {
-        let b = |id, inter, union| BuildingIou {
-            building_id: id,
+        let b = |n, inter, union| BuildingIou {
+            building_id: id(n),
             a_px: union,
             b_px: inter,
             intersection_px: inter,
@@ -367,45 +308,10 @@ mod tests {
         assert!((r.p5_iou.unwrap() - 0.9815).abs() < 1e-12);
         assert!(r.pass);
         assert_eq!(r.worst[0].frame, "b");
-        assert_eq!(r.worst[0].building.building_id, 3);
+        assert_eq!(r.worst[0].building.building_id, id(3));
         let md = r.to_markdown();
         assert!(md.contains("PASS") && md.contains("| median IoU | 0.9950 |"), "{md}");
         let r = summarise(vec![], 10);
         assert!(!r.pass && r.median_iou.is_none());
-    }
-
-    #[test]
-    fn exr_round_trip_and_rejects_fractions() {
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("ids.exr");
-        let ids = [0u32, 7, 16_000_000, 70_000, 3, 0];
-        exr::prelude::write_rgb_file(&p, 3, 2, |x, y| {
-            let v = ids[y * 3 + x] as f32;
-            (v, v, v)
-        })
-        .unwrap();
-        let im = read_id_exr(&p).unwrap();
-        assert_eq!((im.width, im.height), (3, 2));
-        assert_eq!(im.ids, ids);
-        exr::prelude::write_rgb_file(&p, 1, 1, |_, _| (2.5f32, 0.0f32, 0.0f32)).unwrap();
-        let e = read_id_exr(&p).unwrap_err().to_string();
-        assert!(e.contains("2.5") && e.contains("ids.exr"), "{e}");
-    }
-
-    #[test]
-    fn png_ids_decode_24_bits() {
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("m.png");
-        let ids = [0x00_0000u32, 0x12_3456, 0xFF_FFFF, 1];
-        let bytes: Vec<u8> = ids.iter().flat_map(|v| [(v >> 16) as u8, (v >> 8) as u8, *v as u8]).collect();
-        let mut out = Vec::new();
-        {
-            let mut enc = png::Encoder::new(&mut out, 2, 2);
-            enc.set_color(png::ColorType::Rgb);
-            enc.set_depth(png::BitDepth::Eight);
-            enc.write_header().unwrap().write_image_data(&bytes).unwrap();
-        }
-        std::fs::write(&p, out).unwrap();
-        assert_eq!(read_id_png(&p).unwrap().ids, ids);
     }
 }

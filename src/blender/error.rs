@@ -99,7 +99,10 @@ pub enum BlenderError {
     /// Blender reported a frame done but its output is missing or wrong.
     #[error("frame {frame:?}: output {}: {what}", path.display())]
     Output { frame: String, path: PathBuf, what: String },
-    /// An ID image (EXR from Blender, PNG from the mask renderer) is unreadable or not an ID map.
-    #[error("ID image {}: {what}", path.display())]
-    IdImage { path: PathBuf, what: String },
+    /// An ID map (EXR from Blender, PNG from the mask renderer) is unreadable or not an ID map.
+    #[error(transparent)]
+    Ids(#[from] crate::scene::IdError),
+    /// Two ID maps of one frame differ in size.
+    #[error("{}: ID maps of different sizes, {}×{} vs {}×{}", path.display(), a[0], a[1], b[0], b[1])]
+    SizeMismatch { path: PathBuf, a: [u32; 2], b: [u32; 2] },
 }

@@ -12,7 +12,6 @@ use std::path::{Path, PathBuf};
 
 use rand::{Rng, SeedableRng};
 
-use super::align::read_id_exr;
 use super::camera::{blender_matrix_world, cam_to_world_enu, BlenderCamera};
 use super::error::{BlenderError, JobIssue};
 use super::job::{
@@ -177,7 +176,7 @@ fn decode_output(kind: OutputKind, path: &Path) -> Result<Decoded, String> {
         OutputKind::RgbExr | OutputKind::IdExr => {
             if kind == OutputKind::IdExr {
                 // Checks that every value is a building ID.
-                read_id_exr(path).map_err(|e| e.to_string())?;
+                crate::scene::IdMap::read_exr(path).map_err(|e| e.to_string())?;
             }
             let img = exr::prelude::read_first_flat_layer_from_file(path)
                 .map_err(|e| format!("does not decode: {e}"))?;

@@ -50,6 +50,17 @@ pub enum CameraError {
         #[source]
         source: serde_json::Error,
     },
+    /// A pose record's frame name cannot be a file stem.
+    #[error("{}:{line}", path.display())]
+    FrameName {
+        path: PathBuf,
+        line: usize,
+        #[source]
+        source: super::record::BadFrameName,
+    },
+    /// Two pose records share a frame name.
+    #[error("{}:{line}: frame name {name:?} was already used on line {first_line}", path.display())]
+    DuplicateFrame { path: PathBuf, line: usize, name: String, first_line: usize },
     /// The flight-plan PNG could not be encoded.
     #[error("encoding {}", path.display())]
     Png {

@@ -162,23 +162,66 @@ pub fn write_jsonl(path: &std::path::Path, records: &[PoseRecord]) -> Result<(),
     crate::util::write_bytes_atomic(path, &bytes)
 }
 
-/// Reads a `poses.jsonl`/`priors.jsonl` file (blank lines are skipped).
+/// A frame name that cannot be the stem of the frame's output files.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("frame name {name:?} {why}")]
+pub struct BadFrameName {
+    pub name: String,
+    pub why: &'static str,
+}
+
+/// Checks that a frame name can be a file stem: not empty, no leading dot (hidden files, `.`, `..`, and
+/// the `.insgen-tmp-` prefix of files being written), no path separator, NUL or control character.
 ///
 /// # Errors
-/// [`super::CameraError::File`] when unreadable, [`super::CameraError::Jsonl`] with the line number for
-/// a line that is not a pose record.
+/// [`BadFrameName`] saying which rule the name breaks.
+pub fn check_frame_name(name: &str) -> Result<(), BadFrameName> {
+    let why = if name.is_empty() {
+        "is empty"
+    } else if name.starts_with('.') {
+        "starts with a dot"
+    } else if name.chars().any(|c| c == '/' || c == '\\' || c.is_control()) {
+        "contains a path separator or a control character"
+    } else {
+        return Ok(());
+    };
+    Err(BadFrameName { name: name.to_string(), why })
+}
+
+/// Reads a `poses.jsonl`/`priors.jsonl` file (blank lines are skipped): every line a pose record, frame
+/// names unique and usable as file stems ([`check_frame_name`]).
+///
+/// # Errors
+/// [`super::CameraError::File`] when unreadable; [`super::CameraError::Jsonl`],
+/// [`super::CameraError::FrameName`] or [`super::CameraError::DuplicateFrame`] with the line number.
 pub fn read_jsonl(path: &std::path::Path) -> Result<Vec<PoseRecord>, super::CameraError> {
+    use super::CameraError;
     let bytes = crate::util::read_file(path)?;
-    let mut out = Vec::new();
+    let mut out: Vec<PoseRecord> = Vec::new();
+    let mut seen: std::collections::HashMap<String, usize> = std::collections::HashMap::new();
     for (i, line) in bytes.split(|&b| b == b'\n').enumerate() {
         if line.iter().all(u8::is_ascii_whitespace) {
             continue;
         }
-        let rec = serde_json::from_slice(line).map_err(|source| super::CameraError::Jsonl {
+        let line_no = i + 1;
+        let rec: PoseRecord = serde_json::from_slice(line).map_err(|source| CameraError::Jsonl {
             path: path.to_path_buf(),
-            line: i + 1,
+            line: line_no,
             source,
         })?;
+        check_frame_name(&rec.name).map_err(|source| CameraError::FrameName {
+            path: path.to_path_buf(),
+            line: line_no,
+            source,
+        })?;
+        if let Some(first_line) = seen.insert(rec.name.clone(), line_no) {
+            return Err(CameraError::DuplicateFrame {
+                path: path.to_path_buf(),
+                line: line_no,
+                name: rec.name,
+                first_line,
+            });
+        }
         out.push(rec);
     }
     Ok(out)

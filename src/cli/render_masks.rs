@@ -4,7 +4,8 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 
-use crate::label::stage::{self, MaskPlan, Shard, DEFAULT_MIN_AREA_PX};
+use crate::label::stage::{self, MaskPlan, DEFAULT_MIN_AREA_PX};
+use crate::util::Shard;
 use crate::label::Connectivity;
 use crate::render::{DepthRange, Renderer};
 use crate::scene::PreparedScene;

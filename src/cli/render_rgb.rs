@@ -1,18 +1,19 @@
 //! `insgen render-rgb`: RGB frames with Blender, pixel-aligned with the masks, and the alignment check.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 
 use crate::blender::align::{
-    building_ious, pixel_agreement, read_id_exr, read_id_png, summarise, FrameAlignment,
+    building_ious, pixel_agreement, summarise, FrameAlignment,
 };
 use crate::blender::run::{frame_outputs, OutputKind};
 use crate::blender::tileset::SelectOptions;
-use crate::blender::{render_frames, Engine, FrameRequest, Launcher, Mode, RenderPlan, SceneSource, Shard};
-use crate::camera::PoseRecord;
+use crate::blender::{render_frames, Engine, FrameRequest, Launcher, Mode, RenderPlan, SceneSource};
+use crate::util::Shard;
 use crate::geo::{EnuFrame, Geodetic};
 use crate::scene::artifact::{Manifest, GLB_FILE, MANIFEST_FILE};
+use crate::scene::IdMap;
 
 /// Render engine choice on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -50,7 +51,7 @@ pub struct Args {
     #[arg(long, value_name = "PRESET")]
     pub camera: String,
     /// Render only frames whose index in poses.jsonl is i modulo N (0 ≤ i < N).
-    #[arg(long, value_name = "i/N", value_parser = parse_shard)]
+    #[arg(long, value_name = "i/N")]
     pub shard: Option<Shard>,
     /// Cycles samples per pixel.
     #[arg(long, value_name = "N", default_value_t = 64)]
@@ -99,28 +100,9 @@ pub struct Args {
     pub blender_python: Option<PathBuf>,
 }
 
-fn parse_shard(s: &str) -> Result<Shard, String> {
-    Shard::parse(s)
-}
-
 /// Stable 64-bit FNV-1a of a string (the area's contribution to the look seed).
 fn fnv1a(s: &str) -> u64 {
     s.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3))
-}
-
-/// Reads `poses.jsonl`, naming the line of any bad record.
-pub fn read_poses(path: &Path) -> anyhow::Result<Vec<PoseRecord>> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let mut out = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        if line.trim().is_empty() {
-            continue;
-        }
-        let rec: PoseRecord = serde_json::from_str(line)
-            .with_context(|| format!("{}:{}: not a pose record", path.display(), i + 1))?;
-        out.push(rec);
-    }
-    Ok(out)
 }
 
 /// Paths and settings resolved from the flags, before any work starts.
@@ -153,7 +135,7 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<Plan> {
     }
     let manifest: Manifest = serde_json::from_slice(&crate::util::read_file(&manifest_path)?)
         .with_context(|| format!("{}: not a scene manifest", manifest_path.display()))?;
-    let records = read_poses(&poses_path)?;
+    let records = crate::camera::record::read_jsonl(&poses_path)?;
     let mut frames: Vec<FrameRequest> = records
         .iter()
         .enumerate()
@@ -251,8 +233,8 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
                 args.camera
             );
         }
-        let a = read_id_exr(&ids_path)?;
-        let b = read_id_png(&mask_path)?;
+        let a = IdMap::read_exr(&ids_path)?;
+        let b = IdMap::read_png(&mask_path)?;
         let buildings = building_ious(&a, &b, &mask_path)?;
         per_frame.push(FrameAlignment {
             frame: f.name.clone(),

@@ -35,9 +35,15 @@ pub enum CocoError {
         #[source]
         source: png::EncodingError,
     },
-    /// An instance-ID map is not a 24-bit RGB PNG of the expected size.
+    /// A pose file cannot be read.
+    #[error(transparent)]
+    Poses(#[from] crate::camera::CameraError),
+    /// An instance-ID map cannot be read.
+    #[error(transparent)]
+    Ids(#[from] crate::scene::IdError),
+    /// An image is not of a kind this stage reads.
     #[error("{}: {reason}", path.display())]
-    IdMap { path: PathBuf, reason: String },
+    Image { path: PathBuf, reason: String },
     /// The components recomputed from an ID map disagree with its `<frame>.instances.json`.
     #[error("{}: does not match its ID map {}: {reason}", instances.display(), id_map.display())]
     Mismatch { instances: PathBuf, id_map: PathBuf, reason: String },

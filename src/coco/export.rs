@@ -24,7 +24,7 @@ use rayon::prelude::*;
 
 use crate::camera::PoseRecord;
 use crate::label::{label_components, Connectivity, FrameInstances};
-use crate::scene::{BuildingRecord, Manifest};
+use crate::scene::{BuildingId, BuildingRecord, IdMap, Manifest};
 use crate::util::{FileError, Progress};
 
 use super::error::chain_string;
@@ -32,7 +32,6 @@ use super::format::{
     licence_url, Annotation, AnnotationUnit, AreaInfo, Category, Dataset, Filters, Image, Info, License,
     RleJson, Segmentation, SourceInfo, TruncatedPolicy, BUILDING_CATEGORY_ID,
 };
-use super::idmap::read_id_png;
 use super::rle::{encode_labels, Rle};
 use super::CocoError;
 
@@ -128,7 +127,7 @@ struct AreaInput {
     manifest_split: Split,
     split: Split,
     buildings_path: PathBuf,
-    source_ids: BTreeMap<u32, String>,
+    source_ids: BTreeMap<BuildingId, String>,
     cameras: Vec<CameraInput>,
 }
 
@@ -166,24 +165,6 @@ fn list_dirs(dir: &Path) -> Result<Vec<(String, PathBuf)>, CocoError> {
     Ok(out)
 }
 
-fn read_poses(path: &Path) -> Result<Vec<PoseRecord>, CocoError> {
-    let bytes = crate::util::read_file(path)?;
-    let text = String::from_utf8_lossy(&bytes);
-    let mut out = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        if line.trim().is_empty() {
-            continue;
-        }
-        let rec: PoseRecord = serde_json::from_str(line).map_err(|source| CocoError::Json {
-            path: path.to_path_buf(),
-            line: Some(i + 1),
-            source,
-        })?;
-        out.push(rec);
-    }
-    Ok(out)
-}
-
 /// Finds the prepared areas, their cameras and rendered frames under `workdir`.
 fn discover(workdir: &Path) -> Result<(Vec<AreaInput>, u64), CocoError> {
     let mut areas = Vec::new();
@@ -215,7 +196,7 @@ fn discover(workdir: &Path) -> Result<(Vec<AreaInput>, u64), CocoError> {
             if cam_name == "scene" || !poses_path.is_file() {
                 continue;
             }
-            let mut poses = read_poses(&poses_path)?;
+            let mut poses = crate::camera::record::read_jsonl(&poses_path)?;
             poses.sort_by(|a, b| a.name.cmp(&b.name));
             if let Some(w) = poses.windows(2).find(|w| w[0].name == w[1].name) {
                 return Err(CocoError::Layout {
@@ -261,7 +242,7 @@ fn discover(workdir: &Path) -> Result<(Vec<AreaInput>, u64), CocoError> {
 /// One annotation before filtering and id assignment.
 struct Draft {
     rle: Rle,
-    building_id: u32,
+    building_id: BuildingId,
     source_id: String,
     component: Option<u32>,
     num_components: Option<u32>,
@@ -284,7 +265,7 @@ fn process_frame(
     licence: Option<u32>,
 ) -> Result<FrameResult, CocoError> {
     let inst: FrameInstances = read_json(&frame.instances)?;
-    let map = read_id_png(&frame.mask)?;
+    let map = IdMap::read_png(&frame.mask)?;
     let mismatch = |reason: String| CocoError::Mismatch {
         instances: frame.instances.clone(),
         id_map: frame.mask.clone(),
@@ -294,21 +275,21 @@ fn process_frame(
     if inst.frame != pose.name {
         return Err(mismatch(format!("it is for frame \"{}\", expected \"{}\"", inst.frame, pose.name)));
     }
-    if (inst.width, inst.height) != (map.width, map.height) {
+    let (w, h) = (map.width(), map.height());
+    if (inst.width, inst.height) != (w, h) {
         return Err(mismatch(format!(
-            "it gives {}×{} px, the ID map is {}×{} px",
-            inst.width, inst.height, map.width, map.height
+            "it gives {}×{} px, the ID map is {w}×{h} px",
+            inst.width, inst.height
         )));
     }
     let k = &pose.intrinsics;
-    if (k.width_px, k.height_px) != (map.width, map.height) {
+    if (k.width_px, k.height_px) != (w, h) {
         return Err(mismatch(format!(
-            "poses.jsonl gives {}×{} px for this frame, the ID map is {}×{} px",
-            k.width_px, k.height_px, map.width, map.height
+            "poses.jsonl gives {}×{} px for this frame, the ID map is {w}×{h} px",
+            k.width_px, k.height_px
         )));
     }
-    let (w, h) = (map.width, map.height);
-    let lab = label_components(&map.ids, w, h, inst.connectivity);
+    let lab = label_components(&map, inst.connectivity);
     let kept: Vec<usize> = (0..lab.components.len())
         .filter(|&i| lab.components[i].area_px >= inst.min_component_area_px)
         .collect();
@@ -385,7 +366,7 @@ fn process_frame(
             })
             .collect(),
         AnnotationUnit::Building => {
-            let mut groups: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
+            let mut groups: BTreeMap<BuildingId, Vec<usize>> = BTreeMap::new();
             for (n, e) in inst.instances.iter().enumerate() {
                 groups.entry(e.building_id).or_default().push(n);
             }

@@ -14,6 +14,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::camera::Intrinsics;
 use crate::label::Connectivity;
+use crate::scene::BuildingId;
 
 use super::rle::{Rle, RleError};
 
@@ -187,8 +188,8 @@ pub struct Annotation {
     pub bbox: [f64; 4],
     /// 0, or 1 for truncated instances under `--truncated flag`.
     pub iscrowd: u8,
-    /// Extension: 24-bit building ID (as in the ID map and `buildings.json`).
-    pub building_id: u32,
+    /// Extension: building ID (as in the ID map and `buildings.json`).
+    pub building_id: BuildingId,
     /// Extension: source identity of the building (gml:id, CityJSON key, …).
     pub source_id: String,
     /// Extension: index of the component among the building's components in this frame (component

@@ -13,12 +13,11 @@
 //! - [`stats`]: per-split statistics, histograms and a contact sheet;
 //! - [`results`]: reading and validating COCO results (predictions);
 //! - [`polygon`]: outer-boundary polygons for `--polygons`;
-//! - [`idmap`], [`raster`]: PNG decoding of ID maps and a tiny raster for figures.
+//! - [`raster`]: a tiny raster for figures (ID maps are [`crate::scene::IdMap`]).
 
 pub mod error;
 pub mod export;
 pub mod format;
-pub mod idmap;
 pub mod polygon;
 pub mod raster;
 pub mod results;

@@ -173,7 +173,7 @@ pub fn read_png_rgb(path: &Path) -> Result<RgbImage, CocoError> {
         png::ColorType::Rgba => 4,
         // EXPAND turns palettes into RGB(A); keep a clear error should that ever change.
         png::ColorType::Indexed => {
-            return Err(CocoError::IdMap {
+            return Err(CocoError::Image {
                 path: path.to_path_buf(),
                 reason: "unexpanded palette PNG".into(),
             })

@@ -19,6 +19,7 @@ use super::export::Split;
 use super::format::{Dataset, Segmentation};
 use super::raster::{bar_chart, palette, read_png_rgb, RgbImage, Series};
 use super::CocoError;
+use crate::scene::BuildingId;
 
 /// Upper bound (exclusive) of COCO's "small" class, px.
 pub const SMALL_MAX_PX: u64 = 32 * 32;
@@ -132,7 +133,7 @@ pub fn compute(datasets: &[(Split, &Dataset)]) -> Stats {
         for info in &ds.info.areas {
             let images = ds.images.iter().filter(|im| im.area_name == info.name).count() as u64;
             let anns: Vec<_> = ds.annotations.iter().filter(|a| a.area_name == info.name).collect();
-            let seen: BTreeSet<u32> = anns.iter().map(|a| a.building_id).collect();
+            let seen: BTreeSet<BuildingId> = anns.iter().map(|a| a.building_id).collect();
             areas.push(AreaStats {
                 area: info.name.clone(),
                 split: split.as_str().into(),
@@ -378,7 +379,7 @@ fn contact_sheet(datasets: &[(Split, &Dataset)], image_root: &Path, n: usize) ->
                     })
                 })
                 .collect();
-            let c = palette(a.building_id as u64);
+            let c = palette(a.building_id.get() as u64);
             let at = |x: i64, y: i64| {
                 x >= 0 && y >= 0 && x < tw as i64 && y < th as i64 && small[(y * tw as i64 + x) as usize]
             };
@@ -475,7 +476,7 @@ mod tests {
                 area,
                 bbox: [0.0; 4],
                 iscrowd: (i == 0) as u8,
-                building_id,
+                building_id: BuildingId::new(building_id).unwrap(),
                 source_id: String::new(),
                 component: Some(0),
                 num_components: None,

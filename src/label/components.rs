@@ -8,6 +8,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::scene::{BuildingId, IdMap};
+
 /// Pixel neighbourhood for connectivity.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
 pub enum Connectivity {
@@ -25,7 +27,7 @@ pub enum Connectivity {
 /// One connected component.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Component {
-    pub building_id: u32,
+    pub building_id: BuildingId,
     /// Index of this component among its building's components (raster order of first pixel).
     pub index: u32,
     pub area_px: u64,
@@ -70,13 +72,11 @@ fn union(parent: &mut [u32], a: u32, b: u32) {
     }
 }
 
-/// Labels the connected components of `ids` (row-major, `width × height`, 0 = background).
-///
-/// # Panics
-/// If `ids.len() != width * height` (a caller bug, not user input).
-pub fn label_components(ids: &[u32], width: u32, height: u32, connectivity: Connectivity) -> Labelling {
+/// Labels the connected components of the buildings in `map`.
+pub fn label_components(map: &IdMap, connectivity: Connectivity) -> Labelling {
+    let (width, height) = (map.width(), map.height());
     let (w, h) = (width as usize, height as usize);
-    assert_eq!(ids.len(), w * h, "ID map size does not match {width}×{height}");
+    let ids = map.ids();
     // Provisional labels: the pixel index of the run's representative, u32::MAX for background.
     let mut prov = vec![u32::MAX; w * h];
     let mut parent: Vec<u32> = Vec::new();
@@ -84,7 +84,7 @@ pub fn label_components(ids: &[u32], width: u32, height: u32, connectivity: Conn
         for x in 0..w {
             let i = y * w + x;
             let id = ids[i];
-            if id == 0 {
+            if id.is_background() {
                 continue;
             }
             let mut label = u32::MAX;
@@ -124,7 +124,7 @@ pub fn label_components(ids: &[u32], width: u32, height: u32, connectivity: Conn
     // Resolve roots to final labels in raster order of first appearance.
     let mut final_of_root = vec![0u32; parent.len()];
     let mut components: Vec<Component> = Vec::new();
-    let mut per_building: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
+    let mut per_building: std::collections::HashMap<BuildingId, u32> = std::collections::HashMap::new();
     let mut labels = vec![0u32; w * h];
     for y in 0..h {
         for x in 0..w {
@@ -170,21 +170,25 @@ pub fn label_components(ids: &[u32], width: u32, height: u32, connectivity: Conn
 mod tests {
     use super::*;
 
-    fn grid(rows: &[&str]) -> (Vec<u32>, u32, u32) {
+    fn grid(rows: &[&str]) -> IdMap {
         let h = rows.len() as u32;
         let w = rows[0].len() as u32;
         let ids = rows
             .iter()
             .flat_map(|r| r.bytes().map(|b| if b == b'.' { 0 } else { (b - b'0') as u32 }))
             .collect();
-        (ids, w, h)
+        IdMap::from_raw(w, h, ids).unwrap()
+    }
+
+    fn id(n: u32) -> BuildingId {
+        BuildingId::new(n).unwrap()
     }
 
     #[test]
     fn diagonal_touch_depends_on_connectivity() {
-        let (ids, w, h) = grid(&["1..", ".1.", "..."]);
-        assert_eq!(label_components(&ids, w, h, Connectivity::Four).components.len(), 2);
-        let l8 = label_components(&ids, w, h, Connectivity::Eight);
+        let map = grid(&["1..", ".1.", "..."]);
+        assert_eq!(label_components(&map, Connectivity::Four).components.len(), 2);
+        let l8 = label_components(&map, Connectivity::Eight);
         assert_eq!(l8.components.len(), 1);
         assert_eq!(l8.components[0].area_px, 2);
         assert_eq!(l8.components[0].bbox_px, [0, 0, 2, 2]);
@@ -192,32 +196,32 @@ mod tests {
 
     #[test]
     fn same_building_split_by_another_gives_two_components() {
-        let (ids, w, h) = grid(&["....", "1221", "1221", "...."]);
-        let l = label_components(&ids, w, h, Connectivity::Eight);
-        let b1: Vec<_> = l.components.iter().filter(|c| c.building_id == 1).collect();
+        let l = label_components(&grid(&["....", "1221", "1221", "...."]), Connectivity::Eight);
+        let b1: Vec<_> = l.components.iter().filter(|c| c.building_id == id(1)).collect();
         assert_eq!(b1.len(), 2);
         assert_eq!((b1[0].index, b1[1].index), (0, 1));
         assert_eq!(b1[0].bbox_px, [0, 1, 1, 2]);
         assert_eq!(b1[1].bbox_px, [3, 1, 1, 2]);
         assert!(b1[0].touches_border && b1[1].touches_border);
-        let b2 = l.components.iter().find(|c| c.building_id == 2).unwrap();
+        let b2 = l.components.iter().find(|c| c.building_id == id(2)).unwrap();
         assert_eq!((b2.area_px, b2.touches_border), (4, false));
     }
 
     #[test]
     fn u_shape_merges_late() {
         // The two arms meet only in the last row: union-find must merge them.
-        let (ids, w, h) = grid(&["1.1", "1.1", "111"]);
-        let l = label_components(&ids, w, h, Connectivity::Four);
+        let map = grid(&["1.1", "1.1", "111"]);
+        let l = label_components(&map, Connectivity::Four);
         assert_eq!(l.components.len(), 1);
         assert_eq!(l.components[0].area_px, 7);
-        assert!(l.labels.iter().zip(&ids).all(|(&lab, &id)| (lab == 0) == (id == 0)));
+        assert!(l.labels.iter().zip(map.raw()).all(|(&lab, &id)| (lab == 0) == (id == 0)));
     }
 
     #[test]
     fn masks_partition_the_foreground() {
-        let (ids, w, h) = grid(&["11.22", "1..22", "..3..", "33.11"]);
-        let l = label_components(&ids, w, h, Connectivity::Four);
+        let map = grid(&["11.22", "1..22", "..3..", "33.11"]);
+        let ids = map.raw();
+        let l = label_components(&map, Connectivity::Four);
         let mut cover = vec![0u8; ids.len()];
         for k in 0..l.components.len() {
             let m = l.mask(k);
@@ -226,6 +230,6 @@ mod tests {
                 *c += v;
             }
         }
-        assert!(cover.iter().zip(&ids).all(|(&c, &id)| c == (id != 0) as u8));
+        assert!(cover.iter().zip(ids).all(|(&c, &id)| c == (id != 0) as u8));
     }
 }

@@ -4,12 +4,13 @@
 use serde::{Deserialize, Serialize};
 
 use super::Connectivity;
+use crate::scene::BuildingId;
 
 /// One connected component of one building in one frame.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct InstanceEntry {
-    /// 24-bit building ID (as in the ID map and the building table).
-    pub building_id: u32,
+    /// Building ID (as in the ID map and the building table).
+    pub building_id: BuildingId,
     /// Source identity of the building (gml:id, CityJSON key…).
     pub source_id: String,
     /// Index of this component among the building's components in this frame.

@@ -1,7 +1,6 @@
 //! Labels from instance-ID maps: connected components and per-frame instance lists.
 
 pub mod components;
-pub mod idpng;
 pub mod instances;
 pub mod overlay;
 pub mod stage;

@@ -6,6 +6,7 @@
 use std::path::Path;
 
 use crate::camera::Intrinsics;
+use crate::scene::IdMap;
 use crate::util::FileError;
 
 /// Errors of preview writing.
@@ -140,7 +141,8 @@ pub fn shade_depth(depth_m: &[f32], k: &Intrinsics) -> RgbImage {
 /// Buildings in palette colours blended (`alpha` of the colour) over `backdrop`, with a dark outline on
 /// pixels whose right or lower neighbour has another ID. `backdrop` is resampled (nearest) to the ID
 /// map's size when it differs.
-pub fn overlay_ids(ids: &[u32], width: u32, height: u32, backdrop: &RgbImage, alpha: f64) -> RgbImage {
+pub fn overlay_ids(map: &IdMap, backdrop: &RgbImage, alpha: f64) -> RgbImage {
+    let (ids, width, height) = (map.raw(), map.width(), map.height());
     let mut out = RgbImage::filled(width, height, [0, 0, 0]);
     for y in 0..height {
         for x in 0..width {
@@ -281,7 +283,7 @@ mod tests {
     fn overlay_blends_and_outlines() {
         // 4×1: background, building 7, building 7, background over a flat grey backdrop.
         let bg = RgbImage::filled(4, 1, [100, 100, 100]);
-        let out = overlay_ids(&[0, 7, 7, 0], 4, 1, &bg, 0.5);
+        let out = overlay_ids(&IdMap::from_raw(4, 1, vec![0, 7, 7, 0]).unwrap(), &bg, 0.5);
         // Pixel 0 borders building 7 on its right: outline.
         assert_eq!(out.get(0, 0), [10, 10, 10]);
         // Pixel 1: half palette, half grey (hand computation).

@@ -2,7 +2,7 @@
 //! frame's instance-ID map with exactly the frame's intrinsics and pose, and writes per frame
 //! (each file atomically):
 //!
-//! - `masks/<frame>.png`: the 24-bit RGB ID map ([`super::idpng`]);
+//! - `masks/<frame>.png`: the 24-bit RGB ID map ([`IdMap::write_png`]);
 //! - `masks/<frame>.instances.json`: one entry per connected component ([`FrameInstances`]);
 //! - `masks/<frame>.depth.exr` (with `depth`): float32 channel `Z`, metres along the optical axis,
 //!   0 where no building was hit;
@@ -29,20 +29,19 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
-use std::str::FromStr;
 use std::sync::mpsc;
 use std::sync::Mutex;
 use std::time::Instant;
 
 use rayon::iter::{IntoParallelRefIterator, ParallelBridge, ParallelIterator};
 
-use super::idpng::{self, IdPngError};
 use super::overlay::{self, OverlayError};
 use super::{label_components, Connectivity, FrameInstances, InstanceEntry};
-use crate::camera::PoseRecord;
-use crate::render::{DepthRange, GpuScene, IdImage, RenderError, RenderOptions, Renderer, View};
-use crate::scene::PreparedScene;
-use crate::util::{FileError, Progress};
+use crate::camera::record::read_jsonl;
+use crate::camera::{CameraError, PoseRecord};
+use crate::render::{DepthRange, GpuScene, RenderError, RenderOptions, RenderedFrame, Renderer, View};
+use crate::scene::{BuildingId, IdError, IdMap, PreparedScene};
+use crate::util::{FileError, Progress, Shard};
 
 /// Default minimum component area kept in the instance lists, pixels (see the module doc).
 pub const DEFAULT_MIN_AREA_PX: u64 = 16;
@@ -65,15 +64,15 @@ pub enum StageError {
     #[error(transparent)]
     File(#[from] FileError),
     /// poses.jsonl is malformed.
-    #[error("{}:{line}: {what}", path.display())]
-    Poses { path: PathBuf, line: usize, what: String },
+    #[error(transparent)]
+    Poses(#[from] CameraError),
     /// The scene and its building table disagree.
     #[error("scene: {what}")]
     Scene { what: String },
     #[error(transparent)]
     Render(#[from] RenderError),
     #[error(transparent)]
-    IdPng(#[from] IdPngError),
+    Ids(#[from] IdError),
     #[error(transparent)]
     Overlay(#[from] OverlayError),
     /// Writing the depth EXR failed.
@@ -83,54 +82,6 @@ pub enum StageError {
         #[source]
         source: exr::error::Error,
     },
-}
-
-/// `--shard i/N`: frames whose index in poses.jsonl is ≡ i (mod N).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Shard {
-    /// This shard, 0-based, below `count`.
-    pub index: u32,
-    /// Number of shards (≥ 1).
-    pub count: u32,
-}
-
-impl Default for Shard {
-    /// All frames (0/1).
-    fn default() -> Self {
-        Shard { index: 0, count: 1 }
-    }
-}
-
-impl Shard {
-    /// Whether the frame at line index `i` belongs to this shard.
-    pub fn contains(&self, i: usize) -> bool {
-        i % self.count as usize == self.index as usize
-    }
-}
-
-impl FromStr for Shard {
-    type Err = String;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let (i, n) = s.split_once('/').ok_or_else(|| format!("expected I/N (e.g. 0/4), got {s:?}"))?;
-        let index: u32 =
-            i.trim().parse().map_err(|_| format!("shard index {i:?} is not a non-negative integer"))?;
-        let count: u32 =
-            n.trim().parse().map_err(|_| format!("shard count {n:?} is not a positive integer"))?;
-        if count == 0 {
-            return Err("shard count must be at least 1".into());
-        }
-        if index >= count {
-            return Err(format!("shard index must be below the count (0..{count}), got {index}/{count}"));
-        }
-        Ok(Shard { index, count })
-    }
-}
-
-impl std::fmt::Display for Shard {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}/{}", self.index, self.count)
-    }
 }
 
 /// What the stage does, resolved from the command line (STYLE rule 2).
@@ -250,48 +201,6 @@ pub fn error_chain(e: &dyn std::error::Error) -> String {
     s
 }
 
-/// Checks that a frame name can be a file stem (no path separators, not empty, not `.`/`..`).
-fn check_frame_name(name: &str) -> Result<(), String> {
-    if name.is_empty() || name == "." || name == ".." {
-        return Err(format!("frame name {name:?} cannot be a file name"));
-    }
-    if let Some(c) = name.chars().find(|&c| c == '/' || c == '\\' || c == '\0' || c.is_control()) {
-        return Err(format!("frame name {name:?} contains {c:?}, which cannot be in a file name"));
-    }
-    Ok(())
-}
-
-/// Reads `poses.jsonl`: one [`PoseRecord`] per non-blank line, frame names unique and usable as file
-/// names.
-///
-/// # Errors
-/// [`StageError::File`] when it cannot be read; [`StageError::Poses`] naming the line otherwise.
-pub fn read_poses(path: &Path) -> Result<Vec<PoseRecord>, StageError> {
-    let bytes = crate::util::read_file(path)?;
-    let text = String::from_utf8(bytes).map_err(|e| StageError::Poses {
-        path: path.to_path_buf(),
-        line: 0,
-        what: format!("not UTF-8: {e}"),
-    })?;
-    let mut out: Vec<PoseRecord> = Vec::new();
-    let mut seen: BTreeMap<String, usize> = BTreeMap::new();
-    for (n, line) in text.lines().enumerate() {
-        let line_no = n + 1;
-        if line.trim().is_empty() {
-            continue;
-        }
-        let bad = |what: String| StageError::Poses { path: path.to_path_buf(), line: line_no, what };
-        let rec: PoseRecord =
-            serde_json::from_str(line).map_err(|e| bad(format!("not a pose record: {e}")))?;
-        check_frame_name(&rec.name).map_err(bad)?;
-        if let Some(first) = seen.insert(rec.name.clone(), line_no) {
-            return Err(bad(format!("frame name {:?} was already used on line {first}", rec.name)));
-        }
-        out.push(rec);
-    }
-    Ok(out)
-}
-
 /// SHA-256 (hex) of a pose record's JSON: what a frame's outputs were rendered from.
 pub fn pose_digest(rec: &PoseRecord) -> String {
     use sha2::Digest;
@@ -303,7 +212,7 @@ pub fn pose_digest(rec: &PoseRecord) -> String {
 /// settings).
 fn outputs_verify(plan: &MaskPlan, rec: &PoseRecord) -> bool {
     let k = &rec.intrinsics;
-    match idpng::read_id_png_size(&plan.png_path(&rec.name)) {
+    match IdMap::read_png_size(&plan.png_path(&rec.name)) {
         Ok(size) if size == (k.width_px, k.height_px) => {}
         _ => return false,
     }
@@ -361,14 +270,14 @@ pub fn write_depth_exr(path: &Path, depth_m: &[f32], width: u32, height: u32) ->
 /// The instance list of one rendered frame.
 pub fn frame_instances(
     frame: &str,
-    image: &IdImage,
+    map: &IdMap,
     connectivity: Connectivity,
     min_area_px: u64,
-    source_ids: &BTreeMap<u32, String>,
-    amodal_px: Option<&BTreeMap<u32, u64>>,
+    source_ids: &BTreeMap<BuildingId, String>,
+    amodal_px: Option<&BTreeMap<BuildingId, u64>>,
 ) -> FrameInstances {
-    let labelling = label_components(&image.ids, image.width, image.height, connectivity);
-    let mut visible: BTreeMap<u32, u64> = BTreeMap::new();
+    let labelling = label_components(map, connectivity);
+    let mut visible: BTreeMap<BuildingId, u64> = BTreeMap::new();
     for c in &labelling.components {
         *visible.entry(c.building_id).or_insert(0) += c.area_px;
     }
@@ -395,8 +304,8 @@ pub fn frame_instances(
         .collect();
     FrameInstances {
         frame: frame.to_string(),
-        width: image.width,
-        height: image.height,
+        width: map.width(),
+        height: map.height(),
         connectivity,
         min_component_area_px: min_area_px,
         instances,
@@ -404,33 +313,17 @@ pub fn frame_instances(
     }
 }
 
-/// The distinct non-zero IDs of an image, ascending.
-fn visible_ids(ids: &[u32]) -> Vec<u32> {
-    let mut set = BTreeSet::new();
-    let mut last = 0u32;
-    for &id in ids {
-        // Runs of equal IDs are the common case: skip the set lookup for them.
-        if id != last {
-            if id != 0 {
-                set.insert(id);
-            }
-            last = id;
-        }
-    }
-    set.into_iter().collect()
-}
-
 /// One rendered frame travelling from the render thread to the writers.
 struct Job {
     record: usize,
-    image: IdImage,
-    amodal_px: Option<BTreeMap<u32, u64>>,
+    image: RenderedFrame,
+    amodal_px: Option<BTreeMap<BuildingId, u64>>,
 }
 
 /// Runs the stage (see the module doc).
 ///
 /// # Errors
-/// [`StageError::File`]/[`StageError::Poses`] for unreadable poses, [`StageError::Scene`] when the mesh
+/// [`StageError::Poses`] for unreadable poses, [`StageError::Scene`] when the mesh
 /// holds IDs absent from the building table, [`StageError::Render`] when the GPU fails (fatal). A frame
 /// whose outputs cannot be written is reported in [`MaskReport::failed`] and the others go on.
 pub fn render_masks(
@@ -440,12 +333,12 @@ pub fn render_masks(
     progress: &dyn Progress,
 ) -> Result<MaskReport, StageError> {
     let started = Instant::now();
-    let records = read_poses(&plan.poses_path())?;
+    let records = read_jsonl(&plan.poses_path())?;
     let mut selected: Vec<usize> = (0..records.len()).filter(|&i| plan.shard.contains(i)).collect();
     if let Some(limit) = plan.limit {
         selected.truncate(limit);
     }
-    let source_ids: BTreeMap<u32, String> =
+    let source_ids: BTreeMap<BuildingId, String> =
         scene.buildings.iter().map(|b| (b.id, b.source_id.clone())).collect();
     let gpu_scene = renderer.upload(&scene.mesh)?;
     if let Some(b) = gpu_scene.buildings().iter().find(|b| !source_ids.contains_key(&b.building_id)) {
@@ -502,7 +395,7 @@ pub fn render_masks(
         let result =
             renderer.render_each(&gpu_scene, &views, &options, |k, image| -> Result<(), StageError> {
                 let amodal_px = if plan.visible_fraction {
-                    let ids = visible_ids(&image.ids);
+                    let ids = image.ids.visible_buildings();
                     let counts = renderer.isolated_coverage_px(&gpu_scene, &views[k], &ids, &plan.range)?;
                     Some(ids.into_iter().zip(counts).collect())
                 } else {
@@ -552,12 +445,12 @@ fn write_frame(
     plan: &MaskPlan,
     rec: &PoseRecord,
     job: &Job,
-    source_ids: &BTreeMap<u32, String>,
+    source_ids: &BTreeMap<BuildingId, String>,
 ) -> Result<u64, StageError> {
     let image = &job.image;
     let mut instances = frame_instances(
         &rec.name,
-        image,
+        &image.ids,
         plan.connectivity,
         plan.min_area_px,
         source_ids,
@@ -565,9 +458,9 @@ fn write_frame(
     );
     instances.pose_sha256 = Some(pose_digest(rec));
     if let Some(depth) = &image.depth_m {
-        write_depth_exr(&plan.depth_path(&rec.name), depth, image.width, image.height)?;
+        write_depth_exr(&plan.depth_path(&rec.name), depth, image.ids.width(), image.ids.height())?;
     }
-    idpng::write_id_png(&plan.png_path(&rec.name), &image.ids, image.width, image.height)?;
+    image.ids.write_png(&plan.png_path(&rec.name))?;
     crate::util::write_json_atomic(&plan.instances_path(&rec.name), &instances)?;
     Ok(instances.instances.len() as u64)
 }
@@ -595,7 +488,7 @@ fn write_previews(
     let mut tiles = Vec::with_capacity(chosen.len());
     for &i in &chosen {
         let rec = &records[i];
-        let ids = idpng::read_id_png(&plan.png_path(&rec.name))?;
+        let ids = IdMap::read_png(&plan.png_path(&rec.name))?;
         let rgb_path = plan.rgb_path(&rec.name);
         let backdrop = if rgb_path.exists() {
             overlay::read_rgb_png(&rgb_path)?
@@ -606,7 +499,7 @@ fn write_previews(
             // `linear_depth: true` always yields depth; an empty one would only shade as background.
             overlay::shade_depth(img.depth_m.as_deref().unwrap_or(&[]), &rec.intrinsics)
         };
-        tiles.push(overlay::overlay_ids(&ids.ids, ids.width, ids.height, &backdrop, 0.45));
+        tiles.push(overlay::overlay_ids(&ids, &backdrop, 0.45));
     }
     let prefix = if plan.shard.count > 1 {
         format!("preview_{}of{}_", plan.shard.index, plan.shard.count)
@@ -627,88 +520,47 @@ fn write_previews(
 mod tests {
     use super::*;
 
-    mod shard {
-        use super::*;
-
-        #[test]
-        fn parses_and_validates() {
-            assert_eq!("1/4".parse::<Shard>().unwrap(), Shard { index: 1, count: 4 });
-            assert_eq!(" 0 / 1 ".parse::<Shard>().unwrap(), Shard::default());
-            assert!("4/4".parse::<Shard>().unwrap_err().contains("below the count"));
-            assert!("0/0".parse::<Shard>().unwrap_err().contains("at least 1"));
-            assert!("x".parse::<Shard>().unwrap_err().contains("expected I/N"));
-            assert!("-1/3".parse::<Shard>().is_err());
-        }
-
-        #[test]
-        fn shards_partition_the_frames() {
-            let n = 23;
-            let mut hits = vec![0; n];
-            for index in 0..4 {
-                let s = Shard { index, count: 4 };
-                for (i, h) in hits.iter_mut().enumerate() {
-                    *h += s.contains(i) as u32;
-                }
-            }
-            assert!(hits.iter().all(|&h| h == 1));
-        }
-    }
-
-    mod names {
-        use super::*;
-
-        #[test]
-        fn frame_names_must_be_file_stems() {
-            assert!(check_frame_name("cam2_s0003_i0012").is_ok());
-            for bad in ["", ".", "..", "a/b", "a\\b", "a\nb"] {
-                assert!(check_frame_name(bad).is_err(), "{bad:?}");
-            }
-        }
-    }
-
     mod instances {
         use super::*;
 
-        fn image(rows: &[&str]) -> IdImage {
+        fn image(rows: &[&str]) -> IdMap {
             let height = rows.len() as u32;
             let width = rows[0].len() as u32;
             let ids = rows
                 .iter()
                 .flat_map(|r| r.bytes().map(|b| if b == b'.' { 0 } else { (b - b'0') as u32 }))
                 .collect();
-            IdImage { width, height, ids, depth_m: None }
+            IdMap::from_raw(width, height, ids).unwrap()
+        }
+
+        fn id(n: u32) -> BuildingId {
+            BuildingId::new(n).unwrap()
         }
 
         #[test]
         fn small_fragments_are_dropped_but_counted_as_visible() {
             // Building 1: a 3×2 block (6 px) and a 1 px fragment; building 2: 2 px.
             let img = image(&["111..", "111.1", ".....", "22..."]);
-            let names: BTreeMap<u32, String> = [(1, "gml_a".to_string()), (2, "gml_b".to_string())].into();
+            let names: BTreeMap<BuildingId, String> = [(id(1), "gml_a".to_string()), (id(2), "gml_b".to_string())].into();
             let fi = frame_instances("f", &img, Connectivity::Four, 2, &names, None);
             assert_eq!(fi.instances.len(), 2);
             let a = &fi.instances[0];
-            assert_eq!((a.building_id, a.source_id.as_str(), a.component, a.area_px), (1, "gml_a", 0, 6));
+            assert_eq!((a.building_id, a.source_id.as_str(), a.component, a.area_px), (id(1), "gml_a", 0, 6));
             assert_eq!(a.building_visible_px, 7, "the dropped 1 px fragment still counts as visible");
             assert_eq!(a.bbox_px, [0, 0, 3, 2]);
             assert!(a.truncated);
             assert_eq!(a.visible_fraction, None);
             let b = &fi.instances[1];
-            assert_eq!((b.building_id, b.area_px, b.building_visible_px), (2, 2, 2));
+            assert_eq!((b.building_id, b.area_px, b.building_visible_px), (id(2), 2, 2));
         }
 
         #[test]
         fn visible_fraction_divides_by_amodal_pixels() {
             let img = image(&["11..", "11..", "...."]);
-            let names: BTreeMap<u32, String> = [(1, "x".to_string())].into();
-            let amodal: BTreeMap<u32, u64> = [(1, 8)].into();
+            let names: BTreeMap<BuildingId, String> = [(id(1), "x".to_string())].into();
+            let amodal: BTreeMap<BuildingId, u64> = [(id(1), 8)].into();
             let fi = frame_instances("f", &img, Connectivity::Eight, 1, &names, Some(&amodal));
             assert_eq!(fi.instances[0].visible_fraction, Some(0.5));
-        }
-
-        #[test]
-        fn visible_ids_are_distinct_and_sorted() {
-            assert_eq!(visible_ids(&[0, 5, 5, 3, 0, 5, 9, 9, 3]), vec![3, 5, 9]);
-            assert!(visible_ids(&[0, 0]).is_empty());
         }
     }
 

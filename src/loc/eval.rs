@@ -29,7 +29,7 @@ use crate::camera::record::read_jsonl;
 use crate::camera::{Intrinsics, Pose, PoseRecord, Trajectory};
 use crate::render::cpu::{self as raster, CpuScene, Frame};
 use crate::render::warp::RotationFan;
-use crate::scene::{BuildingRecord, PreparedScene, SceneMesh};
+use crate::scene::{BuildingId, BuildingRecord, PreparedScene, SceneMesh};
 use crate::util::{self, Progress};
 
 /// Errors of the eval-loc stage.
@@ -125,7 +125,7 @@ pub fn at_width(k: &Intrinsics, width_px: u32) -> Intrinsics {
 
 /// Buildings whose bounding box may be seen from `pose` with a margin of `margin` image widths on each
 /// side (to cover the search range); conservative for boxes that straddle the camera plane.
-pub fn cull(buildings: &[BuildingRecord], pose: &Pose, k: &Intrinsics, margin: f64) -> Vec<u32> {
+pub fn cull(buildings: &[BuildingRecord], pose: &Pose, k: &Intrinsics, margin: f64) -> Vec<BuildingId> {
     let (w, h) = (k.width_px as f64, k.height_px as f64);
     let (x0, x1, y0, y1) = (-margin * w, (1.0 + margin) * w, -margin * h, (1.0 + margin) * h);
     buildings
@@ -162,15 +162,17 @@ pub fn cull(buildings: &[BuildingRecord], pose: &Pose, k: &Intrinsics, margin: f
 }
 
 /// The culled scene with dense IDs 1..=K (K = `kept.len()`).
-pub fn dense_subscene(mesh: &SceneMesh, kept: &[u32]) -> SceneMesh {
-    let max = kept.iter().copied().max().unwrap_or(0) as usize;
-    let mut dense = vec![0u32; max + 1];
+pub fn dense_subscene(mesh: &SceneMesh, kept: &[BuildingId]) -> SceneMesh {
+    let max = kept.iter().map(|id| id.get()).max().unwrap_or(0) as usize;
+    let mut dense = vec![BuildingId::BACKGROUND; max + 1];
     for (i, &id) in kept.iter().enumerate() {
-        dense[id as usize] = i as u32 + 1;
+        // At most as many buildings as the scene has, which all have IDs.
+        dense[id.get() as usize] = BuildingId::from_index(i).expect("fewer buildings than the ID space");
     }
-    let mut sub = mesh.filter_buildings(|id| (id as usize) <= max && dense[id as usize] != 0);
+    let dense_of = |id: BuildingId| dense.get(id.get() as usize).copied().unwrap_or(BuildingId::BACKGROUND);
+    let mut sub = mesh.filter_buildings(|id| !dense_of(id).is_background());
     for id in &mut sub.building_ids {
-        *id = dense[*id as usize];
+        *id = dense_of(*id);
     }
     sub
 }
@@ -673,11 +675,12 @@ mod tests {
         for (i, id) in [5u32, 9, 12].iter().enumerate() {
             let o = i as f32 * 10.0;
             m.positions_m.extend([[o, 0.0, 0.0], [o + 1.0, 0.0, 0.0], [o, 1.0, 0.0]]);
-            m.building_ids.extend([*id; 3]);
+            m.building_ids.extend([BuildingId::new(*id).unwrap(); 3]);
             m.indices.extend([3 * i as u32, 3 * i as u32 + 1, 3 * i as u32 + 2]);
         }
-        let sub = dense_subscene(&m, &[5, 12]);
+        let ids = |v: &[u32]| v.iter().map(|&i| BuildingId::new(i).unwrap()).collect::<Vec<_>>();
+        let sub = dense_subscene(&m, &ids(&[5, 12]));
         assert_eq!(sub.triangle_count(), 2);
-        assert_eq!(sub.building_ids, vec![1, 1, 1, 2, 2, 2]);
+        assert_eq!(sub.building_ids, ids(&[1, 1, 1, 2, 2, 2]));
     }
 }

@@ -18,6 +18,7 @@ use super::oracle::{self, Degradation};
 use crate::camera::Intrinsics;
 use crate::coco::results::{read_results, Prediction};
 use crate::label::{label_components, Connectivity};
+use crate::scene::IdMap;
 
 /// Errors while building queries.
 #[derive(Debug, thiserror::Error)]
@@ -26,6 +27,9 @@ pub enum QueryError {
     Coco(#[from] crate::coco::CocoError),
     #[error("{}: {what}", path.display())]
     Input { path: PathBuf, what: String },
+    /// An oracle query's ID map cannot be read.
+    #[error("query mask unavailable (run `insgen render-masks` for this camera first)")]
+    Mask(#[source] crate::scene::IdError),
 }
 
 /// The predictions of one area/camera, by frame name.
@@ -90,26 +94,25 @@ fn oracle_queries(
     seed: u64,
 ) -> Result<Vec<Query>, QueryError> {
     let path = masks_dir.join(format!("{frame}.png"));
-    let map = crate::label::idpng::read_id_png(&path).map_err(|e| QueryError::Input {
-        path: path.clone(),
-        what: format!("{e}; run `insgen render-masks` for this camera first"),
-    })?;
+    let map = IdMap::read_png(&path).map_err(QueryError::Mask)?;
+    let (w, h) = (map.width(), map.height());
     if d.is_perfect() {
         // What a perfect segmenter run at the render resolution would output.
         return Ok(ks
             .iter()
             .map(|k| {
-                let ids = resize_nearest(&map.ids, map.width, map.height, k.width_px, k.height_px);
-                let lab = label_components(&ids, k.width_px, k.height_px, Connectivity::Eight);
+                let ids = resize_nearest(map.ids(), w, h, k.width_px, k.height_px);
+                let resized = IdMap::new(k.width_px, k.height_px, ids).expect("resized to k's size");
+                let lab = label_components(&resized, Connectivity::Eight);
                 oracle::degrade(k.width_px, k.height_px, &lab.labels, lab.components.len() as u32, d, seed)
             })
             .collect());
     }
     // A segmenter's errors are in image pixels: degrade once at the mask's own resolution, then
     // resize to each target.
-    let lab = label_components(&map.ids, map.width, map.height, Connectivity::Eight);
-    let q = oracle::degrade(map.width, map.height, &lab.labels, lab.components.len() as u32, d, seed);
-    let mut labels = vec![0u32; map.ids.len()];
+    let lab = label_components(&map, Connectivity::Eight);
+    let q = oracle::degrade(w, h, &lab.labels, lab.components.len() as u32, d, seed);
+    let mut labels = vec![0u32; map.ids().len()];
     for (j, inst) in q.instances.iter().enumerate() {
         for p in inst.pixels() {
             labels[p as usize] = j as u32 + 1;
@@ -119,7 +122,7 @@ fn oracle_queries(
     Ok(ks
         .iter()
         .map(|k| {
-            let small = resize_nearest(&labels, map.width, map.height, k.width_px, k.height_px);
+            let small = resize_nearest(&labels, w, h, k.width_px, k.height_px);
             Query::from_labels(k.width_px, k.height_px, &small, &scores)
         })
         .collect())

@@ -6,7 +6,7 @@ use std::sync::mpsc;
 
 use super::device::{gpu_scope, Renderer};
 use super::scene::GpuScene;
-use super::target::{draw_ids, read_back, IdImage, IdTarget};
+use super::target::{draw_ids, read_back, RenderedFrame, IdTarget};
 use super::view::{DepthRange, View, ViewUniform};
 use super::RenderError;
 
@@ -21,7 +21,7 @@ const MAX_CACHED_TARGETS: usize = 2 * FRAMES_IN_FLIGHT;
 pub struct RenderOptions {
     /// Clip planes (default 0.1 m – 10 km).
     pub range: DepthRange,
-    /// Also render linear depth (metres along the optical axis) into [`IdImage::depth_m`].
+    /// Also render linear depth (metres along the optical axis) into [`RenderedFrame::depth_m`].
     pub linear_depth: bool,
 }
 
@@ -75,7 +75,7 @@ impl Renderer {
         scene: &GpuScene,
         view: &View,
         options: &RenderOptions,
-    ) -> Result<IdImage, RenderError> {
+    ) -> Result<RenderedFrame, RenderError> {
         let mut out = self.render_batch(scene, std::slice::from_ref(view), options)?;
         out.pop().ok_or(RenderError::ReadBack { what: "a frame", detail: "no frame was produced".into() })
     }
@@ -90,7 +90,7 @@ impl Renderer {
         scene: &GpuScene,
         views: &[View],
         options: &RenderOptions,
-    ) -> Result<Vec<IdImage>, RenderError> {
+    ) -> Result<Vec<RenderedFrame>, RenderError> {
         let mut out = Vec::with_capacity(views.len());
         self.render_each(scene, views, options, |_, image| {
             out.push(image);
@@ -116,7 +116,7 @@ impl Renderer {
     ) -> Result<(), E>
     where
         E: From<RenderError>,
-        F: FnMut(usize, IdImage) -> Result<(), E>,
+        F: FnMut(usize, RenderedFrame) -> Result<(), E>,
     {
         let uniforms = views
             .iter()

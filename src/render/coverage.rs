@@ -16,6 +16,7 @@ use super::device::{gpu_scope, Renderer};
 use super::scene::GpuScene;
 use super::view::{DepthRange, View, ViewUniform};
 use super::RenderError;
+use crate::scene::BuildingId;
 
 /// Bytes per slot of the coverage buffer: the dynamic-offset alignment wgpu guarantees to accept
 /// (`min_storage_buffer_offset_alignment` ≤ 256 on every adapter).
@@ -100,7 +101,7 @@ impl Renderer {
         &self,
         scene: &GpuScene,
         view: &View,
-        building_ids: &[u32],
+        building_ids: &[BuildingId],
         range: &DepthRange,
     ) -> Result<Vec<u64>, RenderError> {
         let uniform = ViewUniform::new(view, range)?;
@@ -117,7 +118,7 @@ impl Renderer {
         uniform: &ViewUniform,
         scene: &GpuScene,
         view: &View,
-        building_ids: &[u32],
+        building_ids: &[BuildingId],
         range: &DepthRange,
     ) -> Result<Vec<u64>, RenderError> {
         let mut counts = vec![0u64; building_ids.len()];
@@ -140,9 +141,9 @@ impl Renderer {
                 .map(|j| {
                     let (id, r) = j
                         .map(|(b, r)| (b.building_id, r))
-                        .unwrap_or((0, PixelRect { x0: 0, y0: 0, x1: 0, y1: 0 }));
+                        .unwrap_or((BuildingId::BACKGROUND, PixelRect { x0: 0, y0: 0, x1: 0, y1: 0 }));
                     Slot {
-                        building_id: id,
+                        building_id: id.get(),
                         x0: r.x0,
                         y0: r.y0,
                         w: r.x1 - r.x0,

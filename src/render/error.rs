@@ -28,6 +28,9 @@ pub enum RenderError {
     /// Reading a rendered frame back from the GPU failed.
     #[error("reading back {what} from the GPU failed: {detail}")]
     ReadBack { what: &'static str, detail: String },
+    /// A read-back frame holds values that are not building IDs (a corrupt render).
+    #[error("the GPU returned an invalid ID map")]
+    Ids(#[from] crate::scene::IdError),
     /// The device reported an error while rendering (validation, out of memory, device lost).
     #[error("GPU error while {what}: {detail}")]
     Gpu { what: &'static str, detail: String },

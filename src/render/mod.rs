@@ -1,6 +1,6 @@
 //! The wgpu offscreen instance-ID renderer: takes the scene mesh (f32 ENU metres relative to the area
 //! origin, a building ID per vertex) and camera views (intrinsics + pose, f64), hands on per-pixel
-//! building IDs (0 = background) and, optionally, linear depth in metres.
+//! building IDs ([`crate::scene::IdMap`]) and, optionally, linear depth in metres.
 //!
 //! - [`Renderer::new`] finds an adapter (lavapipe, the software Vulkan rasteriser, works) and builds
 //!   the pipelines; [`Renderer::with_device`] reuses a caller's device.
@@ -35,6 +35,6 @@ pub use batch::{RenderOptions, FRAMES_IN_FLIGHT};
 pub use device::Renderer;
 pub use error::RenderError;
 pub use scene::{BuildingRange, GpuScene};
-pub use target::IdImage;
+pub use target::RenderedFrame;
 pub use timing::{time_render, RenderTimings};
 pub use view::{DepthRange, View};

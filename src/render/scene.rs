@@ -6,7 +6,7 @@ use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
 use super::RenderError;
-use crate::scene::{SceneMesh, MAX_BUILDING_ID};
+use crate::scene::{BuildingId, SceneMesh};
 
 /// One vertex as the shader reads it: `@location(0)` position, `@location(1)` building ID.
 #[repr(C)]
@@ -30,8 +30,8 @@ impl GpuVertex {
 /// Where one building's triangles sit in the index buffer, and its bounds.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BuildingRange {
-    /// 24-bit building ID.
-    pub building_id: u32,
+    /// The building.
+    pub building_id: BuildingId,
     /// First index and number of indices (3 per triangle) in the index buffer.
     pub first_index: u32,
     /// Number of indices (3 per triangle).
@@ -59,7 +59,7 @@ impl GpuScene {
     ///
     /// # Errors
     /// [`RenderError::InvalidMesh`] when buffers disagree in length, an index is out of range, a
-    /// coordinate is not finite, a building ID is 0 or above 2²⁴ − 1, or a triangle's vertices carry
+    /// coordinate is not finite, a building ID is the background's (0), or a triangle's vertices carry
     /// different building IDs (the flat-interpolated ID would then depend on the provoking vertex).
     pub fn new(
         device: &wgpu::Device,
@@ -90,10 +90,8 @@ impl GpuScene {
         {
             return bad(format!("vertex {v} has a non-finite position {p:?}"));
         }
-        if let Some((v, id)) =
-            mesh.building_ids.iter().enumerate().find(|(_, &id)| id == 0 || id > MAX_BUILDING_ID)
-        {
-            return bad(format!("vertex {v} has building ID {id}, outside 1..={MAX_BUILDING_ID}"));
+        if let Some(v) = mesh.building_ids.iter().position(|id| id.is_background()) {
+            return bad(format!("vertex {v} has building ID 0, the background's"));
         }
         let n_vertices = mesh.positions_m.len();
         let mut tri_ids = Vec::with_capacity(mesh.triangle_count());
@@ -143,7 +141,7 @@ impl GpuScene {
             .positions_m
             .iter()
             .zip(&mesh.building_ids)
-            .map(|(&position_m, &building_id)| GpuVertex { position_m, building_id })
+            .map(|(&position_m, &building_id)| GpuVertex { position_m, building_id: building_id.get() })
             .collect();
         // wgpu buffers may not be empty-bound; an empty scene still gets a (never drawn) 16-byte buffer.
         let mut vertex_bytes = bytemuck::cast_slice::<GpuVertex, u8>(&vertices).to_vec();
@@ -185,7 +183,7 @@ impl GpuScene {
     }
 
     /// The index range and bounds of one building, if it is in the scene.
-    pub fn building(&self, building_id: u32) -> Option<&BuildingRange> {
+    pub fn building(&self, building_id: BuildingId) -> Option<&BuildingRange> {
         self.buildings.binary_search_by_key(&building_id, |b| b.building_id).ok().map(|i| &self.buildings[i])
     }
 }

@@ -8,16 +8,13 @@ use super::device::{Pipelines, DEPTH_FORMAT, ID_FORMAT, LINEAR_DEPTH_FORMAT};
 use super::scene::GpuScene;
 use super::view::ViewUniform;
 use super::RenderError;
+use crate::scene::IdMap;
 
-/// A rendered frame: building IDs (0 = background) and, when asked for, linear depth.
+/// A rendered frame: its building IDs and, when asked for, linear depth.
 #[derive(Debug, Clone, PartialEq)]
-pub struct IdImage {
-    /// Frame width, pixels.
-    pub width: u32,
-    /// Frame height, pixels.
-    pub height: u32,
-    /// Row-major, top row first, one building ID per pixel.
-    pub ids: Vec<u32>,
+pub struct RenderedFrame {
+    /// One building ID per pixel.
+    pub ids: IdMap,
     /// Row-major depth along the optical axis in metres (0 where no building was hit), when rendered.
     pub depth_m: Option<Vec<f32>>,
 }
@@ -291,7 +288,7 @@ pub(crate) fn read_back(
     target: &IdTarget,
     submission: wgpu::SubmissionIndex,
     mapped: mpsc::Receiver<Result<(), wgpu::BufferAsyncError>>,
-) -> Result<IdImage, RenderError> {
+) -> Result<RenderedFrame, RenderError> {
     let expected = 1 + target.staging_depth.is_some() as usize;
     wait_mapped(device, submission, &mapped, expected, "a frame")?;
     let strip = |buffer: &wgpu::Buffer| -> Result<Vec<u32>, RenderError> {
@@ -315,7 +312,7 @@ pub(crate) fn read_back(
         Some(b) => Some(strip(b)?.into_iter().map(f32::from_bits).collect()),
         None => None,
     };
-    Ok(IdImage { width: target.width, height: target.height, ids, depth_m })
+    Ok(RenderedFrame { ids: IdMap::from_raw(target.width, target.height, ids)?, depth_m })
 }
 
 #[cfg(test)]

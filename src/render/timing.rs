@@ -55,7 +55,7 @@ pub fn time_render(
         let now = Instant::now();
         per_frame_s.push((now - last).as_secs_f64());
         last = now;
-        building_px += image.ids.iter().filter(|&&id| id != 0).count() as u64;
+        building_px += image.ids.raw().iter().filter(|&&id| id != 0).count() as u64;
         Ok::<(), RenderError>(())
     })?;
     Ok(RenderTimings {

@@ -159,7 +159,7 @@ fn apply(m: &Mat3, x: f64, y: f64) -> [f64; 3] {
 mod tests {
     use super::*;
     use crate::render::cpu::{render_ids, CpuScene, Frame};
-    use crate::scene::SceneMesh;
+    use crate::scene::{BuildingId, SceneMesh};
 
     /// Box buildings on a grid: walls and roofs at several heights.
     fn city() -> SceneMesh {
@@ -175,11 +175,11 @@ mod tests {
                 let base = m.positions_m.len() as u32;
                 for p in c {
                     m.positions_m.push(p);
-                    m.building_ids.push(id);
+                    m.building_ids.push(BuildingId::new(id).unwrap());
                 }
                 for p in c {
                     m.positions_m.push([p[0], p[1], z1]);
-                    m.building_ids.push(id);
+                    m.building_ids.push(BuildingId::new(id).unwrap());
                 }
                 // Roof and four walls.
                 let quads = [[4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]];

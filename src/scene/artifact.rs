@@ -13,6 +13,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::ids::BuildingId;
 use super::mesh::SceneMesh;
 
 /// File names inside a scene directory.
@@ -23,8 +24,8 @@ pub const BUILDINGS_FILE: &str = "buildings.json";
 /// One row of the building table.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct BuildingRecord {
-    /// 24-bit instance ID (1..=2^24−1), assigned in order of `source_id`.
-    pub id: u32,
+    /// Instance ID (never the background), assigned in order of `source_id`.
+    pub id: BuildingId,
     /// Source identity (gml:id, CityJSON key, batch-table gml_id, or `<file>#cc<N>`).
     pub source_id: String,
     /// The source file the building came from (as given in the scene file).

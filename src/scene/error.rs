@@ -19,9 +19,16 @@ pub enum SceneError {
         #[source]
         source: Option<crate::geo::GeoError>,
     },
-    /// The area has no buildings, too many, or otherwise cannot be instanced.
+    /// The area has no buildings, or otherwise cannot be instanced.
     #[error("area {area}: {what}")]
     Area { area: String, what: String },
+    /// The area's buildings cannot all get a 24-bit ID.
+    #[error("area {area}")]
+    Ids {
+        area: String,
+        #[source]
+        source: crate::scene::IdError,
+    },
     /// A prepared scene on disk is missing or inconsistent.
     #[error("{}: {what}", path.display())]
     Artifact { path: PathBuf, what: String },

@@ -38,7 +38,8 @@ use std::path::{Path, PathBuf};
 use serde_json::{json, Value};
 
 use super::artifact::BuildingRecord;
-use super::mesh::{SceneMesh, MAX_BUILDING_ID};
+use super::ids::{BuildingId, MAX_BUILDING_ID};
+use super::mesh::SceneMesh;
 use crate::util::FileError;
 
 /// Errors of the GLB writer and reader; every variant names the file.
@@ -90,9 +91,9 @@ pub const FEATURE_LABEL: &str = "building";
 /// The flat display colour of a building (sRGB bytes), a deterministic hash of its ID.
 ///
 /// Channels are kept in 56..=255 so that no building is near-black against a dark background.
-pub fn building_colour(id: u32) -> [u8; 3] {
+pub fn building_colour(id: BuildingId) -> [u8; 3] {
     // splitmix64 finaliser: neighbouring IDs get unrelated colours.
-    let mut z = u64::from(id).wrapping_add(0x9E37_79B9_7F4A_7C15);
+    let mut z = u64::from(id.get()).wrapping_add(0x9E37_79B9_7F4A_7C15);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^= z >> 31;
@@ -161,22 +162,19 @@ fn check_input(path: &Path, mesh: &SceneMesh, buildings: &[BuildingRecord]) -> R
     }
     let mut known = BTreeMap::new();
     for b in buildings {
-        if b.id == 0 || b.id > MAX_BUILDING_ID {
-            return Err(bad(format!(
-                "building {:?} has ID {}, outside 1..={MAX_BUILDING_ID}",
-                b.source_id, b.id
-            )));
+        if b.id.is_background() {
+            return Err(bad(format!("building {:?} has ID 0, the background's", b.source_id)));
         }
         if let Some(prev) = known.insert(b.id, &b.source_id) {
             return Err(bad(format!("ID {} is used by both {prev:?} and {:?}", b.id, b.source_id)));
         }
     }
-    let mut last = u32::MAX;
+    let mut last = None;
     for (k, &id) in mesh.building_ids.iter().enumerate() {
-        if id != last && !known.contains_key(&id) {
+        if last != Some(id) && !known.contains_key(&id) {
             return Err(bad(format!("vertex {k} has building ID {id}, which is not in the building table")));
         }
-        last = id;
+        last = Some(id);
     }
     Ok(())
 }
@@ -199,14 +197,14 @@ pub fn write_glb(path: &Path, mesh: &SceneMesh, buildings: &[BuildingRecord]) ->
     let n_vertices = mesh.positions_m.len() as u64;
     let n_indices = mesh.indices.len() as u64;
 
-    let mut distinct: Vec<u32> = mesh.building_ids.clone();
+    let mut distinct: Vec<u32> = mesh.building_ids.iter().map(|id| id.get()).collect();
     distinct.sort_unstable();
     distinct.dedup();
     let feature_count = distinct.len() as u64;
 
     // Property table: row = building ID, rows 0..=max ID. Only when the IDs are dense (as `prepare`
     // assigns them, 1..=N), so that a few scattered large IDs do not bloat the file with empty rows.
-    let source_ids: BTreeMap<u32, &str> = buildings.iter().map(|b| (b.id, b.source_id.as_str())).collect();
+    let source_ids: BTreeMap<u32, &str> = buildings.iter().map(|b| (b.id.get(), b.source_id.as_str())).collect();
     let max_id = distinct.last().copied().unwrap_or(0);
     let table_rows = (u64::from(max_id) <= 2 * feature_count + 1024).then_some(u64::from(max_id) + 1);
     let string_bytes: u64 = match table_rows {
@@ -270,16 +268,16 @@ pub fn write_glb(path: &Path, mesh: &SceneMesh, buildings: &[BuildingRecord]) ->
         written += views[0].length;
         pad_to(w, &mut written, views[1].offset).map_err(io)?;
         for &id in &mesh.building_ids {
-            // Exact: id ≤ 2^24 − 1 (checked above).
-            w.write_all(&(id as f32).to_le_bytes()).map_err(io)?;
+            // Exact: a BuildingId is at most 2^24 − 1, and f32 holds every integer up to 2^24.
+            w.write_all(&(id.get() as f32).to_le_bytes()).map_err(io)?;
         }
         written += views[1].length;
         pad_to(w, &mut written, views[2].offset).map_err(io)?;
-        let mut colour_of = (u32::MAX, [0u8; 4]);
+        let mut colour_of = (None, [0u8; 4]);
         for &id in &mesh.building_ids {
-            if id != colour_of.0 {
+            if colour_of.0 != Some(id) {
                 let [r, g, b] = building_colour(id);
-                colour_of = (id, [r, g, b, 255]);
+                colour_of = (Some(id), [r, g, b, 255]);
             }
             w.write_all(&colour_of.1).map_err(io)?;
         }
@@ -566,7 +564,7 @@ fn read_feature_ids(
     acc: &gltf::Accessor<'_>,
     bin: &[u8],
     null_id: Option<u64>,
-    out: &mut Vec<u32>,
+    out: &mut Vec<BuildingId>,
 ) -> Result<(), GlbError> {
     use gltf::accessor::{DataType, Dimensions};
     let invalid = |what: String| GlbError::Invalid { path: path.to_path_buf(), at: at.to_string(), what };
@@ -580,14 +578,13 @@ fn read_feature_ids(
         other => return Err(invalid(format!("feature IDs of component type {other:?} are not supported"))),
     };
     let a = accessor_bytes(path, at, acc, bin, size)?;
-    let first = out.len();
-    out.reserve(a.count);
     let elems = (0..a.count).map(|k| &a.data[k * a.stride..k * a.stride + size]);
-    match acc.data_type() {
-        DataType::U8 => out.extend(elems.map(|e| u32::from(e[0]))),
-        DataType::U16 => out.extend(elems.map(|e| u32::from(u16::from_le_bytes([e[0], e[1]])))),
-        DataType::U32 => out.extend(elems.map(|e| u32::from_le_bytes([e[0], e[1], e[2], e[3]]))),
+    let raw: Vec<u32> = match acc.data_type() {
+        DataType::U8 => elems.map(|e| u32::from(e[0])).collect(),
+        DataType::U16 => elems.map(|e| u32::from(u16::from_le_bytes([e[0], e[1]]))).collect(),
+        DataType::U32 => elems.map(|e| u32::from_le_bytes([e[0], e[1], e[2], e[3]])).collect(),
         _ => {
+            let mut raw = Vec::with_capacity(a.count);
             for (k, e) in elems.enumerate() {
                 let v = le_f32(e);
                 if !(v >= 1.0 && v <= MAX_BUILDING_ID as f32 && v.fract() == 0.0) {
@@ -595,18 +592,21 @@ fn read_feature_ids(
                         "vertex {k}: feature ID {v} is not a building ID (an integer in 1..={MAX_BUILDING_ID})"
                     )));
                 }
-                out.push(v as u32);
+                raw.push(v as u32);
+            }
+            raw
+        }
+    };
+    out.reserve(raw.len());
+    for (k, id) in raw.into_iter().enumerate() {
+        match BuildingId::new(id) {
+            Ok(b) if !b.is_background() && Some(u64::from(id)) != null_id => out.push(b),
+            _ => {
+                return Err(invalid(format!(
+                    "vertex {k}: feature ID {id} is not a building ID (1..={MAX_BUILDING_ID}, not the null ID)"
+                )))
             }
         }
-    }
-    if let Some((k, &id)) = out[first..]
-        .iter()
-        .enumerate()
-        .find(|(_, &id)| id == 0 || id > MAX_BUILDING_ID || Some(u64::from(id)) == null_id)
-    {
-        return Err(invalid(format!(
-            "vertex {k}: feature ID {id} is not a building ID (1..={MAX_BUILDING_ID}, not the null ID)"
-        )));
     }
     Ok(())
 }
@@ -840,16 +840,18 @@ mod tests {
 
         #[test]
         fn deterministic_and_not_dark() {
-            assert_eq!(building_colour(17), building_colour(17));
-            for id in 1..2000 {
-                let c = building_colour(id);
-                assert!(c.iter().all(|&v| v >= 56), "id {id}: {c:?}");
+            let id = |n| BuildingId::new(n).unwrap();
+            assert_eq!(building_colour(id(17)), building_colour(id(17)));
+            for n in 1..2000 {
+                let c = building_colour(id(n));
+                assert!(c.iter().all(|&v| v >= 56), "id {n}: {c:?}");
             }
         }
 
         #[test]
         fn neighbours_differ() {
-            let distinct: std::collections::BTreeSet<[u8; 3]> = (1..=1000).map(building_colour).collect();
+            let distinct: std::collections::BTreeSet<[u8; 3]> =
+                (1..=1000).map(|n| building_colour(BuildingId::new(n).unwrap())).collect();
             assert!(distinct.len() > 990, "{} distinct colours for 1000 IDs", distinct.len());
         }
     }

@@ -5,16 +5,15 @@
 //! triangle it belongs to (buildings never share vertices), so a flat-interpolated ID reaches the
 //! fragment shader unchanged.
 
-/// Largest building ID that fits the 24-bit instance maps (0 is background).
-pub const MAX_BUILDING_ID: u32 = (1 << 24) - 1;
+use super::ids::BuildingId;
 
 /// A triangle soup with per-vertex building IDs, in the area's ENU frame.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct SceneMesh {
     /// Vertex positions in ENU metres relative to the area origin.
     pub positions_m: Vec<[f32; 3]>,
-    /// Building ID (1..=2^24−1) of each vertex.
-    pub building_ids: Vec<u32>,
+    /// Building ID (never the background) of each vertex.
+    pub building_ids: Vec<BuildingId>,
     /// Triangle vertex indices.
     pub indices: Vec<u32>,
 }
@@ -39,7 +38,7 @@ impl SceneMesh {
     }
 
     /// The sub-mesh of the buildings for which `keep(id)` holds (used to cull to buildings near a pose).
-    pub fn filter_buildings(&self, keep: impl Fn(u32) -> bool) -> SceneMesh {
+    pub fn filter_buildings(&self, keep: impl Fn(BuildingId) -> bool) -> SceneMesh {
         let mut out = SceneMesh::default();
         let mut remap = vec![u32::MAX; self.positions_m.len()];
         for tri in self.indices.chunks_exact(3) {

@@ -4,6 +4,7 @@
 //! - [`triangulate`]: planar polygons with holes → triangles;
 //! - [`prepare`]: the `prepare` stage (read → geo-reference → triangulate → instance → write);
 //! - [`artifact`]: the files it writes and [`PreparedScene::load`] for later stages;
+//! - [`ids`]: the 24-bit [`BuildingId`] and [`IdMap`], the one image-of-IDs type, with its codecs;
 //! - [`mesh`]: the instanced [`SceneMesh`] renderers consume;
 //! - [`glb`]: the scene GLB (EXT_mesh_features) writer and reader;
 //! - [`procedural`]: the embedded demo city generator.
@@ -11,12 +12,14 @@
 pub mod artifact;
 pub mod config;
 pub mod error;
+pub mod ids;
 pub mod mesh;
 pub mod prepare;
 pub mod triangulate;
 
 pub use artifact::{BuildingRecord, Manifest, PreparedScene};
 pub use error::SceneError;
-pub use mesh::{SceneMesh, MAX_BUILDING_ID};
+pub use ids::{BuildingId, IdError, IdMap, MAX_BUILDING_ID};
+pub use mesh::SceneMesh;
 pub mod glb;
 pub mod procedural;

@@ -25,7 +25,8 @@ use crate::util::{self, Progress};
 
 use super::artifact::{self, BuildingRecord, GeoidUsed, Manifest, Origin, PreparedScene, SourceEntry};
 use super::config::{GeoidModel, SceneConfig, SourceConfig};
-use super::mesh::{SceneMesh, MAX_BUILDING_ID};
+use super::ids::BuildingId;
+use super::mesh::SceneMesh;
 use super::triangulate::triangulate_polygon;
 use super::SceneError;
 
@@ -547,14 +548,8 @@ pub fn prepare(
             what: "no building lies inside the [area] polygon".into(),
         });
     }
-    if merged.len() as u64 > MAX_BUILDING_ID as u64 {
-        return Err(SceneError::Area {
-            area: cfg.name.clone(),
-            what: format!(
-                "{} buildings exceed the 24-bit instance ID space (at most {MAX_BUILDING_ID}); split the area into smaller ones",
-                merged.len()
-            ),
-        });
+    if let Some(last) = merged.len().checked_sub(1) {
+        BuildingId::from_index(last).map_err(|source| SceneError::Ids { area: cfg.name.clone(), source })?;
     }
 
     // Scene mesh and building table.
@@ -562,7 +557,7 @@ pub fn prepare(
     let mut records = Vec::with_capacity(merged.len());
     let mut bases = Vec::with_capacity(merged.len());
     for (k, (source_id, m)) in merged.into_iter().enumerate() {
-        let id = k as u32 + 1;
+        let id = BuildingId::from_index(k).expect("the count was checked against the ID space above");
         let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
         for p in &m.positions {
             for a in 0..3 {

@@ -8,6 +8,9 @@ use std::fs;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
+pub mod shard;
+pub use shard::{Shard, ShardError};
+
 /// An I/O error that names the file it happened on.
 #[derive(Debug, thiserror::Error)]
 #[error("{action} {}", path.display())]

@@ -17,7 +17,8 @@ use crate::blender_support;
 use std::path::{Path, PathBuf};
 
 use blender_support::*;
-use insgen::blender::align::{building_ious, read_id_exr, summarise, FrameAlignment, IdImage};
+use insgen::blender::align::{building_ious, summarise, FrameAlignment};
+use insgen::scene::IdMap;
 use insgen::blender::run::frame_outputs;
 use insgen::blender::tileset::{mat4_inverse_affine, mat4_point, SelectOptions, Y_UP_TO_Z_UP};
 use insgen::blender::{render_frames, Engine, FrameRequest, Launcher, Mode, RenderPlan, SceneSource};
@@ -90,13 +91,13 @@ fn check_ids_against_reference(
     let mut per_frame = Vec::new();
     for f in frames {
         let path = frame_outputs(plan, &f.name)[0].path.clone();
-        let got = read_id_exr(&path).unwrap();
+        let got = IdMap::read_exr(&path).unwrap();
         let k = &f.intrinsics;
-        assert_eq!((got.width, got.height), (k.width_px, k.height_px));
-        let want = IdImage { width: k.width_px, height: k.height_px, ids: reference_ids(boxes, k, &f.pose) };
-        let edges = edge_mask(&want.ids, k.width_px, k.height_px);
+        assert_eq!((got.width(), got.height()), (k.width_px, k.height_px));
+        let want = IdMap::from_raw(k.width_px, k.height_px, reference_ids(boxes, k, &f.pose)).unwrap();
+        let edges = edge_mask(want.raw(), k.width_px, k.height_px);
         let mut differ = 0;
-        for (i, (&a, &b)) in got.ids.iter().zip(&want.ids).enumerate() {
+        for (i, (&a, &b)) in got.raw().iter().zip(want.raw()).enumerate() {
             if a != b {
                 differ += 1;
                 assert!(
@@ -108,16 +109,15 @@ fn check_ids_against_reference(
                 );
             }
         }
-        let present: std::collections::BTreeSet<u32> = want.ids.iter().copied().filter(|&v| v != 0).collect();
+        let present = want.visible_buildings();
         assert!(present.len() >= 3, "{}: only {present:?} visible; the test frame is badly placed", f.name);
         eprintln!(
             "{}: {differ} differing pixels of {} ({} edge pixels)",
             f.name,
-            got.ids.len(),
+            got.raw().len(),
             edges.iter().filter(|&&e| e).count()
         );
-        let agreement =
-            got.ids.iter().zip(&want.ids).filter(|(a, b)| a == b).count() as f64 / got.ids.len() as f64;
+        let agreement = insgen::blender::align::pixel_agreement(&got, &want);
         per_frame.push(FrameAlignment {
             frame: f.name.clone(),
             pixel_agreement: agreement,

@@ -10,7 +10,7 @@
 use insgen::camera::{CameraSpec, Trajectory};
 use insgen::geo::{EnuFrame, Geodetic};
 use insgen::scene::artifact::{GeoidUsed, Origin};
-use insgen::scene::{BuildingRecord, Manifest, PreparedScene, SceneMesh};
+use insgen::scene::{BuildingId, BuildingRecord, Manifest, PreparedScene, SceneMesh};
 
 pub const GROUND_M: f64 = -2.0;
 pub const TOWER_CENTRE_M: [f64; 2] = [180.0, 0.0];
@@ -45,7 +45,7 @@ pub fn boxes() -> Vec<([f64; 3], [f64; 3])> {
 }
 
 /// The 12 triangles of a box (outward winding irrelevant here).
-fn box_mesh(mesh: &mut SceneMesh, lo: [f64; 3], hi: [f64; 3], id: u32) {
+fn box_mesh(mesh: &mut SceneMesh, lo: [f64; 3], hi: [f64; 3], id: BuildingId) {
     let base = mesh.positions_m.len() as u32;
     for k in 0..8 {
         let p = [
@@ -71,7 +71,7 @@ pub fn city_with(polygon: Vec<[f64; 2]>, with_mesh: bool) -> PreparedScene {
     let mut mesh = SceneMesh::default();
     let mut buildings = Vec::new();
     for (n, (lo, hi)) in boxes().into_iter().enumerate() {
-        let id = n as u32 + 1;
+        let id = BuildingId::from_index(n).unwrap();
         if with_mesh {
             box_mesh(&mut mesh, lo, hi, id);
         }

@@ -15,14 +15,13 @@ use std::path::{Path, PathBuf};
 use insgen::camera::{Intrinsics, Pose, PoseRecord, Trajectory};
 use insgen::coco::export::{export, ExportPlan};
 use insgen::coco::format::{AnnotationUnit, Dataset, Filters, Segmentation, TruncatedPolicy};
-use insgen::coco::idmap::{encode_id_png, IdMap};
 use insgen::coco::results::read_results;
 use insgen::coco::stats::{self, ReportOptions};
 use insgen::coco::Split;
 use insgen::geo::{EnuFrame, Geodetic};
 use insgen::label::{label_components, Connectivity, FrameInstances, InstanceEntry};
 use insgen::scene::artifact::{GeoidUsed, Origin, SourceEntry};
-use insgen::scene::{BuildingRecord, Manifest};
+use insgen::scene::{BuildingId, BuildingRecord, IdMap, Manifest};
 use insgen::util::NoProgress;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -150,7 +149,7 @@ fn write_area(workdir: &Path, spec: &AreaSpec) {
     write_json(&dir.join("scene/manifest.json"), &manifest);
     let buildings: Vec<BuildingRecord> = (1..=BUILDINGS)
         .map(|id| BuildingRecord {
-            id,
+            id: BuildingId::new(id).unwrap(),
             source_id: format!("bldg_{}_{id:03}", spec.name),
             source_file: format!("{}.gml", spec.name),
             lod: "1".into(),
@@ -192,12 +191,12 @@ fn write_area(workdir: &Path, spec: &AreaSpec) {
             continue; // listed, never rendered
         }
         let ids = if spec.empty_frame && i == 1 { vec![0; (W * H) as usize] } else { draw_frame(&mut rng) };
-        let map = IdMap { width: W, height: H, ids };
-        let png = encode_id_png(&map, Path::new("test")).unwrap();
+        let map = IdMap::from_raw(W, H, ids).unwrap();
+        let png = map.encode_png().unwrap();
         std::fs::create_dir_all(cam.join("masks")).unwrap();
         std::fs::write(cam.join(format!("masks/{name}.png")), png).unwrap();
-        let lab = label_components(&map.ids, W, H, spec.connectivity);
-        let mut visible_px: BTreeMap<u32, u64> = BTreeMap::new();
+        let lab = label_components(&map, spec.connectivity);
+        let mut visible_px: BTreeMap<BuildingId, u64> = BTreeMap::new();
         for c in &lab.components {
             *visible_px.entry(c.building_id).or_default() += c.area_px;
         }
@@ -215,7 +214,7 @@ fn write_area(workdir: &Path, spec: &AreaSpec) {
                 building_visible_px: visible_px[&c.building_id],
                 visible_fraction: spec
                     .visible_fraction
-                    .then(|| (c.building_id as f64 * 0.37).fract().max(0.05)),
+                    .then(|| (c.building_id.get() as f64 * 0.37).fract().max(0.05)),
             })
             .collect();
         let fi = FrameInstances {

@@ -30,12 +30,12 @@ fn check(view: &View, boxes: &[Box3]) {
     let r = renderer();
     let scene = r.upload(&box_mesh(boxes)).unwrap();
     let img = r.render(&scene, view, &RenderOptions::default()).unwrap();
-    assert_eq!((img.width, img.height), (view.intrinsics.width_px, view.intrinsics.height_px));
+    assert_eq!((img.ids.width(), img.ids.height()), (view.intrinsics.width_px, view.intrinsics.height_px));
     let reference = reference(boxes, &view.intrinsics, &view.pose);
-    let c = compare(&img.ids, &reference);
+    let c = compare(img.ids.raw(), &reference);
     eprintln!("{c:?}");
     for b in boxes {
-        let (g, r) = (count(&img.ids, b.id), count(&reference.ids, b.id));
+        let (g, r) = (count(img.ids.raw(), b.id), count(&reference.ids, b.id));
         eprintln!("building {}: GPU {g} px, reference {r} px", b.id);
         assert!(r > 50, "test setup: building {} should be clearly visible", b.id);
         assert!(g.abs_diff(r) <= c.mismatches, "building {}: {g} vs {r} px", b.id);
@@ -74,12 +74,12 @@ mod nadir {
         let scene = r.upload(&box_mesh(&boxes)).unwrap();
         let img = r.render(&scene, &view, &RenderOptions::default()).unwrap();
         let expected = (20.0 * 300.0 / 235.0) * (30.0 * 290.0 / 235.0);
-        let got = count(&img.ids, 7) as f64;
+        let got = count(img.ids.raw(), 7) as f64;
         let perimeter = 2.0 * (20.0 * 300.0 / 235.0 + 30.0 * 290.0 / 235.0);
         assert!((got - expected).abs() <= perimeter / 2.0, "{got} px vs {expected:.1} px");
         // Its columns: centres x + ½ in [cx − fx·10/235, cx + fx·10/235) = [137.53, 163.07) → 138..=162
         // (the walls project inside the roof from straight above).
-        let cols: Vec<usize> = (0..320).filter(|&x| (0..240).any(|y| img.ids[y * 320 + x] == 7)).collect();
+        let cols: Vec<usize> = (0..320).filter(|&x| (0..240).any(|y| img.ids.raw()[y * 320 + x] == 7)).collect();
         assert_eq!((cols[0], *cols.last().unwrap()), (138, 162));
     }
 
@@ -95,7 +95,7 @@ mod nadir {
         let (mut sx, mut sy, mut n) = (0.0, 0.0, 0.0);
         for y in 0..240 {
             for x in 0..320 {
-                if img.ids[y * 320 + x] == 3 {
+                if img.ids.raw()[y * 320 + x] == 3 {
                     sx += x as f64 + 0.5;
                     sy += y as f64 + 0.5;
                     n += 1.0;

@@ -52,7 +52,7 @@ pub fn box_mesh(boxes: &[Box3]) -> SceneMesh {
         let base = m.positions_m.len() as u32;
         for c in 0..8 {
             m.positions_m.push(b.corner(c).map(|v| v as f32));
-            m.building_ids.push(b.id);
+            m.building_ids.push(insgen::scene::BuildingId::new(b.id).expect("test boxes have 24-bit IDs"));
         }
         for f in Box3::faces() {
             let [a, b_, c, d] = f.map(|i| base + i as u32);
@@ -232,12 +232,12 @@ pub fn assert_cpu_agrees_with_wgpu(name: &str, scene: &insgen::scene::PreparedSc
         // Culling the back faces of closed buildings is exact: not one pixel may change.
         let culling_diff = frame.ids.iter().zip(&unculled).filter(|(a, b)| a != b).count();
         assert_eq!(culling_diff, 0, "{name} pose {:?}: back-face culling changed pixels", pose.ypr_deg());
-        assert_eq!(frame.ids.len(), g.ids.len());
-        let d = frame.ids.iter().zip(&g.ids).filter(|(a, b)| a != b).count();
-        eprintln!("{name} pose {:?}: {d} of {} pixels differ", pose.ypr_deg(), g.ids.len());
+        assert_eq!(frame.ids.len(), g.ids.raw().len());
+        let d = frame.ids.iter().zip(g.ids.raw()).filter(|(a, b)| a != b).count();
+        eprintln!("{name} pose {:?}: {d} of {} pixels differ", pose.ypr_deg(), g.ids.raw().len());
         diff += d;
-        total += g.ids.len();
-        building += g.ids.iter().filter(|&&i| i != 0).count();
+        total += g.ids.raw().len();
+        building += g.ids.raw().iter().filter(|&&i| i != 0).count();
     }
     let agreement = 1.0 - diff as f64 / total as f64;
     eprintln!("{name}: {diff} of {total} pixels differ → agreement {agreement:.6}");

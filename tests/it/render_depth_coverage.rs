@@ -5,8 +5,12 @@ use crate::render_common;
 
 use insgen::camera::{Intrinsics, Pose};
 use insgen::render::{DepthRange, RenderError, RenderOptions, View};
-use insgen::scene::SceneMesh;
+use insgen::scene::{BuildingId, SceneMesh};
 use render_common::{box_mesh, compare, count, reference, renderer, Box3};
+
+fn ids(v: &[u32]) -> Vec<BuildingId> {
+    v.iter().map(|&i| BuildingId::new(i).unwrap()).collect()
+}
 
 fn k() -> Intrinsics {
     Intrinsics { width_px: 160, height_px: 120, fx_px: 150.0, fy_px: 150.0, cx_px: 80.0, cy_px: 60.0 }
@@ -60,7 +64,7 @@ mod depth {
             .unwrap();
         // Centre pixel sees the roof 300 − 23.5 = 276.5 m below (hand computation).
         let c = 60 * 160 + 80;
-        assert_eq!(img.ids[c], 9);
+        assert_eq!(img.ids.raw()[c], 9);
         assert!((img.depth_m.as_ref().unwrap()[c] - 276.5).abs() < 1e-3);
     }
 }
@@ -77,11 +81,11 @@ mod coverage {
         let r = renderer();
         let scene = r.upload(&box_mesh(&[b1, b2])).unwrap();
         let img = r.render(&scene, &view, &RenderOptions::default()).unwrap();
-        let visible = count(&img.ids, 1) as u64;
-        let cov = r.isolated_coverage_px(&scene, &view, &[1, 2, 77], &DepthRange::default()).unwrap();
+        let visible = count(img.ids.raw(), 1) as u64;
+        let cov = r.isolated_coverage_px(&scene, &view, &ids(&[1, 2, 77]), &DepthRange::default()).unwrap();
         let alone = reference(&[b1], &view.intrinsics, &view.pose);
         let c1 = compare(
-            &r.render(&r.upload(&box_mesh(&[b1])).unwrap(), &view, &RenderOptions::default()).unwrap().ids,
+            &r.render(&r.upload(&box_mesh(&[b1])).unwrap(), &view, &RenderOptions::default()).unwrap().ids.raw(),
             &alone,
         );
         let expected = count(&alone.ids, 1) as u64;
@@ -89,7 +93,7 @@ mod coverage {
         assert!(cov[0].abs_diff(expected) as usize <= c1.mismatches.max(1), "{} vs {expected}", cov[0]);
         assert!(visible < cov[0], "building 1 must be partly hidden ({visible} vs {})", cov[0]);
         // The tower is in front of everything: alone it covers exactly what it covers in the scene.
-        assert_eq!(cov[1], count(&img.ids, 2) as u64);
+        assert_eq!(cov[1], count(img.ids.raw(), 2) as u64);
         assert_eq!(cov[2], 0, "an ID absent from the scene covers nothing");
     }
 
@@ -111,12 +115,12 @@ mod coverage {
             View { intrinsics: k(), pose: Pose::from_ypr_deg(340.0, 55.0, 0.0, [20.0, -160.0, 120.0]) };
         let r = renderer();
         let scene = r.upload(&mesh).unwrap();
-        let ids: Vec<u32> = boxes.iter().map(|b| b.id).collect();
+        let ids: Vec<BuildingId> = boxes.iter().map(|b| BuildingId::new(b.id).unwrap()).collect();
         let cov = r.isolated_coverage_px(&scene, &view, &ids, &DepthRange::default()).unwrap();
         for (b, &c) in boxes.iter().zip(&cov) {
-            let alone = mesh.filter_buildings(|id| id == b.id);
+            let alone = mesh.filter_buildings(|id| id.get() == b.id);
             let img = r.render(&r.upload(&alone).unwrap(), &view, &RenderOptions::default()).unwrap();
-            assert_eq!(c, count(&img.ids, b.id) as u64, "building {}", b.id);
+            assert_eq!(c, count(img.ids.raw(), b.id) as u64, "building {}", b.id);
             assert!(c > 0);
         }
     }
@@ -127,7 +131,7 @@ mod coverage {
         let view = View { intrinsics: k(), pose: Pose::from_ypr_deg(0.0, 0.0, 0.0, [0.0, 0.0, 200.0]) };
         let r = renderer();
         let scene = r.upload(&box_mesh(&boxes)).unwrap();
-        assert_eq!(r.isolated_coverage_px(&scene, &view, &[4], &DepthRange::default()).unwrap(), vec![0]);
+        assert_eq!(r.isolated_coverage_px(&scene, &view, &ids(&[4]), &DepthRange::default()).unwrap(), vec![0]);
     }
 }
 
@@ -141,9 +145,9 @@ mod clipping {
         let r = renderer();
         let scene = r.upload(&box_mesh(&boxes)).unwrap();
         let near = RenderOptions { range: DepthRange { near_m: 0.1, far_m: 150.0 }, linear_depth: false };
-        assert!(r.render(&scene, &view, &near).unwrap().ids.iter().all(|&id| id == 0));
+        assert!(r.render(&scene, &view, &near).unwrap().ids.raw().iter().all(|&id| id == 0));
         let far = RenderOptions { range: DepthRange { near_m: 0.1, far_m: 250.0 }, linear_depth: false };
-        assert!(r.render(&scene, &view, &far).unwrap().ids.contains(&5));
+        assert!(r.render(&scene, &view, &far).unwrap().ids.raw().contains(&5));
     }
 
     #[test]
@@ -152,7 +156,7 @@ mod clipping {
         let scene = r.upload(&SceneMesh::default()).unwrap();
         let view = View { intrinsics: k(), pose: Pose::from_ypr_deg(0.0, 0.0, 0.0, [0.0, 0.0, 200.0]) };
         let img = r.render(&scene, &view, &RenderOptions::default()).unwrap();
-        assert!(img.ids.iter().all(|&id| id == 0));
+        assert!(img.ids.raw().iter().all(|&id| id == 0));
     }
 }
 
@@ -175,7 +179,7 @@ mod validation {
     fn invalid_meshes_are_rejected() {
         let r = renderer();
         let mut m = box_mesh(&[Box3 { id: 1, min_m: [0.0; 3], max_m: [1.0; 3] }]);
-        m.building_ids[0] = 0;
+        m.building_ids[0] = BuildingId::BACKGROUND;
         assert!(r.upload(&m).unwrap_err().to_string().contains("building ID 0"));
         let mut m = box_mesh(&[Box3 { id: 1, min_m: [0.0; 3], max_m: [1.0; 3] }]);
         m.indices.push(1000);
@@ -183,7 +187,7 @@ mod validation {
         m.indices.push(1);
         assert!(r.upload(&m).unwrap_err().to_string().contains("refers to vertex 1000"));
         let mut m = box_mesh(&[Box3 { id: 1, min_m: [0.0; 3], max_m: [1.0; 3] }]);
-        m.building_ids[0] = 2;
+        m.building_ids[0] = BuildingId::new(2).unwrap();
         assert!(r.upload(&m).unwrap_err().to_string().contains("joins vertices of buildings"));
         let mut m = box_mesh(&[Box3 { id: 1, min_m: [0.0; 3], max_m: [1.0; 3] }]);
         m.positions_m[3][1] = f32::NAN;

@@ -4,7 +4,7 @@
 use crate::render_common;
 
 use insgen::camera::{Intrinsics, Pose};
-use insgen::label::idpng;
+use insgen::scene::IdMap;
 use insgen::render::{RenderOptions, View};
 use render_common::{box_mesh, renderer, Box3};
 
@@ -41,7 +41,7 @@ fn rendering_twice_gives_identical_id_maps() {
         assert_eq!(x.ids, y.ids, "frame {i}");
         let (dx, dy) = (x.depth_m.as_ref().unwrap(), y.depth_m.as_ref().unwrap());
         assert!(dx.iter().zip(dy).all(|(p, q)| p.to_bits() == q.to_bits()), "frame {i} depth");
-        assert!(x.ids.iter().any(|&id| id != 0), "frame {i} must show buildings");
+        assert!(!x.ids.visible_buildings().is_empty(), "frame {i} must show buildings");
     }
 }
 
@@ -67,12 +67,12 @@ fn writing_twice_gives_byte_identical_pngs() {
     let img = r.render(&scene, &views()[1], &RenderOptions::default()).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let (p1, p2) = (dir.path().join("a.png"), dir.path().join("b.png"));
-    idpng::write_id_png(&p1, &img.ids, img.width, img.height).unwrap();
+    img.ids.write_png(&p1).unwrap();
     let again = r.render(&scene, &views()[1], &RenderOptions::default()).unwrap();
-    idpng::write_id_png(&p2, &again.ids, again.width, again.height).unwrap();
+    again.ids.write_png(&p2).unwrap();
     assert_eq!(std::fs::read(&p1).unwrap(), std::fs::read(&p2).unwrap());
     // And the PNG holds exactly the rendered IDs.
-    assert_eq!(idpng::read_id_png(&p1).unwrap().ids, img.ids);
+    assert_eq!(IdMap::read_png(&p1).unwrap(), img.ids);
 }
 
 #[test]

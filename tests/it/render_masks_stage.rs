@@ -8,8 +8,9 @@ use std::path::Path;
 
 use insgen::camera::{Intrinsics, Pose, PoseRecord, Trajectory};
 use insgen::geo::{EnuFrame, Geodetic};
-use insgen::label::idpng;
-use insgen::label::stage::{self, MaskPlan, Shard};
+use insgen::label::stage::{self, MaskPlan};
+use insgen::scene::{BuildingId, IdMap};
+use insgen::util::Shard;
 use insgen::label::{label_components, Connectivity, FrameInstances};
 use insgen::render::{RenderOptions, View};
 use insgen::scene::artifact::{GeoidUsed, Origin};
@@ -32,7 +33,7 @@ fn scene() -> PreparedScene {
     let buildings = boxes()
         .iter()
         .map(|b| BuildingRecord {
-            id: b.id,
+            id: BuildingId::new(b.id).unwrap(),
             source_id: format!("bldg_{:06x}", b.id),
             source_file: "boxes.test".into(),
             lod: "1".into(),
@@ -124,12 +125,12 @@ fn writes_masks_that_match_a_direct_render_and_resumes() {
         let direct = r
             .render(&gpu, &View { intrinsics: rec.intrinsics, pose: rec.pose() }, &RenderOptions::default())
             .unwrap();
-        let png = idpng::read_id_png(&plan.png_path(&rec.name)).unwrap();
-        assert_eq!(png.ids, direct.ids, "{}", rec.name);
-        assert!(direct.ids.iter().any(|&id| id != 0), "{} shows nothing", rec.name);
+        let png = IdMap::read_png(&plan.png_path(&rec.name)).unwrap();
+        assert_eq!(png, direct.ids, "{}", rec.name);
+        assert!(!direct.ids.visible_buildings().is_empty(), "{} shows nothing", rec.name);
         // The JSON lists the components of label_components above the minimum area, in raster order.
         let fi = read_instances(&plan, &rec.name);
-        let l = label_components(&direct.ids, direct.width, direct.height, Connectivity::Eight);
+        let l = label_components(&direct.ids, Connectivity::Eight);
         let kept: Vec<_> = l.components.iter().filter(|c| c.area_px >= 4).collect();
         assert_eq!(fi.instances.len(), kept.len());
         for (e, c) in fi.instances.iter().zip(kept) {
@@ -137,7 +138,7 @@ fn writes_masks_that_match_a_direct_render_and_resumes() {
                 (e.building_id, e.component, e.area_px, e.bbox_px, e.truncated),
                 (c.building_id, c.index, c.area_px, c.bbox_px, c.touches_border)
             );
-            assert_eq!(e.source_id, format!("bldg_{:06x}", e.building_id));
+            assert_eq!(e.source_id, format!("bldg_{:06x}", e.building_id.get()));
             let all: u64 =
                 l.components.iter().filter(|x| x.building_id == e.building_id).map(|x| x.area_px).sum();
             assert_eq!(e.building_visible_px, all);
@@ -195,7 +196,7 @@ fn writes_masks_that_match_a_direct_render_and_resumes() {
     let direct = r
         .render(&gpu, &View { intrinsics: recs[3].intrinsics, pose: moved }, &RenderOptions::default())
         .unwrap();
-    assert_eq!(idpng::read_id_png(&plan.png_path("f003")).unwrap().ids, direct.ids);
+    assert_eq!(IdMap::read_png(&plan.png_path("f003")).unwrap(), direct.ids);
 }
 
 #[test]
@@ -265,7 +266,10 @@ fn bad_poses_are_reported_with_their_line() {
     text.push_str("{\"name\": 3}\n");
     std::fs::write(cam.join("poses.jsonl"), &text).unwrap();
     let e = stage::render_masks(&MaskPlan::new(cam.clone()), &scene(), renderer(), &NoProgress).unwrap_err();
-    assert!(e.to_string().contains("poses.jsonl:3: not a pose record"), "{e}");
+    assert!(e.to_string().contains("poses.jsonl:3: not a valid pose record"), "{e}");
+    // The parser's own message stays in the cause chain.
+    let cause = std::error::Error::source(&e).map(|c| c.to_string()).unwrap_or_default();
+    assert!(cause.contains("invalid type"), "{cause}");
 
     let dup = format!(
         "{}\n{}\n",

@@ -15,7 +15,7 @@ use std::sync::OnceLock;
 
 use insgen::camera::{Intrinsics, Pose};
 use insgen::render::{RenderOptions, View};
-use insgen::scene::{PreparedScene, SceneMesh};
+use insgen::scene::{BuildingId, PreparedScene, SceneMesh};
 use render_common::{assert_cpu_agrees_with_wgpu, poses_at_tallest, renderer};
 
 /// The prepared Shibuya scene, shared by the tests of this binary (None when the data is absent).
@@ -44,7 +44,7 @@ fn inside(p: [f64; 2], t: &[[f64; 2]; 3]) -> bool {
 }
 
 /// Checks one building alone in one view; returns (covered pixels, pixels checked).
-fn check_building(mesh: &SceneMesh, id: u32, view: &View) -> (usize, usize) {
+fn check_building(mesh: &SceneMesh, id: BuildingId, view: &View) -> (usize, usize) {
     let alone = mesh.filter_buildings(|b| b == id);
     let r = renderer();
     let img = r.render(&r.upload(&alone).unwrap(), view, &RenderOptions::default()).unwrap();
@@ -92,7 +92,7 @@ fn check_building(mesh: &SceneMesh, id: u32, view: &View) -> (usize, usize) {
             if near_edge[i] {
                 continue;
             }
-            let got = img.ids[i] == id;
+            let got = img.ids.ids()[i] == id;
             assert_eq!(got, expected[i], "building {id}, pixel ({x}, {y})");
             covered += got as usize;
             checked += 1;

@@ -6,13 +6,13 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use insgen::scene::glb::{read_glb, write_glb, GlbError};
-use insgen::scene::{BuildingRecord, SceneMesh};
+use insgen::scene::{BuildingId, BuildingRecord, SceneMesh};
 use rand::{Rng, SeedableRng};
 use serde_json::{json, Value};
 
 fn record(id: u32, source_id: &str) -> BuildingRecord {
     BuildingRecord {
-        id,
+        id: BuildingId::new(id).unwrap(),
         source_id: source_id.to_string(),
         source_file: "test.gml".into(),
         lod: "1".into(),
@@ -29,6 +29,7 @@ fn record(id: u32, source_id: &str) -> BuildingRecord {
 
 /// Appends a closed axis-aligned box (12 triangles, 8 own vertices) for building `id`.
 fn push_box(mesh: &mut SceneMesh, id: u32, lo: [f32; 3], hi: [f32; 3]) {
+    let id = BuildingId::new(id).unwrap();
     let base = mesh.positions_m.len() as u32;
     for k in 0..8u32 {
         let p = [
@@ -239,10 +240,10 @@ mod features {
                 v as u32
             })
             .collect();
-        assert_eq!(ids, mesh.building_ids);
+        assert_eq!(ids, mesh.building_ids.iter().map(|b| b.get()).collect::<Vec<_>>());
 
         // Every ID in the file is in the building table, and every building has triangles.
-        let table: BTreeSet<u32> = buildings.iter().map(|b| b.id).collect();
+        let table: BTreeSet<u32> = buildings.iter().map(|b| b.id.get()).collect();
         let idx_acc = prim["indices"].as_u64().unwrap() as usize;
         let idx: Vec<u32> = accessor_slice(&json, &bin, idx_acc, 4)
             .chunks_exact(4)
@@ -404,7 +405,7 @@ mod validator {
         let mut ear = earcut::Earcut::new();
         let mut tris: Vec<u32> = Vec::new();
         for (k, b) in model.buildings.iter().enumerate() {
-            let id = k as u32 + 1;
+            let id = BuildingId::from_index(k).unwrap();
             let Geometry::Polygons(polys) = &b.geometry else { panic!("LoD1 polygons expected") };
             let before = mesh.indices.len();
             for p in polys {
@@ -438,7 +439,7 @@ mod validator {
                     mesh.indices.extend([0, 1, 2, 0, 2, 3].map(|t| base + t));
                 }
             }
-            let mut r = record(id, &b.source_id);
+            let mut r = record(id.get(), &b.source_id);
             r.triangles = ((mesh.indices.len() - before) / 3) as u64;
             buildings.push(r);
         }
@@ -531,7 +532,7 @@ mod reader {
         let mesh = read_glb(&path).unwrap();
         // glTF (x, y, z) + (10, 1, −2) → ENU (x, −z, y), by hand.
         assert_eq!(mesh.positions_m, vec![[10.0, 2.0, 1.0], [14.0, 2.0, 1.0], [10.0, 5.0, 3.0]]);
-        assert_eq!(mesh.building_ids, vec![5, 5, 9]);
+        assert_eq!(mesh.building_ids, [5, 5, 9]);
         assert_eq!(mesh.indices, vec![0, 1, 2]);
     }
 
@@ -632,7 +633,7 @@ mod writer_errors {
         let empty = SceneMesh::default();
         assert!(write_glb(&path, &empty, &buildings).unwrap_err().to_string().contains("no triangles"));
         let mut dup = buildings.clone();
-        dup[1].id = 1;
+        dup[1].id = BuildingId::new(1).unwrap();
         assert!(write_glb(&path, &mesh, &dup).unwrap_err().to_string().contains("used by both"));
         assert!(!path.exists());
     }

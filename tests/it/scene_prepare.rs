@@ -32,8 +32,9 @@ fn prepare_area(name: &str, data: &str, expect_buildings: u64) {
     }
     let mut seen = vec![false; scene.buildings.len() + 1];
     for &id in &scene.mesh.building_ids {
-        assert!(id >= 1 && (id as usize) < seen.len(), "mesh ID {id} not in the building table");
-        seen[id as usize] = true;
+        let id = id.get() as usize;
+        assert!(id >= 1 && id < seen.len(), "mesh ID {id} not in the building table");
+        seen[id] = true;
     }
     assert!(seen[1..].iter().all(|&s| s), "a building has no triangles in the mesh");
     // The geometry sits around the origin: within a few km horizontally, and heights plausible.

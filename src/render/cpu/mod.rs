@@ -72,7 +72,7 @@ impl CpuScene {
         };
         // Triangles by building (stable, so the draw order within a building is the mesh's).
         let mut order: Vec<usize> = (0..mesh.indices.len() / 3).collect();
-        let tri_id = |t: usize| mesh.building_ids[mesh.indices[3 * t] as usize];
+        let tri_id = |t: usize| mesh.building_ids[mesh.indices[3 * t] as usize].get();
         order.sort_by_key(|&t| tri_id(t));
         let mut positions = Vec::new();
         let mut triangles = Vec::with_capacity(order.len());
@@ -380,11 +380,12 @@ impl Frustum {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::BuildingId;
 
     fn quad(mesh: &mut SceneMesh, corners: [[f32; 3]; 4], id: u32) {
         let base = mesh.positions_m.len() as u32;
         mesh.positions_m.extend_from_slice(&corners);
-        mesh.building_ids.extend([id; 4]);
+        mesh.building_ids.extend([BuildingId::new(id).unwrap(); 4]);
         mesh.indices.extend([base, base + 1, base + 2, base, base + 2, base + 3]);
     }
 
@@ -429,7 +430,7 @@ mod tests {
                 let base = m.positions_m.len() as u32;
                 for c in t {
                     m.positions_m.push(p(c));
-                    m.building_ids.push(id);
+                    m.building_ids.push(BuildingId::new(id).unwrap());
                 }
                 m.indices.extend([base, base + 1, base + 2]);
             }
