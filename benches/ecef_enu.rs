@@ -69,7 +69,7 @@ fn main() {
     time("geodetic_to_ecef_to_enu", || {
         let mut acc = [0.0f64; 3];
         for q in black_box(&geo) {
-            let e = frame.ecef_to_enu(geodetic_to_ecef(Geodetic { h_m: q.h_m + 36.7, ..*q }));
+            let e = frame.ecef_to_enu(geodetic_to_ecef(Geodetic { h_m: q.h_m + 36.7, ..*q }).into());
             acc = [acc[0] + e[0], acc[1] + e[1], acc[2] + e[2]];
         }
         black_box(acc);

@@ -98,7 +98,7 @@ fn prepared(mesh: SceneMesh, buildings: Vec<BuildingRecord>, enu: &EnuFrame) -> 
             area: "synthetic".into(),
             split: "test".into(),
             origin: Origin { lat_deg: 35.658, lon_deg: 139.701, h_m: 40.0 },
-            ecef_from_enu: enu.ecef_from_enu_matrix(),
+            ecef_from_enu: enu.ecef_from_enu(),
             area_polygon_enu_m: vec![],
             ground_enu_m: 0.0,
             geoid: GeoidUsed { model: "none".into(), grid: None, undulation_at_origin_m: 0.0 },

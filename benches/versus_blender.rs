@@ -232,11 +232,11 @@ fn bench_area(
                     .map(|i| {
                         let f = i as f64;
                         Hypothesis {
-                            centre_m: [
+                            centre_m: glam::DVec3::new(
                                 pose.centre_m[0] + (f * 0.37).sin() * 6.0,
                                 pose.centre_m[1] + (f * 0.73).cos() * 6.0,
                                 pose.centre_m[2] + (f * 0.11).sin() * 3.0,
-                            ],
+                            ),
                             yaw_deg: yaw + (f * 0.53).sin() * 2.0,
                         }
                     })

@@ -120,26 +120,13 @@ impl BlenderCamera {
 /// The Blender camera object's world matrix (row-major) for `pose`: rotation columns are the OpenCV
 /// camera axes in ENU times diag(1, −1, −1), translation the camera centre in ENU metres.
 pub fn blender_matrix_world(pose: &Pose) -> Mat4 {
-    let r = &pose.r_world_from_cam;
-    let c = pose.centre_m;
-    [
-        [r[0][0], -r[0][1], -r[0][2], c[0]],
-        [r[1][0], -r[1][1], -r[1][2], c[1]],
-        [r[2][0], -r[2][1], -r[2][2], c[2]],
-        [0.0, 0.0, 0.0, 1.0],
-    ]
+    let flip = glam::DMat4::from_scale(glam::DVec3::new(1.0, -1.0, -1.0));
+    crate::util::row_major::rows(&(pose.cam_to_world() * flip))
 }
 
 /// A pose as the 4×4 camera-to-world matrix of `poses.jsonl` (OpenCV axes, ENU metres).
 pub fn cam_to_world_enu(pose: &Pose) -> Mat4 {
-    let r = &pose.r_world_from_cam;
-    let c = pose.centre_m;
-    [
-        [r[0][0], r[0][1], r[0][2], c[0]],
-        [r[1][0], r[1][1], r[1][2], c[1]],
-        [r[2][0], r[2][1], r[2][2], c[2]],
-        [0.0, 0.0, 0.0, 1.0],
-    ]
+    crate::util::row_major::rows(&pose.cam_to_world())
 }
 
 #[cfg(test)]
@@ -191,7 +178,7 @@ mod tests {
         for k in cases {
             let b = BlenderCamera::from_intrinsics("t", &k, 0.1, 1e5).unwrap();
             for p in [[0.0, 0.0, 10.0], [3.0, -2.0, 7.0], [-12.0, 9.0, 40.0], [0.3, 0.1, 1.0]] {
-                let cv = k.project(p).unwrap();
+                let cv = k.project(p.into()).unwrap();
                 // OpenCV → Blender camera axes: diag(1, −1, −1).
                 let bl = blender_project(&b, k.width_px, k.height_px, [p[0], -p[1], -p[2]]);
                 assert!(

@@ -107,7 +107,7 @@ const IDENTITY: Mat4 =
 
 /// ENU-from-ECEF of an area frame (the inverse of the rigid ECEF-from-ENU).
 pub fn enu_from_ecef(enu: &EnuFrame) -> Mat4 {
-    let m = enu.ecef_from_enu_matrix();
+    let m = crate::util::row_major::rows(&enu.ecef_from_enu());
     let mut inv = IDENTITY;
     for i in 0..3 {
         for j in 0..3 {
@@ -255,7 +255,7 @@ fn bounding_sphere_enu(
                 let lat = s + (n - s) * j as f64 / STEPS as f64;
                 for h in [h0, h1] {
                     let g = Geodetic::new(lat.to_degrees(), lon.to_degrees(), h);
-                    pts.push(enu.ecef_to_enu(geodetic_to_ecef(g)));
+                    pts.push(enu.ecef_to_enu(geodetic_to_ecef(g).into()).to_array());
                 }
             }
         }
@@ -454,7 +454,7 @@ pub struct TileSelection {
 
 /// Whether a sphere (ENU) intersects the camera's viewing frustum (no far plane).
 pub fn sphere_in_frustum(k: &Intrinsics, pose: &Pose, centre_enu_m: [f64; 3], radius_m: f64) -> bool {
-    let p = pose.world_to_cam(centre_enu_m);
+    let p = pose.world_to_cam(centre_enu_m.into()).to_array();
     // Inward normals of the planes through the camera centre bounding the image: x ≥ −cx/fx · z, etc.
     let planes = [
         [1.0, 0.0, k.cx_px / k.fx_px],
@@ -540,7 +540,7 @@ impl Walk<'_, '_> {
         if !sphere_in_frustum(self.k, self.pose, t.centre_enu_m, t.radius_m) {
             return Ok(());
         }
-        let d = (dist(self.pose.centre_m, t.centre_enu_m) - t.radius_m).max(1e-3);
+        let d = (dist(self.pose.centre_m.to_array(), t.centre_enu_m) - t.radius_m).max(1e-3);
         let sse_px = t.geometric_error_m * self.k.fy_px / d;
         let refine = !t.children.is_empty() && sse_px > self.opts.max_sse_px;
         if !refine || t.refine == Refine::Add {
@@ -806,7 +806,7 @@ mod tests {
         let enu = frame();
         let m = enu_from_ecef(&enu);
         for p in [[0.0, 0.0, 0.0], [123.0, -456.0, 78.9], [-2000.0, 3000.0, -50.0]] {
-            let ecef = enu.enu_to_ecef(p);
+            let ecef = enu.enu_to_ecef(p.into()).to_array();
             let back = mat4_point(&m, ecef);
             assert!(dist(back, p) < 1e-6, "{p:?} → {back:?}");
         }
@@ -867,7 +867,7 @@ mod tests {
         for lat in [35.65, 35.6575, 35.665] {
             for lon in [139.69, 139.70, 139.71] {
                 for h in [20.0, 160.0, 300.0] {
-                    let p = enu.geodetic_to_enu(Geodetic::new(lat, lon, h));
+                    let p = enu.geodetic_to_enu(Geodetic::new(lat, lon, h)).to_array();
                     assert!(dist(p, c) <= r, "{lat} {lon} {h}: {} > {r}", dist(p, c));
                 }
             }

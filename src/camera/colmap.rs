@@ -77,7 +77,7 @@ impl ColmapImage {
         ColmapImage {
             image_id,
             qvec: pose.colmap_qvec(),
-            tvec: pose.t_cam_from_world(),
+            tvec: pose.t_cam_from_world().to_array(),
             camera_id,
             name: name.to_string(),
         }

@@ -54,11 +54,11 @@ impl Intrinsics {
 
     /// Projects a point in camera coordinates (OpenCV axes, metres) to pixel coordinates, or `None`
     /// when it is not in front of the camera.
-    pub fn project(&self, p_cam: [f64; 3]) -> Option<[f64; 2]> {
-        if p_cam[2] <= 0.0 {
+    pub fn project(&self, p_cam: glam::DVec3) -> Option<[f64; 2]> {
+        if p_cam.z <= 0.0 {
             return None;
         }
-        Some([self.fx_px * p_cam[0] / p_cam[2] + self.cx_px, self.fy_px * p_cam[1] / p_cam[2] + self.cy_px])
+        Some([self.fx_px * p_cam.x / p_cam.z + self.cx_px, self.fy_px * p_cam.y / p_cam.z + self.cy_px])
     }
 
     /// Horizontal field of view in degrees.
@@ -89,7 +89,7 @@ mod tests {
     #[test]
     fn projection_of_axis_point_is_principal_point() {
         let k = Intrinsics::from_hfov(640, 360, 60.0);
-        assert_eq!(k.project([0.0, 0.0, 10.0]), Some([320.0, 180.0]));
-        assert_eq!(k.project([0.0, 0.0, -1.0]), None);
+        assert_eq!(k.project(glam::DVec3::new(0.0, 0.0, 10.0)), Some([320.0, 180.0]));
+        assert_eq!(k.project(glam::DVec3::new(0.0, 0.0, -1.0)), None);
     }
 }

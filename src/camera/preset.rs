@@ -173,7 +173,7 @@ impl CameraSpec {
     /// Projects a point given in the area's ENU frame (metres) to pixel coordinates for a camera at
     /// `pose`, or `None` when the point is behind the camera. Ignores distortion (pinhole).
     pub fn project_enu(&self, pose: &super::Pose, p_enu_m: [f64; 3]) -> Option<[f64; 2]> {
-        self.intrinsics.project(pose.world_to_cam(p_enu_m))
+        self.intrinsics.project(pose.world_to_cam(p_enu_m.into()))
     }
 }
 

@@ -4,6 +4,7 @@
 //! The pose itself is [`PoseRecord::pose`]; all other fields are derived from it and the area's ENU
 //! frame by [`PoseRecord::new`] and are checked for consistency by the tests.
 
+use glam::DMat4;
 use serde::{Deserialize, Serialize};
 
 use super::{Intrinsics, Pose};
@@ -35,8 +36,9 @@ pub struct PoseRecord {
     pub sequence: u32,
     pub index: u32,
     pub intrinsics: Intrinsics,
-    /// Camera-to-world in the area's ENU frame (OpenCV camera axes), 4×4 row-major, metres.
-    pub cam_to_world_enu: [[f64; 4]; 4],
+    /// Camera-to-world in the area's ENU frame (OpenCV camera axes), metres; rows in the file.
+    #[serde(with = "crate::util::row_major")]
+    pub cam_to_world_enu: DMat4,
     /// COLMAP world-to-camera quaternion (qw, qx, qy, qz) and translation, ENU world frame.
     pub colmap_qvec: [f64; 4],
     pub colmap_tvec: [f64; 3],
@@ -69,14 +71,7 @@ impl PoseRecord {
         enu: &EnuFrame,
         ground_enu_m: f64,
     ) -> Self {
-        let r = &pose.r_world_from_cam;
         let c = pose.centre_m;
-        let cam_to_world_enu = [
-            [r[0][0], r[0][1], r[0][2], c[0]],
-            [r[1][0], r[1][1], r[1][2], c[1]],
-            [r[2][0], r[2][1], r[2][2], c[2]],
-            [0.0, 0.0, 0.0, 1.0],
-        ];
         let ecef = enu.enu_to_ecef(c);
         let g = enu.enu_to_geodetic(c);
         let [yaw_deg, pitch_deg, roll_deg] = pose.ypr_deg();
@@ -88,31 +83,23 @@ impl PoseRecord {
             sequence,
             index,
             intrinsics,
-            cam_to_world_enu,
+            cam_to_world_enu: pose.cam_to_world(),
             colmap_qvec: pose.colmap_qvec(),
-            colmap_tvec: pose.t_cam_from_world(),
-            ecef_m: ecef,
+            colmap_tvec: pose.t_cam_from_world().to_array(),
+            ecef_m: ecef.to_array(),
             lat_deg: g.lat_deg,
             lon_deg: g.lon_deg,
             h_m: g.h_m,
             yaw_deg,
             pitch_deg,
             roll_deg,
-            height_above_ground_m: c[2] - ground_enu_m,
+            height_above_ground_m: c.z - ground_enu_m,
         }
     }
 
     /// The pose (from `cam_to_world_enu`, the authoritative field).
     pub fn pose(&self) -> Pose {
-        let m = &self.cam_to_world_enu;
-        Pose {
-            r_world_from_cam: [
-                [m[0][0], m[0][1], m[0][2]],
-                [m[1][0], m[1][1], m[1][2]],
-                [m[2][0], m[2][1], m[2][2]],
-            ],
-            centre_m: [m[0][3], m[1][3], m[2][3]],
-        }
+        Pose::from_cam_to_world(&self.cam_to_world_enu)
     }
 }
 

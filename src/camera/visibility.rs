@@ -10,7 +10,6 @@
 //! # References
 //! J. Amanatides, A. Woo (1987), *A fast voxel traversal algorithm for ray tracing*.
 
-use super::pose::mat_vec;
 use super::{Intrinsics, Pose};
 use crate::scene::BuildingRecord;
 
@@ -218,7 +217,7 @@ impl BuildingIndex {
             for i in 0..nx {
                 let u = (i as f64 + 0.5) * k.width_px as f64 / nx as f64;
                 let v = (j as f64 + 0.5) * k.height_px as f64 / ny as f64;
-                if self.ray_hits_building(pose.centre_m, pixel_ray_enu(k, pose, u, v)) {
+                if self.ray_hits_building(pose.centre_m.to_array(), pixel_ray_enu(k, pose, u, v)) {
                     hits += 1;
                 }
             }
@@ -230,8 +229,8 @@ impl BuildingIndex {
 /// The viewing direction (ENU, not normalised: its camera-frame z component is 1) through pixel
 /// coordinates (u, v) (see [`Intrinsics`] for the pixel convention).
 pub fn pixel_ray_enu(k: &Intrinsics, pose: &Pose, u: f64, v: f64) -> [f64; 3] {
-    let d_cam = [(u - k.cx_px) / k.fx_px, (v - k.cy_px) / k.fy_px, 1.0];
-    mat_vec(&pose.r_world_from_cam, d_cam)
+    let d_cam = glam::DVec3::new((u - k.cx_px) / k.fx_px, (v - k.cy_px) / k.fy_px, 1.0);
+    (pose.r_world_from_cam * d_cam).to_array()
 }
 
 /// Slab test: does `o + t·d` meet the box for some t in [0, t_max]?

@@ -5,10 +5,10 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 
 use crate::label::stage::{self, MaskPlan, DEFAULT_MIN_AREA_PX};
-use crate::util::Shard;
 use crate::label::Connectivity;
 use crate::render::{DepthRange, Renderer};
 use crate::scene::PreparedScene;
+use crate::util::Shard;
 
 /// Render instance masks: reads <workdir>/<area>/scene and <camera>/poses.jsonl, writes
 /// <camera>/masks/<frame>.png (24-bit RGB building IDs) and <frame>.instances.json.

@@ -4,16 +4,14 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 
-use crate::blender::align::{
-    building_ious, pixel_agreement, summarise, FrameAlignment,
-};
+use crate::blender::align::{building_ious, pixel_agreement, summarise, FrameAlignment};
 use crate::blender::run::{frame_outputs, OutputKind};
 use crate::blender::tileset::SelectOptions;
 use crate::blender::{render_frames, Engine, FrameRequest, Launcher, Mode, RenderPlan, SceneSource};
-use crate::util::Shard;
 use crate::geo::{EnuFrame, Geodetic};
 use crate::scene::artifact::{Manifest, GLB_FILE, MANIFEST_FILE};
 use crate::scene::IdMap;
+use crate::util::Shard;
 
 /// Render engine choice on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]

@@ -158,8 +158,9 @@ pub struct Image {
     pub connectivity: Connectivity,
     /// Extension: pinhole intrinsics in pixels (OpenCV/COLMAP convention, pixel centres at +0.5).
     pub intrinsics: Intrinsics,
-    /// Extension: camera-to-world in the area's ENU frame (OpenCV camera axes), 4×4 row-major, metres.
-    pub cam_to_world_enu: [[f64; 4]; 4],
+    /// Extension: camera-to-world in the area's ENU frame (OpenCV camera axes), metres; rows in the file.
+    #[serde(with = "crate::util::row_major")]
+    pub cam_to_world_enu: glam::DMat4,
     /// Extension: COLMAP world-to-camera quaternion (qw, qx, qy, qz) and translation (metres, ENU).
     pub colmap_qvec: [f64; 4],
     pub colmap_tvec: [f64; 3],

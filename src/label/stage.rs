@@ -541,7 +541,8 @@ mod tests {
         fn small_fragments_are_dropped_but_counted_as_visible() {
             // Building 1: a 3×2 block (6 px) and a 1 px fragment; building 2: 2 px.
             let img = image(&["111..", "111.1", ".....", "22..."]);
-            let names: BTreeMap<BuildingId, String> = [(id(1), "gml_a".to_string()), (id(2), "gml_b".to_string())].into();
+            let names: BTreeMap<BuildingId, String> =
+                [(id(1), "gml_a".to_string()), (id(2), "gml_b".to_string())].into();
             let fi = frame_instances("f", &img, Connectivity::Four, 2, &names, None);
             assert_eq!(fi.instances.len(), 2);
             let a = &fi.instances[0];

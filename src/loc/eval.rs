@@ -141,8 +141,8 @@ pub fn cull(buildings: &[BuildingRecord], pose: &Pose, k: &Intrinsics, margin: f
                     if c & 2 == 0 { lo[1] } else { hi[1] },
                     if c & 4 == 0 { lo[2] } else { hi[2] },
                 ];
-                let q = pose.world_to_cam(p);
-                if q[2] > raster::NEAR_M {
+                let q = pose.world_to_cam(p.into());
+                if q.z > raster::NEAR_M {
                     front += 1;
                     let uv = k.project(q).expect("in front");
                     u0 = u0.min(uv[0]);
@@ -266,7 +266,7 @@ impl Evaluate for CpuEvaluator<'_> {
 /// Where the optical axis of `pose` meets the horizontal plane at `ground_m` (None when it looks
 /// at or above the horizon or the point lies more than 20 km away).
 pub fn look_at_ground(pose: &Pose, ground_m: f64) -> Option<[f64; 3]> {
-    let d = crate::camera::pose::mat_vec(&pose.r_world_from_cam, [0.0, 0.0, 1.0]);
+    let d = pose.forward();
     let c = pose.centre_m;
     if d[2] >= -1e-6 || !ground_m.is_finite() {
         return None;

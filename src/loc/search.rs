@@ -12,11 +12,12 @@ use rand_distr::{Distribution, Normal};
 use serde::{Deserialize, Serialize};
 
 use crate::camera::Pose;
+use glam::DVec3;
 
 /// A 4-DoF hypothesis: camera centre (ENU metres) and yaw (degrees); pitch/roll are fixed per query.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Hypothesis {
-    pub centre_m: [f64; 3],
+    pub centre_m: DVec3,
     pub yaw_deg: f64,
 }
 
@@ -144,7 +145,11 @@ pub fn coarse_grid(prior: &Hypothesis, p: &CoarseParams) -> Vec<Hypothesis> {
             for dx in steps(p.xy_range_m, p.xy_step_m) {
                 for dyaw in steps(p.yaw_range_deg, p.yaw_step_deg) {
                     out.push(Hypothesis {
-                        centre_m: [prior.centre_m[0] + dx, prior.centre_m[1] + dy, prior.centre_m[2] + dz],
+                        centre_m: DVec3::new(
+                            prior.centre_m[0] + dx,
+                            prior.centre_m[1] + dy,
+                            prior.centre_m[2] + dz,
+                        ),
                         yaw_deg: prior.yaw_deg + dyaw,
                     });
                 }
@@ -227,11 +232,11 @@ pub fn search<E: Evaluate>(
         for &(h, _) in &pool {
             for _ in 0..fine.perturbations {
                 fresh.push(Hypothesis {
-                    centre_m: [
+                    centre_m: DVec3::new(
                         h.centre_m[0] + fine.sigma_m * s * unit.sample(&mut rng),
                         h.centre_m[1] + fine.sigma_m * s * unit.sample(&mut rng),
                         h.centre_m[2] + fine.sigma_m * s * unit.sample(&mut rng),
-                    ],
+                    ),
                     yaw_deg: h.yaw_deg + rng.gen_range(-1.0..=1.0) * fine.yaw_deg * s,
                 });
             }
@@ -281,7 +286,7 @@ fn moves(h: &Hypothesis, step_m: f64, step_deg: f64, pivot_m: Option<[f64; 3]>) 
             if n > 1e-9 {
                 let k = sign * step_m / n;
                 out.push(Hypothesis {
-                    centre_m: [c[0] + k * d[0], c[1] + k * d[1], c[2] + k * d[2]],
+                    centre_m: DVec3::new(c[0] + k * d[0], c[1] + k * d[1], c[2] + k * d[2]),
                     yaw_deg: h.yaw_deg,
                 });
             }
@@ -291,7 +296,7 @@ fn moves(h: &Hypothesis, step_m: f64, step_deg: f64, pivot_m: Option<[f64; 3]>) 
             let (x, y) = (c[0] - p[0], c[1] - p[1]);
             let (sn, cs) = delta.sin_cos();
             out.push(Hypothesis {
-                centre_m: [p[0] + x * cs + y * sn, p[1] - x * sn + y * cs, c[2]],
+                centre_m: DVec3::new(p[0] + x * cs + y * sn, p[1] - x * sn + y * cs, c[2]),
                 yaw_deg: h.yaw_deg + sign * step_deg,
             });
         }
@@ -362,8 +367,8 @@ mod tests {
 
     #[test]
     fn converges_from_a_perturbed_prior() {
-        let target = Hypothesis { centre_m: [10.0, -5.0, 300.0], yaw_deg: 45.0 };
-        let prior = Hypothesis { centre_m: [18.0, 2.0, 304.0], yaw_deg: 48.0 };
+        let target = Hypothesis { centre_m: DVec3::new(10.0, -5.0, 300.0), yaw_deg: 45.0 };
+        let prior = Hypothesis { centre_m: DVec3::new(18.0, 2.0, 304.0), yaw_deg: 48.0 };
         let mut bowl = Bowl { target, calls: 0 };
         let mut coarse = Bowl { target, calls: 0 };
         let r = search(
@@ -388,8 +393,8 @@ mod tests {
 
     #[test]
     fn deterministic_for_a_seed() {
-        let target = Hypothesis { centre_m: [0.0, 0.0, 200.0], yaw_deg: 0.0 };
-        let prior = Hypothesis { centre_m: [3.0, 3.0, 203.0], yaw_deg: 1.0 };
+        let target = Hypothesis { centre_m: DVec3::new(0.0, 0.0, 200.0), yaw_deg: 0.0 };
+        let prior = Hypothesis { centre_m: DVec3::new(3.0, 3.0, 203.0), yaw_deg: 1.0 };
         let run = |seed| {
             let b = || Bowl { target, calls: 0 };
             search(
@@ -411,8 +416,8 @@ mod tests {
 
     #[test]
     fn ablations() {
-        let target = Hypothesis { centre_m: [0.0, 0.0, 200.0], yaw_deg: 0.0 };
-        let prior = Hypothesis { centre_m: [9.0, 0.0, 200.0], yaw_deg: 0.0 };
+        let target = Hypothesis { centre_m: DVec3::new(0.0, 0.0, 200.0), yaw_deg: 0.0 };
+        let prior = Hypothesis { centre_m: DVec3::new(9.0, 0.0, 200.0), yaw_deg: 0.0 };
         let b = || Bowl { target, calls: 0 };
         let r = search(
             &mut b(),

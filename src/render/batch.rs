@@ -6,7 +6,7 @@ use std::sync::mpsc;
 
 use super::device::{gpu_scope, Renderer};
 use super::scene::GpuScene;
-use super::target::{draw_ids, read_back, RenderedFrame, IdTarget};
+use super::target::{draw_ids, read_back, IdTarget, RenderedFrame};
 use super::view::{DepthRange, View, ViewUniform};
 use super::RenderError;
 

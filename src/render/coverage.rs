@@ -71,7 +71,7 @@ pub fn projected_bounds(view: &View, range: &DepthRange, min_m: [f64; 3], max_m:
         (f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
     for corner in 0..8 {
         let p = [0, 1, 2].map(|a| if corner >> a & 1 == 0 { min_m[a] } else { max_m[a] });
-        let c = view.pose.world_to_cam(p);
+        let c = view.pose.world_to_cam(p.into());
         if c[2] <= range.near_m {
             return full;
         }

@@ -104,11 +104,11 @@ impl ViewUniform {
     pub fn new(view: &View, range: &DepthRange) -> Result<Self, RenderError> {
         validate_view(view, range)?;
         let r = view.pose.r_cam_from_world();
-        let c = view.pose.centre_m;
+        let c = view.pose.centre_m.to_array();
         let hi = c.map(|v| v as f32);
         let lo = [0, 1, 2].map(|i| (c[i] - hi[i] as f64) as f32);
         let (p, [za, zb]) = projection_coefficients(&view.intrinsics, range);
-        let row = |i: usize| [r[i][0] as f32, r[i][1] as f32, r[i][2] as f32, 0.0];
+        let row = |i: usize| r.row(i).as_vec3().extend(0.0).to_array();
         Ok(ViewUniform {
             r_cam_from_world: [row(0), row(1), row(2)],
             centre_hi_m: [hi[0], hi[1], hi[2], 0.0],
@@ -147,21 +147,15 @@ pub fn validate_view(view: &View, range: &DepthRange) -> Result<(), RenderError>
     if !(k.cx_px.is_finite() && k.cy_px.is_finite()) {
         return bad(format!("principal point must be finite, got ({}, {}) px", k.cx_px, k.cy_px));
     }
-    if !view.pose.centre_m.iter().all(|v| v.is_finite()) {
+    if !view.pose.centre_m.is_finite() {
         return bad(format!("camera centre must be finite, got {:?} m", view.pose.centre_m));
     }
     let r = &view.pose.r_world_from_cam;
-    let mut worst = 0.0f64;
-    for i in 0..3 {
-        for j in 0..3 {
-            let dot: f64 = (0..3).map(|k| r[k][i] * r[k][j]).sum();
-            let expected = if i == j { 1.0 } else { 0.0 };
-            worst = worst.max((dot - expected).abs());
-        }
-    }
-    let det = r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1])
-        - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
-        + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0]);
+    let worst = (r.transpose() * *r - glam::DMat3::IDENTITY)
+        .to_cols_array()
+        .iter()
+        .fold(0.0f64, |w, v| w.max(v.abs()));
+    let det = r.determinant();
     if !(worst <= 1e-6 && (det - 1.0).abs() <= 1e-6) {
         return bad(format!(
             "the pose rotation is not a rotation (|RᵀR − I| = {worst:.3e}, det = {det:.6}): {:?}",
@@ -200,7 +194,7 @@ mod tests {
             let range = DepthRange::default();
             for p in [[0.0, 0.0, 10.0], [3.0, -2.0, 7.5], [-40.0, 25.0, 123.0], [1e-3, 2e-3, 0.2]] {
                 let fb = framebuffer_from_clip(&k, clip_from_cam(&k, &range, p));
-                let uv = k.project(p).unwrap();
+                let uv = k.project(p.into()).unwrap();
                 assert!(
                     (fb[0] - uv[0]).abs() < 1e-9 && (fb[1] - uv[1]).abs() < 1e-9,
                     "{p:?}: {fb:?} vs {uv:?}"
@@ -258,10 +252,10 @@ mod tests {
             v.intrinsics.fx_px = f64::NAN;
             assert!(validate_view(&v, &r).is_err());
             let mut v = good;
-            v.pose.r_world_from_cam[0][0] = 2.0;
+            v.pose.r_world_from_cam.x_axis.x = 2.0;
             assert!(validate_view(&v, &r).unwrap_err().to_string().contains("not a rotation"));
             let mut v = good;
-            v.pose.r_world_from_cam = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]]; // a mirror
+            v.pose.r_world_from_cam = glam::DMat3::from_diagonal(glam::DVec3::new(1.0, 1.0, -1.0)); // a mirror
             assert!(validate_view(&v, &r).is_err());
             assert!(validate_view(&good, &DepthRange { near_m: 0.0, far_m: 1.0 }).is_err());
         }

@@ -8,7 +8,8 @@
 //! takes the ID of the wide pixel its centre's ray falls into, so pixels within about half a pixel of a
 //! silhouette edge may differ (tested below and in `tests/it/render_cpu_agreement.rs`).
 
-use crate::camera::pose::{mat_mul, Mat3};
+use glam::{DMat3, DVec3};
+
 use crate::camera::{Intrinsics, Pose};
 
 /// The largest wide canvas, in multiples of the target image's pixel count, worth rendering; beyond
@@ -22,7 +23,7 @@ pub struct RotationFan {
     pub pose: Pose,
     pub intrinsics: Intrinsics,
     /// Per view: the homography from its pixel coordinates to the wide view's.
-    homographies: Vec<Mat3>,
+    homographies: Vec<DMat3>,
     target: Intrinsics,
 }
 
@@ -31,19 +32,20 @@ impl RotationFan {
     /// corner falls behind the reference camera or the canvas would exceed [`MAX_CANVAS_RATIO`].
     pub fn new(views: &[Pose], k: &Intrinsics) -> Option<RotationFan> {
         let reference = *views.first()?;
-        let k_inv = [
-            [1.0 / k.fx_px, 0.0, -k.cx_px / k.fx_px],
-            [0.0, 1.0 / k.fy_px, -k.cy_px / k.fy_px],
-            [0.0, 0.0, 1.0],
-        ];
-        let k_mat = [[k.fx_px, 0.0, k.cx_px], [0.0, k.fy_px, k.cy_px], [0.0, 0.0, 1.0]];
+        let k_inv = DMat3::from_cols(
+            DVec3::new(1.0 / k.fx_px, 0.0, 0.0),
+            DVec3::new(0.0, 1.0 / k.fy_px, 0.0),
+            DVec3::new(-k.cx_px / k.fx_px, -k.cy_px / k.fy_px, 1.0),
+        );
+        let k_mat = DMat3::from_cols(
+            DVec3::new(k.fx_px, 0.0, 0.0),
+            DVec3::new(0.0, k.fy_px, 0.0),
+            DVec3::new(k.cx_px, k.cy_px, 1.0),
+        );
         let r0_cw = reference.r_cam_from_world();
         // Homographies into the reference camera with the target's own intrinsics; the canvas offset
         // is applied once the extent is known.
-        let hs: Vec<Mat3> = views
-            .iter()
-            .map(|v| mat_mul(&k_mat, &mat_mul(&mat_mul(&r0_cw, &v.r_world_from_cam), &k_inv)))
-            .collect();
+        let hs: Vec<DMat3> = views.iter().map(|v| k_mat * ((r0_cw * v.r_world_from_cam) * k_inv)).collect();
         let (w, h) = (k.width_px as f64, k.height_px as f64);
         let (mut u0, mut u1, mut v0, mut v1) =
             (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
@@ -77,8 +79,8 @@ impl RotationFan {
             cy_px: k.cy_px - oy,
         };
         // Shift into canvas coordinates: u' = u − ox, v' = v − oy.
-        let shift = [[1.0, 0.0, -ox], [0.0, 1.0, -oy], [0.0, 0.0, 1.0]];
-        let homographies = hs.iter().map(|m| mat_mul(&shift, m)).collect();
+        let shift = DMat3::from_cols(DVec3::X, DVec3::Y, DVec3::new(-ox, -oy, 1.0));
+        let homographies = hs.iter().map(|m| shift * *m).collect();
         Some(RotationFan { pose: reference, intrinsics, homographies, target: *k })
     }
 
@@ -102,12 +104,12 @@ impl RotationFan {
         let m = &self.homographies[i];
         // 16.16 fixed point, clamped into the canvas, so every point between two clamped ends is too.
         let (umax, vmax) = (((ww as i64) << 16) - 1, ((wh as i64) << 16) - 1);
-        let fixed = |p: [f64; 3]| {
-            let r = 65536.0 / p[2];
-            (((p[0] * r) as i64).clamp(0, umax), ((p[1] * r) as i64).clamp(0, vmax))
+        let fixed = |p: DVec3| {
+            let r = 65536.0 / p.z;
+            (((p.x * r) as i64).clamp(0, umax), ((p.y * r) as i64).clamp(0, vmax))
         };
         // Along a row the homogeneous point is affine in x: step it by SEGMENT pixels at a time.
-        let step = [m[0][0], m[1][0], m[2][0]].map(|v| v * SEGMENT as f64);
+        let step = m.x_axis * SEGMENT as f64;
         for y in 0..h {
             let row = &mut out[y * w..(y + 1) * w];
             // Exact at both ends of every SEGMENT pixels, linear in between: over so short a stretch
@@ -116,7 +118,7 @@ impl RotationFan {
             let mut p = apply(m, 0.5, y as f64 + 0.5);
             let mut start = fixed(p);
             for seg in row.chunks_mut(SEGMENT) {
-                p = [p[0] + step[0], p[1] + step[1], p[2] + step[2]];
+                p += step;
                 let end = fixed(p);
                 let ((u0, v0), (u1, v1)) = (start, end);
                 let (du, dv) = ((u1 - u0) / SEGMENT as i64, (v1 - v0) / SEGMENT as i64);
@@ -146,13 +148,10 @@ impl RotationFan {
 /// Pixels per linearly interpolated stretch of a warped row.
 const SEGMENT: usize = 16;
 
+/// The homography `m` applied to the pixel point (x, y): homogeneous coordinates.
 #[inline]
-fn apply(m: &Mat3, x: f64, y: f64) -> [f64; 3] {
-    [
-        m[0][0] * x + m[0][1] * y + m[0][2],
-        m[1][0] * x + m[1][1] * y + m[1][2],
-        m[2][0] * x + m[2][1] * y + m[2][2],
-    ]
+fn apply(m: &DMat3, x: f64, y: f64) -> DVec3 {
+    *m * DVec3::new(x, y, 1.0)
 }
 
 #[cfg(test)]

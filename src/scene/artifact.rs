@@ -92,8 +92,9 @@ pub struct Manifest {
     /// "train", "val" or "test": the geographic split this area belongs to.
     pub split: String,
     pub origin: Origin,
-    /// ECEF-from-ENU transform, 4×4 row-major, f64 (metres).
-    pub ecef_from_enu: [[f64; 4]; 4],
+    /// ECEF-from-ENU transform (metres); rows in the file.
+    #[serde(with = "crate::util::row_major")]
+    pub ecef_from_enu: glam::DMat4,
     /// The area polygon in ENU metres (counter-clockwise, open ring).
     pub area_polygon_enu_m: Vec<[f64; 2]>,
     /// Estimated ground level of the area in ENU metres (see `scene::prepare` for how).

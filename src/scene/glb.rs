@@ -31,6 +31,7 @@
 //! glTF 2.0 specification (Khronos), GLB container and accessor rules; `EXT_mesh_features` and
 //! `EXT_structural_metadata` (Cesium vendor extensions, glTF extension registry).
 
+use glam::{DMat4, DVec3, Mat4};
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -204,7 +205,8 @@ pub fn write_glb(path: &Path, mesh: &SceneMesh, buildings: &[BuildingRecord]) ->
 
     // Property table: row = building ID, rows 0..=max ID. Only when the IDs are dense (as `prepare`
     // assigns them, 1..=N), so that a few scattered large IDs do not bloat the file with empty rows.
-    let source_ids: BTreeMap<u32, &str> = buildings.iter().map(|b| (b.id.get(), b.source_id.as_str())).collect();
+    let source_ids: BTreeMap<u32, &str> =
+        buildings.iter().map(|b| (b.id.get(), b.source_id.as_str())).collect();
     let max_id = distinct.last().copied().unwrap_or(0);
     let table_rows = (u64::from(max_id) <= 2 * feature_count + 1024).then_some(u64::from(max_id) + 1);
     let string_bytes: u64 = match table_rows {
@@ -524,7 +526,7 @@ fn read_positions(
     at: &str,
     acc: &gltf::Accessor<'_>,
     bin: &[u8],
-    transform: Option<&[[f64; 4]; 4]>,
+    transform: Option<&DMat4>,
     out: &mut Vec<[f32; 3]>,
 ) -> Result<(), GlbError> {
     use gltf::accessor::{DataType, Dimensions};
@@ -547,11 +549,8 @@ fn read_positions(
             out.extend(elems.map(|e| gltf_to_enu([le_f32(&e[0..4]), le_f32(&e[4..8]), le_f32(&e[8..12])])))
         }
         Some(m) => out.extend(elems.map(|e| {
-            let p = [le_f32(&e[0..4]), le_f32(&e[4..8]), le_f32(&e[8..12])].map(f64::from);
-            // Column-major 4×4 (glTF): world = M · [p, 1].
-            let g: [f64; 3] =
-                std::array::from_fn(|r| m[0][r] * p[0] + m[1][r] * p[1] + m[2][r] * p[2] + m[3][r]);
-            gltf_to_enu(g.map(|c| c as f32))
+            let p = DVec3::new(le_f32(&e[0..4]).into(), le_f32(&e[4..8]).into(), le_f32(&e[8..12]).into());
+            gltf_to_enu(m.transform_point3(p).as_vec3().to_array())
         })),
     }
     Ok(())
@@ -601,11 +600,9 @@ fn read_feature_ids(
     for (k, id) in raw.into_iter().enumerate() {
         match BuildingId::new(id) {
             Ok(b) if !b.is_background() && Some(u64::from(id)) != null_id => out.push(b),
-            _ => {
-                return Err(invalid(format!(
-                    "vertex {k}: feature ID {id} is not a building ID (1..={MAX_BUILDING_ID}, not the null ID)"
-                )))
-            }
+            _ => return Err(invalid(format!(
+                "vertex {k}: feature ID {id} is not a building ID (1..={MAX_BUILDING_ID}, not the null ID)"
+            ))),
         }
     }
     Ok(())
@@ -654,14 +651,6 @@ fn read_indices(
     Ok(())
 }
 
-/// Product of two column-major 4×4 matrices.
-fn mat_mul(a: &[[f64; 4]; 4], b: &[[f64; 4]; 4]) -> [[f64; 4]; 4] {
-    std::array::from_fn(|c| std::array::from_fn(|r| (0..4).map(|k| a[k][r] * b[c][k]).sum()))
-}
-
-const IDENTITY: [[f64; 4]; 4] =
-    [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
-
 /// Reads `scene.glb` back into a [`SceneMesh`] (ENU metres, per-vertex building IDs).
 ///
 /// Reads what [`write_glb`] writes, and more generally any self-contained GLB whose triangle
@@ -696,17 +685,18 @@ pub fn read_glb(path: &Path) -> Result<SceneMesh, GlbError> {
         .or_else(|| doc.scenes().next())
         .ok_or_else(|| invalid("scenes".into(), "the file has no scene".into()))?;
     // Depth-first over the scene graph, with world transforms (None = identity, kept exact).
-    let mut stack: Vec<(gltf::Node<'_>, [[f64; 4]; 4])> = scene.nodes().map(|n| (n, IDENTITY)).collect();
+    let mut stack: Vec<(gltf::Node<'_>, DMat4)> = scene.nodes().map(|n| (n, DMat4::IDENTITY)).collect();
     stack.reverse();
     let mut mesh = SceneMesh::default();
     while let Some((node, parent)) = stack.pop() {
-        let local = node.transform().matrix().map(|c| c.map(f64::from));
-        let world = if local == IDENTITY { parent } else { mat_mul(&parent, &local) };
+        // glTF stores node matrices column-major, as glam does.
+        let local = Mat4::from_cols_array_2d(&node.transform().matrix()).as_dmat4();
+        let world = if local == DMat4::IDENTITY { parent } else { parent * local };
         for child in node.children().collect::<Vec<_>>().into_iter().rev() {
             stack.push((child, world));
         }
         let Some(m) = node.mesh() else { continue };
-        let transform = if world == IDENTITY { None } else { Some(&world) };
+        let transform = if world == DMat4::IDENTITY { None } else { Some(&world) };
         for prim in m.primitives() {
             let at = format!("meshes[{}].primitives[{}]", m.index(), prim.index());
             if prim.mode() != gltf::mesh::Mode::Triangles {
@@ -864,18 +854,6 @@ mod tests {
             let (v, total) = plan_views(&[(12 * 3, None), (4 * 3, None), (5, None), (4, None)]);
             assert_eq!(v.iter().map(|v| v.offset).collect::<Vec<_>>(), vec![0, 40, 56, 64]);
             assert_eq!(total, 68);
-        }
-
-        #[test]
-        fn matrix_product_column_major() {
-            // Translation by (1, 2, 3) then scale 2: T·S maps (1, 1, 1) to (3, 4, 5).
-            let t = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [1.0, 2.0, 3.0, 1.0]];
-            let s = [[2.0, 0.0, 0.0, 0.0], [0.0, 2.0, 0.0, 0.0], [0.0, 0.0, 2.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
-            let m = mat_mul(&t, &s);
-            let p = [1.0, 1.0, 1.0];
-            let out: [f64; 3] =
-                std::array::from_fn(|r| m[0][r] * p[0] + m[1][r] * p[1] + m[2][r] * p[2] + m[3][r]);
-            assert_eq!(out, [3.0, 4.0, 5.0]);
         }
     }
 }

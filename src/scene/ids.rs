@@ -28,7 +28,18 @@ use crate::util::FileError;
 
 /// A building's instance ID: 0 (background) or 1 ..= [`BuildingId::MAX`].
 #[derive(
-    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default, Serialize, Deserialize, TransparentWrapper,
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    PartialOrd,
+    Ord,
+    Hash,
+    Default,
+    Serialize,
+    Deserialize,
+    TransparentWrapper,
 )]
 #[repr(transparent)]
 #[serde(try_from = "u32", into = "u32")]
@@ -278,9 +289,11 @@ impl IdMap {
     pub fn decode_png(path: &Path, bytes: &[u8]) -> Result<IdMap, IdError> {
         let mut r = png_reader(path, Cursor::new(bytes))?;
         let mut buf = vec![0u8; r.output_buffer_size()];
-        let frame =
-            r.next_frame(&mut buf).map_err(|source| IdError::PngDecode { path: path.to_path_buf(), source })?;
-        let ids = buf[..frame.buffer_size()].chunks_exact(3).map(|p| BuildingId::from_rgb([p[0], p[1], p[2]]));
+        let frame = r
+            .next_frame(&mut buf)
+            .map_err(|source| IdError::PngDecode { path: path.to_path_buf(), source })?;
+        let ids =
+            buf[..frame.buffer_size()].chunks_exact(3).map(|p| BuildingId::from_rgb([p[0], p[1], p[2]]));
         IdMap::new(frame.width, frame.height, ids.collect())
     }
 
@@ -351,9 +364,13 @@ impl IdMap {
     }
 }
 
-fn png_reader<R: std::io::BufRead + std::io::Seek>(path: &Path, source: R) -> Result<png::Reader<R>, IdError> {
+fn png_reader<R: std::io::BufRead + std::io::Seek>(
+    path: &Path,
+    source: R,
+) -> Result<png::Reader<R>, IdError> {
     let decoder = png::Decoder::new(source);
-    let reader = decoder.read_info().map_err(|source| IdError::PngDecode { path: path.to_path_buf(), source })?;
+    let reader =
+        decoder.read_info().map_err(|source| IdError::PngDecode { path: path.to_path_buf(), source })?;
     let info = reader.info();
     if info.color_type != png::ColorType::Rgb || info.bit_depth != png::BitDepth::Eight {
         return Err(IdError::NotAnIdMap {
@@ -471,9 +488,13 @@ mod tests {
 
         #[test]
         fn rgba_png_is_not_an_id_map() {
-            let e = IdMap::decode_png(Path::new("rgba.png"), &png_of(png::ColorType::Rgba, 1, 1, &[1, 2, 3, 4]))
-                .unwrap_err();
-            assert!(e.to_string().contains("expected an 8-bit RGB ID map") && e.to_string().contains("Rgba"), "{e}");
+            let e =
+                IdMap::decode_png(Path::new("rgba.png"), &png_of(png::ColorType::Rgba, 1, 1, &[1, 2, 3, 4]))
+                    .unwrap_err();
+            assert!(
+                e.to_string().contains("expected an 8-bit RGB ID map") && e.to_string().contains("Rgba"),
+                "{e}"
+            );
         }
 
         #[test]

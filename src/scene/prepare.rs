@@ -513,7 +513,8 @@ pub fn prepare(
     let mut merged: BTreeMap<String, Merged> = BTreeMap::new();
     let mut outside = 0u64;
     for b in buildings {
-        let positions: Vec<[f64; 3]> = b.positions_ecef.iter().map(|&p| enu.ecef_to_enu(p)).collect();
+        let positions: Vec<[f64; 3]> =
+            b.positions_ecef.iter().map(|&p| enu.ecef_to_enu(p.into()).to_array()).collect();
         if let Some(poly) = &area_polygon {
             let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
             for p in &positions {
@@ -566,7 +567,7 @@ pub fn prepare(
             }
         }
         let (area_m2, c) = footprint(&m.positions, &m.triangles);
-        let g = enu.enu_to_geodetic([c[0], c[1], lo[2]]);
+        let g = enu.enu_to_geodetic(glam::DVec3::new(c[0], c[1], lo[2]));
         bases.push(lo[2]);
         let base = mesh.positions_m.len() as u32;
         mesh.positions_m.extend(m.positions.iter().map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]));
@@ -615,7 +616,7 @@ pub fn prepare(
         area: cfg.name.clone(),
         split: cfg.split.as_str().to_string(),
         origin: Origin { lat_deg: origin.lat_deg, lon_deg: origin.lon_deg, h_m: origin.h_m },
-        ecef_from_enu: enu.ecef_from_enu_matrix(),
+        ecef_from_enu: enu.ecef_from_enu(),
         area_polygon_enu_m,
         ground_enu_m,
         geoid: geoid_used,

@@ -8,6 +8,7 @@ use std::fs;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
+pub mod row_major;
 pub mod shard;
 pub use shard::{Shard, ShardError};
 

@@ -17,13 +17,15 @@ use crate::blender_support;
 use std::path::{Path, PathBuf};
 
 use blender_support::*;
+use glam::DVec3;
 use insgen::blender::align::{building_ious, summarise, FrameAlignment};
-use insgen::scene::IdMap;
 use insgen::blender::run::frame_outputs;
 use insgen::blender::tileset::{mat4_inverse_affine, mat4_point, SelectOptions, Y_UP_TO_Z_UP};
 use insgen::blender::{render_frames, Engine, FrameRequest, Launcher, Mode, RenderPlan, SceneSource};
 use insgen::camera::{Intrinsics, Pose};
 use insgen::geo::{EnuFrame, Geodetic};
+use insgen::scene::IdMap;
+use insgen::util::row_major::rows;
 use insgen::util::NoProgress;
 
 fn plan(python: &Path, dir: &Path, mode: Mode, source: SceneSource) -> RenderPlan {
@@ -162,7 +164,7 @@ fn tileset_tiles_are_placed_exactly() {
     let ts_dir = dir.path().join("tiles");
     std::fs::create_dir_all(ts_dir.join("ext")).unwrap();
     let enu = EnuFrame::new(Geodetic::new(35.0, 139.0, 50.0));
-    let ecef_from_enu = enu.ecef_from_enu_matrix();
+    let ecef_from_enu = rows(&enu.ecef_from_enu());
     let boxes = box_city();
     let (a_boxes, rest) = boxes.split_at(2);
     let (b_boxes, c_boxes) = rest.split_at(2);
@@ -170,8 +172,8 @@ fn tileset_tiles_are_placed_exactly() {
 
     // Tile A1: b3dm with RTC_CENTER under a tile transform = the ENU frame of a point 300 m east,
     // rotated by that frame's own axes (a realistic "local ENU" tile transform).
-    let a_origin = enu.enu_to_geodetic([300.0, 0.0, 0.0]);
-    let t_a = EnuFrame::new(a_origin).ecef_from_enu_matrix();
+    let a_origin = enu.enu_to_geodetic(DVec3::new(300.0, 0.0, 0.0));
+    let t_a = rows(&EnuFrame::new(a_origin).ecef_from_enu());
     let rtc_a = [5.0, -3.0, 2.0];
     let local_a = insgen::blender::tileset::mat4_mul(&mat4_inverse_affine(&t_a).unwrap(), &ecef_from_enu);
     let to_gltf_a = |p: [f64; 3]| {
@@ -192,9 +194,9 @@ fn tileset_tiles_are_placed_exactly() {
     .unwrap();
 
     // Tile B: a glb with CESIUM_RTC (ECEF centre) and no transform.
-    let centre_b = enu.enu_to_ecef([10.0, 10.0, 0.0]);
+    let centre_b = enu.enu_to_ecef(DVec3::new(10.0, 10.0, 0.0)).to_array();
     let to_gltf_b = |p: [f64; 3]| {
-        let e = enu.enu_to_ecef(p);
+        let e = enu.enu_to_ecef(p.into());
         mat4_point(&y2z_inv, [e[0] - centre_b[0], e[1] - centre_b[1], e[2] - centre_b[2]])
     };
     let rtc_ext = serde_json::json!({"extensionsUsed": ["CESIUM_RTC"], "extensionsRequired": ["CESIUM_RTC"], "extensions": {"CESIUM_RTC": {"center": centre_b}}});
@@ -231,7 +233,7 @@ fn tileset_tiles_are_placed_exactly() {
                  "children": [{"boundingVolume": {"box": [-300, 0, 50, 200, 0, 0, 0, 200, 0, 0, 0, 60]}, "geometricError": 0, "content": {"uri": "a1.b3dm"}}]},
                 {"boundingVolume": {"region": [deg(138.999), deg(34.999), deg(139.001), deg(35.001), -10, 100]}, "geometricError": 0, "content": {"uri": "b.glb"}},
                 {"transform": col_major(&t_c_parent), "boundingVolume": {"sphere": [0, 0, 0, 300]}, "geometricError": 0, "content": {"uri": "ext/sub.json"}},
-                {"transform": col_major(&EnuFrame::new(enu.enu_to_geodetic([10_000.0, 0.0, 0.0])).ecef_from_enu_matrix()),
+                {"transform": col_major(&rows(&EnuFrame::new(enu.enu_to_geodetic(DVec3::new(10_000.0, 0.0, 0.0))).ecef_from_enu())),
                  "boundingVolume": {"box": [0, 0, 0, 100, 0, 0, 0, 100, 0, 0, 0, 100]}, "geometricError": 0, "content": {"uri": "far_away_missing.b3dm"}}
             ]
         }
@@ -381,7 +383,7 @@ fn missing_tile_content_fails_before_blender_starts() {
     let enu = EnuFrame::new(Geodetic::new(35.0, 139.0, 50.0));
     let ts = serde_json::json!({
         "asset": {"version": "1.0"}, "geometricError": 0,
-        "root": {"transform": col_major(&enu.ecef_from_enu_matrix()), "boundingVolume": {"sphere": [0, 0, 0, 100]}, "geometricError": 0, "content": {"uri": "gone.b3dm"}}
+        "root": {"transform": col_major(&rows(&enu.ecef_from_enu())), "boundingVolume": {"sphere": [0, 0, 0, 100]}, "geometricError": 0, "content": {"uri": "gone.b3dm"}}
     });
     let ts_path = dir.path().join("tileset.json");
     std::fs::write(&ts_path, serde_json::to_vec(&ts).unwrap()).unwrap();
@@ -613,7 +615,7 @@ fn cli_renders_rgb_and_checks_alignment_against_masks() {
         area: "demo".into(),
         split: "test".into(),
         origin,
-        ecef_from_enu: enu.ecef_from_enu_matrix(),
+        ecef_from_enu: enu.ecef_from_enu(),
         area_polygon_enu_m: vec![[-100.0, -100.0], [100.0, -100.0], [100.0, 100.0], [-100.0, 100.0]],
         ground_enu_m: 0.0,
         geoid: GeoidUsed { model: "none".into(), grid: None, undulation_at_origin_m: 0.0 },

@@ -6,7 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
-use insgen::camera::pose::{cross, dot, sub};
+use glam::DVec3;
 use insgen::camera::{Intrinsics, Pose};
 
 /// The interpreter with bpy: `$INSGEN_BLENDER_PYTHON`, else `<repo>/.venv-blender/bin/python`. When
@@ -163,12 +163,12 @@ pub fn reference_ids(boxes: &[BoxBuilding], k: &Intrinsics, pose: &Pose) -> Vec<
     let tris: Vec<([[f64; 3]; 3], u32)> =
         boxes.iter().flat_map(|b| b.triangles().into_iter().map(move |t| (t, b.id))).collect();
     let r = pose.r_world_from_cam;
-    let c = pose.centre_m;
+    let c = pose.centre_m.to_array();
     let mut ids = vec![0u32; (k.width_px * k.height_px) as usize];
     for j in 0..k.height_px {
         for i in 0..k.width_px {
             let d_cam = [(i as f64 + 0.5 - k.cx_px) / k.fx_px, (j as f64 + 0.5 - k.cy_px) / k.fy_px, 1.0];
-            let d = [0, 1, 2].map(|a| r[a][0] * d_cam[0] + r[a][1] * d_cam[1] + r[a][2] * d_cam[2]);
+            let d = (r * DVec3::from(d_cam)).to_array();
             let mut best = f64::INFINITY;
             let mut id = 0;
             for (t, tid) in &tris {
@@ -186,25 +186,26 @@ pub fn reference_ids(boxes: &[BoxBuilding], k: &Intrinsics, pose: &Pose) -> Vec<
 }
 
 fn ray_triangle(o: [f64; 3], d: [f64; 3], t: &[[f64; 3]; 3]) -> Option<f64> {
-    let e1 = sub(t[1], t[0]);
-    let e2 = sub(t[2], t[0]);
-    let p = cross(d, e2);
-    let det = dot(e1, p);
+    let (o, d) = (DVec3::from(o), DVec3::from(d));
+    let [t0, t1, t2] = t.map(DVec3::from);
+    let (e1, e2) = (t1 - t0, t2 - t0);
+    let p = d.cross(e2);
+    let det = e1.dot(p);
     if det.abs() < 1e-12 {
         return None;
     }
     let inv = 1.0 / det;
-    let s = sub(o, t[0]);
-    let u = dot(s, p) * inv;
+    let s = o - t0;
+    let u = s.dot(p) * inv;
     if !(0.0..=1.0).contains(&u) {
         return None;
     }
-    let q = cross(s, e1);
-    let v = dot(d, q) * inv;
+    let q = s.cross(e1);
+    let v = d.dot(q) * inv;
     if v < 0.0 || u + v > 1.0 {
         return None;
     }
-    let dist = dot(e2, q) * inv;
+    let dist = e2.dot(q) * inv;
     (dist > 0.0).then_some(dist)
 }
 

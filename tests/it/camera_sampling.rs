@@ -346,7 +346,7 @@ mod projection {
                     continue;
                 }
                 let kk = [k.fx_px, k.fy_px, k.cx_px, k.cy_px];
-                let hand = pinhole(kk, r.yaw_deg, r.pitch_deg, pose.centre_m, corner);
+                let hand = pinhole(kk, r.yaw_deg, r.pitch_deg, pose.centre_m.to_array(), corner);
                 assert!(
                     (uv[0] - hand[0]).abs() < 1e-6 && (uv[1] - hand[1]).abs() < 1e-6,
                     "{uv:?} vs {hand:?}"
@@ -355,7 +355,7 @@ mod projection {
                 let top_centre = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0, hi[2]];
                 if let Some(px) = cam.project_enu(&pose, top_centre) {
                     let d = insgen::camera::visibility::pixel_ray_enu(&k, &pose, px[0], px[1]);
-                    assert!(index.ray_hits_building(pose.centre_m, d));
+                    assert!(index.ray_hits_building(pose.centre_m.to_array(), d));
                 }
                 checked += 1;
             }

@@ -75,7 +75,7 @@ pub fn city_with(polygon: Vec<[f64; 2]>, with_mesh: bool) -> PreparedScene {
         if with_mesh {
             box_mesh(&mut mesh, lo, hi, id);
         }
-        let c = enu.enu_to_geodetic([(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0, lo[2]]);
+        let c = enu.enu_to_geodetic(glam::DVec3::new((lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0, lo[2]));
         buildings.push(BuildingRecord {
             id,
             source_id: format!("box{n}"),
@@ -97,7 +97,7 @@ pub fn city_with(polygon: Vec<[f64; 2]>, with_mesh: bool) -> PreparedScene {
         area: "boxcity".into(),
         split: "train".into(),
         origin: Origin { lat_deg: o.lat_deg, lon_deg: o.lon_deg, h_m: o.h_m },
-        ecef_from_enu: enu.ecef_from_enu_matrix(),
+        ecef_from_enu: enu.ecef_from_enu(),
         area_polygon_enu_m: polygon,
         ground_enu_m: GROUND_M,
         geoid: GeoidUsed { model: "none".into(), grid: None, undulation_at_origin_m: 0.0 },

@@ -128,7 +128,7 @@ fn write_area(workdir: &Path, spec: &AreaSpec) {
         area: spec.name.into(),
         split: spec.split.into(),
         origin: Origin { lat_deg: origin.lat_deg, lon_deg: origin.lon_deg, h_m: origin.h_m },
-        ecef_from_enu: enu.ecef_from_enu_matrix(),
+        ecef_from_enu: enu.ecef_from_enu(),
         area_polygon_enu_m: vec![[-100.0, -100.0], [100.0, -100.0], [100.0, 100.0], [-100.0, 100.0]],
         ground_enu_m: 0.0,
         geoid: GeoidUsed { model: "none".into(), grid: None, undulation_at_origin_m: 0.0 },

@@ -169,13 +169,13 @@ fn crs_conversions_agree_with_pyproj() {
         for (i, p) in r.points.iter().enumerate() {
             let reference = Geodetic::new(p.lat_deg, p.lon_deg, p.h_m);
             let frame = EnuFrame::new(reference);
-            let ref_ecef_enu = frame.ecef_to_enu(p.ecef_m);
+            let ref_ecef_enu = frame.ecef_to_enu(p.ecef_m.into());
             for (g, max_h) in [(auth[i], &mut max_h_auth), (en[i], &mut max_h_en)] {
                 // Horizontal: insgen's lat/lon at the reference height, distance in the tangent plane.
                 let d = frame.geodetic_to_enu(Geodetic { h_m: p.h_m, ..g });
                 *max_h = max_h.max(d[0].hypot(d[1]));
                 // ECEF: insgen's geodetic → ECEF (its own height) vs pyproj's 4979 → 4978.
-                let q = frame.ecef_to_enu(geo::geodetic_to_ecef(g));
+                let q = frame.ecef_to_enu(geo::geodetic_to_ecef(g).into());
                 max_v = max_v.max((q[2] - ref_ecef_enu[2]).abs());
                 max_eh = max_eh.max((q[0] - ref_ecef_enu[0]).hypot(q[1] - ref_ecef_enu[1]));
             }

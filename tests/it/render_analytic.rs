@@ -79,7 +79,8 @@ mod nadir {
         assert!((got - expected).abs() <= perimeter / 2.0, "{got} px vs {expected:.1} px");
         // Its columns: centres x + ½ in [cx − fx·10/235, cx + fx·10/235) = [137.53, 163.07) → 138..=162
         // (the walls project inside the roof from straight above).
-        let cols: Vec<usize> = (0..320).filter(|&x| (0..240).any(|y| img.ids.raw()[y * 320 + x] == 7)).collect();
+        let cols: Vec<usize> =
+            (0..320).filter(|&x| (0..240).any(|y| img.ids.raw()[y * 320 + x] == 7)).collect();
         assert_eq!((cols[0], *cols.last().unwrap()), (138, 162));
     }
 

@@ -107,8 +107,8 @@ pub fn reference(boxes: &[Box3], k: &Intrinsics, pose: &Pose) -> Reference {
     let mut depth = vec![f64::INFINITY; w * h];
     let mut edge = vec![f64::INFINITY; w * h];
     for b in boxes {
-        let cam: Vec<[f64; 3]> = (0..8).map(|c| pose.world_to_cam(b.corner(c))).collect();
-        assert!(cam.iter().all(|c| c[2] > 0.1), "test setup: box {} must be in front of the camera", b.id);
+        let cam: Vec<glam::DVec3> = (0..8).map(|c| pose.world_to_cam(b.corner(c).into())).collect();
+        assert!(cam.iter().all(|c| c.z > 0.1), "test setup: box {} must be in front of the camera", b.id);
         let uv: Vec<[f64; 2]> = cam.iter().map(|&c| k.project(c).unwrap()).collect();
         for f in Box3::faces() {
             let poly: Vec<[f64; 2]> = f.iter().map(|&i| uv[i]).collect();

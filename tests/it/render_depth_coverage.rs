@@ -85,7 +85,10 @@ mod coverage {
         let cov = r.isolated_coverage_px(&scene, &view, &ids(&[1, 2, 77]), &DepthRange::default()).unwrap();
         let alone = reference(&[b1], &view.intrinsics, &view.pose);
         let c1 = compare(
-            &r.render(&r.upload(&box_mesh(&[b1])).unwrap(), &view, &RenderOptions::default()).unwrap().ids.raw(),
+            &r.render(&r.upload(&box_mesh(&[b1])).unwrap(), &view, &RenderOptions::default())
+                .unwrap()
+                .ids
+                .raw(),
             &alone,
         );
         let expected = count(&alone.ids, 1) as u64;
@@ -131,7 +134,10 @@ mod coverage {
         let view = View { intrinsics: k(), pose: Pose::from_ypr_deg(0.0, 0.0, 0.0, [0.0, 0.0, 200.0]) };
         let r = renderer();
         let scene = r.upload(&box_mesh(&boxes)).unwrap();
-        assert_eq!(r.isolated_coverage_px(&scene, &view, &ids(&[4]), &DepthRange::default()).unwrap(), vec![0]);
+        assert_eq!(
+            r.isolated_coverage_px(&scene, &view, &ids(&[4]), &DepthRange::default()).unwrap(),
+            vec![0]
+        );
     }
 }
 

@@ -4,8 +4,8 @@
 use crate::render_common;
 
 use insgen::camera::{Intrinsics, Pose};
-use insgen::scene::IdMap;
 use insgen::render::{RenderOptions, View};
+use insgen::scene::IdMap;
 use render_common::{box_mesh, renderer, Box3};
 
 fn boxes() -> Vec<Box3> {

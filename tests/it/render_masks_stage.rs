@@ -9,13 +9,13 @@ use std::path::Path;
 use insgen::camera::{Intrinsics, Pose, PoseRecord, Trajectory};
 use insgen::geo::{EnuFrame, Geodetic};
 use insgen::label::stage::{self, MaskPlan};
-use insgen::scene::{BuildingId, IdMap};
-use insgen::util::Shard;
 use insgen::label::{label_components, Connectivity, FrameInstances};
 use insgen::render::{RenderOptions, View};
 use insgen::scene::artifact::{GeoidUsed, Origin};
+use insgen::scene::{BuildingId, IdMap};
 use insgen::scene::{BuildingRecord, Manifest, PreparedScene};
 use insgen::util::NoProgress;
+use insgen::util::Shard;
 use render_common::{box_mesh, renderer, Box3};
 
 fn boxes() -> Vec<Box3> {
@@ -53,7 +53,7 @@ fn scene() -> PreparedScene {
             area: "boxes".into(),
             split: "test".into(),
             origin,
-            ecef_from_enu: enu.ecef_from_enu_matrix(),
+            ecef_from_enu: enu.ecef_from_enu(),
             area_polygon_enu_m: vec![[-100.0, -100.0], [100.0, -100.0], [100.0, 100.0], [-100.0, 100.0]],
             ground_enu_m: 0.0,
             geoid: GeoidUsed { model: "none".into(), grid: None, undulation_at_origin_m: 0.0 },

@@ -55,7 +55,8 @@ fn check_building(mesh: &SceneMesh, id: BuildingId, view: &View) -> (usize, usiz
         .map(|t| {
             [0, 1, 2].map(|j| {
                 let p = alone.positions_m[t[j] as usize].map(f64::from);
-                k.project(view.pose.world_to_cam(p)).expect("test setup: building in front of the camera")
+                k.project(view.pose.world_to_cam(p.into()))
+                    .expect("test setup: building in front of the camera")
             })
         })
         .collect();

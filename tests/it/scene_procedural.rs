@@ -5,7 +5,6 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-use insgen::camera::pose::sub;
 use insgen::geo::AxisConvention;
 use insgen::lod::{Frame, Geometry, Polygon, SourceBuilding, SourceModel};
 use insgen::scene::procedural::{default_spec, generate, PlaneOrigin, ProceduralSpec, DEMO_CRS};
@@ -209,10 +208,8 @@ mod validity {
                     // No collinear consecutive triples (they would be degenerate wall quads later).
                     for i in 0..r.len() {
                         let (a, bb, c) = (r[i], r[(i + 1) % r.len()], r[(i + 2) % r.len()]);
-                        let (u, w) = (sub(bb, a), sub(c, bb));
-                        let cr =
-                            [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
-                        let s = (cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]).sqrt();
+                        let [a, bb, c] = [a, bb, c].map(glam::DVec3::from);
+                        let s = (bb - a).cross(c - bb).length();
                         assert!(s > 1e-6, "{} face {k}: collinear vertices at {i}", b.source_id);
                     }
                 }

@@ -18,6 +18,7 @@ mod solid;
 
 use crate::camera::{Intrinsics, Pose};
 use crate::scene::SceneMesh;
+use glam::DVec3;
 use raster::{project, raster_convex, ClipVert, Screen, MAX_POLYGON, SUBPIXEL_BITS};
 use solid::solid_winding;
 
@@ -29,7 +30,7 @@ pub const NEAR_M: f64 = 0.1;
 /// a frame transforms only the buildings its frustum can see.
 #[derive(Debug, Clone)]
 pub struct CpuScene {
-    anchor_m: [f64; 3],
+    anchor_m: DVec3,
     /// Positions relative to `anchor_m`, metres, building by building.
     positions: Vec<[f32; 3]>,
     triangles: Vec<[u32; 3]>,
@@ -62,14 +63,9 @@ impl CpuScene {
     /// Builds a CPU scene from a mesh; `anchor_m` should be near the cameras (e.g. the prior centre).
     /// Vertices are welded by position within a building and duplicated where two buildings share one
     /// (IDs are per vertex).
-    pub fn new(mesh: &SceneMesh, anchor_m: [f64; 3]) -> CpuScene {
-        let rel = |p: [f32; 3]| {
-            [
-                (p[0] as f64 - anchor_m[0]) as f32,
-                (p[1] as f64 - anchor_m[1]) as f32,
-                (p[2] as f64 - anchor_m[2]) as f32,
-            ]
-        };
+    pub fn new(mesh: &SceneMesh, anchor_m: impl Into<DVec3>) -> CpuScene {
+        let anchor_m = anchor_m.into();
+        let rel = |p: [f32; 3]| (glam::Vec3::from(p).as_dvec3() - anchor_m).as_vec3().to_array();
         // Triangles by building (stable, so the draw order within a building is the mesh's).
         let mut order: Vec<usize> = (0..mesh.indices.len() / 3).collect();
         let tri_id = |t: usize| mesh.building_ids[mesh.indices[3 * t] as usize].get();
@@ -190,25 +186,9 @@ pub fn render_ids(scene: &CpuScene, pose: &Pose, k: &Intrinsics, frame: &mut Fra
     frame.inv_z.resize(w * h, 0.0);
     // Camera-frame vertices: R_cw (p + anchor − C), with (anchor − C) computed in f64.
     let r = pose.r_cam_from_world();
-    let t = [
-        scene.anchor_m[0] - pose.centre_m[0],
-        scene.anchor_m[1] - pose.centre_m[1],
-        scene.anchor_m[2] - pose.centre_m[2],
-    ];
-    let rt = [
-        r[0][0] * t[0] + r[0][1] * t[1] + r[0][2] * t[2],
-        r[1][0] * t[0] + r[1][1] * t[1] + r[1][2] * t[2],
-        r[2][0] * t[0] + r[2][1] * t[1] + r[2][2] * t[2],
-    ];
-    let rf = r.map(|row| row.map(|v| v as f32));
-    let rtf = rt.map(|v| v as f32);
-    let to_cam = |p: &[f32; 3]| {
-        [
-            rf[0][0] * p[0] + rf[0][1] * p[1] + rf[0][2] * p[2] + rtf[0],
-            rf[1][0] * p[0] + rf[1][1] * p[1] + rf[1][2] * p[2] + rtf[1],
-            rf[2][0] * p[0] + rf[2][1] * p[1] + rf[2][2] * p[2] + rtf[2],
-        ]
-    };
+    let rt = r * (scene.anchor_m - pose.centre_m);
+    let (rf, rtf) = (r.as_mat3(), rt.as_vec3());
+    let to_cam = |p: &[f32; 3]| (rf * glam::Vec3::from(*p) + rtf).to_array();
     let near = NEAR_M as f32;
     let n = scene.positions.len();
     frame.cam.resize(n, [0.0; 3]);

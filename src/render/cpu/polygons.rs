@@ -6,7 +6,7 @@
 use std::collections::HashMap;
 
 use super::raster::MAX_POLYGON;
-use crate::camera::pose::{cross, dot, sub};
+use glam::{DVec3, Vec3};
 
 /// Normals closer than this (1 − cos) count as parallel: about 0.08°.
 const PARALLEL: f64 = 1e-6;
@@ -18,20 +18,20 @@ const IN_PLANE_M: f64 = 2e-4;
 /// winding. Deterministic: triangles are seeded in order and grown across their edges in order.
 /// Degenerate triangles stay as they are.
 pub(super) fn merge_coplanar(positions: &[[f32; 3]], tris: &[[u32; 3]]) -> Vec<Vec<u32>> {
-    let pos = |i: u32| positions[i as usize].map(f64::from);
+    let pos = |i: u32| Vec3::from(positions[i as usize]).as_dvec3();
     let mut edges: HashMap<(u32, u32), Vec<u32>> = HashMap::new();
     for (f, t) in tris.iter().enumerate() {
         for k in 0..3 {
             edges.entry((t[k], t[(k + 1) % 3])).or_default().push(f as u32);
         }
     }
-    let normals: Vec<Option<[f64; 3]>> = tris
+    let normals: Vec<Option<DVec3>> = tris
         .iter()
         .map(|t| {
             let [a, b, c] = t.map(pos);
-            let n = cross(sub(b, a), sub(c, a));
-            let len = dot(n, n).sqrt();
-            (len > 1e-12).then(|| n.map(|x| x / len))
+            let n = (b - a).cross(c - a);
+            let len = n.length();
+            (len > 1e-12).then(|| n / len)
         })
         .collect();
     let mut used = vec![false; tris.len()];
@@ -52,11 +52,11 @@ pub(super) fn merge_coplanar(positions: &[[f32; 3]], tris: &[[u32; 3]]) -> Vec<V
                 let (a, b) = (poly[k], poly[(k + 1) % poly.len()]);
                 for &f in edges.get(&(b, a)).map_or(&[][..], Vec::as_slice) {
                     let f = f as usize;
-                    if used[f] || normals[f].is_none_or(|m| dot(n, m) < 1.0 - PARALLEL) {
+                    if used[f] || normals[f].is_none_or(|m| n.dot(m) < 1.0 - PARALLEL) {
                         continue;
                     }
                     let Some(&c) = tris[f].iter().find(|&&v| v != a && v != b) else { continue };
-                    if poly.contains(&c) || dot(sub(pos(c), origin), n).abs() > IN_PLANE_M {
+                    if poly.contains(&c) || (pos(c) - origin).dot(n).abs() > IN_PLANE_M {
                         continue;
                     }
                     let mut grown = poly.clone();
@@ -76,12 +76,12 @@ pub(super) fn merge_coplanar(positions: &[[f32; 3]], tris: &[[u32; 3]]) -> Vec<V
 }
 
 /// Whether the polygon turns the same way (about `n`) at every vertex, by a clear margin.
-fn strictly_convex(poly: &[u32], n: [f64; 3], pos: &dyn Fn(u32) -> [f64; 3]) -> bool {
+fn strictly_convex(poly: &[u32], n: DVec3, pos: &dyn Fn(u32) -> DVec3) -> bool {
     let m = poly.len();
     (0..m).all(|i| {
         let [p, q, r] = [poly[i], poly[(i + 1) % m], poly[(i + 2) % m]].map(pos);
-        let (u, v) = (sub(q, p), sub(r, q));
-        dot(cross(u, v), n) > 1e-6 * dot(u, u).sqrt() * dot(v, v).sqrt()
+        let (u, v) = (q - p, r - q);
+        u.cross(v).dot(n) > 1e-6 * u.length() * v.length()
     })
 }
 

@@ -1,6 +1,6 @@
 //! Which buildings are closed solids whose back faces may be culled without changing a pixel.
 
-use crate::camera::pose::{cross, dot, sub};
+use glam::{DVec3, Vec3};
 
 /// Whether `tris` (vertices welded by position) bound solids consistently: returns the orientation
 /// (+1 when the triangles wind counter-clockwise seen from outside, −1 when clockwise) if the surface
@@ -37,7 +37,7 @@ pub(super) fn solid_winding(positions: &[[f32; 3]], tris: &[[u32; 3]]) -> i8 {
     if edges.iter().any(|(&(a, b), fs)| reverse(a, b).len() != fs.len()) {
         return 0;
     }
-    let pos = |i: u32| positions[i as usize].map(f64::from);
+    let pos = |i: u32| Vec3::from(positions[i as usize]).as_dvec3();
     for (&(a, b), fs) in &edges {
         if a < b
             && fs.len() > 1
@@ -64,8 +64,8 @@ pub(super) fn solid_winding(positions: &[[f32; 3]], tris: &[[u32; 3]]) -> i8 {
     let mut volume: HashMap<u32, f64> = HashMap::new();
     for (f, t) in tris.iter().enumerate() {
         let [a, b, c] = t.map(pos);
-        let det = a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
-            + a[2] * (b[0] * c[1] - b[1] * c[0]);
+        // Six times the signed volume of the tetrahedron (0, a, b, c).
+        let det = a.dot(b.cross(c));
         *volume.entry(root(&mut parent, f as u32)).or_insert(0.0) += det;
     }
     if volume.values().all(|&v| v > 0.0) {
@@ -83,26 +83,26 @@ pub(super) fn solid_winding(positions: &[[f32; 3]], tris: &[[u32; 3]]) -> i8 {
 /// two neighbours of the same orientation (a part inside out), fail.
 #[allow(clippy::too_many_arguments)]
 fn alternates_around_edge(
-    pa: [f64; 3],
-    pb: [f64; 3],
+    pa: DVec3,
+    pb: DVec3,
     tris: &[[u32; 3]],
     a: u32,
     b: u32,
     fwd: &[u32],
     back: &[u32],
-    pos: &dyn Fn(u32) -> [f64; 3],
+    pos: &dyn Fn(u32) -> DVec3,
 ) -> bool {
-    let d = sub(pb, pa);
+    let d = pb - pa;
     // A basis (e1, e2) of the plane normal to the edge.
-    let helper = if d[0].abs() <= d[1].abs() && d[0].abs() <= d[2].abs() {
-        [1.0, 0.0, 0.0]
-    } else if d[1].abs() <= d[2].abs() {
-        [0.0, 1.0, 0.0]
+    let helper = if d.x.abs() <= d.y.abs() && d.x.abs() <= d.z.abs() {
+        DVec3::X
+    } else if d.y.abs() <= d.z.abs() {
+        DVec3::Y
     } else {
-        [0.0, 0.0, 1.0]
+        DVec3::Z
     };
-    let e1 = cross(d, helper);
-    let e2 = cross(d, e1);
+    let e1 = d.cross(helper);
+    let e2 = d.cross(e1);
     let mut around: Vec<(f64, i32)> = fwd
         .iter()
         .map(|&f| (f, 1))
@@ -110,8 +110,8 @@ fn alternates_around_edge(
         .map(|(f, o)| {
             let t = tris[f as usize];
             let c = t.into_iter().find(|&v| v != a && v != b).expect("a triangle has a third vertex");
-            let u = sub(pos(c), pa);
-            (dot(u, e2).atan2(dot(u, e1)), o)
+            let u = pos(c) - pa;
+            (u.dot(e2).atan2(u.dot(e1)), o)
         })
         .collect();
     around.sort_by(|x, y| x.0.total_cmp(&y.0));
