@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use crate::loc::eval::{self, EvalOptions, QueryPoses};
 use crate::loc::oracle::Degradation;
 use crate::loc::query::{load_predictions, QuerySource};
-use crate::loc::search::{CoarseParams, FineParams};
+use crate::loc::search::{CoarseParams, FineParams, SearchOptions, Stages};
 use crate::scene::PreparedScene;
 
 /// Localizes every query of <workdir>/<area>/<camera> (poses.jsonl = ground truth, priors.jsonl =
@@ -228,21 +228,29 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         costs: args.costs.clone(),
         weighting: args.weighting,
         source,
-        coarse: {
-            let d = CoarseParams::default();
-            let (xy_range_m, xy_step_m) = args.coarse_xy.unwrap_or((d.xy_range_m, d.xy_step_m));
-            let (z_range_m, z_step_m) = args.coarse_z.unwrap_or((d.z_range_m, d.z_step_m));
-            let (yaw_range_deg, yaw_step_deg) = args.coarse_yaw.unwrap_or((d.yaw_range_deg, d.yaw_step_deg));
-            CoarseParams { xy_range_m, xy_step_m, z_range_m, z_step_m, yaw_range_deg, yaw_step_deg }
+        search: SearchOptions {
+            coarse: {
+                let d = CoarseParams::default();
+                let (xy_range_m, xy_step_m) = args.coarse_xy.unwrap_or((d.xy_range_m, d.xy_step_m));
+                let (z_range_m, z_step_m) = args.coarse_z.unwrap_or((d.z_range_m, d.z_step_m));
+                let (yaw_range_deg, yaw_step_deg) =
+                    args.coarse_yaw.unwrap_or((d.yaw_range_deg, d.yaw_step_deg));
+                CoarseParams { xy_range_m, xy_step_m, z_range_m, z_step_m, yaw_range_deg, yaw_step_deg }
+            },
+            fine: FineParams {
+                iterations: args.iterations,
+                lowres_iterations: args.lowres_iterations,
+                polish: !args.no_polish,
+                ..FineParams::default()
+            },
+            stages: match (args.no_select, args.no_refine) {
+                (false, false) => Stages::CoarseAndFine,
+                (false, true) => Stages::CoarseOnly,
+                (true, false) => Stages::FineOnly,
+                // Both off: nothing but the prior is scored (the coarse stage over the prior alone).
+                (true, true) => Stages::PriorOnly,
+            },
         },
-        fine: FineParams {
-            iterations: args.iterations,
-            lowres_iterations: args.lowres_iterations,
-            polish: !args.no_polish,
-            ..FineParams::default()
-        },
-        select: !args.no_select,
-        refine: !args.no_refine,
         seed: args.seed,
         render_width_px: args.render_width,
         coarse_width_px: args.coarse_width,

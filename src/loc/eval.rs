@@ -23,7 +23,7 @@ use serde::{Deserialize, Serialize};
 use super::cost::{CostKind, Query, Scorer, Weighting};
 use super::metrics::{self, Row};
 use super::query::{QueryError, QuerySource};
-use super::search::{self, CoarseParams, Evaluate, FineParams, Hypothesis, SearchResult};
+use super::search::{self, Evaluate, Hypothesis, SearchOptions, SearchResult};
 use crate::camera::colmap::{self, ColmapCamera};
 use crate::camera::record::read_jsonl;
 use crate::camera::{Intrinsics, Pose, PoseRecord, Trajectory};
@@ -31,6 +31,7 @@ use crate::render::cpu::{self as raster, CpuScene, Frame};
 use crate::render::warp::RotationFan;
 use crate::scene::{BuildingId, BuildingRecord, PreparedScene, SceneMesh};
 use crate::util::{self, Progress};
+use glam::DVec3;
 
 /// Errors of the eval-loc stage.
 #[derive(Debug, thiserror::Error)]
@@ -57,10 +58,8 @@ pub struct EvalOptions {
     pub weighting: Weighting,
     /// Oracle masks (degraded) or predictions.
     pub source: QuerySource,
-    pub coarse: CoarseParams,
-    pub fine: FineParams,
-    pub select: bool,
-    pub refine: bool,
+    /// The search's stages and parameters.
+    pub search: SearchOptions,
     pub seed: u64,
     /// Width of the fine-stage renders and query masks (height keeps the aspect ratio).
     pub render_width_px: u32,
@@ -265,14 +264,14 @@ impl Evaluate for CpuEvaluator<'_> {
 
 /// Where the optical axis of `pose` meets the horizontal plane at `ground_m` (None when it looks
 /// at or above the horizon or the point lies more than 20 km away).
-pub fn look_at_ground(pose: &Pose, ground_m: f64) -> Option<[f64; 3]> {
+pub fn look_at_ground(pose: &Pose, ground_m: f64) -> Option<DVec3> {
     let d = pose.forward();
     let c = pose.centre_m;
-    if d[2] >= -1e-6 || !ground_m.is_finite() {
+    if d.z >= -1e-6 || !ground_m.is_finite() {
         return None;
     }
-    let t = (ground_m - c[2]) / d[2];
-    (t > 0.0 && t < 20_000.0).then(|| [c[0] + t * d[0], c[1] + t * d[1], ground_m])
+    let t = (ground_m - c.z) / d.z;
+    (t > 0.0 && t < 20_000.0).then(|| DVec3::new(c.x + t * d.x, c.y + t * d.y, ground_m))
 }
 
 fn frame_seed(seed: u64, name: &str) -> u64 {
@@ -377,7 +376,8 @@ pub fn load_queries(src: &QueryPoses) -> Result<Vec<QueryPose>, EvalError> {
     }
 }
 
-/// Runs the evaluation.
+/// Runs the evaluation: loads the queries, localizes each one with every cost, then writes the
+/// results, the estimated poses and the summary tables (see the module doc for the files).
 ///
 /// # Errors
 /// Missing or malformed inputs (poses, priors, masks, predictions), naming the file.
@@ -386,8 +386,43 @@ pub fn evaluate(
     opts: &EvalOptions,
     progress: &dyn Progress,
 ) -> Result<Summary, EvalError> {
+    let queries = load_selected_queries(opts)?;
+    let mut runs: Vec<Localized> = Vec::new();
+    progress.start((queries.len() * opts.costs.len()) as u64, "queries");
+    for (qi, q) in queries.iter().enumerate() {
+        let setup = QuerySetup::new(scene, opts, q)?;
+        for &kind in &opts.costs {
+            let run = setup.localize(opts, kind);
+            if qi < opts.overlays && kind == opts.costs[0] {
+                write_overlay(
+                    &opts.out_dir,
+                    &q.name,
+                    &setup.cpu,
+                    &setup.k_fine,
+                    &setup.query_fine,
+                    [&q.prior, &run.estimate, &q.gt],
+                )?;
+            }
+            runs.push(run);
+            progress.inc(1);
+            progress.message(&format!("recall@2m2° {:.1}%", 100.0 * recall_2m_2deg(&runs, opts.costs[0])));
+        }
+    }
+    progress.finish();
+    let summary = summarise(&queries, &runs, opts);
+    write_outputs(&opts.out_dir, &runs, &summary)?;
+    Ok(summary)
+}
+
+/// One query localized with one cost: its result line and the estimated pose.
+struct Localized {
+    result: QueryResult,
+    estimate: Pose,
+}
+
+/// The queries of `opts`, truncated to its limit; at least one.
+fn load_selected_queries(opts: &EvalOptions) -> Result<Vec<QueryPose>, EvalError> {
     let mut queries = load_queries(&opts.queries)?;
-    let out_dir = opts.out_dir.clone();
     if let Some(n) = opts.limit {
         queries.truncate(n);
     }
@@ -400,137 +435,140 @@ pub fn evaluate(
             what: "no queries".into(),
         });
     }
+    Ok(queries)
+}
 
-    let mut results: Vec<QueryResult> = Vec::new();
-    let mut est_lines: BTreeMap<CostKind, String> = BTreeMap::new();
-    let mut prior_errors: Vec<(f64, f64, String)> = Vec::new();
-    let mut total_hyp = 0u64;
-    let mut setup_times: Vec<f64> = Vec::new();
-    let mut total_s = 0.0;
-    progress.start((queries.len() * opts.costs.len()) as u64, "queries");
-    for (qi, gt) in queries.iter().enumerate() {
-        let gt_pose = gt.gt;
-        let prior_pose = gt.prior;
-        prior_errors.push((
-            gt_pose.translation_error_m(&prior_pose),
-            gt_pose.rotation_error_deg(&prior_pose),
-            gt.group.clone(),
-        ));
-        let t_setup = Instant::now();
-        let k_fine = at_width(&gt.intrinsics, opts.render_width_px);
-        let k_coarse = at_width(&gt.intrinsics, opts.coarse_width_px);
-        let seed = frame_seed(opts.seed, &gt.name);
-        let [q_fine, q_coarse]: [Query; 2] = opts
+/// What one query's costs share: its masks at both resolutions, the map culled around its prior, the
+/// CPU scene, and the prior as a hypothesis.
+struct QuerySetup<'q> {
+    query: &'q QueryPose,
+    k_fine: Intrinsics,
+    k_coarse: Intrinsics,
+    query_fine: Query,
+    query_coarse: Query,
+    /// Buildings kept around the prior (their dense IDs are 1..=len).
+    buildings: usize,
+    cpu: CpuScene,
+    seed: u64,
+    pitch_deg: f64,
+    roll_deg: f64,
+    prior: Hypothesis,
+    /// Where the prior's optical axis meets the ground (the polish's orbit pivot).
+    pivot_m: Option<DVec3>,
+    setup_seconds: f64,
+}
+
+impl<'q> QuerySetup<'q> {
+    fn new(scene: &PreparedScene, opts: &EvalOptions, q: &'q QueryPose) -> Result<Self, EvalError> {
+        let started = Instant::now();
+        let k_fine = at_width(&q.intrinsics, opts.render_width_px);
+        let k_coarse = at_width(&q.intrinsics, opts.coarse_width_px);
+        let seed = frame_seed(opts.seed, &q.name);
+        let [query_fine, query_coarse]: [Query; 2] = opts
             .source
-            .queries(&gt.name, &[k_fine, k_coarse], seed)?
+            .queries(&q.name, &[k_fine, k_coarse], seed)?
             .try_into()
             .expect("one query per resolution asked for");
-        let kept = cull(&scene.buildings, &prior_pose, &k_fine, 0.5);
-        let sub = dense_subscene(&scene.mesh, &kept);
-        let cpu = CpuScene::new(&sub, prior_pose.centre_m);
-        let setup_secs = t_setup.elapsed().as_secs_f64();
-        setup_times.push(setup_secs);
-        let [prior_yaw, pitch, roll] = prior_pose.ypr_deg();
-        let prior_h = Hypothesis { centre_m: prior_pose.centre_m, yaw_deg: prior_yaw };
-        let pivot = look_at_ground(&prior_pose, scene.manifest.ground_enu_m);
-        for &kind in &opts.costs {
-            let t0 = Instant::now();
-            let (qf, qc) = if kind == CostKind::Merged {
-                (q_fine.merged(), q_coarse.merged())
-            } else {
-                (q_fine.clone(), q_coarse.clone())
-            };
-            let mk = |k: Intrinsics, q| CpuEvaluator {
-                scene: &cpu,
-                k,
-                pitch_deg: pitch,
-                roll_deg: roll,
-                query: q,
-                kind,
-                weighting: opts.weighting,
-                k_max: kept.len() as u32,
-                yaw_fan: false,
-            };
-            let mut fine_eval = mk(k_fine, &qf);
-            let mut coarse_eval = CpuEvaluator { yaw_fan: opts.yaw_fan, ..mk(k_coarse, &qc) };
-            let r: SearchResult = if qf.instances.is_empty() {
-                // Nothing to align (no instance in the query): the prior stands.
-                SearchResult {
-                    best: prior_h,
-                    best_score: 0.0,
-                    coarse_best: prior_h,
-                    coarse_score: 0.0,
-                    hypotheses_scored: 0,
-                }
-            } else {
-                match search::search(
-                    &mut coarse_eval,
-                    &mut fine_eval,
-                    prior_h,
-                    &opts.coarse,
-                    &opts.fine,
-                    opts.select,
-                    opts.refine,
-                    seed,
-                    pivot,
-                ) {
-                    Ok(r) => r,
-                    Err(never) => match never {},
-                }
-            };
-            let secs = t0.elapsed().as_secs_f64();
-            let est = r.best.pose(pitch, roll);
-            let coarse_est = r.coarse_best.pose(pitch, roll);
-            let cost_at_gt = fine_eval.cost_of_pose(&gt_pose);
-            total_hyp += r.hypotheses_scored;
-            total_s += secs;
-            let q = est.colmap_qvec();
-            let t = est.t_cam_from_world();
-            est_lines.entry(kind).or_default().push_str(&format!(
-                "{} {} {} {} {} {} {} {}\n",
-                gt.name, q[0], q[1], q[2], q[3], t[0], t[1], t[2]
-            ));
-            results.push(QueryResult {
-                name: gt.name.clone(),
-                cost: kind,
-                group: gt.group.clone(),
-                estimate: [r.best.centre_m[0], r.best.centre_m[1], r.best.centre_m[2], r.best.yaw_deg],
-                prior_translation_error_m: gt_pose.translation_error_m(&prior_pose),
-                prior_rotation_error_deg: gt_pose.rotation_error_deg(&prior_pose),
-                translation_error_m: gt_pose.translation_error_m(&est),
-                rotation_error_deg: gt_pose.rotation_error_deg(&est),
-                best_cost: r.best_score,
-                cost_at_gt,
-                coarse_translation_error_m: gt_pose.translation_error_m(&coarse_est),
-                coarse_rotation_error_deg: gt_pose.rotation_error_deg(&coarse_est),
-                hypotheses: r.hypotheses_scored,
-                seconds: secs,
-                setup_seconds: setup_secs,
-                query_instances: qf.instances.len(),
-                buildings_considered: kept.len(),
-            });
-            progress.inc(1);
-            let done: Vec<&QueryResult> = results.iter().filter(|r| r.cost == opts.costs[0]).collect();
-            let ok =
-                done.iter().filter(|r| r.translation_error_m < 2.0 && r.rotation_error_deg < 2.0).count();
-            progress.message(&format!("recall@2m2° {:.1}%", 100.0 * ok as f64 / done.len().max(1) as f64));
-            if qi < opts.overlays && kind == opts.costs[0] {
-                write_overlay(
-                    &out_dir,
-                    &gt.name,
-                    &cpu,
-                    &k_fine,
-                    &qf,
-                    [&prior_pose, &est, &gt_pose],
-                    pitch,
-                    roll,
-                )?;
-            }
-        }
+        let kept = cull(&scene.buildings, &q.prior, &k_fine, 0.5);
+        let cpu = CpuScene::new(&dense_subscene(&scene.mesh, &kept), q.prior.centre_m);
+        let [prior_yaw, pitch_deg, roll_deg] = q.prior.ypr_deg();
+        Ok(QuerySetup {
+            query: q,
+            k_fine,
+            k_coarse,
+            query_fine,
+            query_coarse,
+            buildings: kept.len(),
+            cpu,
+            seed,
+            pitch_deg,
+            roll_deg,
+            prior: Hypothesis { centre_m: q.prior.centre_m, yaw_deg: prior_yaw },
+            pivot_m: look_at_ground(&q.prior, scene.manifest.ground_enu_m),
+            setup_seconds: started.elapsed().as_secs_f64(),
+        })
     }
-    progress.finish();
 
-    // Table: the prior first, then each cost; per group and overall.
+    /// Localizes the query with the cost `kind`.
+    fn localize(&self, opts: &EvalOptions, kind: CostKind) -> Localized {
+        let started = Instant::now();
+        let (qf, qc) = if kind == CostKind::Merged {
+            (self.query_fine.merged(), self.query_coarse.merged())
+        } else {
+            (self.query_fine.clone(), self.query_coarse.clone())
+        };
+        let evaluator = |k: Intrinsics, query, yaw_fan| CpuEvaluator {
+            scene: &self.cpu,
+            k,
+            pitch_deg: self.pitch_deg,
+            roll_deg: self.roll_deg,
+            query,
+            kind,
+            weighting: opts.weighting,
+            k_max: self.buildings as u32,
+            yaw_fan,
+        };
+        let mut fine_eval = evaluator(self.k_fine, &qf, false);
+        let mut coarse_eval = evaluator(self.k_coarse, &qc, opts.yaw_fan);
+        let r: SearchResult = if qf.instances.is_empty() {
+            // Nothing to align (no instance in the query): the prior stands.
+            SearchResult {
+                best: self.prior,
+                best_score: 0.0,
+                coarse_best: self.prior,
+                coarse_score: 0.0,
+                hypotheses_scored: 0,
+            }
+        } else {
+            match search::search(
+                &mut coarse_eval,
+                &mut fine_eval,
+                self.prior,
+                &opts.search,
+                self.seed,
+                self.pivot_m,
+            ) {
+                Ok(r) => r,
+                Err(never) => match never {},
+            }
+        };
+        let seconds = started.elapsed().as_secs_f64();
+        let (q, gt) = (self.query, &self.query.gt);
+        let est = r.best.pose(self.pitch_deg, self.roll_deg);
+        let coarse_est = r.coarse_best.pose(self.pitch_deg, self.roll_deg);
+        let result = QueryResult {
+            name: q.name.clone(),
+            cost: kind,
+            group: q.group.clone(),
+            estimate: [r.best.centre_m[0], r.best.centre_m[1], r.best.centre_m[2], r.best.yaw_deg],
+            prior_translation_error_m: gt.translation_error_m(&q.prior),
+            prior_rotation_error_deg: gt.rotation_error_deg(&q.prior),
+            translation_error_m: gt.translation_error_m(&est),
+            rotation_error_deg: gt.rotation_error_deg(&est),
+            best_cost: r.best_score,
+            cost_at_gt: fine_eval.cost_of_pose(gt),
+            coarse_translation_error_m: gt.translation_error_m(&coarse_est),
+            coarse_rotation_error_deg: gt.rotation_error_deg(&coarse_est),
+            hypotheses: r.hypotheses_scored,
+            seconds,
+            setup_seconds: self.setup_seconds,
+            query_instances: qf.instances.len(),
+            buildings_considered: self.buildings,
+        };
+        Localized { result, estimate: est }
+    }
+}
+
+/// Share of the results of cost `kind` within 2 m and 2°.
+fn recall_2m_2deg(runs: &[Localized], kind: CostKind) -> f64 {
+    let done: Vec<&QueryResult> = runs.iter().map(|r| &r.result).filter(|r| r.cost == kind).collect();
+    let ok = done.iter().filter(|r| r.translation_error_m < 2.0 && r.rotation_error_deg < 2.0).count();
+    ok as f64 / done.len().max(1) as f64
+}
+
+/// The tables (the prior first, then each cost; per group and overall) and the timings.
+fn summarise(queries: &[QueryPose], runs: &[Localized], opts: &EvalOptions) -> Summary {
+    let results: Vec<&QueryResult> = runs.iter().map(|r| &r.result).collect();
     let mut rows = Vec::new();
     let groups: Vec<&str> = {
         let mut g: Vec<&str> = queries.iter().map(|q| q.group.as_str()).collect();
@@ -538,7 +576,7 @@ pub fn evaluate(
         g.dedup();
         g
     };
-    let mut push_rows = |method: &str, errs: &[(f64, f64, String)]| {
+    let mut push_rows = |method: &str, errs: &[(f64, f64, &str)]| {
         for g in &groups {
             let e: Vec<(f64, f64)> = errs.iter().filter(|e| e.2 == *g).map(|e| (e.0, e.1)).collect();
             rows.push(metrics::row(method, g, &e));
@@ -548,12 +586,16 @@ pub fn evaluate(
             rows.push(metrics::row(method, "all", &e));
         }
     };
+    let prior_errors: Vec<(f64, f64, &str)> = queries
+        .iter()
+        .map(|q| (q.gt.translation_error_m(&q.prior), q.gt.rotation_error_deg(&q.prior), q.group.as_str()))
+        .collect();
     push_rows("prior", &prior_errors);
     for &kind in &opts.costs {
-        let errs: Vec<(f64, f64, String)> = results
+        let errs: Vec<(f64, f64, &str)> = results
             .iter()
             .filter(|r| r.cost == kind)
-            .map(|r| (r.translation_error_m, r.rotation_error_deg, r.group.clone()))
+            .map(|r| (r.translation_error_m, r.rotation_error_deg, r.group.as_str()))
             .collect();
         let name = match kind {
             CostKind::Instance => format!("instance ({:?})", opts.weighting).to_lowercase(),
@@ -563,29 +605,46 @@ pub fn evaluate(
         push_rows(&name, &errs);
     }
     let secs: Vec<f64> = results.iter().map(|r| r.seconds).collect();
-    let summary = Summary {
+    // One setup per query, shared by its costs.
+    let mut setup: BTreeMap<&str, f64> = BTreeMap::new();
+    for r in &results {
+        setup.insert(r.name.as_str(), r.setup_seconds);
+    }
+    let setup_times: Vec<f64> = queries.iter().filter_map(|q| setup.get(q.name.as_str()).copied()).collect();
+    let total_hyp: u64 = results.iter().map(|r| r.hypotheses).sum();
+    let total_s: f64 = secs.iter().sum();
+    Summary {
         rows,
         queries: queries.len(),
         median_seconds_per_query: metrics::median(&secs),
         median_setup_seconds: metrics::median(&setup_times),
         hypotheses_per_second: if total_s > 0.0 { total_hyp as f64 / total_s } else { 0.0 },
-    };
+    }
+}
 
-    // Write outputs.
+/// Writes `results.jsonl`, `est_poses_<cost>.txt` (LoD-Loc's `NAME QW QX QY QZ TX TY TZ`),
+/// `summary.json` and `summary.md` into `out_dir`, each atomically.
+fn write_outputs(out_dir: &Path, runs: &[Localized], summary: &Summary) -> Result<(), EvalError> {
     let mut jsonl = String::new();
-    for r in &results {
+    let mut est_lines: BTreeMap<CostKind, String> = BTreeMap::new();
+    for Localized { result: r, estimate } in runs {
         jsonl.push_str(
             &serde_json::to_string(r)
-                .map_err(|e| EvalError::Input { path: out_dir.clone(), what: e.to_string() })?,
+                .map_err(|e| EvalError::Input { path: out_dir.to_path_buf(), what: e.to_string() })?,
         );
         jsonl.push('\n');
+        let (q, t) = (estimate.colmap_qvec(), estimate.t_cam_from_world());
+        est_lines.entry(r.cost).or_default().push_str(&format!(
+            "{} {} {} {} {} {} {} {}\n",
+            r.name, q[0], q[1], q[2], q[3], t[0], t[1], t[2]
+        ));
     }
     util::write_bytes_atomic(&out_dir.join("results.jsonl"), jsonl.as_bytes())?;
     for (kind, text) in &est_lines {
         let name = format!("est_poses_{}.txt", format!("{kind:?}").to_lowercase());
         util::write_bytes_atomic(&out_dir.join(name), text.as_bytes())?;
     }
-    util::write_json_atomic(&out_dir.join("summary.json"), &summary)?;
+    util::write_json_atomic(&out_dir.join("summary.json"), summary)?;
     let md = format!(
         "# Localization on {}\n\n{} queries; median {:.2} s per query (search; the query's setup takes {:.2} s \
          more); {:.0} hypotheses/s.\n\n{}",
@@ -597,7 +656,7 @@ pub fn evaluate(
         metrics::markdown(&summary.rows)
     );
     util::write_bytes_atomic(&out_dir.join("summary.md"), md.as_bytes())?;
-    Ok(summary)
+    Ok(())
 }
 
 fn palette(id: u32) -> [u8; 3] {
@@ -618,8 +677,6 @@ fn write_overlay(
     k: &Intrinsics,
     q: &Query,
     poses: [&Pose; 3],
-    _pitch: f64,
-    _roll: f64,
 ) -> Result<(), EvalError> {
     let (w, h) = (k.width_px as usize, k.height_px as usize);
     let mut qlab = vec![0u32; w * h];

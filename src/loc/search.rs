@@ -118,6 +118,38 @@ impl FineParams {
     }
 }
 
+/// Which stages run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Stages {
+    /// The coarse grid, then the particle filter from its best cells (the default).
+    CoarseAndFine,
+    /// The coarse grid alone (`--no-refine`): its best cell is the estimate.
+    CoarseOnly,
+    /// The particle filter from the raw prior (`--no-select`).
+    FineOnly,
+    /// Neither stage (`--no-select --no-refine`): the prior is the estimate.
+    PriorOnly,
+}
+
+/// How the search runs: both stages' parameters and which stages run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SearchOptions {
+    pub coarse: CoarseParams,
+    pub fine: FineParams,
+    pub stages: Stages,
+}
+
+impl Default for SearchOptions {
+    fn default() -> Self {
+        SearchOptions {
+            coarse: CoarseParams::default(),
+            fine: FineParams::default(),
+            stages: Stages::CoarseAndFine,
+        }
+    }
+}
+
 /// What the search found.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SearchResult {
@@ -166,25 +198,24 @@ fn rank(mut scored: Vec<(Hypothesis, f64)>) -> Vec<(Hypothesis, f64)> {
     scored
 }
 
-/// Runs the search. `select = false` skips the coarse stage (fine stage from the raw prior);
-/// `refine = false` returns the coarse result. `pivot_m` is the scene point the prior looks at (where
-/// its optical axis meets the ground), used by [`polish`]. The coarse stage scores with `coarse_eval` (typically
-/// at a lower resolution), the fine stage with `eval`.
+/// Runs the search from `prior` with the stages and parameters of `opts` and the random stream of
+/// `seed`. `pivot_m` is the scene point the prior looks at (where its optical axis meets the ground),
+/// used by [`polish`]. The coarse stage scores with `coarse_eval` (typically at a lower resolution),
+/// the fine stage with `eval`.
 ///
 /// # Errors
 /// Whatever the evaluators return.
-#[allow(clippy::too_many_arguments)]
 pub fn search<E: Evaluate>(
     coarse_eval: &mut E,
     eval: &mut E,
     prior: Hypothesis,
-    coarse: &CoarseParams,
-    fine: &FineParams,
-    select: bool,
-    refine: bool,
+    opts: &SearchOptions,
     seed: u64,
-    pivot_m: Option<[f64; 3]>,
+    pivot_m: Option<DVec3>,
 ) -> Result<SearchResult, E::Error> {
+    let (coarse, fine) = (&opts.coarse, &opts.fine);
+    let select = matches!(opts.stages, Stages::CoarseAndFine | Stages::CoarseOnly);
+    let refine = matches!(opts.stages, Stages::CoarseAndFine | Stages::FineOnly);
     let mut scored_count = 0u64;
     let keep = (fine.beams * fine.keep_per_beam).max(1) as usize;
     // Coarse stage.
@@ -269,7 +300,7 @@ pub fn search<E: Evaluate>(
 /// ±y, ±z, ±yaw, ±dolly (along the prior's optical axis `axis`, the direction a narrow field of view
 /// constrains least) and ±orbit (yaw with the centre swung about the vertical through `pivot_m`, so
 /// the pivot stays put in the image: the valley yaw and sideways motion form together).
-fn moves(h: &Hypothesis, step_m: f64, step_deg: f64, pivot_m: Option<[f64; 3]>) -> Vec<Hypothesis> {
+fn moves(h: &Hypothesis, step_m: f64, step_deg: f64, pivot_m: Option<DVec3>) -> Vec<Hypothesis> {
     let c = h.centre_m;
     let mut out = Vec::with_capacity(12);
     for sign in [1.0, -1.0] {
@@ -281,14 +312,10 @@ fn moves(h: &Hypothesis, step_m: f64, step_deg: f64, pivot_m: Option<[f64; 3]>) 
         out.push(Hypothesis { centre_m: c, yaw_deg: h.yaw_deg + sign * step_deg });
         if let Some(p) = pivot_m {
             // Dolly towards/away from the pivot.
-            let d = [p[0] - c[0], p[1] - c[1], p[2] - c[2]];
-            let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            let d = p - c;
+            let n = d.length();
             if n > 1e-9 {
-                let k = sign * step_m / n;
-                out.push(Hypothesis {
-                    centre_m: DVec3::new(c[0] + k * d[0], c[1] + k * d[1], c[2] + k * d[2]),
-                    yaw_deg: h.yaw_deg,
-                });
+                out.push(Hypothesis { centre_m: c + d * (sign * step_m / n), yaw_deg: h.yaw_deg });
             }
             // Orbit: yaw + δ turns the view clockwise seen from above (Pose::from_ypr_deg), so the
             // centre turns clockwise about the pivot by the same angle.
@@ -314,7 +341,7 @@ pub fn polish<E: Evaluate>(
     eval: &mut E,
     mut best: Hypothesis,
     mut best_score: f64,
-    pivot_m: Option<[f64; 3]>,
+    pivot_m: Option<DVec3>,
 ) -> Result<(Hypothesis, f64, u64), E::Error> {
     let mut scored = 0u64;
     let (mut step_m, mut step_deg) = (0.5, 0.1);
@@ -375,10 +402,7 @@ mod tests {
             &mut coarse,
             &mut bowl,
             prior,
-            &CoarseParams::default(),
-            &FineParams::default(),
-            true,
-            true,
+            &SearchOptions { stages: Stages::CoarseAndFine, ..Default::default() },
             7,
             None,
         )
@@ -401,10 +425,7 @@ mod tests {
                 &mut b(),
                 &mut b(),
                 prior,
-                &CoarseParams::default(),
-                &FineParams::default(),
-                false,
-                true,
+                &SearchOptions { stages: Stages::FineOnly, ..Default::default() },
                 seed,
                 None,
             )
@@ -423,10 +444,7 @@ mod tests {
             &mut b(),
             &mut b(),
             prior,
-            &CoarseParams::default(),
-            &FineParams::default(),
-            true,
-            false,
+            &SearchOptions { stages: Stages::CoarseOnly, ..Default::default() },
             0,
             None,
         )
@@ -438,10 +456,7 @@ mod tests {
             &mut b(),
             &mut b(),
             prior,
-            &CoarseParams::default(),
-            &FineParams::default(),
-            false,
-            true,
+            &SearchOptions { stages: Stages::FineOnly, ..Default::default() },
             0,
             None,
         )

@@ -600,9 +600,11 @@ fn read_feature_ids(
     for (k, id) in raw.into_iter().enumerate() {
         match BuildingId::new(id) {
             Ok(b) if !b.is_background() && Some(u64::from(id)) != null_id => out.push(b),
-            _ => return Err(invalid(format!(
+            _ => {
+                return Err(invalid(format!(
                 "vertex {k}: feature ID {id} is not a building ID (1..={MAX_BUILDING_ID}, not the null ID)"
-            ))),
+            )))
+            }
         }
     }
     Ok(())
