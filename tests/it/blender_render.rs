@@ -17,15 +17,15 @@ use crate::blender_support;
 use std::path::{Path, PathBuf};
 
 use blender_support::*;
+use glam::{DMat4, DVec3};
 use insgen::blender::align::{building_ious, read_id_exr, summarise, FrameAlignment, IdImage};
 use insgen::blender::run::frame_outputs;
-use glam::{DMat4, DVec3};
 use insgen::blender::tileset::SelectOptions;
-use insgen::lod::tiles3d::write::ecef_from_enu;
-use insgen::lod::tiles3d::UpAxis;
 use insgen::blender::{render_frames, Engine, FrameRequest, Launcher, Mode, RenderPlan, SceneSource};
 use insgen::camera::{Intrinsics, Pose};
 use insgen::geo::{EnuFrame, Geodetic};
+use insgen::lod::tiles3d::write::ecef_from_enu;
+use insgen::lod::tiles3d::UpAxis;
 use insgen::util::NoProgress;
 
 fn plan(python: &Path, dir: &Path, mode: Mode, source: SceneSource) -> RenderPlan {

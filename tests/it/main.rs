@@ -22,6 +22,7 @@ mod lod_citygml;
 mod lod_cityjson;
 mod lod_obj;
 mod lod_tiles3d;
+mod lod_tiles3d_generated;
 mod render_analytic;
 mod render_cpu_agreement;
 mod render_depth_coverage;
