@@ -12,6 +12,7 @@ mod render_common;
 mod util;
 
 mod blender_render;
+mod blender_render_tiles;
 mod camera_io;
 mod camera_sampling;
 mod coco_export;
