@@ -449,11 +449,11 @@ impl Expander<'_> {
 /// Subtree file bytes (binary form) from its JSON and binary chunk, padded to 8 bytes as the spec asks.
 pub(crate) fn subtree_bytes(json: &serde_json::Value, bin: &[u8]) -> Vec<u8> {
     let mut j = serde_json::to_vec(json).expect("a JSON value serialises");
-    while j.len() % 8 != 0 {
+    while !j.len().is_multiple_of(8) {
         j.push(b' ');
     }
     let mut b = bin.to_vec();
-    while b.len() % 8 != 0 {
+    while !b.len().is_multiple_of(8) {
         b.push(0);
     }
     let mut out = b"subt".to_vec();

@@ -61,7 +61,7 @@ pub struct GlbBuilder {
 
 impl GlbBuilder {
     fn align(&mut self) {
-        while self.bin.len() % 4 != 0 {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
     }
@@ -101,7 +101,7 @@ impl GlbBuilder {
         }
         self.bin.extend_from_slice(compressed);
         self.fallback_len += len;
-        while self.fallback_len % 4 != 0 {
+        while !self.fallback_len.is_multiple_of(4) {
             self.fallback_len += 1;
         }
         self.views.push(v);
@@ -179,11 +179,11 @@ fn min_max(points: impl Iterator<Item = [f64; 3]>) -> ([f64; 3], [f64; 3]) {
 /// A GLB container around a glTF JSON and its binary chunk (both padded to 4 bytes).
 pub fn glb(json: &Value, bin: &[u8]) -> Vec<u8> {
     let mut j = serde_json::to_vec(json).expect("a JSON value serialises");
-    while j.len() % 4 != 0 {
+    while !j.len().is_multiple_of(4) {
         j.push(b' ');
     }
     let mut b = bin.to_vec();
-    while b.len() % 4 != 0 {
+    while !b.len().is_multiple_of(4) {
         b.push(0);
     }
     let total = 12 + 8 + j.len() + if b.is_empty() { 0 } else { 8 + b.len() };
@@ -692,8 +692,8 @@ fn tile_glb(
             }
             let mut quv = Vec::with_capacity(uv.len() * 4);
             for t in &uv {
-                for k in 0..2 {
-                    let q = (t[k] as f64 * 65535.0).round().clamp(0.0, 65535.0) as u16;
+                for &c in t {
+                    let q = (c as f64 * 65535.0).round().clamp(0.0, 65535.0) as u16;
                     quv.extend_from_slice(&q.to_le_bytes());
                 }
             }
@@ -1093,7 +1093,7 @@ fn write_implicit(
      -> Result<(), WriteError> {
         let mut bin = tiles_bits.clone();
         let mut views = vec![json!({"buffer": 0, "byteOffset": 0, "byteLength": tiles_bits.len()})];
-        while bin.len() % 8 != 0 {
+        while !bin.len().is_multiple_of(8) {
             bin.push(0);
         }
         let child = match child_bits {
