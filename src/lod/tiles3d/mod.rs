@@ -1,12 +1,16 @@
 //! 3D Tiles 1.0/1.1 reader: a `tileset.json` (or one `.b3dm`/`.glb` content) → buildings in ECEF.
 //!
-//! Pipeline: [`tileset`] walks the tile tree (transforms, ADD/REPLACE, external tilesets) and lists
-//! the contents to read; [`content`] decodes each one — [`b3dm`] containers (feature and batch
-//! tables, `RTC_CENTER`), cmpt composites, GLB/glTF via [`gltf`] (node transforms, `CESIUM_RTC`,
-//! y-up → z-up, [`draco`] for `KHR_draco_mesh_compression`, `EXT_mesh_features` and
-//! [`metadata`] for `EXT_structural_metadata`) — and groups triangles per feature. Contents are
-//! decoded in parallel and assembled in traversal order, so the output does not depend on thread
-//! timing.
+//! Pipeline: [`tileset`] reads and validates tileset JSON into a [`Tile`] tree (transforms,
+//! bounding volumes, ADD/REPLACE, external tilesets, [`implicit`] tiling, gzip) and lists the
+//! contents to read; [`content`] decodes each one — [`b3dm`] containers (feature and batch tables,
+//! `RTC_CENTER`), cmpt composites, GLB/glTF via [`gltf`] (node transforms, `CESIUM_RTC`, y-up →
+//! z-up, [`draco`] for `KHR_draco_mesh_compression`, [`meshopt`] for `EXT_meshopt_compression`,
+//! `KHR_mesh_quantization`, `EXT_mesh_features` and [`metadata`] for `EXT_structural_metadata`) —
+//! and groups triangles per feature. Contents are decoded in parallel and assembled in traversal
+//! order, so the output does not depend on thread timing. [`plain`] turns one content into a GLB
+//! without required extensions (textures and UVs included) for Blender; [`write`] writes tilesets
+//! and generates test tilesets. The Blender stage (`blender::tileset`) uses [`Tileset`]
+//! for its per-frame tile selection: this module is the one reader of 3D Tiles in insgen.
 //!
 //! # Buildings
 //! One [`SourceBuilding`] per feature: the feature ID (`_BATCHID`, or `_FEATURE_ID_n` of

@@ -1151,6 +1151,27 @@ mod tests {
     }
 
     #[test]
+    fn scene_mesh_splits_into_buildings() {
+        use crate::scene::mesh::SceneMesh;
+        let mesh = SceneMesh {
+            positions_m: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [5.0, 0.0, 0.0],
+                [6.0, 0.0, 0.0],
+                [5.0, 1.0, 2.0],
+            ],
+            building_ids: vec![7, 7, 7, 3, 3, 3],
+            indices: vec![0, 1, 2, 3, 4, 5, 2, 1, 0],
+        };
+        let b = buildings_from_scene(&mesh);
+        assert_eq!(b.iter().map(|b| (b.id, b.triangles.len())).collect::<Vec<_>>(), vec![(3, 1), (7, 2)]);
+        assert_eq!(b[0].positions_enu_m[2], [5.0, 1.0, 2.0]);
+        assert_eq!(b[1].triangles[1], [3, 4, 5]);
+    }
+
+    #[test]
     fn palette_is_distinct() {
         let c: Vec<[u8; 3]> = (0..24).map(palette_colour).collect();
         for i in 0..24 {
