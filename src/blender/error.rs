@@ -76,7 +76,10 @@ pub enum BlenderError {
     /// The intrinsics cannot be reproduced by a Blender camera.
     #[error("camera for frame {frame:?}: {what}")]
     Camera { frame: String, what: String },
-    /// A tileset JSON is unreadable or breaks the 3D Tiles spec.
+    /// A tileset (or one of its subtree files) is unreadable or breaks the 3D Tiles spec.
+    #[error(transparent)]
+    Tiles(#[from] crate::lod::LodError),
+    /// A tileset JSON cannot be used for rendering.
     #[error("tileset {}: {what}", path.display())]
     Tileset { path: PathBuf, what: String },
     /// A tile's content (b3dm/glb) is malformed or of an unsupported kind.

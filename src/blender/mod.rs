@@ -6,7 +6,8 @@
 //!
 //! - [`camera`]: the exact Blender camera (lens, sensor fit, shift, pixel aspect, axis flip) for a pinhole;
 //! - [`job`]: the job file (schema `schemas/blender_job.schema.json`) and its validation;
-//! - [`tileset`]: tile selection by frustum and screen-space error, b3dm → GLB, ENU placement;
+//! - [`tileset`]: tile selection by frustum and screen-space error over [`crate::lod::tiles3d`]'s tile tree,
+//!   plain GLBs of the chosen contents, ENU placement;
 //! - [`process`]: finding and running Blender, the stdout protocol, failures with hints;
 //! - [`run`]: batches, resume, verification and atomic renames;
 //! - [`align`]: per-building IoU between two ID images and the alignment report.

@@ -17,15 +17,15 @@ use crate::blender_support;
 use std::path::{Path, PathBuf};
 
 use blender_support::*;
-use glam::DVec3;
+use glam::{DMat4, DVec3};
 use insgen::blender::align::{building_ious, summarise, FrameAlignment};
 use insgen::blender::run::frame_outputs;
-use insgen::blender::tileset::{mat4_inverse_affine, mat4_point, SelectOptions, Y_UP_TO_Z_UP};
+use insgen::blender::tileset::SelectOptions;
 use insgen::blender::{render_frames, Engine, FrameRequest, Launcher, Mode, RenderPlan, SceneSource};
 use insgen::camera::{Intrinsics, Pose};
 use insgen::geo::{EnuFrame, Geodetic};
+use insgen::lod::tiles3d::UpAxis;
 use insgen::scene::IdMap;
-use insgen::util::row_major::rows;
 use insgen::util::NoProgress;
 
 fn plan(python: &Path, dir: &Path, mode: Mode, source: SceneSource) -> RenderPlan {
@@ -152,9 +152,23 @@ fn ids_render_matches_f64_reference() {
     assert!(leftovers.is_empty(), "{leftovers:?}");
 }
 
-/// Column-major 16 numbers of a row-major 4×4 (3D Tiles `transform`).
-fn col_major(m: &[[f64; 4]; 4]) -> Vec<f64> {
-    (0..4).flat_map(|j| (0..4).map(move |i| m[i][j])).collect()
+/// Column-major 16 numbers (3D Tiles `transform`) of a row-major 4×4 or a [`DMat4`].
+fn col_major(m: &impl ColMajor) -> Vec<f64> {
+    m.col_major()
+}
+
+trait ColMajor {
+    fn col_major(&self) -> Vec<f64>;
+}
+impl ColMajor for [[f64; 4]; 4] {
+    fn col_major(&self) -> Vec<f64> {
+        (0..4).flat_map(|j| (0..4).map(move |i| self[i][j])).collect()
+    }
+}
+impl ColMajor for DMat4 {
+    fn col_major(&self) -> Vec<f64> {
+        self.to_cols_array().to_vec()
+    }
 }
 
 #[test]
@@ -164,21 +178,22 @@ fn tileset_tiles_are_placed_exactly() {
     let ts_dir = dir.path().join("tiles");
     std::fs::create_dir_all(ts_dir.join("ext")).unwrap();
     let enu = EnuFrame::new(Geodetic::new(35.0, 139.0, 50.0));
-    let ecef_from_enu = rows(&enu.ecef_from_enu());
+    let ecef_from_enu_m = enu.ecef_from_enu();
     let boxes = box_city();
     let (a_boxes, rest) = boxes.split_at(2);
     let (b_boxes, c_boxes) = rest.split_at(2);
-    let y2z_inv = mat4_inverse_affine(&Y_UP_TO_Z_UP).unwrap();
+    let y2z_inv = UpAxis::Y.to_z_up().inverse();
+    let point = |m: &DMat4, p: [f64; 3]| m.transform_point3(DVec3::from_array(p)).to_array();
 
     // Tile A1: b3dm with RTC_CENTER under a tile transform = the ENU frame of a point 300 m east,
     // rotated by that frame's own axes (a realistic "local ENU" tile transform).
     let a_origin = enu.enu_to_geodetic(DVec3::new(300.0, 0.0, 0.0));
-    let t_a = rows(&EnuFrame::new(a_origin).ecef_from_enu());
+    let t_a = EnuFrame::new(a_origin).ecef_from_enu();
     let rtc_a = [5.0, -3.0, 2.0];
-    let local_a = insgen::blender::tileset::mat4_mul(&mat4_inverse_affine(&t_a).unwrap(), &ecef_from_enu);
+    let local_a = t_a.inverse() * ecef_from_enu_m;
     let to_gltf_a = |p: [f64; 3]| {
-        let l = mat4_point(&local_a, p);
-        mat4_point(&y2z_inv, [l[0] - rtc_a[0], l[1] - rtc_a[1], l[2] - rtc_a[2]])
+        let l = point(&local_a, p);
+        point(&y2z_inv, [l[0] - rtc_a[0], l[1] - rtc_a[1], l[2] - rtc_a[2]])
     };
     std::fs::write(
         ts_dir.join("a1.b3dm"),
@@ -197,16 +212,16 @@ fn tileset_tiles_are_placed_exactly() {
     let centre_b = enu.enu_to_ecef(DVec3::new(10.0, 10.0, 0.0)).to_array();
     let to_gltf_b = |p: [f64; 3]| {
         let e = enu.enu_to_ecef(p.into());
-        mat4_point(&y2z_inv, [e[0] - centre_b[0], e[1] - centre_b[1], e[2] - centre_b[2]])
+        point(&y2z_inv, [e[0] - centre_b[0], e[1] - centre_b[1], e[2] - centre_b[2]])
     };
     let rtc_ext = serde_json::json!({"extensionsUsed": ["CESIUM_RTC"], "extensionsRequired": ["CESIUM_RTC"], "extensions": {"CESIUM_RTC": {"center": centre_b}}});
     std::fs::write(ts_dir.join("b.glb"), glb_bytes(b_boxes, &to_gltf_b, rtc_ext)).unwrap();
 
     // Tile C: an external tileset whose root carries a second transform (a pure translation) under a
     // parent tile with the ENU-frame transform of the area origin.
-    let t_c_parent = ecef_from_enu;
+    let t_c_parent = ecef_from_enu_m;
     let t_c_root = [[1.0, 0.0, 0.0, -7.0], [0.0, 1.0, 0.0, 4.0], [0.0, 0.0, 1.0, 1.5], [0.0, 0.0, 0.0, 1.0]];
-    let to_gltf_c = |p: [f64; 3]| mat4_point(&y2z_inv, [p[0] + 7.0, p[1] - 4.0, p[2] - 1.5]);
+    let to_gltf_c = |p: [f64; 3]| point(&y2z_inv, [p[0] + 7.0, p[1] - 4.0, p[2] - 1.5]);
     std::fs::write(
         ts_dir.join("ext/c.b3dm"),
         b3dm_bytes(&glb_bytes(c_boxes, &to_gltf_c, serde_json::json!({})), None),
@@ -233,7 +248,7 @@ fn tileset_tiles_are_placed_exactly() {
                  "children": [{"boundingVolume": {"box": [-300, 0, 50, 200, 0, 0, 0, 200, 0, 0, 0, 60]}, "geometricError": 0, "content": {"uri": "a1.b3dm"}}]},
                 {"boundingVolume": {"region": [deg(138.999), deg(34.999), deg(139.001), deg(35.001), -10, 100]}, "geometricError": 0, "content": {"uri": "b.glb"}},
                 {"transform": col_major(&t_c_parent), "boundingVolume": {"sphere": [0, 0, 0, 300]}, "geometricError": 0, "content": {"uri": "ext/sub.json"}},
-                {"transform": col_major(&rows(&EnuFrame::new(enu.enu_to_geodetic(DVec3::new(10_000.0, 0.0, 0.0))).ecef_from_enu())),
+                {"transform": col_major(&EnuFrame::new(enu.enu_to_geodetic(DVec3::new(10_000.0, 0.0, 0.0))).ecef_from_enu()),
                  "boundingVolume": {"box": [0, 0, 0, 100, 0, 0, 0, 100, 0, 0, 0, 100]}, "geometricError": 0, "content": {"uri": "far_away_missing.b3dm"}}
             ]
         }
@@ -383,7 +398,7 @@ fn missing_tile_content_fails_before_blender_starts() {
     let enu = EnuFrame::new(Geodetic::new(35.0, 139.0, 50.0));
     let ts = serde_json::json!({
         "asset": {"version": "1.0"}, "geometricError": 0,
-        "root": {"transform": col_major(&rows(&enu.ecef_from_enu())), "boundingVolume": {"sphere": [0, 0, 0, 100]}, "geometricError": 0, "content": {"uri": "gone.b3dm"}}
+        "root": {"transform": col_major(&enu.ecef_from_enu()), "boundingVolume": {"sphere": [0, 0, 0, 100]}, "geometricError": 0, "content": {"uri": "gone.b3dm"}}
     });
     let ts_path = dir.path().join("tileset.json");
     std::fs::write(&ts_path, serde_json::to_vec(&ts).unwrap()).unwrap();

@@ -693,13 +693,13 @@ fn unsupported_required_extension_is_named() {
     // Re-write the JSON chunk with an extensionsRequired entry.
     let jlen = u32::from_le_bytes(g[12..16].try_into().unwrap()) as usize;
     let mut gltf: serde_json::Value = serde_json::from_slice(g[20..20 + jlen].trim_ascii_end()).unwrap();
-    gltf["extensionsRequired"] = json!(["EXT_meshopt_compression", "KHR_materials_unlit"]);
+    gltf["extensionsRequired"] = json!(["EXT_mesh_gpu_instancing", "KHR_materials_unlit"]);
     let bin_len = u32::from_le_bytes(g[20 + jlen..24 + jlen].try_into().unwrap()) as usize;
     std::fs::write(&path, glb(&gltf, &g[28 + jlen..28 + jlen + bin_len])).unwrap();
     let msg = tiles3d::read(&path, &ReadOptions::default()).unwrap_err().to_string();
-    assert!(msg.contains("meshopt.glb") && msg.contains("EXT_meshopt_compression"), "{msg}");
+    assert!(msg.contains("meshopt.glb") && msg.contains("EXT_mesh_gpu_instancing"), "{msg}");
     assert!(
-        !msg.contains("requires extension(s) EXT_meshopt_compression, KHR"),
+        !msg.contains("requires extension(s) EXT_mesh_gpu_instancing, KHR"),
         "material extensions are harmless: {msg}"
     );
 }

@@ -12,6 +12,7 @@ mod render_common;
 mod util;
 
 mod blender_render;
+mod blender_render_tiles;
 mod camera_io;
 mod camera_sampling;
 mod coco_export;
@@ -22,6 +23,7 @@ mod lod_citygml;
 mod lod_cityjson;
 mod lod_obj;
 mod lod_tiles3d;
+mod lod_tiles3d_generated;
 mod render_analytic;
 mod render_cpu_agreement;
 mod render_depth_coverage;

@@ -12,7 +12,7 @@ use glam::{DMat4, DVec3};
 
 use super::b3dm;
 use super::features::FeatureProps;
-use super::gltf::{self, Gltf, TableKey, UpAxis, WorldPrimitive};
+use super::gltf::{self, Gltf, Surface, TableKey, UpAxis, WorldPrimitive};
 use super::metadata;
 use crate::lod::TriMesh;
 
@@ -155,13 +155,13 @@ fn features_of(
     if let Some(c) = g.cesium_rtc()? {
         outer *= DMat4::from_translation(DVec3::from_array(c));
     }
-    let (prims, skipped) = g.world_primitives(outer, up)?;
+    let (prims, skipped) = g.world_primitives(outer, up, Surface::No)?;
     let tables = metadata::property_tables(g, load_uri)?;
     let mut counters = Counters { contents_read: 1, skipped_primitives: skipped, ..Default::default() };
     let mut meshes: BTreeMap<(TableKey, u32), TriMesh> = BTreeMap::new();
     let mut idless = TriMesh::default();
 
-    for WorldPrimitive { positions, triangles, features } in &prims {
+    for WorldPrimitive { positions, triangles, features, .. } in &prims {
         let Some(fids) = features else {
             let base = idless.positions.len() as u32;
             idless.positions.extend_from_slice(positions);

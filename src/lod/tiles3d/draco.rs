@@ -6,21 +6,25 @@
 
 use draco_core::{DecoderBuffer, Mesh, MeshDecoder};
 
-/// A decoded Draco mesh: positions, triangles, and optionally one scalar attribute per point.
+/// A decoded Draco mesh: positions, triangles, and the other requested attributes per point.
 #[derive(Debug)]
 pub(crate) struct DecodedDraco {
     pub positions: Vec<[f64; 3]>,
     pub triangles: Vec<[u32; 3]>,
-    /// The requested scalar attribute (e.g. `_BATCHID`), one value per point.
-    pub scalar: Option<Vec<f64>>,
+    /// The requested attributes (e.g. `_BATCHID`, `TEXCOORD_0`), `components` values per point.
+    pub attributes: Vec<Vec<f64>>,
 }
 
-/// Decodes `bytes` and extracts the position attribute (`position_id`) and, if given, one scalar
-/// attribute (e.g. `_BATCHID`), both by Draco unique id.
+/// Decodes `bytes` and extracts the position attribute (`position_id`) and the attributes asked
+/// for as (unique id, components), all by Draco unique id.
 ///
 /// # Errors
 /// A message when the bitstream is invalid, is a point cloud, or lacks one of the attributes.
-pub(crate) fn decode(bytes: &[u8], position_id: u32, scalar_id: Option<u32>) -> Result<DecodedDraco, String> {
+pub(crate) fn decode(
+    bytes: &[u8],
+    position_id: u32,
+    wanted: &[(u32, usize)],
+) -> Result<DecodedDraco, String> {
     // The decoder is memory-safe Rust but third-party; a panic on a hostile bitstream must become an
     // error naming the file rather than abort a whole run.
     let mesh = std::panic::catch_unwind(|| {
@@ -43,17 +47,18 @@ pub(crate) fn decode(bytes: &[u8], position_id: u32, scalar_id: Option<u32>) -> 
     }
     let positions =
         pos.read_f32s(n_points, 3).chunks_exact(3).map(|c| [c[0] as f64, c[1] as f64, c[2] as f64]).collect();
-    let scalar = match scalar_id {
-        None => None,
-        Some(id) => {
-            let att = mesh
-                .attribute_by_unique_id(id)
-                .ok_or_else(|| format!("the Draco mesh has no attribute with unique id {id}"))?;
-            Some(att.read_f32s(n_points, 1).into_iter().map(f64::from).collect())
+    let mut attributes = Vec::with_capacity(wanted.len());
+    for &(id, n) in wanted {
+        let att = mesh
+            .attribute_by_unique_id(id)
+            .ok_or_else(|| format!("the Draco mesh has no attribute with unique id {id}"))?;
+        if (att.num_components() as usize) < n {
+            return Err(format!("the Draco attribute {id} has {} components, not {n}", att.num_components()));
         }
-    };
+        attributes.push(att.read_f32s(n_points, n).into_iter().map(f64::from).collect());
+    }
     let triangles = mesh.faces().iter().map(|f| [f[0].0, f[1].0, f[2].0]).collect();
-    Ok(DecodedDraco { positions, triangles, scalar })
+    Ok(DecodedDraco { positions, triangles, attributes })
 }
 
 #[cfg(test)]
@@ -62,8 +67,8 @@ mod tests {
 
     #[test]
     fn garbage_is_an_error_not_a_panic() {
-        assert!(decode(b"DRACO\x02\x02\x01\x01\x00\x00", 0, None).is_err());
-        assert!(decode(b"not draco at all", 0, None).is_err());
-        assert!(decode(&[], 0, None).is_err());
+        assert!(decode(b"DRACO\x02\x02\x01\x01\x00\x00", 0, &[]).is_err());
+        assert!(decode(b"not draco at all", 0, &[]).is_err());
+        assert!(decode(&[], 0, &[]).is_err());
     }
 }

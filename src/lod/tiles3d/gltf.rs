@@ -24,10 +24,14 @@ use serde_json::Value;
 use super::draco;
 
 /// Required extensions this reader implements or that do not affect geometry.
-const HANDLED_EXTENSIONS: &[&str] = &[
+pub const HANDLED_EXTENSIONS: &[&str] = &[
     "CESIUM_RTC",
     "KHR_draco_mesh_compression",
     "KHR_mesh_quantization",
+    "EXT_meshopt_compression",
+    "KHR_texture_transform",
+    "KHR_materials_unlit",
+    "EXT_texture_webp",
     "EXT_mesh_features",
     "EXT_structural_metadata",
     "KHR_lights_punctual",
@@ -42,7 +46,7 @@ const MAX_ZERO_ACCESSOR: usize = 1 << 26;
 
 /// The glTF up axis of a tileset's content (`asset.gltfUpAxis`, default Y as 3D Tiles specifies).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum UpAxis {
+pub enum UpAxis {
     X,
     Y,
     Z,
@@ -53,7 +57,7 @@ impl UpAxis {
     ///
     /// Y: `(x, y, z) ↦ (x, −z, y)` (a +90° rotation about x). X: `(x, y, z) ↦ (−z, y, x)` (−90° about
     /// y), as CesiumJS's `Axis.X_UP_TO_Z_UP`. Z: identity.
-    pub(crate) fn to_z_up(self) -> DMat4 {
+    pub fn to_z_up(self) -> DMat4 {
         match self {
             UpAxis::Y => DMat4::from_cols(
                 DVec4::new(1.0, 0.0, 0.0, 0.0),
@@ -89,10 +93,20 @@ pub(crate) struct Root {
     pub nodes: Vec<Node>,
     #[serde(default)]
     pub scenes: Vec<Scene>,
+    #[serde(default)]
+    pub materials: Vec<Material>,
+    #[serde(default)]
+    pub textures: Vec<Texture>,
+    #[serde(default)]
+    pub images: Vec<Image>,
+    #[serde(default)]
+    pub samplers: Vec<Value>,
     /// Index of the scene to show; `None` = the first scene, or all root nodes when there is none.
     pub scene: Option<usize>,
     #[serde(default)]
     pub extensions_required: Vec<String>,
+    #[serde(default)]
+    pub extensions_used: Vec<String>,
     #[serde(default)]
     pub extensions: BTreeMap<String, Value>,
 }
@@ -158,6 +172,9 @@ pub(crate) struct BufferView {
     pub byte_length: usize,
     /// Bytes between the starts of consecutive elements; `None` = tightly packed.
     pub byte_stride: Option<usize>,
+    /// `EXT_meshopt_compression` (the data is decoded from another buffer).
+    #[serde(default)]
+    pub extensions: BTreeMap<String, Value>,
 }
 
 /// `buffers[i]`: the GLB BIN chunk (no `uri`), a file next to the glTF, or a `data:` URI.
@@ -166,6 +183,138 @@ pub(crate) struct BufferView {
 pub(crate) struct Buffer {
     pub byte_length: usize,
     pub uri: Option<String>,
+    /// `EXT_meshopt_compression: {"fallback": true}` marks a buffer with no data of its own.
+    #[serde(default)]
+    pub extensions: BTreeMap<String, Value>,
+}
+
+impl Buffer {
+    fn is_meshopt_fallback(&self) -> bool {
+        self.extensions
+            .get("EXT_meshopt_compression")
+            .and_then(|e| e.get("fallback"))
+            .and_then(Value::as_bool)
+            .unwrap_or(false)
+    }
+}
+
+/// `materials[i]` (the parts a photogrammetry look needs).
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(rename_all = "camelCase")]
+pub struct Material {
+    pub name: Option<String>,
+    pub pbr_metallic_roughness: Option<PbrMetallicRoughness>,
+    pub emissive_texture: Option<TextureInfo>,
+    pub emissive_factor: Option<[f64; 3]>,
+    #[serde(default)]
+    pub double_sided: bool,
+    /// `KHR_materials_unlit` (an empty object) and others.
+    #[serde(default)]
+    pub extensions: BTreeMap<String, Value>,
+}
+
+impl Material {
+    /// Whether the material is `KHR_materials_unlit`.
+    pub fn unlit(&self) -> bool {
+        self.extensions.contains_key("KHR_materials_unlit")
+    }
+    /// The base colour texture, if any.
+    pub fn base_color_texture(&self) -> Option<&TextureInfo> {
+        self.pbr_metallic_roughness.as_ref().and_then(|p| p.base_color_texture.as_ref())
+    }
+    /// Linear RGBA base colour factor (default white).
+    pub fn base_color_factor(&self) -> [f64; 4] {
+        self.pbr_metallic_roughness.as_ref().and_then(|p| p.base_color_factor).unwrap_or([1.0; 4])
+    }
+}
+
+/// `materials[i].pbrMetallicRoughness`.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(rename_all = "camelCase")]
+pub struct PbrMetallicRoughness {
+    pub base_color_factor: Option<[f64; 4]>,
+    pub base_color_texture: Option<TextureInfo>,
+}
+
+/// A texture reference: texture index, UV set, and `KHR_texture_transform`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(rename_all = "camelCase")]
+pub struct TextureInfo {
+    pub index: usize,
+    #[serde(default)]
+    pub tex_coord: usize,
+    #[serde(default)]
+    pub extensions: BTreeMap<String, Value>,
+}
+
+/// `KHR_texture_transform`: `uv' = T(offset) · R(rotation) · S(scale) · uv`, optionally on another
+/// UV set.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(rename_all = "camelCase")]
+pub struct TextureTransform {
+    #[serde(default)]
+    pub offset: [f64; 2],
+    /// Radians, counter-clockwise in UV space.
+    #[serde(default)]
+    pub rotation: f64,
+    #[serde(default = "unit_scale")]
+    pub scale: [f64; 2],
+    pub tex_coord: Option<usize>,
+}
+
+fn unit_scale() -> [f64; 2] {
+    [1.0, 1.0]
+}
+
+impl TextureTransform {
+    /// Applies the transform to one UV (the spec's matrix, rows
+    /// `[sx·cos, sy·sin, ox]`, `[−sx·sin, sy·cos, oy]`).
+    pub fn apply(&self, uv: [f64; 2]) -> [f64; 2] {
+        let (s, c) = self.rotation.sin_cos();
+        let (x, y) = (uv[0] * self.scale[0], uv[1] * self.scale[1]);
+        [c * x + s * y + self.offset[0], -s * x + c * y + self.offset[1]]
+    }
+}
+
+impl TextureInfo {
+    /// The `KHR_texture_transform` of this reference, if any.
+    ///
+    /// # Errors
+    /// A message when the extension object is malformed or not finite.
+    pub fn transform(&self) -> Result<Option<TextureTransform>, String> {
+        let Some(v) = self.extensions.get("KHR_texture_transform") else { return Ok(None) };
+        let t: TextureTransform =
+            serde_json::from_value(v.clone()).map_err(|e| format!("KHR_texture_transform: {e}"))?;
+        if !(t.offset.iter().chain(&t.scale).all(|v| v.is_finite()) && t.rotation.is_finite()) {
+            return Err("KHR_texture_transform has non-finite values".into());
+        }
+        Ok(Some(t))
+    }
+    /// The UV set the texture reads (the transform's `texCoord` overrides the reference's).
+    pub fn uv_set(&self) -> Result<usize, String> {
+        Ok(self.transform()?.and_then(|t| t.tex_coord).unwrap_or(self.tex_coord))
+    }
+}
+
+/// `textures[i]`: an image (`source`, or an extension's) and a sampler.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(rename_all = "camelCase")]
+pub struct Texture {
+    pub source: Option<usize>,
+    pub sampler: Option<usize>,
+    /// `EXT_texture_webp`, `KHR_texture_basisu`, `MSFT_texture_dds`: `{"source": i}`.
+    #[serde(default)]
+    pub extensions: BTreeMap<String, Value>,
+}
+
+/// `images[i]`: a file, a data URI, or a buffer view with a MIME type.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(rename_all = "camelCase")]
+pub struct Image {
+    pub uri: Option<String>,
+    pub buffer_view: Option<usize>,
+    pub mime_type: Option<String>,
+    pub name: Option<String>,
 }
 
 /// `meshes[i]`.
@@ -186,6 +335,7 @@ pub(crate) struct Primitive {
     /// 6 TRIANGLE_FAN.
     #[serde(default = "triangles_mode")]
     pub mode: u32,
+    pub material: Option<usize>,
     #[serde(default)]
     pub extensions: BTreeMap<String, Value>,
 }
@@ -267,12 +417,24 @@ pub(crate) struct FeatureIds {
     pub ids: Vec<Option<u32>>,
 }
 
+/// What of a primitive's surface to decode besides positions and feature IDs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Surface {
+    /// Geometry only (the LoD reader).
+    No,
+    /// Also the base colour UVs (with `KHR_texture_transform` applied), the material and the raw
+    /// `_FEATURE_ID_0` values (the importable GLB for Blender).
+    Yes,
+}
+
 /// A primitive's triangles in its mesh's local frame.
 #[derive(Debug, Clone)]
 struct LocalPrimitive {
     positions: Vec<[f64; 3]>,
     triangles: Vec<[u32; 3]>,
     features: Option<FeatureIds>,
+    uv: Option<Vec<[f64; 2]>>,
+    feature_id0: Option<Vec<f64>>,
 }
 
 /// A primitive instance with positions in the caller's frame (`outer · U · node · p`).
@@ -281,12 +443,20 @@ pub(crate) struct WorldPrimitive {
     pub positions: Vec<[f64; 3]>,
     pub triangles: Vec<[u32; 3]>,
     pub features: Option<FeatureIds>,
+    /// Base colour UVs, `KHR_texture_transform` applied ([`Surface::Yes`] only).
+    pub uv: Option<Vec<[f64; 2]>>,
+    /// `materials[i]` of the primitive.
+    pub material: Option<usize>,
+    /// The `_FEATURE_ID_0` vertex attribute as stored ([`Surface::Yes`] only).
+    pub feature_id0: Option<Vec<f64>>,
 }
 
 /// A parsed glTF asset with its buffers' bytes.
 pub(crate) struct Gltf<'a> {
     pub root: Root,
     pub buffers: Vec<Cow<'a, [u8]>>,
+    /// Buffer views decoded from `EXT_meshopt_compression`, by view index.
+    pub decoded_views: Vec<Option<Vec<u8>>>,
 }
 
 /// Splits a GLB and parses its JSON. `load_uri` loads buffers that have a `uri`.
@@ -323,6 +493,10 @@ pub(crate) fn parse_glb<'a>(
     let bin = glb.bin;
     let mut buffers = Vec::with_capacity(root.buffers.len());
     for (i, b) in root.buffers.iter().enumerate() {
+        if b.uri.is_none() && b.is_meshopt_fallback() && !(i == 0 && bin.is_some()) {
+            buffers.push(Cow::Owned(Vec::new()));
+            continue;
+        }
         match (&b.uri, i) {
             (None, 0) => match &bin {
                 Some(bin) => buffers.push(bin.clone()),
@@ -346,6 +520,7 @@ pub(crate) fn parse_gltf_json<'a>(
     let mut buffers = Vec::with_capacity(root.buffers.len());
     for (i, b) in root.buffers.iter().enumerate() {
         match &b.uri {
+            None if b.is_meshopt_fallback() => buffers.push(Cow::Owned(Vec::new())),
             Some(uri) => buffers.push(Cow::Owned(load_buffer_uri(uri, load_uri)?)),
             None => return Err(format!("buffers[{i}] has no uri in a .gltf JSON asset")),
         }
@@ -379,11 +554,12 @@ fn finish<'a>(root: Root, buffers: Vec<Cow<'a, [u8]>>) -> Result<Gltf<'a>, Strin
             HANDLED_EXTENSIONS.join(", ")
         ));
     }
-    let gltf = Gltf { root, buffers };
+    let mut gltf = Gltf { root, buffers, decoded_views: Vec::new() };
     let problems = gltf.validate();
     if !problems.is_empty() {
         return Err(format!("invalid glTF ({} problem(s)): {}", problems.len(), problems.join("; ")));
     }
+    gltf.decode_meshopt_views()?;
     Ok(gltf)
 }
 
@@ -398,7 +574,7 @@ fn load_buffer_uri(uri: &str, load_uri: &dyn Fn(&str) -> Result<Vec<u8>, String>
 }
 
 /// Decodes standard base64 (with or without padding).
-fn base64_decode(s: &str) -> Option<Vec<u8>> {
+pub(crate) fn base64_decode(s: &str) -> Option<Vec<u8>> {
     let mut out = Vec::with_capacity(s.len() * 3 / 4);
     let (mut acc, mut bits) = (0u32, 0u32);
     for c in s.bytes().filter(|&c| c != b'=' && !c.is_ascii_whitespace()) {
@@ -490,13 +666,15 @@ impl<'a> Gltf<'a> {
         let mut p = Vec::new();
         for (i, b) in r.buffers.iter().enumerate() {
             let have = self.buffers[i].len();
-            if have < b.byte_length {
+            if have < b.byte_length && !(b.is_meshopt_fallback() && have == 0) {
                 p.push(format!("buffers[{i}]: byteLength {} but only {have} bytes available", b.byte_length));
             }
         }
         for (i, v) in r.buffer_views.iter().enumerate() {
+            let compressed = v.extensions.contains_key("EXT_meshopt_compression");
             match self.buffers.get(v.buffer) {
                 None => p.push(format!("bufferViews[{i}].buffer: buffer {} does not exist", v.buffer)),
+                Some(_) if compressed => {}
                 Some(buf) => {
                     if v.byte_offset.checked_add(v.byte_length).is_none_or(|end| end > buf.len()) {
                         p.push(format!(
@@ -648,8 +826,53 @@ impl<'a> Gltf<'a> {
         }
     }
 
-    /// The bytes of `bufferViews[i]` (validated to lie inside its buffer).
+    /// Decodes every `EXT_meshopt_compression` buffer view into [`Gltf::decoded_views`].
+    fn decode_meshopt_views(&mut self) -> Result<(), String> {
+        let mut decoded = vec![None; self.root.buffer_views.len()];
+        for (i, v) in self.root.buffer_views.iter().enumerate() {
+            let Some(ext) = v.extensions.get("EXT_meshopt_compression") else { continue };
+            let at = format!("bufferViews[{i}].extensions.EXT_meshopt_compression");
+            let ext: super::meshopt::MeshoptView =
+                serde_json::from_value(ext.clone()).map_err(|e| format!("{at}: {e}"))?;
+            let buf = self
+                .buffers
+                .get(ext.buffer)
+                .ok_or_else(|| format!("{at}.buffer: buffer {} does not exist", ext.buffer))?;
+            let src = ext
+                .byte_offset
+                .checked_add(ext.byte_length)
+                .and_then(|e| buf.get(ext.byte_offset..e))
+                .ok_or_else(|| {
+                    format!(
+                        "{at}: bytes {}..+{} exceed buffer {} ({} bytes)",
+                        ext.byte_offset,
+                        ext.byte_length,
+                        ext.buffer,
+                        buf.len()
+                    )
+                })?;
+            let out = super::meshopt::decode(&ext, src)
+                .map_err(|e| format!("{at} (EXT_meshopt_compression): {e}"))?;
+            if out.len() < v.byte_length {
+                return Err(format!(
+                    "{at}: decodes to {} bytes but the bufferView's byteLength is {} (EXT_meshopt_compression)",
+                    out.len(),
+                    v.byte_length
+                ));
+            }
+            decoded[i] = Some(out);
+        }
+        self.decoded_views = decoded;
+        Ok(())
+    }
+
+    /// The bytes of `bufferViews[i]` (validated to lie inside its buffer, or decoded from
+    /// `EXT_meshopt_compression`).
     pub(crate) fn view_bytes(&self, i: usize) -> Result<&[u8], String> {
+        if let Some(Some(d)) = self.decoded_views.get(i) {
+            let len = self.root.buffer_views[i].byte_length;
+            return Ok(&d[..len]);
+        }
         let v = self.root.buffer_views.get(i).ok_or_else(|| format!("bufferView {i} does not exist"))?;
         let buf = self.buffers.get(v.buffer).ok_or_else(|| format!("buffer {} does not exist", v.buffer))?;
         buf.get(v.byte_offset..v.byte_offset + v.byte_length)
@@ -708,6 +931,7 @@ impl<'a> Gltf<'a> {
         &self,
         outer: DMat4,
         up: UpAxis,
+        surface: Surface,
     ) -> Result<(Vec<WorldPrimitive>, u64), String> {
         let r = &self.root;
         let roots: Vec<usize> = match r.scene.or(if r.scenes.is_empty() { None } else { Some(0) }) {
@@ -740,7 +964,7 @@ impl<'a> Gltf<'a> {
                 for k in 0..r.meshes[m].primitives.len() {
                     if let std::collections::btree_map::Entry::Vacant(slot) = local.entry((m, k)) {
                         let decoded = self
-                            .local_primitive(m, k)
+                            .local_primitive(m, k, surface)
                             .map_err(|e| format!("meshes[{m}].primitives[{k}]: {e}"))?;
                         if decoded.is_none() {
                             skipped += 1;
@@ -757,6 +981,9 @@ impl<'a> Gltf<'a> {
                             positions,
                             triangles: lp.triangles.clone(),
                             features: lp.features.clone(),
+                            uv: lp.uv.clone(),
+                            material: r.meshes[m].primitives[k].material,
+                            feature_id0: lp.feature_id0.clone(),
                         });
                     }
                 }
@@ -769,12 +996,31 @@ impl<'a> Gltf<'a> {
     }
 
     /// Decodes one primitive in its local frame; `None` for points and lines.
-    fn local_primitive(&self, m: usize, k: usize) -> Result<Option<LocalPrimitive>, String> {
+    fn local_primitive(
+        &self,
+        m: usize,
+        k: usize,
+        surface: Surface,
+    ) -> Result<Option<LocalPrimitive>, String> {
         let prim = &self.root.meshes[m].primitives[k];
         if !(4..=6).contains(&prim.mode) {
             return Ok(None);
         }
         let feature_set = self.feature_set(prim)?;
+        // The base colour texture's UV set and transform, when the surface is wanted.
+        let texture = match (surface, prim.material) {
+            (Surface::Yes, Some(mi)) => {
+                let mat =
+                    self.root.materials.get(mi).ok_or_else(|| format!("material {mi} does not exist"))?;
+                match mat.base_color_texture() {
+                    Some(t) => Some((t.uv_set()?, t.transform()?)),
+                    None => None,
+                }
+            }
+            _ => None,
+        };
+        let uv_name = texture.map(|(set, _)| format!("TEXCOORD_{set}"));
+        let fid0_name = "_FEATURE_ID_0";
         let draco_ext = match prim.extensions.get("KHR_draco_mesh_compression") {
             None => None,
             Some(v) => Some(
@@ -783,17 +1029,28 @@ impl<'a> Gltf<'a> {
             ),
         };
 
-        let (positions, triangles, mut feature_values) = match &draco_ext {
+        let (positions, triangles, mut feature_values, mut uv_values, mut fid0_values) = match &draco_ext {
             Some(ext) => {
                 let pos_id = *ext
                     .attributes
                     .get("POSITION")
                     .ok_or("KHR_draco_mesh_compression.attributes has no POSITION")?;
-                let feature_attr =
-                    feature_set.as_ref().and_then(|(name, _, _)| ext.attributes.get(name).copied());
+                // (unique id, components) of each wanted attribute, and where it lands.
+                let mut wanted: Vec<(u32, usize)> = Vec::new();
+                let mut slot = |name: Option<&str>, n: usize| -> Option<usize> {
+                    let id = *ext.attributes.get(name?)?;
+                    wanted.push((id, n));
+                    Some(wanted.len() - 1)
+                };
+                let f_slot = slot(feature_set.as_ref().map(|(name, _, _)| name.as_str()), 1);
+                let uv_slot = slot(uv_name.as_deref(), 2);
+                let fid0_slot = if surface == Surface::Yes { slot(Some(fid0_name), 1) } else { None };
                 let bytes = self.view_bytes(ext.buffer_view)?;
-                let d = draco::decode(bytes, pos_id, feature_attr).map_err(|e| format!("Draco: {e}"))?;
-                (d.positions, d.triangles, d.scalar)
+                let mut d = draco::decode(bytes, pos_id, &wanted)
+                    .map_err(|e| format!("KHR_draco_mesh_compression: {e}"))?;
+                let mut take = |s: Option<usize>| s.map(|i| std::mem::take(&mut d.attributes[i]));
+                let (f, uv, fid0) = (take(f_slot), take(uv_slot), take(fid0_slot));
+                (d.positions, d.triangles, f, uv, fid0)
             }
             None => {
                 let acc =
@@ -814,15 +1071,55 @@ impl<'a> Gltf<'a> {
                     None => (0..positions.len() as u32).collect(),
                 };
                 let triangles = assemble(&indices, prim.mode);
-                (positions, triangles, None)
+                (positions, triangles, None, None, None)
             }
         };
+        // Attributes stored outside Draco (or all of them, without Draco).
+        if let Some(name) = &uv_name {
+            if uv_values.is_none() {
+                if let Some(&acc) = prim.attributes.get(name) {
+                    let (n, flat) = self.read_accessor(acc)?;
+                    if n != 2 {
+                        return Err(format!("{name} accessor {acc} is not VEC2"));
+                    }
+                    uv_values = Some(flat);
+                }
+            }
+        }
+        if surface == Surface::Yes && fid0_values.is_none() {
+            if let Some(&acc) = prim.attributes.get(fid0_name) {
+                let (n, flat) = self.read_accessor(acc)?;
+                if n != 1 {
+                    return Err(format!("{fid0_name} accessor {acc} is not SCALAR"));
+                }
+                fid0_values = Some(flat);
+            }
+        }
         if let Some(bad) = positions.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
             return Err(format!("vertex {bad} has a non-finite position {:?}", positions[bad]));
         }
         let n_vertices = positions.len();
         if let Some(t) = triangles.iter().find(|t| t.iter().any(|&i| i as usize >= n_vertices)) {
             return Err(format!("triangle {t:?} refers past the {n_vertices} vertices"));
+        }
+        let uv = match uv_values {
+            None => None,
+            Some(flat) => {
+                if flat.len() != 2 * n_vertices {
+                    return Err(format!("the UVs have {} values for {n_vertices} vertices", flat.len() / 2));
+                }
+                let transform = texture.and_then(|(_, t)| t);
+                Some(
+                    flat.chunks_exact(2)
+                        .map(|c| transform.map_or([c[0], c[1]], |t| t.apply([c[0], c[1]])))
+                        .collect(),
+                )
+            }
+        };
+        if let Some(f) = &fid0_values {
+            if f.len() != n_vertices {
+                return Err(format!("{fid0_name} has {} values for {n_vertices} vertices", f.len()));
+            }
         }
 
         let features = match feature_set {
@@ -853,7 +1150,7 @@ impl<'a> Gltf<'a> {
                 Some(FeatureIds { table, ids })
             }
         };
-        Ok(Some(LocalPrimitive { positions, triangles, features }))
+        Ok(Some(LocalPrimitive { positions, triangles, features, uv, feature_id0: fid0_values }))
     }
 
     /// Which attribute holds the primitive's feature IDs: the first `EXT_mesh_features` set stored in

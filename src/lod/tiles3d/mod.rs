@@ -1,12 +1,16 @@
 //! 3D Tiles 1.0/1.1 reader: a `tileset.json` (or one `.b3dm`/`.glb` content) → buildings in ECEF.
 //!
-//! Pipeline: [`tileset`] walks the tile tree (transforms, ADD/REPLACE, external tilesets) and lists
-//! the contents to read; [`content`] decodes each one — [`b3dm`] containers (feature and batch
-//! tables, `RTC_CENTER`), cmpt composites, GLB/glTF via [`gltf`] (node transforms, `CESIUM_RTC`,
-//! y-up → z-up, [`draco`] for `KHR_draco_mesh_compression`, `EXT_mesh_features` and
-//! [`metadata`] for `EXT_structural_metadata`) — and groups triangles per feature. Contents are
-//! decoded in parallel and assembled in traversal order, so the output does not depend on thread
-//! timing.
+//! Pipeline: [`tileset`] reads and validates tileset JSON into a [`Tile`] tree (transforms,
+//! bounding volumes, ADD/REPLACE, external tilesets, [`implicit`] tiling, gzip) and lists the
+//! contents to read; [`content`] decodes each one — [`b3dm`] containers (feature and batch tables,
+//! `RTC_CENTER`), cmpt composites, GLB/glTF via [`gltf`] (node transforms, `CESIUM_RTC`, y-up →
+//! z-up, [`draco`] for `KHR_draco_mesh_compression`, [`meshopt`] for `EXT_meshopt_compression`,
+//! `KHR_mesh_quantization`, `EXT_mesh_features` and [`metadata`] for `EXT_structural_metadata`) —
+//! and groups triangles per feature. Contents are decoded in parallel and assembled in traversal
+//! order, so the output does not depend on thread timing. [`plain`] turns one content into a GLB
+//! without required extensions (textures and UVs included) for Blender; [`write`] writes tilesets
+//! and generates test tilesets. The Blender stage (`blender::tileset`) uses [`Tileset`]
+//! for its per-frame tile selection: this module is the one reader of 3D Tiles in insgen.
 //!
 //! # Buildings
 //! One [`SourceBuilding`] per feature: the feature ID (`_BATCHID`, or `_FEATURE_ID_n` of
@@ -32,9 +36,16 @@ pub(crate) mod b3dm;
 pub(crate) mod content;
 pub(crate) mod draco;
 pub mod features;
-pub(crate) mod gltf;
+pub mod gltf;
+pub(crate) mod implicit;
+pub(crate) mod meshopt;
 pub(crate) mod metadata;
-pub(crate) mod tileset;
+pub mod plain;
+pub mod tileset;
+pub mod write;
+
+pub use gltf::UpAxis;
+pub use tileset::{BoundingVolume, ContentRef, Refine, Tile, Tileset};
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -50,6 +61,31 @@ use tileset::ContentJob;
 /// Most features one batch or property table may list (a building id is 24 bits wide anyway); a
 /// larger count is taken as a corrupt header rather than allocated.
 pub(crate) const MAX_FEATURES: usize = 1 << 24;
+
+/// Largest decompressed size of one gzip-compressed tile content or tileset JSON, bytes (a guard
+/// against decompression bombs; real tiles are a few MB).
+pub const MAX_GUNZIPPED_BYTES: u64 = 1 << 30;
+
+/// The bytes themselves, or their gunzipped form when they start with the gzip magic (`1f 8b`):
+/// some servers and exporters store tile contents and tileset JSON gzip-compressed.
+///
+/// # Errors
+/// A message when the gzip stream is corrupt or inflates past [`MAX_GUNZIPPED_BYTES`].
+pub(crate) fn maybe_gunzip(bytes: &[u8]) -> Result<std::borrow::Cow<'_, [u8]>, String> {
+    use std::io::Read;
+    if !bytes.starts_with(&[0x1f, 0x8b]) {
+        return Ok(std::borrow::Cow::Borrowed(bytes));
+    }
+    let mut out = Vec::new();
+    flate2::read::GzDecoder::new(bytes)
+        .take(MAX_GUNZIPPED_BYTES + 1)
+        .read_to_end(&mut out)
+        .map_err(|e| format!("gzip-compressed content cannot be inflated: {e}"))?;
+    if out.len() as u64 > MAX_GUNZIPPED_BYTES {
+        return Err(format!("gzip-compressed content inflates past {MAX_GUNZIPPED_BYTES} bytes"));
+    }
+    Ok(std::borrow::Cow::Owned(out))
+}
 
 /// What a tileset read did besides producing buildings (logged by [`read`]).
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
@@ -140,6 +176,11 @@ pub fn read_with_report(path: &Path, opts: &ReadOptions) -> Result<(SourceModel,
         .par_iter()
         .map(|job| {
             let bytes = crate::util::read_file(&job.file)?;
+            let what_at = |what: String| {
+                let what = if is_json { format!("{what} (tile content of {})", job.at) } else { what };
+                LodError::malformed(&job.file, what)
+            };
+            let bytes = maybe_gunzip(&bytes).map_err(what_at)?;
             content::decode(&bytes, &job.file, &job.label, job.world_from_tile, job.up).map_err(|what| {
                 let what = if is_json { format!("{what} (tile content of {})", job.at) } else { what };
                 LodError::malformed(&job.file, what)

@@ -1,6 +1,15 @@
-//! `tileset.json` (3D Tiles 1.0 and 1.1): validation and the traversal that lists the contents to read.
+//! `tileset.json` (3D Tiles 1.0 and 1.1): the spec types, their validation, the tile tree with
+//! accumulated transforms, implicit tiling, and the traversal that lists the contents to read.
 //!
-//! # Which contents are read
+//! This is insgen's one reader of tileset JSON: [`Tileset::load`] parses and validates one file
+//! (reporting every problem with its JSON path), accumulates `transform`s from the root down in f64
+//! ([`Tile::world_from_tile`]), resolves content URIs, expands 3D Tiles 1.1 implicit tiling
+//! ([`super::implicit`]) into explicit tiles, and hands on a [`Tile`] tree. External tilesets (a
+//! content that is itself a tileset JSON) are not followed by `load`: callers load them when they
+//! reach them ([`ContentRef::is_external_tileset`]), the LoD reader always, the Blender tile
+//! selection only when the camera sees them.
+//!
+//! # Which contents the LoD reader reads ([`traverse`])
 //! insgen wants every building once, at the finest geometry the tileset has:
 //! - a tile whose refinement is `ADD` (given or inherited) contributes its content *and* its
 //!   children's: ADD children add to the parent;
@@ -11,66 +20,403 @@
 //!
 //! A root without `refine` is taken as `REPLACE`. For the PLATEAU Shibuya subset (an ADD root over
 //! REPLACE leaves holding b3dm), this reads all 56 leaves. Bounding volumes and geometric errors are
-//! not used: nothing is culled.
+//! not used there: nothing is culled.
 //!
-//! Transforms (`transform`, column-major 4×4) accumulate from the root down in f64. Content URIs
-//! (`content.uri`, 1.0's `content.url`, 1.1's `contents[]`) are relative to the JSON that names them,
-//! percent-decoded (`%20` → space), without query or fragment; remote (`http://…`) and `data:` URIs
-//! are rejected. A missing content file fails the whole read, naming the tileset and the URI.
+//! Transforms (`transform`, column-major 4×4, converted to [`DMat4`] here, at the file edge)
+//! accumulate from the root down in f64. Content URIs (`content.uri`, 1.0's `content.url`, 1.1's
+//! `contents[]`) are relative to the JSON that names them, percent-decoded (`%20` → space), without
+//! query or fragment; remote (`http://…`) and `data:` URIs are rejected. A tileset JSON may be
+//! gzip-compressed (as some Cesium ion exports are). `asset.gltfUpAxis` (pre-1.0 Cesium) is honoured.
+//! Extensions: `3DTILES_content_gltf` (glTF contents; nothing to do) and `3DTILES_implicit_tiling`
+//! (the pre-1.1 name of `implicitTiling`) are read; other `extensionsRequired` stop the read with
+//! their name.
 
 use std::io::Read;
 use std::path::{Component, Path, PathBuf};
 
-use glam::DMat4;
+use glam::{DMat3, DMat4, DVec3};
 use serde::Deserialize;
 
 use super::gltf::UpAxis;
+use super::implicit::{self, ImplicitTilingJson};
 use crate::lod::LodError;
+
+/// Tileset extensions insgen reads (or that need nothing from a reader of geometry).
+const HANDLED_TILESET_EXTENSIONS: &[&str] =
+    &["3DTILES_content_gltf", "3DTILES_implicit_tiling", "3DTILES_metadata", "3DTILES_multiple_contents"];
 
 /// The tileset JSON root.
 #[derive(Debug, Deserialize)]
 #[serde(rename_all = "camelCase")]
-struct TilesetJson {
-    asset: AssetJson,
-    root: TileJson,
+pub(crate) struct TilesetJson {
+    pub asset: AssetJson,
+    pub root: TileJson,
+    #[serde(default)]
+    pub extensions_required: Vec<String>,
 }
 
 /// `asset`: the 3D Tiles version and, for pre-1.0 Cesium tilesets, the glTF up axis.
 #[derive(Debug, Deserialize)]
 #[serde(rename_all = "camelCase")]
-struct AssetJson {
-    version: String,
+pub(crate) struct AssetJson {
+    pub version: String,
     /// `"X"`, `"Y"` (default) or `"Z"`: CesiumJS's pre-1.0 `asset.gltfUpAxis`.
-    gltf_up_axis: Option<String>,
+    pub gltf_up_axis: Option<String>,
 }
 
-/// A tile: transform, refinement, content(s) and children.
+/// A tile: bounding volume, geometric error, transform, refinement, content(s) and children.
 #[derive(Debug, Deserialize)]
 #[serde(rename_all = "camelCase")]
-struct TileJson {
+pub(crate) struct TileJson {
+    /// Required by the spec; absent volumes are reported by [`validate`].
+    pub bounding_volume: Option<BoundingVolumeJson>,
+    /// Metres of error when this tile is rendered and its children are not (required).
+    pub geometric_error: Option<f64>,
     /// Column-major 4×4 from this tile's frame to its parent's.
-    transform: Option<Vec<f64>>,
+    pub transform: Option<Vec<f64>>,
     /// `"ADD"` or `"REPLACE"`; inherited from the parent when absent.
-    refine: Option<String>,
-    content: Option<ContentJson>,
+    pub refine: Option<String>,
+    pub content: Option<ContentJson>,
     /// 3D Tiles 1.1: several contents per tile.
-    contents: Option<Vec<ContentJson>>,
+    pub contents: Option<Vec<ContentJson>>,
     #[serde(default)]
-    children: Vec<TileJson>,
-    /// 3D Tiles 1.1 implicit tiling (not supported).
-    implicit_tiling: Option<serde_json::Value>,
+    pub children: Vec<TileJson>,
+    /// 3D Tiles 1.1 implicit tiling.
+    pub implicit_tiling: Option<ImplicitTilingJson>,
+    #[serde(default)]
+    pub extensions: serde_json::Map<String, serde_json::Value>,
+}
+
+/// `boundingVolume`: one of box (12 numbers), region (6, radians and metres), sphere (4).
+#[derive(Debug, Clone, Deserialize)]
+pub(crate) struct BoundingVolumeJson {
+    #[serde(rename = "box")]
+    pub box_: Option<Vec<f64>>,
+    pub region: Option<Vec<f64>>,
+    pub sphere: Option<Vec<f64>>,
 }
 
 /// `content`: `uri` (1.0 final, 1.1) or `url` (1.0 drafts).
 #[derive(Debug, Deserialize)]
-struct ContentJson {
-    uri: Option<String>,
-    url: Option<String>,
+pub(crate) struct ContentJson {
+    pub uri: Option<String>,
+    pub url: Option<String>,
 }
 
 impl ContentJson {
-    fn uri(&self) -> Option<&str> {
+    pub(crate) fn uri(&self) -> Option<&str> {
         self.uri.as_deref().or(self.url.as_deref())
+    }
+}
+
+/// Refinement of a tile's children.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Refine {
+    /// Children add to the parent's content.
+    Add,
+    /// Children replace the parent's content.
+    Replace,
+}
+
+/// A validated bounding volume, in the tile's frame (box, sphere) or geodetic (region).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum BoundingVolume {
+    /// Centre and the three half-axes (columns), tile-frame metres.
+    Box { centre: DVec3, half_axes: DMat3 },
+    /// West, south, east, north in radians (EPSG:4979), minimum and maximum ellipsoidal height in
+    /// metres. Regions ignore tile transforms.
+    Region { west_rad: f64, south_rad: f64, east_rad: f64, north_rad: f64, min_h_m: f64, max_h_m: f64 },
+    /// Centre and radius, tile-frame metres.
+    Sphere { centre: DVec3, radius_m: f64 },
+}
+
+/// Mean Earth radius used to pad sampled region bounds for curvature, metres (IUGG mean radius R1).
+const EARTH_MEAN_RADIUS_M: f64 = 6_371_008.8;
+
+impl BoundingVolume {
+    /// From its JSON form (lengths and finiteness checked by [`validate`]).
+    pub(crate) fn from_json(bv: &BoundingVolumeJson) -> Option<BoundingVolume> {
+        if let Some(b) = bv.box_.as_deref().filter(|b| b.len() == 12) {
+            return Some(BoundingVolume::Box {
+                centre: DVec3::new(b[0], b[1], b[2]),
+                half_axes: DMat3::from_cols(
+                    DVec3::new(b[3], b[4], b[5]),
+                    DVec3::new(b[6], b[7], b[8]),
+                    DVec3::new(b[9], b[10], b[11]),
+                ),
+            });
+        }
+        if let Some(r) = bv.region.as_deref().filter(|r| r.len() == 6) {
+            return Some(BoundingVolume::Region {
+                west_rad: r[0],
+                south_rad: r[1],
+                east_rad: r[2],
+                north_rad: r[3],
+                min_h_m: r[4],
+                max_h_m: r[5],
+            });
+        }
+        if let Some(s) = bv.sphere.as_deref().filter(|s| s.len() == 4) {
+            return Some(BoundingVolume::Sphere { centre: DVec3::new(s[0], s[1], s[2]), radius_m: s[3] });
+        }
+        None
+    }
+
+    /// A sphere (centre, radius) in the world (ECEF) frame that contains the volume, given the tile's
+    /// world-from-tile transform (ignored by regions, which are geodetic).
+    ///
+    /// Regions: a 9 × 9 grid at both heights, padded by the sagitta of one grid step so the curved
+    /// surface between samples stays inside.
+    pub fn world_sphere(&self, world_from_tile: &DMat4) -> (DVec3, f64) {
+        match *self {
+            BoundingVolume::Box { centre, half_axes } => {
+                let c = world_from_tile.transform_point3(centre);
+                let mut r: f64 = 0.0;
+                for sx in [-1.0, 1.0] {
+                    for sy in [-1.0, 1.0] {
+                        for sz in [-1.0, 1.0] {
+                            let p = centre + half_axes * DVec3::new(sx, sy, sz);
+                            r = r.max(world_from_tile.transform_point3(p).distance(c));
+                        }
+                    }
+                }
+                (c, r)
+            }
+            BoundingVolume::Sphere { centre, radius_m } => {
+                let c = world_from_tile.transform_point3(centre);
+                let scale = [world_from_tile.x_axis, world_from_tile.y_axis, world_from_tile.z_axis]
+                    .iter()
+                    .map(|a| a.truncate().length())
+                    .fold(0.0, f64::max);
+                (c, radius_m * scale)
+            }
+            BoundingVolume::Region { west_rad, south_rad, east_rad, north_rad, min_h_m, max_h_m } => {
+                use crate::geo::{geodetic_to_ecef, Geodetic};
+                let east = if east_rad < west_rad { east_rad + std::f64::consts::TAU } else { east_rad };
+                const STEPS: usize = 8;
+                let mut pts = Vec::with_capacity(2 * (STEPS + 1) * (STEPS + 1));
+                for i in 0..=STEPS {
+                    for j in 0..=STEPS {
+                        let lon = west_rad + (east - west_rad) * i as f64 / STEPS as f64;
+                        let lat = south_rad + (north_rad - south_rad) * j as f64 / STEPS as f64;
+                        for h in [min_h_m, max_h_m] {
+                            let g = Geodetic::new(lat.to_degrees(), lon.to_degrees(), h);
+                            pts.push(DVec3::from_array(geodetic_to_ecef(g)));
+                        }
+                    }
+                }
+                let lo = pts.iter().fold(DVec3::INFINITY, |a, p| a.min(*p));
+                let hi = pts.iter().fold(DVec3::NEG_INFINITY, |a, p| a.max(*p));
+                let c = 0.5 * (lo + hi);
+                let step = (east - west_rad).max(north_rad - south_rad) / STEPS as f64;
+                let sagitta = (EARTH_MEAN_RADIUS_M + max_h_m.max(0.0)) * (1.0 - (0.5 * step).cos());
+                let r = pts.iter().map(|p| p.distance(c)).fold(0.0, f64::max) + sagitta;
+                (c, r)
+            }
+        }
+    }
+}
+
+/// One content of a tile, its URI resolved to a file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContentRef {
+    /// The URI as written (after template substitution for implicit tiles).
+    pub uri: String,
+    /// The file it names (relative URIs resolved against the tileset JSON's folder).
+    pub file: PathBuf,
+    /// The tileset JSON that references it.
+    pub tileset: PathBuf,
+    /// JSON path of the reference in that file: `root.children[3].content`.
+    pub at: String,
+}
+
+impl ContentRef {
+    /// `"<tileset.json>: root.children[3].content"`: where the content is referenced.
+    pub fn location(&self) -> String {
+        format!("{}: {}", self.tileset.display(), self.at)
+    }
+
+    /// Whether the content is an external tileset: a `.json` file name, or a file whose JSON has a
+    /// `root` (a glTF JSON has none). A file that cannot be read is not one (its reader reports it).
+    pub fn is_external_tileset(&self) -> bool {
+        if self.file.extension().is_some_and(|e| e.eq_ignore_ascii_case("json")) {
+            return true;
+        }
+        matches!(peek(&self.file), Ok(Peek::Json)) && is_tileset_json(&self.file)
+    }
+}
+
+/// A tile with its transform accumulated from the root of the tileset chain.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tile {
+    /// JSON path in its tileset (`root.children[2]`; implicit tiles: `root{level 2, x 1, y 3}`).
+    pub at: String,
+    /// Tile frame → world (ECEF) frame: every ancestor's transform, external tilesets included.
+    pub world_from_tile: DMat4,
+    pub bounding_volume: BoundingVolume,
+    pub geometric_error_m: f64,
+    /// This tile's refinement (given, or inherited from its parent).
+    pub refine: Refine,
+    pub contents: Vec<ContentRef>,
+    pub children: Vec<Tile>,
+}
+
+impl Tile {
+    /// Number of tiles in this subtree (this one included).
+    pub fn count(&self) -> usize {
+        1 + self.children.iter().map(Tile::count).sum::<usize>()
+    }
+}
+
+/// One tileset JSON file, validated, as a tile tree.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tileset {
+    /// The JSON file.
+    pub path: PathBuf,
+    /// The up axis of its glTF contents.
+    pub up: UpAxis,
+    pub root: Tile,
+}
+
+/// Largest number of tiles implicit tiling may expand to in one tileset file (a guard against a
+/// hostile or mistaken `availableLevels`).
+pub const MAX_IMPLICIT_TILES: usize = 1 << 20;
+
+impl Tileset {
+    /// Reads and validates the tileset JSON at `path` and builds its tile tree; `world_from_parent`
+    /// is the transform of the tile that references it (identity for a root tileset).
+    ///
+    /// # Errors
+    /// The file is unreadable ([`LodError::File`]), not a tileset JSON ([`LodError::Malformed`]),
+    /// invalid ([`LodError::Invalid`], every problem listed with its JSON path), requires an
+    /// unsupported extension (named), or its implicit tiling is broken (subtree file named).
+    pub fn load(path: &Path, world_from_parent: DMat4) -> Result<Tileset, LodError> {
+        let bytes = crate::util::read_file(path)?;
+        let bytes = super::maybe_gunzip(&bytes).map_err(|e| LodError::malformed(path, e))?;
+        let json = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&bytes);
+        let tileset: TilesetJson = serde_json::from_slice(json)
+            .map_err(|e| LodError::malformed(path, format!("not a valid 3D Tiles tileset JSON: {e}")))?;
+        let problems = validate(&tileset);
+        if let Some((at, what)) = problems.first() {
+            let more = if problems.len() > 1 {
+                format!(
+                    " (and {} more: {})",
+                    problems.len() - 1,
+                    problems[1..].iter().map(|(a, w)| format!("{a}: {w}")).collect::<Vec<_>>().join("; ")
+                )
+            } else {
+                String::new()
+            };
+            return Err(LodError::invalid(path, at.clone(), format!("{what}{more}")));
+        }
+        let up = match tileset.asset.gltf_up_axis.as_deref().map(str::to_ascii_uppercase).as_deref() {
+            Some("X") => UpAxis::X,
+            Some("Z") => UpAxis::Z,
+            _ => UpAxis::Y,
+        };
+        let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
+        let mut budget = MAX_IMPLICIT_TILES;
+        let b = Builder { tileset: path, dir: &dir };
+        let root = b.tile(&tileset.root, "root", world_from_parent, Refine::Replace, &mut budget)?;
+        Ok(Tileset { path: path.to_path_buf(), up, root })
+    }
+}
+
+struct Builder<'a> {
+    tileset: &'a Path,
+    dir: &'a Path,
+}
+
+impl Builder<'_> {
+    fn tile(
+        &self,
+        t: &TileJson,
+        at: &str,
+        world_from_parent: DMat4,
+        inherited: Refine,
+        budget: &mut usize,
+    ) -> Result<Tile, LodError> {
+        let world = match &t.transform {
+            // Length 16 was checked by `validate`; column-major as the spec stores it.
+            Some(m) => world_from_parent * DMat4::from_cols_slice(m),
+            None => world_from_parent,
+        };
+        let refine = parse_refine(t.refine.as_deref()).unwrap_or(inherited);
+        // `validate` ensured a volume and a geometric error exist and are well-formed.
+        let bounding_volume = t
+            .bounding_volume
+            .as_ref()
+            .and_then(BoundingVolume::from_json)
+            .ok_or_else(|| LodError::invalid(self.tileset, at, "no usable boundingVolume"))?;
+        let geometric_error_m = t.geometric_error.unwrap_or(0.0);
+        let content_jsons: Vec<(String, &ContentJson)> = match (&t.content, &t.contents) {
+            (Some(c), _) => vec![(format!("{at}.content"), c)],
+            (None, Some(cs)) => {
+                cs.iter().enumerate().map(|(i, c)| (format!("{at}.contents[{i}]"), c)).collect()
+            }
+            (None, None) => vec![],
+        };
+        if let Some(it) = implicit_of(t).map_err(|what| LodError::invalid(self.tileset, at, what))? {
+            let templates: Vec<(String, String)> = content_jsons
+                .iter()
+                .map(|(a, c)| (a.clone(), c.uri().unwrap_or_default().to_string()))
+                .collect();
+            let root = implicit::Root {
+                tileset: self.tileset,
+                dir: self.dir,
+                at,
+                world_from_tile: world,
+                bounding_volume,
+                geometric_error_m,
+                refine,
+                content_templates: &templates,
+            };
+            return implicit::expand(&root, &it, budget);
+        }
+        let mut contents = Vec::with_capacity(content_jsons.len());
+        for (c_at, c) in content_jsons {
+            let uri = c.uri().unwrap_or_default();
+            contents.push(self.content(uri, &c_at)?);
+        }
+        let mut children = Vec::with_capacity(t.children.len());
+        for (i, c) in t.children.iter().enumerate() {
+            children.push(self.tile(c, &format!("{at}.children[{i}]"), world, refine, budget)?);
+        }
+        Ok(Tile {
+            at: at.to_string(),
+            world_from_tile: world,
+            bounding_volume,
+            geometric_error_m,
+            refine,
+            contents,
+            children,
+        })
+    }
+
+    fn content(&self, uri: &str, at: &str) -> Result<ContentRef, LodError> {
+        let file = resolve_uri(self.dir, uri).map_err(|e| LodError::invalid(self.tileset, at, e))?;
+        Ok(ContentRef { uri: uri.to_string(), file, tileset: self.tileset.to_path_buf(), at: at.to_string() })
+    }
+}
+
+pub(crate) fn parse_refine(r: Option<&str>) -> Option<Refine> {
+    match r.map(str::to_ascii_uppercase).as_deref() {
+        Some("ADD") => Some(Refine::Add),
+        Some("REPLACE") => Some(Refine::Replace),
+        _ => None,
+    }
+}
+
+/// The tile's implicit tiling: 1.1's `implicitTiling` or the `3DTILES_implicit_tiling` extension.
+fn implicit_of(t: &TileJson) -> Result<Option<ImplicitTilingJson>, String> {
+    if let Some(it) = &t.implicit_tiling {
+        return Ok(Some(it.clone()));
+    }
+    match t.extensions.get("3DTILES_implicit_tiling") {
+        None => Ok(None),
+        Some(v) => serde_json::from_value(v.clone())
+            .map(Some)
+            .map_err(|e| format!("extensions.3DTILES_implicit_tiling: {e}")),
     }
 }
 
@@ -96,12 +442,6 @@ pub(crate) struct Traversal {
     pub tilesets_read: u64,
     /// Contents of REPLACE tiles with children, not read.
     pub contents_skipped: u64,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Refine {
-    Add,
-    Replace,
 }
 
 /// Walks the tileset at `path` (and its external tilesets) and lists the contents to read.
@@ -140,110 +480,60 @@ fn walk_tileset(
             ),
         ));
     }
-    let bytes = crate::util::read_file(path)?;
-    let json = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&bytes);
-    let tileset: TilesetJson = serde_json::from_slice(json)
-        .map_err(|e| LodError::malformed(path, format!("not a valid 3D Tiles tileset JSON: {e}")))?;
-    let problems = validate(&tileset);
-    if let Some((at, what)) = problems.first() {
-        let more = if problems.len() > 1 {
-            format!(
-                " (and {} more: {})",
-                problems.len() - 1,
-                problems[1..].iter().map(|(a, w)| format!("{a}: {w}")).collect::<Vec<_>>().join("; ")
-            )
-        } else {
-            String::new()
-        };
-        return Err(LodError::invalid(path, at.clone(), format!("{what}{more}")));
-    }
-    let up = match tileset.asset.gltf_up_axis.as_deref().map(str::to_ascii_uppercase).as_deref() {
-        Some("X") => UpAxis::X,
-        Some("Z") => UpAxis::Z,
-        _ => UpAxis::Y,
-    };
+    let tileset = Tileset::load(path, world_from_parent)?;
     out.tilesets_read += 1;
     stack.push(canonical);
-    let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
-    let ctx = Ctx { tileset: path, dir: &dir, root_dir, up };
-    let r = walk_tile(&tileset.root, "root", world_from_parent, Refine::Replace, &ctx, stack, out);
+    let r = walk_tile(&tileset.root, &tileset, root_dir, stack, out);
     stack.pop();
     r
 }
 
-struct Ctx<'a> {
-    tileset: &'a Path,
-    dir: &'a Path,
-    root_dir: &'a Path,
-    up: UpAxis,
-}
-
 fn walk_tile(
-    tile: &TileJson,
-    at: &str,
-    world_from_parent: DMat4,
-    inherited: Refine,
-    ctx: &Ctx<'_>,
+    tile: &Tile,
+    ts: &Tileset,
+    root_dir: &Path,
     stack: &mut Vec<PathBuf>,
     out: &mut Traversal,
 ) -> Result<(), LodError> {
-    let world = match &tile.transform {
-        // Length 16 was checked by `validate`.
-        Some(m) => world_from_parent * DMat4::from_cols_slice(m),
-        None => world_from_parent,
-    };
-    let refine = match tile.refine.as_deref().map(str::to_ascii_uppercase).as_deref() {
-        Some("ADD") => Refine::Add,
-        Some("REPLACE") => Refine::Replace,
-        _ => inherited,
-    };
-    let contents: Vec<(String, &ContentJson)> = match (&tile.content, &tile.contents) {
-        (Some(c), _) => vec![(format!("{at}.content"), c)],
-        (None, Some(cs)) => cs.iter().enumerate().map(|(i, c)| (format!("{at}.contents[{i}]"), c)).collect(),
-        (None, None) => vec![],
-    };
-    let read_contents = tile.children.is_empty() || refine == Refine::Add;
+    let read_contents = tile.children.is_empty() || tile.refine == Refine::Add;
     if !read_contents {
-        out.contents_skipped += contents.len() as u64;
+        out.contents_skipped += tile.contents.len() as u64;
     }
-    for (c_at, c) in contents.iter().filter(|_| read_contents) {
-        // `validate` ensured a URI is present.
-        let uri = c.uri().unwrap_or_default();
-        let file = resolve_uri(ctx.dir, uri).map_err(|e| LodError::invalid(ctx.tileset, c_at.clone(), e))?;
-        let head = peek(&file).map_err(|e| {
+    for c in tile.contents.iter().filter(|_| read_contents) {
+        let head = peek(&c.file).map_err(|e| {
             LodError::invalid(
-                ctx.tileset,
-                format!("{c_at}.uri {uri:?}"),
-                format!("tile content {} cannot be read: {e}", file.display()),
+                &ts.path,
+                format!("{}.uri {:?}", c.at, c.uri),
+                format!("tile content {} cannot be read: {e}", c.file.display()),
             )
         })?;
-        if head == Peek::Json && is_tileset_json(&file) {
-            walk_tileset(&file, world, ctx.root_dir, stack, out)?;
+        if head == Peek::Json && is_tileset_json(&c.file) {
+            walk_tileset(&c.file, tile.world_from_tile, root_dir, stack, out)?;
         } else {
-            let norm = normalize(&file);
-            let label = match norm.strip_prefix(ctx.root_dir) {
+            let norm = normalize(&c.file);
+            let label = match norm.strip_prefix(root_dir) {
                 Ok(rel) => {
                     rel.components().map(|c| c.as_os_str().to_string_lossy()).collect::<Vec<_>>().join("/")
                 }
                 Err(_) => norm.display().to_string(),
             };
             out.jobs.push(ContentJob {
-                file,
+                file: c.file.clone(),
                 label,
-                at: format!("{}: {c_at}", ctx.tileset.display()),
-                world_from_tile: world,
-                up: ctx.up,
+                at: c.location(),
+                world_from_tile: tile.world_from_tile,
+                up: ts.up,
             });
         }
     }
-    for (i, child) in tile.children.iter().enumerate() {
-        walk_tile(child, &format!("{at}.children[{i}]"), world, refine, ctx, stack, out)?;
+    for child in &tile.children {
+        walk_tile(child, ts, root_dir, stack, out)?;
     }
     Ok(())
 }
 
 /// Every problem of a tileset, as (JSON path, what is wrong).
-fn validate(t: &TilesetJson) -> Vec<(String, String)> {
+pub(crate) fn validate(t: &TilesetJson) -> Vec<(String, String)> {
     let mut p = Vec::new();
     if !matches!(t.asset.version.as_str(), "0.0" | "1.0" | "1.1") {
         log::warn!("3D Tiles asset.version {:?} is not 0.0, 1.0 or 1.1; reading it as 1.1", t.asset.version);
@@ -253,11 +543,52 @@ fn validate(t: &TilesetJson) -> Vec<(String, String)> {
             p.push(("asset.gltfUpAxis".to_string(), format!("{axis:?} is not X, Y or Z")));
         }
     }
+    for (i, e) in t.extensions_required.iter().enumerate() {
+        if !HANDLED_TILESET_EXTENSIONS.contains(&e.as_str()) {
+            p.push((
+                format!("extensionsRequired[{i}]"),
+                format!(
+                    "the tileset requires extension {e}, which insgen does not read (it reads {})",
+                    HANDLED_TILESET_EXTENSIONS.join(", ")
+                ),
+            ));
+        }
+    }
     validate_tile(&t.root, "root", &mut p);
     p
 }
 
 fn validate_tile(tile: &TileJson, at: &str, p: &mut Vec<(String, String)>) {
+    match &tile.bounding_volume {
+        None => p.push((format!("{at}.boundingVolume"), "is missing (needs a box, region or sphere)".into())),
+        Some(bv) => {
+            let lens = [
+                (bv.box_.as_ref(), 12, "box"),
+                (bv.region.as_ref(), 6, "region"),
+                (bv.sphere.as_ref(), 4, "sphere"),
+            ];
+            if lens.iter().all(|(v, _, _)| v.is_none()) {
+                p.push((format!("{at}.boundingVolume"), "needs a box, region or sphere".into()));
+            }
+            for (v, n, name) in lens {
+                if let Some(v) = v {
+                    if v.len() != n || v.iter().any(|x| !x.is_finite()) {
+                        p.push((
+                            format!("{at}.boundingVolume.{name}"),
+                            format!("needs {n} finite numbers, has {}", v.len()),
+                        ));
+                    }
+                }
+            }
+        }
+    }
+    match tile.geometric_error {
+        None => p.push((format!("{at}.geometricError"), "is missing".into())),
+        Some(g) if !(g.is_finite() && g >= 0.0) => {
+            p.push((format!("{at}.geometricError"), format!("{g} is not a finite number ≥ 0")))
+        }
+        Some(_) => {}
+    }
     if let Some(m) = &tile.transform {
         if m.len() != 16 {
             p.push((format!("{at}.transform"), format!("has {} numbers, not 16", m.len())));
@@ -266,7 +597,7 @@ fn validate_tile(tile: &TileJson, at: &str, p: &mut Vec<(String, String)>) {
         }
     }
     if let Some(r) = &tile.refine {
-        if !matches!(r.to_ascii_uppercase().as_str(), "ADD" | "REPLACE") {
+        if parse_refine(Some(r)).is_none() {
             p.push((format!("{at}.refine"), format!("{r:?} is not ADD or REPLACE")));
         }
     }
@@ -283,13 +614,8 @@ fn validate_tile(tile: &TileJson, at: &str, p: &mut Vec<(String, String)>) {
             p.push((format!("{at}.contents[{i}]"), "has no uri".into()));
         }
     }
-    if tile.implicit_tiling.is_some() {
-        p.push((
-            format!("{at}.implicitTiling"),
-            "implicit tiling (3D Tiles 1.1) is not supported; convert the tileset to explicit tiles, e.g. \
-             with `npx 3d-tiles-tools`"
-                .into(),
-        ));
+    if let Some(it) = &tile.implicit_tiling {
+        implicit::validate(it, tile, &format!("{at}.implicitTiling"), p);
     }
     for (i, c) in tile.children.iter().enumerate() {
         validate_tile(c, &format!("{at}.children[{i}]"), p);
@@ -340,7 +666,7 @@ fn percent_decode(s: &str) -> Result<String, String> {
 }
 
 /// Lexical normalisation: removes `.` and folds `..` (no file-system access).
-fn normalize(p: &Path) -> PathBuf {
+pub(crate) fn normalize(p: &Path) -> PathBuf {
     let mut out = PathBuf::new();
     for c in p.components() {
         match c {
@@ -402,6 +728,7 @@ mod tests {
     fn uris() {
         let d = Path::new("/t");
         assert_eq!(resolve_uri(d, "data/a%20b.b3dm?v=2#x").unwrap(), PathBuf::from("/t/data/a b.b3dm"));
+        assert_eq!(resolve_uri(d, "x.glb#frag").unwrap(), PathBuf::from("/t/x.glb"));
         assert_eq!(resolve_uri(d, "%E6%B8%8B.glb").unwrap(), PathBuf::from("/t/渋.glb"));
         assert!(resolve_uri(d, "https://x/y.b3dm").is_err());
         assert!(resolve_uri(d, "data:application/octet-stream;base64,AAAA").is_err());
@@ -418,15 +745,68 @@ mod tests {
     #[test]
     fn validation_lists_all_problems() {
         let t: TilesetJson = serde_json::from_str(
-            r#"{"asset":{"version":"1.0"},"root":{"refine":"MERGE","transform":[1,2,3],
-                "children":[{"content":{}},{"implicitTiling":{}}]}}"#,
+            r#"{"asset":{"version":"1.0"},"extensionsRequired":["3DTILES_content_gltf","VENDOR_x"],
+                "root":{"refine":"MERGE","transform":[1,2,3],"boundingVolume":{"sphere":[0,0,0,1]},"geometricError":1,
+                "children":[{"content":{},"boundingVolume":{"box":[1]},"geometricError":-1},
+                            {"boundingVolume":{"region":[0,0,1,1,0,1]}}]}}"#,
         )
         .unwrap();
         let p = validate(&t);
         let at: Vec<&str> = p.iter().map(|(a, _)| a.as_str()).collect();
         assert_eq!(
             at,
-            ["root.transform", "root.refine", "root.children[0].content", "root.children[1].implicitTiling"]
+            [
+                "extensionsRequired[1]",
+                "root.transform",
+                "root.refine",
+                "root.children[0].boundingVolume.box",
+                "root.children[0].geometricError",
+                "root.children[0].content",
+                "root.children[1].geometricError"
+            ]
         );
+        assert!(p[0].1.contains("VENDOR_x"), "{}", p[0].1);
+    }
+
+    #[test]
+    fn region_sphere_contains_its_corners() {
+        use crate::geo::{geodetic_to_ecef, Geodetic};
+        let bv = BoundingVolume::Region {
+            west_rad: 139.69f64.to_radians(),
+            south_rad: 35.65f64.to_radians(),
+            east_rad: 139.71f64.to_radians(),
+            north_rad: 35.665f64.to_radians(),
+            min_h_m: 20.0,
+            max_h_m: 300.0,
+        };
+        let (c, r) = bv.world_sphere(&DMat4::IDENTITY);
+        for lat in [35.65, 35.6575, 35.665] {
+            for lon in [139.69, 139.70, 139.71] {
+                for h in [20.0, 160.0, 300.0] {
+                    let p = DVec3::from_array(geodetic_to_ecef(Geodetic::new(lat, lon, h)));
+                    assert!(p.distance(c) <= r, "{lat} {lon} {h}: {} > {r}", p.distance(c));
+                }
+            }
+        }
+        // The region is ~1.8 km × 1.7 km × 280 m: the sphere must be tight (< 1.5 km radius).
+        assert!(r < 1500.0, "{r}");
+    }
+
+    #[test]
+    fn box_and_sphere_under_a_scaled_transform() {
+        let m = DMat4::from_scale_rotation_translation(
+            DVec3::splat(2.0),
+            glam::DQuat::from_rotation_z(0.3),
+            DVec3::new(10.0, 0.0, 0.0),
+        );
+        let b = BoundingVolume::Box {
+            centre: DVec3::new(1.0, 0.0, 0.0),
+            half_axes: DMat3::from_diagonal(DVec3::new(1.0, 2.0, 2.0)),
+        };
+        let (c, r) = b.world_sphere(&m);
+        assert!((c - m.transform_point3(DVec3::X)).length() < 1e-12);
+        assert!((r - 2.0 * 3.0).abs() < 1e-12, "{r}");
+        let s = BoundingVolume::Sphere { centre: DVec3::ZERO, radius_m: 5.0 };
+        assert!((s.world_sphere(&m).1 - 10.0).abs() < 1e-12);
     }
 }

@@ -1,0 +1,204 @@
+//! `EXT_meshopt_compression`: buffer views compressed with meshoptimizer's vertex and index codecs
+//! (3DBAG, gltfpack and ContextCapture exports), decoded with the `meshopt` crate (meshoptimizer's C++
+//! decoder, which is safe for untrusted input).
+//!
+//! A compressed bufferView carries `extensions.EXT_meshopt_compression = {buffer, byteOffset,
+//! byteLength, byteStride, count, mode, filter}`: the compressed bytes sit in `buffer`, and decoding
+//! yields `count × byteStride` bytes, the view's uncompressed content. Modes: `ATTRIBUTES` (vertex
+//! codec; stride a multiple of 4, at most 256), `TRIANGLES` (index codec; count a multiple of 3) and
+//! `INDICES` (index sequence codec), with 2- or 4-byte indices. Filters (applied after decoding):
+//! `NONE`, `OCTAHEDRAL` (stride 4 or 8), `QUATERNION` (stride 8), `EXPONENTIAL` (stride a multiple
+//! of 4). Every precondition of the C++ decoder is checked here first: its assertions would abort
+//! the process. The view's own `buffer` is usually a "fallback" buffer without data
+//! (`extensions.EXT_meshopt_compression.fallback = true`), which is never read.
+
+use serde::Deserialize;
+
+/// `bufferViews[i].extensions.EXT_meshopt_compression`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(rename_all = "camelCase")]
+pub(crate) struct MeshoptView {
+    pub buffer: usize,
+    #[serde(default)]
+    pub byte_offset: usize,
+    pub byte_length: usize,
+    pub byte_stride: usize,
+    pub count: usize,
+    /// `"ATTRIBUTES"`, `"TRIANGLES"` or `"INDICES"`.
+    pub mode: String,
+    /// `"NONE"` (default), `"OCTAHEDRAL"`, `"QUATERNION"`, `"EXPONENTIAL"`.
+    #[serde(default)]
+    pub filter: Option<String>,
+}
+
+/// Largest decoded view insgen accepts, bytes (a corrupt count would otherwise allocate wildly).
+const MAX_DECODED_BYTES: usize = 1 << 30;
+
+/// Decodes one compressed view from its `source` bytes (the `byteLength` bytes at `byteOffset` of
+/// the extension's buffer).
+///
+/// # Errors
+/// A message naming the broken precondition or the decoder's error code.
+pub(crate) fn decode(ext: &MeshoptView, source: &[u8]) -> Result<Vec<u8>, String> {
+    let (count, stride) = (ext.count, ext.byte_stride);
+    let total = count
+        .checked_mul(stride)
+        .filter(|&t| t <= MAX_DECODED_BYTES)
+        .ok_or_else(|| format!("count {count} × byteStride {stride} exceeds {MAX_DECODED_BYTES} bytes"))?;
+    let mut out = vec![0u8; total];
+    let code = match ext.mode.as_str() {
+        "ATTRIBUTES" => {
+            if stride == 0 || stride > 256 || stride % 4 != 0 {
+                return Err(format!(
+                    "ATTRIBUTES mode needs a byteStride that is a multiple of 4 in 4..=256, not {stride}"
+                ));
+            }
+            // SAFETY: `out` holds count × stride bytes, the decoder's destination size; the source
+            // slice is valid for its length.
+            unsafe {
+                ::meshopt::ffi::meshopt_decodeVertexBuffer(
+                    out.as_mut_ptr().cast(),
+                    count,
+                    stride,
+                    source.as_ptr(),
+                    source.len(),
+                )
+            }
+        }
+        "TRIANGLES" | "INDICES" => {
+            if stride != 2 && stride != 4 {
+                return Err(format!("{} mode needs a byteStride of 2 or 4, not {stride}", ext.mode));
+            }
+            if ext.mode == "TRIANGLES" && count % 3 != 0 {
+                return Err(format!("TRIANGLES mode needs a count that is a multiple of 3, not {count}"));
+            }
+            // SAFETY: as above; index_size is 2 or 4 as the decoder asserts.
+            unsafe {
+                if ext.mode == "TRIANGLES" {
+                    ::meshopt::ffi::meshopt_decodeIndexBuffer(
+                        out.as_mut_ptr().cast(),
+                        count,
+                        stride,
+                        source.as_ptr(),
+                        source.len(),
+                    )
+                } else {
+                    ::meshopt::ffi::meshopt_decodeIndexSequence(
+                        out.as_mut_ptr().cast(),
+                        count,
+                        stride,
+                        source.as_ptr(),
+                        source.len(),
+                    )
+                }
+            }
+        }
+        other => return Err(format!("mode {other:?} is not ATTRIBUTES, TRIANGLES or INDICES")),
+    };
+    if code != 0 {
+        return Err(format!("the meshopt {} decoder failed (code {code}): the data is corrupt", ext.mode));
+    }
+    let filter = ext.filter.as_deref().unwrap_or("NONE");
+    if filter != "NONE" && ext.mode != "ATTRIBUTES" {
+        return Err(format!("filter {filter} applies to ATTRIBUTES mode only, not {}", ext.mode));
+    }
+    // SAFETY (all three): `out` holds count × stride bytes and the stride is one the filter accepts.
+    match filter {
+        "NONE" => {}
+        "OCTAHEDRAL" => {
+            if stride != 4 && stride != 8 {
+                return Err(format!("OCTAHEDRAL filter needs byteStride 4 or 8, not {stride}"));
+            }
+            unsafe { ::meshopt::ffi::meshopt_decodeFilterOct(out.as_mut_ptr().cast(), count, stride) }
+        }
+        "QUATERNION" => {
+            if stride != 8 {
+                return Err(format!("QUATERNION filter needs byteStride 8, not {stride}"));
+            }
+            unsafe { ::meshopt::ffi::meshopt_decodeFilterQuat(out.as_mut_ptr().cast(), count, stride) }
+        }
+        "EXPONENTIAL" => {
+            if stride % 4 != 0 {
+                return Err(format!("EXPONENTIAL filter needs a byteStride multiple of 4, not {stride}"));
+            }
+            unsafe { ::meshopt::ffi::meshopt_decodeFilterExp(out.as_mut_ptr().cast(), count, stride) }
+        }
+        other => return Err(format!("filter {other:?} is not NONE, OCTAHEDRAL, QUATERNION or EXPONENTIAL")),
+    }
+    Ok(out)
+}
+
+/// Encodes vertex data for an `ATTRIBUTES` view (codec version 0, which `EXT_meshopt_compression`
+/// requires), `stride` bytes per element.
+pub(crate) fn encode_attributes(data: &[u8], stride: usize) -> Vec<u8> {
+    let count = data.len() / stride;
+    // SAFETY: the bound is the encoder's worst case for count × stride; `data` holds that many bytes.
+    unsafe {
+        let bound = ::meshopt::ffi::meshopt_encodeVertexBufferBound(count, stride);
+        let mut out = vec![0u8; bound];
+        let n = ::meshopt::ffi::meshopt_encodeVertexBufferLevel(
+            out.as_mut_ptr(),
+            out.len(),
+            data.as_ptr().cast(),
+            count,
+            stride,
+            2,
+            0,
+        );
+        out.truncate(n);
+        out
+    }
+}
+
+/// Encodes a triangle index list for a `TRIANGLES` view (4-byte indices).
+pub(crate) fn encode_triangles(indices: &[u32], vertex_count: usize) -> Vec<u8> {
+    // The index codec's version 1 is what every decoder since meshoptimizer 0.14 reads, and what
+    // EXT_meshopt_compression allows.
+    ::meshopt::encoding::encode_index_buffer(indices, vertex_count).expect("encoding a valid index list")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn attributes_and_triangles_round_trip() {
+        let verts: Vec<u8> =
+            (0..40u32).flat_map(|i| [(i * 7) as u16, (i * 3) as u16]).flat_map(u16::to_le_bytes).collect();
+        let enc = encode_attributes(&verts, 4);
+        let ext = |mode: &str, count, stride, len| MeshoptView {
+            buffer: 0,
+            byte_offset: 0,
+            byte_length: len,
+            byte_stride: stride,
+            count,
+            mode: mode.into(),
+            filter: None,
+        };
+        assert_eq!(decode(&ext("ATTRIBUTES", 40, 4, enc.len()), &enc).unwrap(), verts);
+        let idx: Vec<u32> = vec![0, 1, 2, 2, 1, 3, 3, 1, 4];
+        let enc = encode_triangles(&idx, 5);
+        let out = decode(&ext("TRIANGLES", 9, 4, enc.len()), &enc).unwrap();
+        let back: Vec<u32> = out.chunks_exact(4).map(|c| u32::from_le_bytes(c.try_into().unwrap())).collect();
+        assert_eq!(back, idx);
+    }
+
+    #[test]
+    fn broken_preconditions_and_garbage_are_errors() {
+        let e = |mode: &str, count, stride| MeshoptView {
+            buffer: 0,
+            byte_offset: 0,
+            byte_length: 0,
+            byte_stride: stride,
+            count,
+            mode: mode.into(),
+            filter: None,
+        };
+        assert!(decode(&e("ATTRIBUTES", 4, 6), &[0; 10]).unwrap_err().contains("multiple of 4"));
+        assert!(decode(&e("TRIANGLES", 4, 4), &[0; 10]).unwrap_err().contains("multiple of 3"));
+        assert!(decode(&e("TRIANGLES", 3, 3), &[0; 10]).unwrap_err().contains("2 or 4"));
+        assert!(decode(&e("ATTRIBUTES", 4, 8), b"garbage!").unwrap_err().contains("corrupt"));
+        assert!(decode(&e("POINTS", 4, 8), b"").unwrap_err().contains("POINTS"));
+        assert!(decode(&e("ATTRIBUTES", usize::MAX / 2, 8), b"").unwrap_err().contains("exceeds"));
+    }
+}

@@ -1,0 +1,1180 @@
+//! Writing 3D Tiles: GLB contents ([`GlbBuilder`]), tileset JSON ([`TileOut`], [`write_tileset`]),
+//! and a generator of textured multi-level city tilesets from insgen's own buildings
+//! ([`generate_city_tileset`]) in the styles of real producers, which the tests render and read back.
+//!
+//! # Generated tilesets
+//! Buildings (ENU metres, one 24-bit ID each, e.g. a prepared `scene.glb` through
+//! [`buildings_from_scene`]) are put in a quadtree over their footprint square by centroid (levels
+//! 0, 1, 2; a tile per non-empty cell). Every tile's content holds all of its cell's buildings (the
+//! coarse levels are copies, as in real photogrammetry LODs) with a texture of its own: a 4 × 2 image
+//! whose left half is the tile's roof colour and right half its wall colour ([`palette_colour`]),
+//! sampled NEAREST; roof triangles (normal z > 0.7) map to the left half and the others to the right,
+//! so every pixel's colour follows from the geometry and the tile. Every tile calls its image
+//! `texture_0` and its material `Material_0` (as Cesium ion does). Geometric errors are
+//! `extent / 4^level`, 0 at the leaves.
+//!
+//! | [`Style`] | container | geometry | surface | tree |
+//! |---|---|---|---|---|
+//! | `CesiumIon` | 1.1, glb | `KHR_draco_mesh_compression` | unlit, `KHR_texture_transform` | root transform ENU · rotation · scale 1.34, boxes, REPLACE, one ADD tile |
+//! | `Google` | 1.1, glb | Draco, no feature IDs | unlit | no transform, boxes in ECEF, REPLACE |
+//! | `Plateau` | 1.1, glb | `EXT_mesh_features` + `EXT_structural_metadata` (`gml_id`) | `EXT_texture_webp` | regions, REPLACE |
+//! | `Bag3d` | 1.1, glb, implicit quadtree | `EXT_meshopt_compression` + `KHR_mesh_quantization` | plain | root transform ENU, subtree files |
+//!
+//! In every style but `Google`, vertices carry `_FEATURE_ID_0` = the building ID (with
+//! `EXT_mesh_features`), so ID renders of the tileset can be compared with the scene's masks.
+
+use std::path::{Path, PathBuf};
+
+use glam::{DMat3, DMat4, DVec3};
+use serde_json::{json, Value};
+
+use super::gltf::{TextureTransform, UpAxis};
+use super::implicit;
+use super::tileset::{BoundingVolume, Refine};
+use crate::geo::EnuFrame;
+use crate::scene::BuildingId;
+use crate::util::FileError;
+
+/// Errors of the writers.
+#[derive(Debug, thiserror::Error)]
+pub enum WriteError {
+    #[error(transparent)]
+    File(#[from] FileError),
+    /// An encoder refused the data (the message says which and why).
+    #[error("encoding {what}: {detail}")]
+    Encode { what: String, detail: String },
+    /// The input cannot make a tileset.
+    #[error("cannot build a tileset: {0}")]
+    Input(&'static str),
+}
+
+// ------------------------------------------------------------------------------------------ GLB
+
+/// Accumulates a GLB's binary chunk, buffer views and accessors.
+#[derive(Debug, Default)]
+pub struct GlbBuilder {
+    bin: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+    /// Bytes of the `EXT_meshopt_compression` fallback buffer (buffer 1), when any view is compressed.
+    fallback_len: usize,
+}
+
+impl GlbBuilder {
+    fn align(&mut self) {
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+    }
+
+    /// Appends a buffer view of `bytes` (4-byte aligned); returns its index.
+    pub fn push_view(&mut self, bytes: &[u8], stride: Option<usize>) -> usize {
+        self.align();
+        let mut v = json!({"buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len()});
+        if let Some(s) = stride {
+            v["byteStride"] = json!(s);
+        }
+        self.bin.extend_from_slice(bytes);
+        self.views.push(v);
+        self.views.len() - 1
+    }
+
+    /// Appends an `EXT_meshopt_compression` view: `compressed` in buffer 0, decoding to `count ×
+    /// stride` bytes of the fallback buffer.
+    fn push_meshopt_view(
+        &mut self,
+        compressed: &[u8],
+        count: usize,
+        stride: usize,
+        mode: &str,
+        vertex: bool,
+    ) -> usize {
+        self.align();
+        let len = count * stride;
+        let mut v = json!({
+            "buffer": 1, "byteOffset": self.fallback_len, "byteLength": len,
+            "extensions": {"EXT_meshopt_compression": {
+                "buffer": 0, "byteOffset": self.bin.len(), "byteLength": compressed.len(),
+                "byteStride": stride, "count": count, "mode": mode}}
+        });
+        if vertex {
+            v["byteStride"] = json!(stride);
+        }
+        self.bin.extend_from_slice(compressed);
+        self.fallback_len += len;
+        while !self.fallback_len.is_multiple_of(4) {
+            self.fallback_len += 1;
+        }
+        self.views.push(v);
+        self.views.len() - 1
+    }
+
+    /// Appends an accessor object; returns its index.
+    pub fn push_accessor(&mut self, a: Value) -> usize {
+        self.accessors.push(a);
+        self.accessors.len() - 1
+    }
+
+    /// FLOAT VEC3 with min/max (as POSITION requires).
+    pub fn push_vec3(&mut self, v: &[[f32; 3]]) -> usize {
+        let (lo, hi) = min_max(v.iter().map(|p| p.map(f64::from)));
+        let view = self.push_view(&floats(v.iter().flatten()), None);
+        self.push_accessor(json!({"bufferView": view, "componentType": 5126, "count": v.len(), "type": "VEC3", "min": lo, "max": hi}))
+    }
+
+    /// FLOAT VEC2.
+    pub fn push_vec2(&mut self, v: &[[f32; 2]]) -> usize {
+        let view = self.push_view(&floats(v.iter().flatten()), None);
+        self.push_accessor(
+            json!({"bufferView": view, "componentType": 5126, "count": v.len(), "type": "VEC2"}),
+        )
+    }
+
+    /// FLOAT SCALAR.
+    pub fn push_scalar_f32(&mut self, v: &[f32]) -> usize {
+        let view = self.push_view(&floats(v.iter()), None);
+        self.push_accessor(
+            json!({"bufferView": view, "componentType": 5126, "count": v.len(), "type": "SCALAR"}),
+        )
+    }
+
+    /// UNSIGNED_INT indices.
+    pub fn push_indices(&mut self, v: &[u32]) -> usize {
+        let bytes: Vec<u8> = v.iter().flat_map(|i| i.to_le_bytes()).collect();
+        let view = self.push_view(&bytes, None);
+        self.push_accessor(
+            json!({"bufferView": view, "componentType": 5125, "count": v.len(), "type": "SCALAR"}),
+        )
+    }
+
+    /// The GLB: `root` with `buffers`, `bufferViews` and `accessors` filled in.
+    pub fn finish(mut self, mut root: Value) -> Vec<u8> {
+        self.align();
+        let mut buffers = vec![json!({"byteLength": self.bin.len()})];
+        if self.fallback_len > 0 {
+            buffers.push(json!({"byteLength": self.fallback_len, "extensions": {"EXT_meshopt_compression": {"fallback": true}}}));
+        }
+        root["buffers"] = json!(buffers);
+        root["bufferViews"] = json!(self.views);
+        root["accessors"] = json!(self.accessors);
+        glb(&root, &self.bin)
+    }
+}
+
+fn floats<'a>(v: impl Iterator<Item = &'a f32>) -> Vec<u8> {
+    v.flat_map(|f| f.to_le_bytes()).collect()
+}
+
+fn min_max(points: impl Iterator<Item = [f64; 3]>) -> ([f64; 3], [f64; 3]) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in points {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    (lo, hi)
+}
+
+/// A GLB container around a glTF JSON and its binary chunk (both padded to 4 bytes).
+pub fn glb(json: &Value, bin: &[u8]) -> Vec<u8> {
+    let mut j = serde_json::to_vec(json).expect("a JSON value serialises");
+    while !j.len().is_multiple_of(4) {
+        j.push(b' ');
+    }
+    let mut b = bin.to_vec();
+    while !b.len().is_multiple_of(4) {
+        b.push(0);
+    }
+    let total = 12 + 8 + j.len() + if b.is_empty() { 0 } else { 8 + b.len() };
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&j);
+    if !b.is_empty() {
+        out.extend_from_slice(&(b.len() as u32).to_le_bytes());
+        out.extend_from_slice(b"BIN\0");
+        out.extend_from_slice(&b);
+    }
+    out
+}
+
+// ------------------------------------------------------------------------------------------ tileset JSON
+
+/// A tile to write.
+#[derive(Debug, Clone)]
+pub struct TileOut {
+    pub bounding_volume: BoundingVolume,
+    pub geometric_error_m: f64,
+    pub refine: Option<Refine>,
+    /// Tile frame → parent frame; written column-major (the spec's order) at the file edge.
+    pub transform: Option<DMat4>,
+    /// Content URI (relative to the tileset JSON) and its bytes.
+    pub content: Option<(String, Vec<u8>)>,
+    pub children: Vec<TileOut>,
+    /// Extra members merged into the tile object (e.g. `implicitTiling`).
+    pub extra: Value,
+}
+
+fn volume_json(bv: &BoundingVolume) -> Value {
+    match *bv {
+        BoundingVolume::Box { centre, half_axes } => json!({"box": [
+            centre.x, centre.y, centre.z,
+            half_axes.x_axis.x, half_axes.x_axis.y, half_axes.x_axis.z,
+            half_axes.y_axis.x, half_axes.y_axis.y, half_axes.y_axis.z,
+            half_axes.z_axis.x, half_axes.z_axis.y, half_axes.z_axis.z]}),
+        BoundingVolume::Region { west_rad, south_rad, east_rad, north_rad, min_h_m, max_h_m } => {
+            json!({"region": [west_rad, south_rad, east_rad, north_rad, min_h_m, max_h_m]})
+        }
+        BoundingVolume::Sphere { centre, radius_m } => {
+            json!({"sphere": [centre.x, centre.y, centre.z, radius_m]})
+        }
+    }
+}
+
+fn tile_json(dir: &Path, t: &TileOut) -> Result<Value, WriteError> {
+    let mut v =
+        json!({"boundingVolume": volume_json(&t.bounding_volume), "geometricError": t.geometric_error_m});
+    if let Some(r) = t.refine {
+        v["refine"] = json!(match r {
+            Refine::Add => "ADD",
+            Refine::Replace => "REPLACE",
+        });
+    }
+    if let Some(m) = t.transform {
+        v["transform"] = json!(m.to_cols_array());
+    }
+    if let Some((uri, bytes)) = &t.content {
+        let path = dir.join(uri);
+        if let Some(parent) = path.parent() {
+            crate::util::create_dir_all(parent)?;
+        }
+        crate::util::write_bytes_atomic(&path, bytes)?;
+        v["content"] = json!({"uri": uri});
+    }
+    if !t.children.is_empty() {
+        v["children"] = json!(t.children.iter().map(|c| tile_json(dir, c)).collect::<Result<Vec<_>, _>>()?);
+    }
+    if let Some(extra) = t.extra.as_object() {
+        for (k, x) in extra {
+            v[k] = x.clone();
+        }
+    }
+    Ok(v)
+}
+
+/// Writes `tileset.json` (3D Tiles 1.1) and every content under `dir`, atomically file by file.
+///
+/// # Errors
+/// [`WriteError::File`] naming the file that could not be written.
+pub fn write_tileset(dir: &Path, root: &TileOut, extensions_used: &[&str]) -> Result<PathBuf, WriteError> {
+    crate::util::create_dir_all(dir)?;
+    let mut ts = json!({
+        "asset": {"version": "1.1", "generator": "insgen"},
+        "geometricError": root.geometric_error_m,
+        "root": tile_json(dir, root)?,
+    });
+    if !extensions_used.is_empty() {
+        ts["extensionsUsed"] = json!(extensions_used);
+    }
+    let path = dir.join("tileset.json");
+    crate::util::write_json_atomic(&path, &ts)?;
+    Ok(path)
+}
+
+// ------------------------------------------------------------------------------------------ city tilesets
+
+/// One building to put in a tileset: its 24-bit ID and triangles in ENU metres.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CityBuilding {
+    pub id: BuildingId,
+    pub positions_enu_m: Vec<[f64; 3]>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Splits a prepared scene mesh into its buildings.
+pub fn buildings_from_scene(mesh: &crate::scene::mesh::SceneMesh) -> Vec<CityBuilding> {
+    let mut by_id: std::collections::BTreeMap<BuildingId, CityBuilding> = Default::default();
+    for t in mesh.indices.chunks_exact(3) {
+        let id = mesh.building_ids[t[0] as usize];
+        let b = by_id.entry(id).or_insert_with(|| CityBuilding {
+            id,
+            positions_enu_m: vec![],
+            triangles: vec![],
+        });
+        let base = b.positions_enu_m.len() as u32;
+        for &i in t {
+            b.positions_enu_m.push(mesh.positions_m[i as usize].map(f64::from));
+        }
+        b.triangles.push([base, base + 1, base + 2]);
+    }
+    by_id.into_values().collect()
+}
+
+/// The producer whose output a generated tileset imitates (see the module doc).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Style {
+    CesiumIon,
+    Google,
+    Plateau,
+    Bag3d,
+}
+
+/// One tile of a generated tileset, for tests to predict what a render shows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GeneratedTile {
+    /// JSON path as [`super::Tile::at`] names it (`root.children[1]`, `root{level 1, x 0, y 1}`).
+    pub at: String,
+    pub level: u32,
+    pub refine: Refine,
+    /// Content URI relative to the tileset JSON.
+    pub content_uri: String,
+    /// sRGB colours of its roof and wall texels.
+    pub roof_rgb: [u8; 3],
+    pub wall_rgb: [u8; 3],
+    /// Building IDs in its content.
+    pub buildings: Vec<u32>,
+    /// JSON path of its parent tile (`None` for the root).
+    pub parent: Option<String>,
+}
+
+/// A written tileset and its tiles.
+#[derive(Debug, Clone)]
+pub struct GeneratedTileset {
+    pub tileset: PathBuf,
+    pub tiles: Vec<GeneratedTile>,
+}
+
+impl GeneratedTileset {
+    /// The deepest tile whose content holds building `id` (what a fully refined view draws).
+    pub fn finest_tile_of(&self, id: u32) -> Option<&GeneratedTile> {
+        self.tiles.iter().filter(|t| t.buildings.contains(&id)).max_by_key(|t| t.level)
+    }
+    /// The tile at JSON path `at`.
+    pub fn tile(&self, at: &str) -> Option<&GeneratedTile> {
+        self.tiles.iter().find(|t| t.at == at)
+    }
+}
+
+/// Colour `k` of the generated tilesets' palette: sRGB triples over {30, 130, 230}³ without the
+/// three greys, 24 colours, each at least 100 levels from every other in some channel.
+pub fn palette_colour(k: usize) -> [u8; 3] {
+    let levels = [30u8, 130, 230];
+    let all: Vec<[u8; 3]> = (0..27)
+        .map(|i| [levels[i % 3], levels[(i / 3) % 3], levels[i / 9]])
+        .filter(|c| !(c[0] == c[1] && c[1] == c[2]))
+        .collect();
+    all[(k * 7) % all.len()]
+}
+
+/// UV of a roof texel centre and of a wall texel centre in the 4 × 2 tile texture.
+pub const ROOF_UV: [f64; 2] = [0.25, 0.5];
+pub const WALL_UV: [f64; 2] = [0.75, 0.5];
+
+/// The `KHR_texture_transform` the `CesiumIon` style writes (a quarter turn, a half-width scale and
+/// an offset), so UVs are only right when the transform is applied.
+pub const CESIUM_TEXTURE_TRANSFORM: TextureTransform = TextureTransform {
+    offset: [0.5, 1.0],
+    rotation: std::f64::consts::FRAC_PI_2,
+    scale: [0.5, 1.0],
+    tex_coord: None,
+};
+
+/// Rotation (about up, radians) and uniform scale of the `CesiumIon` style's root transform.
+pub const CESIUM_ROOT_ROTATION_RAD: f64 = 0.3;
+pub const CESIUM_ROOT_SCALE: f64 = 1.34;
+
+/// A quadtree cell with the buildings whose centroid falls in it.
+#[derive(Debug, Clone)]
+struct Cell {
+    level: u32,
+    x: u64,
+    y: u64,
+    buildings: Vec<usize>,
+    children: Vec<Cell>,
+}
+
+const LEVELS: u32 = 3;
+
+fn quadtree(buildings: &[CityBuilding]) -> Result<(Cell, [f64; 2], f64), WriteError> {
+    let centroids: Vec<[f64; 2]> = buildings
+        .iter()
+        .map(|b| {
+            let n = b.positions_enu_m.len().max(1) as f64;
+            let s = b.positions_enu_m.iter().fold([0.0, 0.0], |a, p| [a[0] + p[0], a[1] + p[1]]);
+            [s[0] / n, s[1] / n]
+        })
+        .collect();
+    let (lo, hi) = min_max(buildings.iter().flat_map(|b| b.positions_enu_m.iter().copied()));
+    if !lo[0].is_finite() {
+        return Err(WriteError::Input("no building has triangles"));
+    }
+    let side = (hi[0] - lo[0]).max(hi[1] - lo[1]).max(1.0) * 1.001;
+    let origin = [lo[0], lo[1]];
+    fn build(
+        level: u32,
+        x: u64,
+        y: u64,
+        members: Vec<usize>,
+        c: &[[f64; 2]],
+        origin: [f64; 2],
+        side: f64,
+    ) -> Cell {
+        let mut children = Vec::new();
+        if level + 1 < LEVELS {
+            for k in 0..4u64 {
+                let (cx, cy) = (2 * x + (k & 1), 2 * y + (k >> 1));
+                let n = (1u64 << (level + 1)) as f64;
+                let inside: Vec<usize> = members
+                    .iter()
+                    .copied()
+                    .filter(|&i| {
+                        let u = ((c[i][0] - origin[0]) / side * n).floor().clamp(0.0, n - 1.0) as u64;
+                        let v = ((c[i][1] - origin[1]) / side * n).floor().clamp(0.0, n - 1.0) as u64;
+                        u == cx && v == cy
+                    })
+                    .collect();
+                if !inside.is_empty() {
+                    children.push(build(level + 1, cx, cy, inside, c, origin, side));
+                }
+            }
+        }
+        Cell { level, x, y, buildings: members, children }
+    }
+    let root = build(0, 0, 0, (0..buildings.len()).collect(), &centroids, origin, side);
+    Ok((root, origin, side))
+}
+
+/// How ENU maps to a style's tile frame and what the root carries.
+struct Frames {
+    /// Tile frame from ENU (affine).
+    tile_from_enu: DMat4,
+    /// The root tile's transform (parent = ECEF).
+    root_transform: Option<DMat4>,
+}
+
+fn frames(style: Style, enu: &EnuFrame) -> Frames {
+    let ecef = enu.ecef_from_enu();
+    match style {
+        Style::CesiumIon => {
+            let rs = DMat4::from_rotation_z(CESIUM_ROOT_ROTATION_RAD)
+                * DMat4::from_scale(DVec3::splat(CESIUM_ROOT_SCALE));
+            Frames { tile_from_enu: rs.inverse(), root_transform: Some(ecef * rs) }
+        }
+        Style::Google | Style::Plateau => Frames { tile_from_enu: ecef, root_transform: None },
+        Style::Bag3d => Frames { tile_from_enu: DMat4::IDENTITY, root_transform: Some(ecef) },
+    }
+}
+
+/// Vertices of one tile's content, in ENU, with UV targets and IDs.
+struct TileMesh {
+    enu: Vec<DVec3>,
+    uv: Vec<[f64; 2]>,
+    ids: Vec<u32>,
+}
+
+fn tile_mesh(buildings: &[CityBuilding], members: &[usize]) -> TileMesh {
+    let mut m = TileMesh { enu: vec![], uv: vec![], ids: vec![] };
+    for &i in members {
+        let b = &buildings[i];
+        for t in &b.triangles {
+            let [a, bb, c] = t.map(|k| DVec3::from_array(b.positions_enu_m[k as usize]));
+            let n = (bb - a).cross(c - a).normalize_or_zero();
+            let uv = if n.z.abs() > 0.7 { ROOF_UV } else { WALL_UV };
+            for p in [a, bb, c] {
+                m.enu.push(p);
+                m.uv.push(uv);
+                m.ids.push(b.id.get());
+            }
+        }
+    }
+    m
+}
+
+fn tile_volume(style: Style, f: &Frames, enu: &EnuFrame, mesh: &TileMesh) -> BoundingVolume {
+    let (lo, hi) = min_max(mesh.enu.iter().map(|p| p.to_array()));
+    let pad = DVec3::splat(0.5);
+    let (lo, hi) = (DVec3::from_array(lo) - pad, DVec3::from_array(hi) + pad);
+    if style == Style::Plateau {
+        let mut g = (
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for x in [lo.x, hi.x] {
+            for y in [lo.y, hi.y] {
+                for z in [lo.z, hi.z] {
+                    let p = enu.enu_to_geodetic(DVec3::new(x, y, z));
+                    g = (
+                        g.0.min(p.lon_deg),
+                        g.1.min(p.lat_deg),
+                        g.2.max(p.lon_deg),
+                        g.3.max(p.lat_deg),
+                        g.4.min(p.h_m),
+                        g.5.max(p.h_m),
+                    );
+                }
+            }
+        }
+        // A metre of margin for the curvature between corners (regions are geodetic boxes).
+        let m_deg = 1.0 / 111_000.0;
+        return BoundingVolume::Region {
+            west_rad: (g.0 - m_deg).to_radians(),
+            south_rad: (g.1 - m_deg).to_radians(),
+            east_rad: (g.2 + m_deg).to_radians(),
+            north_rad: (g.3 + m_deg).to_radians(),
+            min_h_m: g.4 - 1.0,
+            max_h_m: g.5 + 1.0,
+        };
+    }
+    let c = 0.5 * (lo + hi);
+    let h = 0.5 * (hi - lo);
+    let lin = DMat3::from_mat4(f.tile_from_enu);
+    BoundingVolume::Box {
+        centre: f.tile_from_enu.transform_point3(c),
+        half_axes: lin * DMat3::from_diagonal(h),
+    }
+}
+
+/// The texture of a tile: 4 × 2 texels, left half roof, right half wall.
+fn tile_texture(roof: [u8; 3], wall: [u8; 3], webp: bool) -> Result<(Vec<u8>, &'static str), WriteError> {
+    let mut rgb = Vec::with_capacity(4 * 2 * 3);
+    for _y in 0..2 {
+        for x in 0..4 {
+            rgb.extend_from_slice(if x < 2 { &roof } else { &wall });
+        }
+    }
+    if webp {
+        let mut out = Vec::new();
+        image_webp::WebPEncoder::new(&mut out)
+            .encode(&rgb, 4, 2, image_webp::ColorType::Rgb8)
+            .map_err(|e| WriteError::Encode { what: "a WebP texture".into(), detail: e.to_string() })?;
+        return Ok((out, "image/webp"));
+    }
+    let mut out = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut out, 4, 2);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut w = enc
+            .write_header()
+            .map_err(|e| WriteError::Encode { what: "a PNG texture".into(), detail: e.to_string() })?;
+        w.write_image_data(&rgb)
+            .map_err(|e| WriteError::Encode { what: "a PNG texture".into(), detail: e.to_string() })?;
+    }
+    Ok((out, "image/png"))
+}
+
+/// Inverse of [`TextureTransform::apply`].
+fn untransform(t: &TextureTransform, uv: [f64; 2]) -> [f64; 2] {
+    let (s, c) = t.rotation.sin_cos();
+    let (u, v) = (uv[0] - t.offset[0], uv[1] - t.offset[1]);
+    // [u; v] = R · [x sx; y sy] with R = [[c, s], [−s, c]], so [x sx; y sy] = Rᵀ · [u; v].
+    let (xs, ys) = (c * u - s * v, s * u + c * v);
+    [xs / t.scale[0], ys / t.scale[1]]
+}
+
+/// Builds one tile's GLB content.
+fn tile_glb(
+    style: Style,
+    f: &Frames,
+    mesh: &TileMesh,
+    roof: [u8; 3],
+    wall: [u8; 3],
+) -> Result<Vec<u8>, WriteError> {
+    // Tile frame (z-up) positions, their centre, and glTF (y-up) coordinates relative to it.
+    let tile: Vec<DVec3> = mesh.enu.iter().map(|p| f.tile_from_enu.transform_point3(*p)).collect();
+    let (lo, hi) = min_max(tile.iter().map(|p| p.to_array()));
+    let centre = 0.5 * (DVec3::from_array(lo) + DVec3::from_array(hi));
+    let z_to_y = UpAxis::Y.to_z_up().inverse();
+    let g: Vec<[f32; 3]> =
+        tile.iter().map(|p| z_to_y.transform_point3(*p - centre).as_vec3().to_array()).collect();
+    let node_translation = z_to_y.transform_point3(centre);
+    let transform = (style == Style::CesiumIon).then_some(CESIUM_TEXTURE_TRANSFORM);
+    let uv: Vec<[f32; 2]> = mesh
+        .uv
+        .iter()
+        .map(|t| {
+            let s = transform.as_ref().map_or(*t, |tt| untransform(tt, *t));
+            [s[0] as f32, s[1] as f32]
+        })
+        .collect();
+    let with_ids = style != Style::Google;
+    let ids: Vec<f32> = mesh.ids.iter().map(|&i| i as f32).collect();
+    let indices: Vec<u32> = (0..g.len() as u32).collect();
+    let (image, mime) = tile_texture(roof, wall, style == Style::Plateau)?;
+
+    let mut b = GlbBuilder::default();
+    let mut used: Vec<&str> = Vec::new();
+    let mut required: Vec<&str> = Vec::new();
+    let mut attributes = serde_json::Map::new();
+    let mut prim_ext = serde_json::Map::new();
+    let mut node = json!({"mesh": 0, "translation": node_translation.to_array()});
+    match style {
+        Style::CesiumIon | Style::Google => {
+            let (bytes, n_points, ids_map) = draco_encode(&g, &uv, with_ids.then_some(&ids[..]), &indices)?;
+            let view = b.push_view(&bytes, None);
+            let (plo, phi) = min_max(g.iter().map(|p| p.map(f64::from)));
+            attributes.insert(
+                "POSITION".into(),
+                json!(b.push_accessor(
+                    json!({"componentType": 5126, "count": n_points, "type": "VEC3", "min": plo, "max": phi})
+                )),
+            );
+            attributes.insert(
+                "TEXCOORD_0".into(),
+                json!(b.push_accessor(json!({"componentType": 5126, "count": n_points, "type": "VEC2"}))),
+            );
+            let mut dattr = json!({"POSITION": 0, "TEXCOORD_0": 1});
+            if let Some(fid) = ids_map {
+                attributes.insert(
+                    "_FEATURE_ID_0".into(),
+                    json!(
+                        b.push_accessor(json!({"componentType": 5126, "count": n_points, "type": "SCALAR"}))
+                    ),
+                );
+                dattr["_FEATURE_ID_0"] = json!(fid);
+            }
+            let n_idx = indices.len();
+            let idx_acc = b.push_accessor(json!({"componentType": 5125, "count": n_idx, "type": "SCALAR"}));
+            prim_ext.insert(
+                "KHR_draco_mesh_compression".into(),
+                json!({"bufferView": view, "attributes": dattr}),
+            );
+            used.push("KHR_draco_mesh_compression");
+            required.push("KHR_draco_mesh_compression");
+            return finish_tile_glb(
+                b,
+                attributes,
+                prim_ext,
+                Some(idx_acc),
+                node,
+                used,
+                required,
+                style,
+                with_ids,
+                &mesh.ids,
+                image,
+                mime,
+                transform,
+            );
+        }
+        Style::Plateau => {
+            attributes.insert("POSITION".into(), json!(b.push_vec3(&g)));
+            attributes.insert("TEXCOORD_0".into(), json!(b.push_vec2(&uv)));
+            attributes.insert("_FEATURE_ID_0".into(), json!(b.push_scalar_f32(&ids)));
+        }
+        Style::Bag3d => {
+            // KHR_mesh_quantization: positions as UNSIGNED_SHORT (padded to 8 bytes per vertex),
+            // dequantised by the node's scale and translation; UVs as normalised UNSIGNED_SHORT.
+            let (plo, phi) = min_max(g.iter().map(|p| p.map(f64::from)));
+            let step: Vec<f64> = (0..3).map(|k| ((phi[k] - plo[k]) / 65535.0).max(1e-9)).collect();
+            let mut qpos = Vec::with_capacity(g.len() * 8);
+            for p in &g {
+                for k in 0..3 {
+                    let q = ((p[k] as f64 - plo[k]) / step[k]).round().clamp(0.0, 65535.0) as u16;
+                    qpos.extend_from_slice(&q.to_le_bytes());
+                }
+                qpos.extend_from_slice(&[0, 0]);
+            }
+            let mut quv = Vec::with_capacity(uv.len() * 4);
+            for t in &uv {
+                for &c in t {
+                    let q = (c as f64 * 65535.0).round().clamp(0.0, 65535.0) as u16;
+                    quv.extend_from_slice(&q.to_le_bytes());
+                }
+            }
+            let qid: Vec<u8> = floats(ids.iter());
+            let n = g.len();
+            let vp =
+                b.push_meshopt_view(&super::meshopt::encode_attributes(&qpos, 8), n, 8, "ATTRIBUTES", true);
+            let vu =
+                b.push_meshopt_view(&super::meshopt::encode_attributes(&quv, 4), n, 4, "ATTRIBUTES", true);
+            let vi =
+                b.push_meshopt_view(&super::meshopt::encode_attributes(&qid, 4), n, 4, "ATTRIBUTES", true);
+            let ib: Vec<u8> = super::meshopt::encode_triangles(&indices, n);
+            let vx = b.push_meshopt_view(&ib, indices.len(), 4, "TRIANGLES", false);
+            let qmax: Vec<u32> = (0..3).map(|k| ((phi[k] - plo[k]) / step[k]).round() as u32).collect();
+            attributes.insert("POSITION".into(), json!(b.push_accessor(json!({"bufferView": vp, "componentType": 5123, "count": n, "type": "VEC3", "min": [0, 0, 0], "max": qmax}))));
+            attributes.insert("TEXCOORD_0".into(), json!(b.push_accessor(json!({"bufferView": vu, "componentType": 5123, "normalized": true, "count": n, "type": "VEC2"}))));
+            attributes.insert(
+                "_FEATURE_ID_0".into(),
+                json!(b.push_accessor(
+                    json!({"bufferView": vi, "componentType": 5126, "count": n, "type": "SCALAR"})
+                )),
+            );
+            let idx = b.push_accessor(
+                json!({"bufferView": vx, "componentType": 5125, "count": indices.len(), "type": "SCALAR"}),
+            );
+            let t = node_translation + DVec3::from_array(plo);
+            node = json!({"mesh": 0, "translation": t.to_array(), "scale": step});
+            used.extend(["EXT_meshopt_compression", "KHR_mesh_quantization"]);
+            required.extend(["EXT_meshopt_compression", "KHR_mesh_quantization"]);
+            return finish_tile_glb(
+                b,
+                attributes,
+                prim_ext,
+                Some(idx),
+                node,
+                used,
+                required,
+                style,
+                with_ids,
+                &mesh.ids,
+                image,
+                mime,
+                transform,
+            );
+        }
+    }
+    let idx = b.push_indices(&indices);
+    finish_tile_glb(
+        b,
+        attributes,
+        prim_ext,
+        Some(idx),
+        node,
+        used,
+        required,
+        style,
+        with_ids,
+        &mesh.ids,
+        image,
+        mime,
+        transform,
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn finish_tile_glb(
+    mut b: GlbBuilder,
+    attributes: serde_json::Map<String, Value>,
+    mut prim_ext: serde_json::Map<String, Value>,
+    indices: Option<usize>,
+    node: Value,
+    mut used: Vec<&str>,
+    mut required: Vec<&str>,
+    style: Style,
+    with_ids: bool,
+    ids: &[u32],
+    image: Vec<u8>,
+    mime: &str,
+    transform: Option<TextureTransform>,
+) -> Result<Vec<u8>, WriteError> {
+    let image_view = b.push_view(&image, None);
+    let mut distinct: Vec<u32> = ids.to_vec();
+    distinct.sort_unstable();
+    distinct.dedup();
+    let mut root_ext = serde_json::Map::new();
+    if with_ids {
+        // Feature IDs are the building IDs themselves; the property table (PLATEAU style) is indexed
+        // by them, so it has max ID + 1 rows, `gml_id` "bldg_<id>" (empty for unused rows).
+        let count = distinct.last().map_or(0, |&m| m as usize + 1);
+        let mut set = json!({"featureCount": count, "attribute": 0});
+        if style == Style::Plateau {
+            set["propertyTable"] = json!(0);
+            let mut strings = Vec::new();
+            let mut offsets: Vec<u32> = vec![0];
+            for i in 0..count as u32 {
+                if distinct.binary_search(&i).is_ok() {
+                    strings.extend_from_slice(format!("bldg_{i}").as_bytes());
+                }
+                offsets.push(strings.len() as u32);
+            }
+            let values = b.push_view(&strings, None);
+            let offs: Vec<u8> = offsets.iter().flat_map(|o| o.to_le_bytes()).collect();
+            let offsets_view = b.push_view(&offs, None);
+            root_ext.insert(
+                "EXT_structural_metadata".into(),
+                json!({
+                    "schema": {"id": "insgen", "classes": {"building": {"properties": {"gml_id": {"type": "STRING"}}}}},
+                    "propertyTables": [{"class": "building", "count": count, "properties": {"gml_id": {"values": values, "stringOffsets": offsets_view}}}]
+                }),
+            );
+            used.push("EXT_structural_metadata");
+        }
+        prim_ext.insert("EXT_mesh_features".into(), json!({"featureIds": [set]}));
+        used.push("EXT_mesh_features");
+    }
+    let mut texture_info = json!({"index": 0});
+    if let Some(t) = transform {
+        texture_info["extensions"] =
+            json!({"KHR_texture_transform": {"offset": t.offset, "rotation": t.rotation, "scale": t.scale}});
+        used.push("KHR_texture_transform");
+        required.push("KHR_texture_transform");
+    }
+    let mut material = json!({
+        "name": "Material_0",
+        "pbrMetallicRoughness": {"baseColorTexture": texture_info, "metallicFactor": 0.0, "roughnessFactor": 1.0},
+    });
+    if matches!(style, Style::CesiumIon | Style::Google) {
+        material["extensions"] = json!({"KHR_materials_unlit": {}});
+        used.push("KHR_materials_unlit");
+    }
+    let texture = if mime == "image/webp" {
+        used.push("EXT_texture_webp");
+        required.push("EXT_texture_webp");
+        json!({"sampler": 0, "extensions": {"EXT_texture_webp": {"source": 0}}})
+    } else {
+        json!({"sampler": 0, "source": 0})
+    };
+    let mut prim = json!({"attributes": attributes, "mode": 4, "material": 0});
+    if let Some(i) = indices {
+        prim["indices"] = json!(i);
+    }
+    if !prim_ext.is_empty() {
+        prim["extensions"] = Value::Object(prim_ext);
+    }
+    used.sort_unstable();
+    used.dedup();
+    required.sort_unstable();
+    required.dedup();
+    let mut root = json!({
+        "asset": {"version": "2.0", "generator": format!("insgen ({style:?} style)")},
+        "extensionsUsed": used,
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [node],
+        "meshes": [{"primitives": [prim]}],
+        "materials": [material],
+        "textures": [texture],
+        "images": [{"name": "texture_0", "bufferView": image_view, "mimeType": mime}],
+        "samplers": [{"magFilter": 9728, "minFilter": 9728, "wrapS": 33071, "wrapT": 33071}],
+    });
+    if !required.is_empty() {
+        root["extensionsRequired"] = json!(required);
+    }
+    if !root_ext.is_empty() {
+        root["extensions"] = Value::Object(root_ext);
+    }
+    Ok(b.finish(root))
+}
+
+/// Draco-encodes a triangle soup: POSITION (unique id 0, 16-bit quantised), TEXCOORD_0 (id 1,
+/// 14-bit) and, if given, `_FEATURE_ID_0` (id 2, not quantised, so IDs stay exact). Returns the
+/// bitstream, the decoded point count, and the feature-ID attribute's unique id.
+fn draco_encode(
+    pos: &[[f32; 3]],
+    uv: &[[f32; 2]],
+    ids: Option<&[f32]>,
+    indices: &[u32],
+) -> Result<(Vec<u8>, usize, Option<u32>), WriteError> {
+    use draco_core::draco_types::DataType;
+    use draco_core::geometry_attribute::{GeometryAttributeType, PointAttribute};
+    use draco_core::geometry_indices::{FaceIndex, PointIndex};
+    let err = |detail: String| WriteError::Encode { what: "a Draco mesh".into(), detail };
+    let n = pos.len();
+    let mut mesh = draco_core::mesh::Mesh::new();
+    mesh.set_num_points(n);
+    let mut add = |kind, comps: u8, data: Vec<u8>| {
+        let mut a = PointAttribute::new();
+        a.init(kind, comps, DataType::Float32, false, n);
+        a.buffer_mut().write(0, &data);
+        mesh.add_attribute(a)
+    };
+    add(GeometryAttributeType::Position, 3, floats(pos.iter().flatten()));
+    add(GeometryAttributeType::TexCoord, 2, floats(uv.iter().flatten()));
+    let fid = ids.map(|v| add(GeometryAttributeType::Generic, 1, floats(v.iter())) as u32);
+    mesh.set_num_faces(indices.len() / 3);
+    for (f, t) in indices.chunks_exact(3).enumerate() {
+        mesh.set_face(FaceIndex(f as u32), [PointIndex(t[0]), PointIndex(t[1]), PointIndex(t[2])]);
+    }
+    let mut options = draco_core::EncoderOptions::new();
+    options.set_attribute_quantization(0, 16);
+    options.set_attribute_quantization(1, 14);
+    let mut enc = draco_core::mesh_encoder::MeshEncoder::new();
+    enc.set_mesh(mesh);
+    let mut buf = draco_core::encoder_buffer::EncoderBuffer::new();
+    enc.encode(&options, &mut buf).map_err(|e| err(format!("{e:?}")))?;
+    let bytes = buf.data().to_vec();
+    // The point count the decoder will produce (the encoder may merge or split points).
+    let mut d = draco_core::mesh::Mesh::new();
+    draco_core::MeshDecoder::new()
+        .decode(&mut draco_core::DecoderBuffer::new(&bytes), &mut d)
+        .map_err(|e| err(format!("the encoded mesh does not decode: {e}")))?;
+    Ok((bytes, d.num_points(), fid))
+}
+
+/// Writes a generated city tileset of `style` into `dir` (see the module doc).
+///
+/// # Errors
+/// No buildings with triangles; a file that cannot be written; an encoder failure.
+pub fn generate_city_tileset(
+    buildings: &[CityBuilding],
+    enu: &EnuFrame,
+    dir: &Path,
+    style: Style,
+) -> Result<GeneratedTileset, WriteError> {
+    let (mut root, _origin, side) = quadtree(buildings)?;
+    let f = frames(style, enu);
+    let mut tiles = Vec::new();
+    let mut colour = 0usize;
+    if style == Style::CesiumIon {
+        // One ADD tile: the first level-1 cell with two or more children keeps its first child's
+        // buildings as its own content and refines by adding the other children.
+        if let Some(c) = root.children.iter_mut().find(|c| c.children.len() >= 2) {
+            let first = c.children.remove(0);
+            c.buildings = first.buildings;
+            c.level = u32::MAX; // marker, restored below
+        }
+    }
+    if style == Style::Bag3d {
+        return write_implicit(buildings, dir, &root, &f, side);
+    }
+    let t = explicit_tile(buildings, enu, style, &f, &root, "root", None, 0, side, &mut colour, &mut tiles)?;
+    let mut t = t;
+    t.transform = f.root_transform;
+    let path = write_tileset(dir, &t, &[])?;
+    Ok(GeneratedTileset { tileset: path, tiles })
+}
+
+#[allow(clippy::too_many_arguments)]
+fn explicit_tile(
+    buildings: &[CityBuilding],
+    enu: &EnuFrame,
+    style: Style,
+    f: &Frames,
+    cell: &Cell,
+    at: &str,
+    parent: Option<&str>,
+    level: u32,
+    side: f64,
+    colour: &mut usize,
+    out: &mut Vec<GeneratedTile>,
+) -> Result<TileOut, WriteError> {
+    let add = cell.level == u32::MAX;
+    let refine = if add { Refine::Add } else { Refine::Replace };
+    let mesh = tile_mesh(buildings, &cell.buildings);
+    let (roof, wall) = (palette_colour(*colour), palette_colour(*colour + 1));
+    *colour += 2;
+    let uri = format!("tiles/{}.glb", at.replace(['[', ']', '.'], "_"));
+    let content = tile_glb(style, f, &mesh, roof, wall)?;
+    let mut ids: Vec<u32> = cell.buildings.iter().map(|&i| buildings[i].id.get()).collect();
+    ids.sort_unstable();
+    out.push(GeneratedTile {
+        at: at.to_string(),
+        level,
+        refine,
+        content_uri: uri.clone(),
+        roof_rgb: roof,
+        wall_rgb: wall,
+        buildings: ids,
+        parent: parent.map(str::to_string),
+    });
+    // Children's volumes must cover the parent's too for ADD (CesiumJS culls by them): an ADD tile
+    // gets the union of its own and its children's buildings.
+    let mut volume_members = cell.buildings.clone();
+    fn all(c: &Cell, v: &mut Vec<usize>) {
+        v.extend(&c.buildings);
+        for k in &c.children {
+            all(k, v);
+        }
+    }
+    for c in &cell.children {
+        all(c, &mut volume_members);
+    }
+    let volume = tile_volume(style, f, enu, &tile_mesh(buildings, &volume_members));
+    let mut children = Vec::new();
+    for (i, c) in cell.children.iter().enumerate() {
+        let cat = format!("{at}.children[{i}]");
+        children.push(explicit_tile(
+            buildings,
+            enu,
+            style,
+            f,
+            c,
+            &cat,
+            Some(at),
+            level + 1,
+            side,
+            colour,
+            out,
+        )?);
+    }
+    let geometric_error_m = if children.is_empty() { 0.0 } else { side / 4f64.powi(level as i32) };
+    Ok(TileOut {
+        bounding_volume: volume,
+        geometric_error_m,
+        refine: Some(refine),
+        transform: None,
+        content: Some((uri, content)),
+        children,
+        extra: Value::Null,
+    })
+}
+
+/// The `Bag3d` style: an implicit quadtree whose root box is the quadtree square.
+fn write_implicit(
+    buildings: &[CityBuilding],
+    dir: &Path,
+    root: &Cell,
+    f: &Frames,
+    side: f64,
+) -> Result<GeneratedTileset, WriteError> {
+    let (lo, hi) = min_max(buildings.iter().flat_map(|b| b.positions_enu_m.iter().copied()));
+    let origin = DVec3::new(lo[0], lo[1], lo[2] - 0.5);
+    let height = hi[2] - lo[2] + 1.0;
+    let half = DVec3::new(0.5 * side, 0.5 * side, 0.5 * height);
+    let volume = BoundingVolume::Box {
+        centre: f.tile_from_enu.transform_point3(origin + half),
+        half_axes: DMat3::from_mat4(f.tile_from_enu) * DMat3::from_diagonal(half),
+    };
+    let mut tiles = Vec::new();
+    let mut colour = 0usize;
+    // Cells by level, with their content.
+    let mut all: Vec<&Cell> = Vec::new();
+    fn walk<'c>(c: &'c Cell, v: &mut Vec<&'c Cell>) {
+        v.push(c);
+        for k in &c.children {
+            walk(k, v);
+        }
+    }
+    walk(root, &mut all);
+    for c in &all {
+        let mesh = tile_mesh(buildings, &c.buildings);
+        let (roof, wall) = (palette_colour(colour), palette_colour(colour + 1));
+        colour += 2;
+        let uri = format!("content/{}/{}/{}.glb", c.level, c.x, c.y);
+        let bytes = tile_glb(Style::Bag3d, f, &mesh, roof, wall)?;
+        let path = dir.join(&uri);
+        crate::util::create_dir_all(path.parent().expect("content paths have folders"))?;
+        crate::util::write_bytes_atomic(&path, &bytes)?;
+        let mut ids: Vec<u32> = c.buildings.iter().map(|&i| buildings[i].id.get()).collect();
+        ids.sort_unstable();
+        let at = |l: u32, x: u64, y: u64| format!("root{{level {l}, x {x}, y {y}}}");
+        let parent = (c.level > 0).then(|| at(c.level - 1, c.x / 2, c.y / 2));
+        tiles.push(GeneratedTile {
+            at: at(c.level, c.x, c.y),
+            level: c.level,
+            refine: Refine::Replace,
+            content_uri: uri,
+            roof_rgb: roof,
+            wall_rgb: wall,
+            buildings: ids,
+            parent,
+        });
+    }
+    // Subtrees: levels 0–1 in the root subtree, each level-2 cell in a subtree of its own.
+    const SUBTREE_LEVELS: u32 = 2;
+    let bits = |set: &[u64], n: usize| -> Vec<u8> {
+        let mut b = vec![0u8; n.div_ceil(8)];
+        for &i in set {
+            b[(i / 8) as usize] |= 1 << (i % 8);
+        }
+        b
+    };
+    let mut root_tiles = vec![0u64];
+    let mut child_subtrees = Vec::new();
+    for c in &all {
+        match c.level {
+            1 => root_tiles.push(1 + implicit::morton_index(c.x, c.y, 0, false)),
+            2 => child_subtrees.push(implicit::morton_index(c.x, c.y, 0, false)),
+            _ => {}
+        }
+    }
+    let write_subtree = |level: u32,
+                         x: u64,
+                         y: u64,
+                         tiles_bits: Vec<u8>,
+                         child_bits: Option<Vec<u8>>|
+     -> Result<(), WriteError> {
+        let mut bin = tiles_bits.clone();
+        let mut views = vec![json!({"buffer": 0, "byteOffset": 0, "byteLength": tiles_bits.len()})];
+        while !bin.len().is_multiple_of(8) {
+            bin.push(0);
+        }
+        let child = match child_bits {
+            Some(cb) => {
+                views.push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": cb.len()}));
+                bin.extend_from_slice(&cb);
+                json!({"bitstream": 1})
+            }
+            None => json!({"constant": 0}),
+        };
+        let j = json!({
+            "buffers": [{"byteLength": bin.len()}],
+            "bufferViews": views,
+            "tileAvailability": {"bitstream": 0},
+            "contentAvailability": [{"bitstream": 0}],
+            "childSubtreeAvailability": child,
+        });
+        let path = implicit::template_path(dir, "subtrees/{level}/{x}/{y}.subtree", level, x, y, 0);
+        crate::util::create_dir_all(path.parent().expect("subtree paths have folders"))?;
+        crate::util::write_bytes_atomic(&path, &implicit::subtree_bytes(&j, &bin))?;
+        Ok(())
+    };
+    write_subtree(0, 0, 0, bits(&root_tiles, 5), Some(bits(&child_subtrees, 16)))?;
+    for c in all.iter().filter(|c| c.level == 2) {
+        write_subtree(2, c.x, c.y, bits(&[0], 5), None)?;
+    }
+    let root_tile = TileOut {
+        bounding_volume: volume,
+        geometric_error_m: side,
+        refine: Some(Refine::Replace),
+        transform: f.root_transform,
+        content: None,
+        children: vec![],
+        extra: json!({
+            "content": {"uri": "content/{level}/{x}/{y}.glb"},
+            "implicitTiling": {"subdivisionScheme": "QUADTREE", "subtreeLevels": SUBTREE_LEVELS, "availableLevels": LEVELS,
+                               "subtrees": {"uri": "subtrees/{level}/{x}/{y}.subtree"}}
+        }),
+    };
+    let path = write_tileset(dir, &root_tile, &[])?;
+    Ok(GeneratedTileset { tileset: path, tiles })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn texture_transform_inverse() {
+        let t = CESIUM_TEXTURE_TRANSFORM;
+        for uv in [ROOF_UV, WALL_UV, [0.1, 0.9]] {
+            let back = t.apply(untransform(&t, uv));
+            assert!((back[0] - uv[0]).abs() < 1e-12 && (back[1] - uv[1]).abs() < 1e-12, "{uv:?} → {back:?}");
+        }
+    }
+
+    #[test]
+    fn scene_mesh_splits_into_buildings() {
+        use crate::scene::mesh::SceneMesh;
+        let mesh = SceneMesh {
+            positions_m: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [5.0, 0.0, 0.0],
+                [6.0, 0.0, 0.0],
+                [5.0, 1.0, 2.0],
+            ],
+            building_ids: [7, 7, 7, 3, 3, 3].map(|i| BuildingId::new(i).unwrap()).to_vec(),
+            indices: vec![0, 1, 2, 3, 4, 5, 2, 1, 0],
+        };
+        let b = buildings_from_scene(&mesh);
+        assert_eq!(
+            b.iter().map(|b| (b.id.get(), b.triangles.len())).collect::<Vec<_>>(),
+            vec![(3, 1), (7, 2)]
+        );
+        assert_eq!(b[0].positions_enu_m[2], [5.0, 1.0, 2.0]);
+        assert_eq!(b[1].triangles[1], [3, 4, 5]);
+    }
+
+    #[test]
+    fn palette_is_distinct() {
+        let c: Vec<[u8; 3]> = (0..24).map(palette_colour).collect();
+        for i in 0..24 {
+            for j in 0..i {
+                assert_ne!(c[i], c[j], "{i} {j}");
+            }
+        }
+    }
+}
