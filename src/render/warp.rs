@@ -67,7 +67,8 @@ impl RotationFan {
         // (Rounding noise of the exact corners, e.g. of the reference view itself, is ignored.)
         let (ox, oy) = ((u0 + 1e-6).floor() - 1.0, (v0 + 1e-6).floor() - 1.0);
         let (ww, wh) = ((u1 - 1e-6).ceil() + 1.0 - ox, (v1 - 1e-6).ceil() + 1.0 - oy);
-        if !(ww * wh <= MAX_CANVAS_RATIO * w * h) {
+        // NaN-safe: a NaN extent (never expected) fails the comparison and renders directly.
+        if ww * wh > MAX_CANVAS_RATIO * w * h || (ww * wh).is_nan() {
             return None;
         }
         let intrinsics = Intrinsics {

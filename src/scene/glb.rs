@@ -147,7 +147,7 @@ fn check_input(path: &Path, mesh: &SceneMesh, buildings: &[BuildingRecord]) -> R
     if mesh.indices.is_empty() {
         return Err(bad("the mesh has no triangles".into()));
     }
-    if mesh.indices.len() % 3 != 0 {
+    if !mesh.indices.len().is_multiple_of(3) {
         return Err(bad(format!("{} indices is not a multiple of 3", mesh.indices.len())));
     }
     // glTF forbids the largest index value (primitive restart), so at most u32::MAX vertices.

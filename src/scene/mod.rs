@@ -1,13 +1,13 @@
 //! Scenes: area definitions, triangulation, instancing, and the prepared scene artifact.
 //!
-//! - [`config`]: `scenes/<area>.toml`;
-//! - [`triangulate`]: planar polygons with holes → triangles;
-//! - [`prepare`]: the `prepare` stage (read → geo-reference → triangulate → instance → write);
-//! - [`artifact`]: the files it writes and [`PreparedScene::load`] for later stages;
-//! - [`ids`]: the 24-bit [`BuildingId`] and [`IdMap`], the one image-of-IDs type, with its codecs;
-//! - [`mesh`]: the instanced [`SceneMesh`] renderers consume;
-//! - [`glb`]: the scene GLB (EXT_mesh_features) writer and reader;
-//! - [`procedural`]: the embedded demo city generator.
+//! - [`config`] — `scenes/<area>.toml`;
+//! - [`triangulate`] — planar polygons with holes → triangles;
+//! - [`prepare`] — the `prepare` stage (read → geo-reference → triangulate → instance → write);
+//! - [`artifact`] — the files it writes and [`PreparedScene::load`] for later stages;
+//! - [`ids`] — the 24-bit [`BuildingId`] and [`IdMap`], the one image-of-IDs type, with its codecs;
+//! - [`mesh`] — the instanced [`SceneMesh`] renderers consume;
+//! - [`glb`] — the scene GLB (EXT_mesh_features) writer and reader;
+//! - [`procedural`] — the embedded demo city generator.
 
 pub mod artifact;
 pub mod config;

@@ -583,7 +583,7 @@ pub fn generate(spec: &ProceduralSpec, origin: PlaneOrigin) -> Result<SourceMode
     let depths: Vec<f64> =
         (0..spec.blocks_y).map(|_| len(&mut rng, spec.block_size_m * 0.8, spec.block_size_m * 1.2)).collect();
     let street = |i: usize| {
-        if spec.avenue_every > 0 && i % spec.avenue_every as usize == 0 {
+        if spec.avenue_every > 0 && i.is_multiple_of(spec.avenue_every as usize) {
             q(spec.avenue_width_m)
         } else {
             q(spec.street_width_m)

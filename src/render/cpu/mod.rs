@@ -95,9 +95,9 @@ impl CpuScene {
                 let v = mesh.positions_m[mesh.indices[3 * t + j] as usize];
                 *remap.entry(v.map(f32::to_bits)).or_insert_with(|| {
                     let p = rel(v);
-                    for a in 0..3 {
-                        g.min[a] = g.min[a].min(p[a]);
-                        g.max[a] = g.max[a].max(p[a]);
+                    for ((lo, hi), c) in g.min.iter_mut().zip(&mut g.max).zip(p) {
+                        *lo = lo.min(c);
+                        *hi = hi.max(c);
                     }
                     positions.push(p);
                     (positions.len() - 1) as u32
