@@ -96,6 +96,19 @@ pub fn sha256_file(path: &Path) -> Result<String, FileError> {
     Ok(hex::encode(h.finalize()))
 }
 
+/// An error and its causes on one line (`a: b: c`), as `main` prints them: for logs and for lists of
+/// failures that cannot all be sources.
+pub fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut s = e.to_string();
+    let mut cur = e.source();
+    while let Some(c) = cur {
+        s.push_str(": ");
+        s.push_str(&c.to_string());
+        cur = c.source();
+    }
+    s
+}
+
 /// Progress reporting for long work. The CLI implements it with an indicatif bar on stderr; library
 /// callers and tests use [`NoProgress`].
 pub trait Progress: Sync {
