@@ -258,6 +258,7 @@ impl<'p> RunCollector<'p> {
 ///
 /// # Errors
 /// [`CameraError::Config`] for invalid settings (e.g. an impossible height range),
+/// [`CameraError::ZeroCount`] for `count = Some(0)`,
 /// [`CameraError::Area`] for an empty or degenerate area polygon or one no lattice node fits in,
 /// [`CameraError::TooFewPoses`] when the candidate budget (`count × max_attempts_per_pose`) runs out.
 pub fn sample_area(
@@ -272,10 +273,7 @@ pub fn sample_area(
     let m = &scene.manifest;
     let area = m.area.as_str();
     if count == Some(0) {
-        return Err(CameraError::Config {
-            origin: None,
-            issues: vec!["--count 0: ask for at least one pose".into()],
-        });
+        return Err(CameraError::ZeroCount);
     }
     let poly = AreaPolygon::new(area, &m.area_polygon_enu_m)?;
     if !m.ground_enu_m.is_finite() {
