@@ -19,7 +19,7 @@ pub mod obj;
 pub mod split;
 pub mod tiles3d;
 
-pub use error::LodError;
+pub use error::{LodError, ParseError};
 
 use std::path::{Path, PathBuf};
 
