@@ -26,6 +26,7 @@ use insgen::camera::{Intrinsics, PoseRecord};
 use insgen::label::stage::{self, MaskPlan};
 use insgen::loc::cost::{CostKind, Weighting};
 use insgen::loc::eval::{at_width, cull, dense_subscene, CpuEvaluator};
+use insgen::loc::metrics::median_or_nan;
 use insgen::loc::oracle::Degradation;
 use insgen::loc::query::QuerySource;
 use insgen::loc::search::{Evaluate, Hypothesis};
@@ -59,19 +60,6 @@ fn insgen(work: &Path, args: &[&str]) -> String {
     let (ok, text) = insgen_status(work, args);
     assert!(ok, "insgen {}: {text}", args.join(" "));
     text
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
 }
 
 fn read_poses(path: &Path) -> Vec<PoseRecord> {
@@ -128,7 +116,7 @@ fn blender_ids(
         report_bounds: false,
     };
     let summary = render_frames(&plan, frames, &NoProgress).expect("Blender renders the IDs");
-    let secs = median(summary.rendered.iter().map(|t| t.seconds).collect());
+    let secs = median_or_nan(&summary.rendered.iter().map(|t| t.seconds).collect::<Vec<_>>());
     (secs, summary.setup_seconds.iter().sum())
 }
 

@@ -564,8 +564,8 @@ pub fn evaluate(
     let summary = Summary {
         rows,
         queries: queries.len(),
-        median_seconds_per_query: metrics::median(&secs),
-        median_setup_seconds: metrics::median(&setup_times),
+        median_seconds_per_query: metrics::median_or_nan(&secs),
+        median_setup_seconds: metrics::median_or_nan(&setup_times),
         hypotheses_per_second: if total_s > 0.0 { total_hyp as f64 / total_s } else { 0.0 },
     };
 

@@ -1,8 +1,13 @@
-//! Small shared helpers: atomic file output, progress reporting, hashing.
+//! Small shared helpers: atomic file output, progress reporting, hashing, the error chain, and (in
+//! [`math`]) the median and point-in-polygon test.
 //!
 //! Every stage writes its files through [`write_atomic`], so an interrupted or failed run never leaves a
 //! half-written file behind, and reports long work through the [`Progress`] trait, which the CLI
 //! implements with indicatif and tests implement with [`NoProgress`].
+
+pub mod math;
+
+pub use math::{median, point_in_polygon};
 
 use std::fs;
 use std::io::{self, Write};
