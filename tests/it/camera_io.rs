@@ -130,7 +130,7 @@ mod colmap {
         std::fs::write(&p, insgen::camera::colmap::format_pose_list(std::slice::from_ref(&im))).unwrap();
         assert_eq!(insgen::camera::colmap::read_pose_list(&p).unwrap(), vec![im]);
         std::fs::write(&p, "q1.jpg 1 0 0\n").unwrap();
-        let e = insgen::camera::colmap::read_pose_list(&p).unwrap_err().to_string();
+        let e = insgen::util::error_chain(&insgen::camera::colmap::read_pose_list(&p).unwrap_err());
         assert!(e.ends_with("poses.txt:1: expected NAME QW QX QY QZ TX TY TZ, got \"q1.jpg 1 0 0\""), "{e}");
     }
 }
