@@ -78,7 +78,7 @@ fn write_scaled(work: &Path, area: &str, camera: &str, records: &[PoseRecord], w
     let mut text = String::new();
     for r in records {
         let mut r = r.clone();
-        r.intrinsics = at_width(&r.intrinsics, width);
+        r.view.intrinsics = at_width(&r.view.intrinsics, width);
         text.push_str(&serde_json::to_string(&r).unwrap());
         text.push('\n');
     }
@@ -153,7 +153,7 @@ fn bench_area(
     for (label, width) in [("cam2 1920×1080", 1920u32), ("640×360", 640)] {
         let views: Vec<View> = records
             .iter()
-            .map(|r| View { intrinsics: at_width(&r.intrinsics, width), pose: r.pose() })
+            .map(|r| View { intrinsics: at_width(&r.view.intrinsics, width), pose: r.pose() })
             .collect();
         // Render alone: warm up, then enough repetitions for ≥ 2 s.
         renderer.render_batch(&gpu, &views[..1], &RenderOptions::default()).unwrap();
@@ -192,7 +192,7 @@ fn bench_area(
             let pose = r0.pose();
             let [yaw, pitch, roll] = pose.ypr_deg();
             for w in [640u32, 320] {
-                let k: Intrinsics = at_width(&r0.intrinsics, w);
+                let k: Intrinsics = at_width(&r0.view.intrinsics, w);
                 let source = QuerySource::Oracle {
                     masks_dir: cam_dir.join("masks"),
                     degradation: Degradation::default(),

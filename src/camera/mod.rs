@@ -34,5 +34,5 @@ pub use error::{CameraError, ColmapIssue, ConfigIssue};
 pub use intrinsics::Intrinsics;
 pub use pose::Pose;
 pub use preset::CameraSpec;
-pub use record::{PoseRecord, Trajectory};
+pub use record::{EnuCamera, GeoPose, PoseRecord, Trajectory};
 pub use sample::{sample_area, write_sample, SampleOutput, SampleStats};

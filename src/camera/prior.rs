@@ -61,7 +61,7 @@ pub fn make_priors(
                 r.trajectory,
                 r.sequence,
                 r.index,
-                r.intrinsics,
+                r.view.intrinsics,
                 &noisy,
                 enu,
                 ground_enu_m,

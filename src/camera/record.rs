@@ -34,15 +34,36 @@ pub struct PoseRecord {
     /// own sequence of length 1.
     pub sequence: u32,
     pub index: u32,
+    /// Intrinsics and pose in the area's ENU frame (`intrinsics`, `cam_to_world_enu`, `colmap_qvec`,
+    /// `colmap_tvec` in the JSON).
+    #[serde(flatten)]
+    pub view: EnuCamera,
+    /// Camera centre in ECEF (EPSG:4978), metres.
+    pub ecef_m: [f64; 3],
+    /// Position on WGS84 and attitude (`lat_deg` … `roll_deg` in the JSON).
+    #[serde(flatten)]
+    pub geo: GeoPose,
+    /// Height of the camera above the area's ground level, metres.
+    pub height_above_ground_m: f64,
+}
+
+/// A camera in the area's ENU frame: its intrinsics and its pose, given both as a 4×4 and in COLMAP's
+/// form. Flattened into `poses.jsonl` records and COCO images (the same four keys in both).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct EnuCamera {
     pub intrinsics: Intrinsics,
     /// Camera-to-world in the area's ENU frame (OpenCV camera axes), 4×4 row-major, metres.
     pub cam_to_world_enu: [[f64; 4]; 4],
     /// COLMAP world-to-camera quaternion (qw, qx, qy, qz) and translation, ENU world frame.
     pub colmap_qvec: [f64; 4],
     pub colmap_tvec: [f64; 3],
-    /// Camera centre in ECEF (EPSG:4978), metres.
-    pub ecef_m: [f64; 3],
-    /// Camera centre in WGS84 with ellipsoidal height.
+}
+
+/// Where a camera is on the globe and how it is turned: what a UAV's GNSS and IMU would log.
+/// Flattened into `poses.jsonl` records and COCO images (the same six keys in both).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct GeoPose {
+    /// Camera centre in WGS84 with ellipsoidal height: degrees, degrees, metres.
     pub lat_deg: f64,
     pub lon_deg: f64,
     pub h_m: f64,
@@ -51,8 +72,6 @@ pub struct PoseRecord {
     pub yaw_deg: f64,
     pub pitch_deg: f64,
     pub roll_deg: f64,
-    /// Height of the camera above the area's ground level, metres.
-    pub height_above_ground_m: f64,
 }
 
 impl PoseRecord {
@@ -87,24 +106,21 @@ impl PoseRecord {
             trajectory,
             sequence,
             index,
-            intrinsics,
-            cam_to_world_enu,
-            colmap_qvec: pose.colmap_qvec(),
-            colmap_tvec: pose.t_cam_from_world(),
+            view: EnuCamera {
+                intrinsics,
+                cam_to_world_enu,
+                colmap_qvec: pose.colmap_qvec(),
+                colmap_tvec: pose.t_cam_from_world(),
+            },
             ecef_m: ecef,
-            lat_deg: g.lat_deg,
-            lon_deg: g.lon_deg,
-            h_m: g.h_m,
-            yaw_deg,
-            pitch_deg,
-            roll_deg,
+            geo: GeoPose { lat_deg: g.lat_deg, lon_deg: g.lon_deg, h_m: g.h_m, yaw_deg, pitch_deg, roll_deg },
             height_above_ground_m: c[2] - ground_enu_m,
         }
     }
 
     /// The pose (from `cam_to_world_enu`, the authoritative field).
     pub fn pose(&self) -> Pose {
-        let m = &self.cam_to_world_enu;
+        let m = &self.view.cam_to_world_enu;
         Pose {
             r_world_from_cam: [
                 [m[0][0], m[0][1], m[0][2]],

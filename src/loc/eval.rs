@@ -331,7 +331,7 @@ pub fn load_queries(src: &QueryPoses) -> Result<Vec<QueryPose>, EvalError> {
                     })?;
                     Ok(QueryPose {
                         name: gt.name.clone(),
-                        intrinsics: gt.intrinsics,
+                        intrinsics: gt.view.intrinsics,
                         gt: gt.pose(),
                         prior: prior.pose(),
                         group: group_of(gt.trajectory).to_string(),
