@@ -152,14 +152,16 @@ impl std::fmt::Display for Trajectory {
     }
 }
 
+/// A strategy name that is none of `grid`, `regular`, `irregular`.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown strategy {0:?}: expected one of grid, regular, irregular")]
+pub struct UnknownTrajectory(pub String);
+
 impl std::str::FromStr for Trajectory {
-    type Err = String;
+    type Err = UnknownTrajectory;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Trajectory::ALL
-            .into_iter()
-            .find(|t| t.as_str() == s)
-            .ok_or_else(|| format!("unknown strategy {s:?}: expected one of grid, regular, irregular"))
+        Trajectory::ALL.into_iter().find(|t| t.as_str() == s).ok_or_else(|| UnknownTrajectory(s.to_string()))
     }
 }
 
