@@ -26,6 +26,13 @@ pub enum QueryError {
     Coco(#[from] crate::coco::CocoError),
     #[error("{}: {what}", path.display())]
     Input { path: PathBuf, what: String },
+    /// A file given as COCO instances does not parse as one.
+    #[error("{}: not a COCO instances file", path.display())]
+    Instances {
+        path: PathBuf,
+        #[source]
+        source: serde_json::Error,
+    },
 }
 
 /// The predictions of one area/camera, by frame name.
@@ -183,10 +190,8 @@ pub fn load_predictions(
     let mut frames: BTreeMap<u64, String> = BTreeMap::new();
     for f in instances_files {
         let bytes = crate::util::read_file(f).map_err(crate::coco::CocoError::from)?;
-        let images: ImagesOnly = serde_json::from_slice(&bytes).map_err(|e| QueryError::Input {
-            path: f.clone(),
-            what: format!("not a COCO instances file: {e}"),
-        })?;
+        let images: ImagesOnly = serde_json::from_slice(&bytes)
+            .map_err(|source| QueryError::Instances { path: f.clone(), source })?;
         for im in images.images {
             if im.area_name.as_deref() == Some(area) && im.camera.as_deref() == Some(camera) {
                 if let Some(frame) = im.frame {
