@@ -243,7 +243,7 @@ impl SamplingConfig {
     /// listed).
     pub fn from_scene_toml(text: &str, path: Option<&Path>) -> Result<Self, CameraError> {
         let origin = path.map(Path::to_path_buf);
-        let toml_err = |source| CameraError::ConfigToml { origin: origin.clone(), source };
+        let toml_err = |e| CameraError::ConfigToml { origin: origin.clone(), source: Box::new(e) };
         let doc: toml::Table = toml::from_str(text).map_err(toml_err)?;
         let cfg = match doc.get("sampling") {
             None => SamplingConfig::default(),

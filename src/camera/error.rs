@@ -20,8 +20,9 @@ pub enum CameraError {
     #[error("{}: invalid camera file", path.display())]
     CameraToml {
         path: PathBuf,
+        /// Boxed: TOML's error is large, and errors travel by value.
         #[source]
-        source: toml::de::Error,
+        source: Box<toml::de::Error>,
     },
     /// The `[sampling]` configuration breaks one or more rules (all are listed, each with its field).
     #[error("invalid [sampling] configuration{}:{}", origin_suffix(origin), list(issues))]
@@ -30,8 +31,9 @@ pub enum CameraError {
     #[error("invalid [sampling] configuration{}", origin_suffix(origin))]
     ConfigToml {
         origin: Option<PathBuf>,
+        /// Boxed: TOML's error is large, and errors travel by value.
         #[source]
-        source: toml::de::Error,
+        source: Box<toml::de::Error>,
     },
     /// Zero poses were asked for.
     #[error("--count 0: ask for at least one pose")]

@@ -167,7 +167,7 @@ impl CameraSpec {
     /// offending value).
     pub fn from_toml_str(text: &str, path: &Path) -> Result<Self, CameraError> {
         let raw: RawCamera = toml::from_str(text)
-            .map_err(|source| CameraError::CameraToml { path: PathBuf::from(path), source })?;
+            .map_err(|e| CameraError::CameraToml { path: PathBuf::from(path), source: Box::new(e) })?;
         raw.into_spec().map_err(|issues| CameraError::CameraFile { path: PathBuf::from(path), issues })
     }
 

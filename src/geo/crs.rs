@@ -154,7 +154,7 @@ impl Crs {
     /// (vertical-only, engineering, …).
     pub fn parse(name: &str) -> Result<Crs, GeoError> {
         let parsed = parse_codes(name).and_then(|codes| resolve(&Context::new()?, name, &codes));
-        parsed.map_err(|source| GeoError::UnknownCrs { name: name.to_string(), source })
+        parsed.map_err(|e| GeoError::UnknownCrs { name: name.to_string(), source: Box::new(e) })
     }
 
     /// The CRS with this EPSG code.
@@ -164,7 +164,7 @@ impl Crs {
     pub fn from_epsg(code: u32) -> Result<Crs, GeoError> {
         let given = format!("EPSG:{code}");
         let resolved = Context::new().map_err(CrsError::from).and_then(|ctx| resolve(&ctx, &given, &[code]));
-        resolved.map_err(|source| GeoError::UnknownCrs { name: given, source })
+        resolved.map_err(|e| GeoError::UnknownCrs { name: given, source: Box::new(e) })
     }
 
     /// What the third coordinate means (rule in the module doc): ellipsoidal for geocentric and 3D
@@ -459,7 +459,7 @@ impl fmt::Debug for CrsTransform {
 
 impl CrsTransform {
     fn new(crs: Crs) -> Result<CrsTransform, GeoError> {
-        let err = |e: ProjError| GeoError::UnknownCrs { name: crs.given.clone(), source: e.into() };
+        let err = |e: ProjError| GeoError::UnknownCrs { name: crs.given.clone(), source: Box::new(e.into()) };
         let ctx = Context::new().map_err(err)?;
         let engine = match crs.kind {
             CrsKind::Geocentric if crs.horizontal_epsg == 4978 && crs.height_unit_m == 1.0 => {
@@ -760,9 +760,9 @@ mod tests {
         fn unknown_and_unsupported_codes_are_errors_naming_them() {
             let chain = |name: &str| error_chain(&Crs::parse(name).unwrap_err());
             let e = Crs::parse("EPSG:999999").unwrap_err();
+            let GeoError::UnknownCrs { source, .. } = &e else { panic!("{e:?}") };
             assert!(
-                matches!(&e, GeoError::UnknownCrs { source: CrsError::Proj(ProjError::NotInDatabase { code, .. }), .. }
-                    if *code == 999999),
+                matches!(**source, CrsError::Proj(ProjError::NotInDatabase { code: 999999, .. })),
                 "{e:?}"
             );
             let msg = error_chain(&e);

@@ -11,8 +11,9 @@ pub enum GeoError {
     )]
     UnknownCrs {
         name: String,
+        /// Boxed: PROJ's reasons make it large, and errors travel by value.
         #[source]
-        source: CrsError,
+        source: Box<CrsError>,
     },
     /// A coordinate could not be converted (outside the projection's domain, NaN…); `why` is PROJ's
     /// reason or ours.

@@ -166,8 +166,8 @@ impl SceneConfig {
     pub fn load(path: &Path) -> Result<SceneConfig, SceneError> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| SceneError::File(crate::util::FileError::new("reading", path, e)))?;
-        let cfg: SceneConfig =
-            toml::from_str(&text).map_err(|source| SceneError::ConfigToml { path: path.into(), source })?;
+        let cfg: SceneConfig = toml::from_str(&text)
+            .map_err(|e| SceneError::ConfigToml { path: path.into(), source: Box::new(e) })?;
         cfg.validate(path)?;
         Ok(cfg)
     }

@@ -15,8 +15,9 @@ pub enum SceneError {
     #[error("{}: invalid scene file", path.display())]
     ConfigToml {
         path: PathBuf,
+        /// Boxed: TOML's error is large, and errors travel by value.
         #[source]
-        source: toml::de::Error,
+        source: Box<toml::de::Error>,
     },
     /// A source could not be geo-referenced.
     #[error("{}: {what}", path.display())]
