@@ -142,6 +142,23 @@ pub struct ReadOptions {
     pub lod: Option<String>,
 }
 
+impl ReadOptions {
+    /// Checks the weld tolerance before a mesh reader uses it; `path` is the file being read.
+    ///
+    /// # Errors
+    /// [`LodError::Invalid`] at `weld_tolerance_m` when it is negative or not finite.
+    pub fn check_weld_tolerance(&self, path: &Path) -> Result<(), LodError> {
+        match self.weld_tolerance_m {
+            Some(t) if !(t.is_finite() && t >= 0.0) => Err(LodError::invalid(
+                path,
+                "weld_tolerance_m",
+                format!("weld tolerance {t} m must be a finite number ≥ 0"),
+            )),
+            _ => Ok(()),
+        }
+    }
+}
+
 /// Reads one source in the given (or guessed) format.
 ///
 /// # Errors

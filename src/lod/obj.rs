@@ -123,15 +123,7 @@ pub fn read_with_sidecar(
     sidecar: &ObjSidecar,
     opts: &ReadOptions,
 ) -> Result<SourceModel, LodError> {
-    if let Some(t) = opts.weld_tolerance_m {
-        if !(t.is_finite() && t >= 0.0) {
-            return Err(LodError::invalid(
-                path,
-                "weld_tolerance_m",
-                format!("weld tolerance {t} m must be a finite number ≥ 0"),
-            ));
-        }
-    }
+    opts.check_weld_tolerance(path)?;
     let bytes = crate::util::read_file(path)?;
     let text = String::from_utf8_lossy(&bytes);
     let (mesh, stats) = parse_obj(&text, sidecar, path)?;
