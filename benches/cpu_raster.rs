@@ -69,7 +69,7 @@ fn main() {
     for r in records.iter().take(n_queries) {
         let gt = r.pose();
         let [yaw, pitch, roll] = gt.ypr_deg();
-        let k_fine = at_width(&r.intrinsics, 640);
+        let k_fine = at_width(&r.view.intrinsics, 640);
         let kept = cull(&scene.buildings, &gt, &k_fine, 0.5);
         let sub = dense_subscene(&scene.mesh, &kept);
         let cpu = CpuScene::new(&sub, gt.centre_m);
@@ -91,7 +91,7 @@ fn main() {
             })
             .collect();
         for (wi, width) in [320u32, 640].into_iter().enumerate() {
-            let k = at_width(&r.intrinsics, width);
+            let k = at_width(&r.view.intrinsics, width);
             let Ok(q) = source.queries(&r.name, &[k], 0) else {
                 eprintln!("no mask for {}: run `insgen render-masks --area {area} --camera cam2`", r.name);
                 return;

@@ -26,6 +26,7 @@ use insgen::camera::{Intrinsics, PoseRecord};
 use insgen::label::stage::{self, MaskPlan};
 use insgen::loc::cost::{CostKind, Weighting};
 use insgen::loc::eval::{at_width, cull, dense_subscene, CpuEvaluator};
+use insgen::loc::metrics::median_or_nan;
 use insgen::loc::oracle::Degradation;
 use insgen::loc::query::QuerySource;
 use insgen::loc::search::{Evaluate, Hypothesis};
@@ -61,19 +62,6 @@ fn insgen(work: &Path, args: &[&str]) -> String {
     text
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
 fn read_poses(path: &Path) -> Vec<PoseRecord> {
     std::fs::read_to_string(path)
         .expect("poses.jsonl")
@@ -90,7 +78,7 @@ fn write_scaled(work: &Path, area: &str, camera: &str, records: &[PoseRecord], w
     let mut text = String::new();
     for r in records {
         let mut r = r.clone();
-        r.intrinsics = at_width(&r.intrinsics, width);
+        r.view.intrinsics = at_width(&r.view.intrinsics, width);
         text.push_str(&serde_json::to_string(&r).unwrap());
         text.push('\n');
     }
@@ -128,7 +116,7 @@ fn blender_ids(
         report_bounds: false,
     };
     let summary = render_frames(&plan, frames, &NoProgress).expect("Blender renders the IDs");
-    let secs = median(summary.rendered.iter().map(|t| t.seconds).collect());
+    let secs = median_or_nan(&summary.rendered.iter().map(|t| t.seconds).collect::<Vec<_>>());
     (secs, summary.setup_seconds.iter().sum())
 }
 
@@ -165,7 +153,7 @@ fn bench_area(
     for (label, width) in [("cam2 1920×1080", 1920u32), ("640×360", 640)] {
         let views: Vec<View> = records
             .iter()
-            .map(|r| View { intrinsics: at_width(&r.intrinsics, width), pose: r.pose() })
+            .map(|r| View { intrinsics: at_width(&r.view.intrinsics, width), pose: r.pose() })
             .collect();
         // Render alone: warm up, then enough repetitions for ≥ 2 s.
         renderer.render_batch(&gpu, &views[..1], &RenderOptions::default()).unwrap();
@@ -204,7 +192,7 @@ fn bench_area(
             let pose = r0.pose();
             let [yaw, pitch, roll] = pose.ypr_deg();
             for w in [640u32, 320] {
-                let k: Intrinsics = at_width(&r0.intrinsics, w);
+                let k: Intrinsics = at_width(&r0.view.intrinsics, w);
                 let source = QuerySource::Oracle {
                     masks_dir: cam_dir.join("masks"),
                     degradation: Degradation::default(),

@@ -76,16 +76,7 @@ impl AreaPolygon {
 
     /// Whether `p` lies inside (even–odd rule; points exactly on an edge may go either way).
     pub fn contains(&self, p: [f64; 2]) -> bool {
-        let mut inside = false;
-        for (a, b) in self.edges() {
-            if (a[1] > p[1]) != (b[1] > p[1]) {
-                let x = a[0] + (p[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0]);
-                if p[0] < x {
-                    inside = !inside;
-                }
-            }
-        }
-        inside
+        crate::util::point_in_polygon(p, &self.ring)
     }
 
     /// Distance from `p` to the nearest edge, metres.

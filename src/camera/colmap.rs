@@ -17,7 +17,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use super::{CameraError, Intrinsics, Pose};
+use super::{CameraError, ColmapIssue, Intrinsics, Pose};
 
 /// One camera of `cameras.txt` (or one line of a query list, whose id is then 0).
 #[derive(Debug, Clone, PartialEq)]
@@ -147,10 +147,21 @@ pub fn write_images_txt(path: &Path, images: &[ColmapImage]) -> Result<(), Camer
 
 fn read_text(path: &Path) -> Result<String, CameraError> {
     let bytes = crate::util::read_file(path)?;
-    String::from_utf8(bytes).map_err(|e| CameraError::Colmap {
-        path: path.into(),
-        line: 0,
-        what: format!("not UTF-8: {e}"),
+    String::from_utf8(bytes).map_err(|source| CameraError::NotUtf8 { path: path.into(), source })
+}
+
+/// The error for line `line` (1-based) of `path`.
+fn at(path: &Path, line: usize) -> impl Fn(ColmapIssue) -> CameraError + '_ {
+    move |source| CameraError::Colmap { path: path.into(), line, source }
+}
+
+/// The data lines of a one-record-per-line text (cameras.txt, the LoD-Loc lists): line number
+/// (1-based), the trimmed line and its whitespace-separated fields; empty lines and `#` comments are
+/// skipped.
+fn data_lines(text: &str) -> impl Iterator<Item = (usize, &str, Vec<&str>)> {
+    text.lines().enumerate().filter_map(|(i, line)| {
+        let line = line.trim();
+        (!line.is_empty() && !line.starts_with('#')).then(|| (i + 1, line, line.split_whitespace().collect()))
     })
 }
 
@@ -166,39 +177,40 @@ pub fn read_cameras_txt(path: &Path) -> Result<Vec<ColmapCamera>, CameraError> {
 /// Parses the text of a `cameras.txt` file; `path` is used in errors only.
 pub fn parse_cameras_txt(text: &str, path: &Path) -> Result<Vec<ColmapCamera>, CameraError> {
     let mut out: Vec<ColmapCamera> = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let err = |what: String| CameraError::Colmap { path: path.into(), line: i + 1, what };
-        let tok: Vec<&str> = line.split_whitespace().collect();
-        if tok.len() < 4 {
-            return Err(err(format!("expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS[], got {line:?}")));
-        }
-        let camera_id: u32 = parse_num(tok[0], "CAMERA_ID").map_err(&err)?;
-        let cam = parse_camera_fields(camera_id, &tok[1..]).map_err(&err)?;
-        if out.iter().any(|c| c.camera_id == camera_id) {
-            return Err(err(format!("duplicate CAMERA_ID {camera_id}")));
+    for (n, line, tok) in data_lines(text) {
+        let (id, mut cam) =
+            parse_camera_line(line, &tok, "CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]").map_err(at(path, n))?;
+        cam.camera_id = parse_u32(id, "CAMERA_ID").map_err(at(path, n))?;
+        if out.iter().any(|c| c.camera_id == cam.camera_id) {
+            return Err(at(path, n)(ColmapIssue::DuplicateCamera(cam.camera_id)));
         }
         out.push(cam);
     }
     Ok(out)
 }
 
-fn parse_camera_fields(camera_id: u32, tok: &[&str]) -> Result<ColmapCamera, String> {
-    let model = tok[0].to_string();
-    let n = model_param_count(&model).ok_or_else(|| format!("unknown camera model {model:?}"))?;
-    let width_px: u32 = parse_num(tok[1], "WIDTH")?;
-    let height_px: u32 = parse_num(tok[2], "HEIGHT")?;
+/// A camera line, `<first> MODEL WIDTH HEIGHT PARAMS[]` (`expected` spells it for the error): the first
+/// field (CAMERA_ID or NAME) and the camera, with id 0.
+fn parse_camera_line<'a>(
+    line: &str,
+    tok: &[&'a str],
+    expected: &'static str,
+) -> Result<(&'a str, ColmapCamera), ColmapIssue> {
+    if tok.len() < 4 {
+        return Err(ColmapIssue::Fields { expected, line: line.to_string() });
+    }
+    let model = tok[1].to_string();
+    let n = model_param_count(&model).ok_or_else(|| ColmapIssue::UnknownModel(model.clone()))?;
+    let width_px = parse_u32(tok[2], "WIDTH")?;
+    let height_px = parse_u32(tok[3], "HEIGHT")?;
     if width_px == 0 || height_px == 0 {
-        return Err(format!("image size {width_px}×{height_px} is empty"));
+        return Err(ColmapIssue::EmptyImage { width_px, height_px });
     }
-    let params = tok[3..].iter().map(|t| parse_f64(t, "PARAMS")).collect::<Result<Vec<f64>, String>>()?;
+    let params = tok[4..].iter().map(|t| parse_f64(t, "PARAMS")).collect::<Result<Vec<f64>, _>>()?;
     if params.len() != n {
-        return Err(format!("model {model} takes {n} parameters, found {}", params.len()));
+        return Err(ColmapIssue::ParamCount { model, expected: n, found: params.len() });
     }
-    Ok(ColmapCamera { camera_id, model, width_px, height_px, params })
+    Ok((tok[0], ColmapCamera { camera_id: 0, model, width_px, height_px, params }))
 }
 
 /// Reads an `images.txt` file.
@@ -215,7 +227,7 @@ pub fn parse_images_txt(text: &str, path: &Path) -> Result<Vec<ColmapImage>, Cam
     let mut out: Vec<ColmapImage> = Vec::new();
     let mut expect_points = false;
     for (i, line) in text.lines().enumerate() {
-        let err = |what: String| CameraError::Colmap { path: path.into(), line: i + 1, what };
+        let err = at(path, i + 1);
         if line.starts_with('#') {
             continue;
         }
@@ -224,10 +236,8 @@ pub fn parse_images_txt(text: &str, path: &Path) -> Result<Vec<ColmapImage>, Cam
             // The POINTS2D line of the previous image: (X, Y, POINT3D_ID) triples, possibly none.
             expect_points = false;
             if !tok.len().is_multiple_of(3) || tok.iter().any(|t| t.parse::<f64>().is_err()) {
-                return Err(err(format!(
-                    "expected the POINTS2D line (X Y POINT3D_ID triples, or empty) of image {}, got {line:?}",
-                    out.last().map_or(0, |im| im.image_id)
-                )));
+                let image_id = out.last().map_or(0, |im| im.image_id);
+                return Err(err(ColmapIssue::Points2D { image_id, line: line.to_string() }));
             }
             continue;
         }
@@ -235,59 +245,55 @@ pub fn parse_images_txt(text: &str, path: &Path) -> Result<Vec<ColmapImage>, Cam
             continue;
         }
         if tok.len() < 10 {
-            return Err(err(format!("expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME, got {line:?}")));
+            let expected = "IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME";
+            return Err(err(ColmapIssue::Fields { expected, line: line.to_string() }));
         }
-        let image_id: u32 = parse_num(tok[0], "IMAGE_ID").map_err(&err)?;
-        let pose = parse_pose_fields(&tok[1..8]).map_err(&err)?;
-        let camera_id: u32 = parse_num(tok[8], "CAMERA_ID").map_err(&err)?;
+        let image_id = parse_u32(tok[0], "IMAGE_ID").map_err(&err)?;
+        let (qvec, tvec) = parse_pose_fields(&tok[1..8]).map_err(&err)?;
+        let camera_id = parse_u32(tok[8], "CAMERA_ID").map_err(&err)?;
         // COLMAP names may contain spaces: the name is the rest of the line.
         let name = rest_after_tokens(line, 9);
         if out.iter().any(|im| im.image_id == image_id) {
-            return Err(err(format!("duplicate IMAGE_ID {image_id}")));
+            return Err(err(ColmapIssue::DuplicateImage(image_id)));
         }
-        out.push(ColmapImage { image_id, qvec: pose.0, tvec: pose.1, camera_id, name });
+        out.push(ColmapImage { image_id, qvec, tvec, camera_id, name });
         expect_points = true;
     }
     Ok(out)
 }
 
 /// Reads a LoD-Loc query list: `NAME MODEL WIDTH HEIGHT PARAMS[]` per line (camera ids are 0).
+///
+/// # Errors
+/// [`CameraError::Colmap`] with the line number for a malformed line, an unknown model or a wrong
+/// parameter count.
 pub fn read_query_list(path: &Path) -> Result<Vec<(String, ColmapCamera)>, CameraError> {
     let text = read_text(path)?;
-    let mut out = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let err = |what: String| CameraError::Colmap { path: path.into(), line: i + 1, what };
-        let tok: Vec<&str> = line.split_whitespace().collect();
-        if tok.len() < 5 {
-            return Err(err(format!("expected NAME MODEL WIDTH HEIGHT PARAMS[], got {line:?}")));
-        }
-        out.push((tok[0].to_string(), parse_camera_fields(0, &tok[1..]).map_err(err)?));
-    }
-    Ok(out)
+    data_lines(&text)
+        .map(|(n, line, tok)| {
+            let (name, cam) =
+                parse_camera_line(line, &tok, "NAME MODEL WIDTH HEIGHT PARAMS[]").map_err(at(path, n))?;
+            Ok((name.to_string(), cam))
+        })
+        .collect()
 }
 
 /// Reads a LoD-Loc pose list: `NAME QW QX QY QZ TX TY TZ` per line (ids are 0).
+///
+/// # Errors
+/// [`CameraError::Colmap`] with the line number for a malformed line or a zero quaternion.
 pub fn read_pose_list(path: &Path) -> Result<Vec<ColmapImage>, CameraError> {
     let text = read_text(path)?;
-    let mut out = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let err = |what: String| CameraError::Colmap { path: path.into(), line: i + 1, what };
-        let tok: Vec<&str> = line.split_whitespace().collect();
-        if tok.len() != 8 {
-            return Err(err(format!("expected NAME QW QX QY QZ TX TY TZ, got {line:?}")));
-        }
-        let (qvec, tvec) = parse_pose_fields(&tok[1..8]).map_err(err)?;
-        out.push(ColmapImage { image_id: 0, qvec, tvec, camera_id: 0, name: tok[0].to_string() });
-    }
-    Ok(out)
+    data_lines(&text)
+        .map(|(n, line, tok)| {
+            if tok.len() != 8 {
+                let expected = "NAME QW QX QY QZ TX TY TZ";
+                return Err(at(path, n)(ColmapIssue::Fields { expected, line: line.to_string() }));
+            }
+            let (qvec, tvec) = parse_pose_fields(&tok[1..8]).map_err(at(path, n))?;
+            Ok(ColmapImage { image_id: 0, qvec, tvec, camera_id: 0, name: tok[0].to_string() })
+        })
+        .collect()
 }
 
 /// Formats a LoD-Loc pose list line per image.
@@ -301,7 +307,9 @@ pub fn format_pose_list(images: &[ColmapImage]) -> String {
     s
 }
 
-fn parse_pose_fields(tok: &[&str]) -> Result<([f64; 4], [f64; 3]), String> {
+/// `QW QX QY QZ TX TY TZ` (exactly seven fields): the quaternion, which must not be zero, and the
+/// translation.
+fn parse_pose_fields(tok: &[&str]) -> Result<([f64; 4], [f64; 3]), ColmapIssue> {
     let names = ["QW", "QX", "QY", "QZ", "TX", "TY", "TZ"];
     let mut v = [0.0; 7];
     for k in 0..7 {
@@ -309,20 +317,20 @@ fn parse_pose_fields(tok: &[&str]) -> Result<([f64; 4], [f64; 3]), String> {
     }
     let qn = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2] + v[3] * v[3]).sqrt();
     if qn < 1e-12 {
-        return Err("the quaternion (QW QX QY QZ) is zero".to_string());
+        return Err(ColmapIssue::ZeroQuaternion);
     }
     Ok(([v[0], v[1], v[2], v[3]], [v[4], v[5], v[6]]))
 }
 
-fn parse_f64(t: &str, what: &str) -> Result<f64, String> {
+fn parse_f64(t: &str, field: &'static str) -> Result<f64, ColmapIssue> {
     match t.parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
-        _ => Err(format!("{what}: {t:?} is not a finite number")),
+        _ => Err(ColmapIssue::NotFinite { field, value: t.to_string() }),
     }
 }
 
-fn parse_num<T: std::str::FromStr>(t: &str, what: &str) -> Result<T, String> {
-    t.parse::<T>().map_err(|_| format!("{what}: {t:?} is not a valid non-negative integer"))
+fn parse_u32(t: &str, field: &'static str) -> Result<u32, ColmapIssue> {
+    t.parse().map_err(|_| ColmapIssue::NotInteger { field, value: t.to_string() })
 }
 
 /// The part of `line` after its first `n` whitespace-separated tokens, trimmed.
@@ -338,19 +346,58 @@ fn rest_after_tokens(line: &str, n: usize) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::util::error_chain;
 
     #[test]
     fn malformed_lines_name_file_and_line() {
         let p = Path::new("m/cameras.txt");
-        let e = parse_cameras_txt("# c\n1 PINHOLE 10 10 1 2 3\n", p).unwrap_err().to_string();
-        assert_eq!(e, "m/cameras.txt:2: model PINHOLE takes 4 parameters, found 3");
-        let e = parse_cameras_txt("1 FISHEYE9 10 10 1\n", p).unwrap_err().to_string();
-        assert!(e.contains("unknown camera model \"FISHEYE9\""), "{e}");
+        fn chain<T: std::fmt::Debug>(r: Result<T, CameraError>) -> String {
+            error_chain(&r.unwrap_err())
+        }
+        let e = parse_cameras_txt("# c\n1 PINHOLE 10 10 1 2 3\n", p).unwrap_err();
+        assert!(
+            matches!(
+                &e,
+                CameraError::Colmap {
+                    line: 2,
+                    source: ColmapIssue::ParamCount { expected: 4, found: 3, .. },
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+        assert_eq!(error_chain(&e), "m/cameras.txt:2: model PINHOLE takes 4 parameters, found 3");
+        let e = chain(parse_cameras_txt("1 FISHEYE9 10 10 1\n", p));
+        assert_eq!(e, "m/cameras.txt:1: unknown camera model \"FISHEYE9\"");
+        let e = chain(parse_cameras_txt("1 PINHOLE 10 10 1 2 3 4\n1 PINHOLE 10 10 1 2 3 4\n", p));
+        assert_eq!(e, "m/cameras.txt:2: duplicate CAMERA_ID 1");
+        let e = chain(parse_cameras_txt("x PINHOLE 10 10 1 2 3 4\n", p));
+        assert_eq!(e, "m/cameras.txt:1: CAMERA_ID: \"x\" is not a valid non-negative integer");
         let p = Path::new("m/images.txt");
-        let e = parse_images_txt("1 1 0 0 0 0 0 0 1 a.png\n1 2\n", p).unwrap_err().to_string();
+        let e = chain(parse_images_txt("1 1 0 0 0 0 0 0 1 a.png\n1 2\n", p));
         assert!(e.starts_with("m/images.txt:2: expected the POINTS2D line"), "{e}");
-        let e = parse_images_txt("1 0 0 0 0 0 0 0 1 a.png\n\n", p).unwrap_err().to_string();
-        assert!(e.contains("quaternion") && e.contains(":1:"), "{e}");
+        let e = chain(parse_images_txt("1 0 0 0 0 0 0 0 1 a.png\n\n", p));
+        assert_eq!(e, "m/images.txt:1: the quaternion (QW QX QY QZ) is zero");
+        let e = chain(parse_images_txt("1 1 0 0 0 0 0 inf 1 a.png\n\n", p));
+        assert_eq!(e, "m/images.txt:1: TZ: \"inf\" is not a finite number");
+    }
+
+    #[test]
+    fn lists_name_file_and_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let q = dir.path().join("queries.txt");
+        std::fs::write(&q, "# q\na.png PINHOLE 10 10 5 5 5 5\n\nb.png SIMPLE_PINHOLE 10 0 5 5 5\n").unwrap();
+        let e = error_chain(&read_query_list(&q).unwrap_err());
+        assert_eq!(e, format!("{}:4: image size 10×0 is empty", q.display()));
+        std::fs::write(&q, "a.png PINHOLE 10 10 5 5 5 5\n").unwrap();
+        assert_eq!(read_query_list(&q).unwrap()[0].1.params, [5.0; 4]);
+        let g = dir.path().join("gt.txt");
+        std::fs::write(&g, "a.png 1 0 0 0 1 2 3\nb.png 1 0 0\n").unwrap();
+        let e = error_chain(&read_pose_list(&g).unwrap_err());
+        assert_eq!(e, format!("{}:2: expected NAME QW QX QY QZ TX TY TZ, got \"b.png 1 0 0\"", g.display()));
+        std::fs::write(&g, b"a.png \xff\n").unwrap();
+        let e = read_pose_list(&g).unwrap_err();
+        assert!(matches!(e, CameraError::NotUtf8 { .. }), "{e:?}");
     }
 
     #[test]

@@ -55,6 +55,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use super::error::ConfigIssue;
 use super::CameraError;
 
 /// Sampling settings (the scene file's optional `[sampling]` table). See the module doc.
@@ -237,21 +238,19 @@ impl SamplingConfig {
     /// table (those belong to the scene configuration). Absent table → defaults.
     ///
     /// # Errors
-    /// [`CameraError::Config`] when the TOML is invalid or the table breaks a rule (all listed).
+    /// [`CameraError::ConfigToml`] when the text is not TOML or the table has unknown keys or wrong
+    /// types (TOML's error as the source); [`CameraError::Config`] when the table breaks a rule (all
+    /// listed).
     pub fn from_scene_toml(text: &str, path: Option<&Path>) -> Result<Self, CameraError> {
         let origin = path.map(Path::to_path_buf);
-        let fail = |issues: Vec<String>| CameraError::Config { origin: origin.clone(), issues };
-        let doc: toml::Table =
-            toml::from_str(text).map_err(|e| fail(vec![e.to_string().trim().to_string()]))?;
+        let toml_err = |e| CameraError::ConfigToml { origin: origin.clone(), source: Box::new(e) };
+        let doc: toml::Table = toml::from_str(text).map_err(toml_err)?;
         let cfg = match doc.get("sampling") {
             None => SamplingConfig::default(),
-            Some(v) => v
-                .clone()
-                .try_into::<SamplingConfig>()
-                .map_err(|e| fail(vec![format!("[sampling]: {}", e.to_string().trim())]))?,
+            Some(v) => v.clone().try_into::<SamplingConfig>().map_err(toml_err)?,
         };
         cfg.validate().map_err(|e| match e {
-            CameraError::Config { issues, .. } => fail(issues),
+            CameraError::Config { issues, .. } => CameraError::Config { origin: origin.clone(), issues },
             other => other,
         })?;
         Ok(cfg)
@@ -265,7 +264,7 @@ impl SamplingConfig {
         let mut issues = Vec::new();
         let mut positive = |field: &str, v: f64| {
             if !(v.is_finite() && v > 0.0) {
-                issues.push(format!("{field} = {v}: must be a positive number"));
+                issues.push(ConfigIssue::value(field, v, "must be a positive number"));
             }
         };
         positive("clearance_radius_m", self.clearance_radius_m);
@@ -279,21 +278,25 @@ impl SamplingConfig {
         positive("irregular.max_climb_m_per_frame", self.irregular.max_climb_m_per_frame);
         let mut non_negative = |field: &str, v: f64| {
             if !(v.is_finite() && v >= 0.0) {
-                issues.push(format!("{field} = {v}: must be a number ≥ 0"));
+                issues.push(ConfigIssue::value(field, v, "must be a number ≥ 0"));
             }
         };
         non_negative("clearance_m", self.clearance_m);
         non_negative("grid.margin_m", self.grid.margin_m);
         non_negative("irregular.waypoint_margin_m", self.irregular.waypoint_margin_m);
         if !(0.0..=1.0).contains(&self.min_building_fraction) {
-            issues.push(format!("min_building_fraction = {}: must be in [0, 1]", self.min_building_fraction));
+            issues.push(ConfigIssue::value(
+                "min_building_fraction",
+                self.min_building_fraction,
+                "must be in [0, 1]",
+            ));
         }
         if self.visibility_rays.contains(&0) || self.visibility_rays.iter().any(|&n| n > 256) {
-            issues
-                .push(format!("visibility_rays = {:?}: each count must be in 1..=256", self.visibility_rays));
+            let rays = format!("{:?}", self.visibility_rays);
+            issues.push(ConfigIssue::value("visibility_rays", rays, "each count must be in 1..=256"));
         }
         if self.max_attempts_per_pose == 0 {
-            issues.push("max_attempts_per_pose = 0: must be at least 1".to_string());
+            issues.push(ConfigIssue::value("max_attempts_per_pose", 0, "must be at least 1"));
         }
         for (field, r) in [
             ("grid.height_range_m", self.grid.height_range_m),
@@ -301,53 +304,62 @@ impl SamplingConfig {
             ("irregular.height_range_m", self.irregular.height_range_m),
         ] {
             if let Some(why) = range_problem(r, 0.0, 20_000.0) {
-                issues.push(format!("{field} = [{}, {}]: impossible height range: {why}", r[0], r[1]));
+                let range = format!("[{}, {}]", r[0], r[1]);
+                issues.push(ConfigIssue::value(field, range, format!("impossible height range: {why}")));
             }
         }
         if let Some(why) = range_problem(self.irregular.pitch_range_deg, 0.0, 89.0) {
             let r = self.irregular.pitch_range_deg;
-            issues.push(format!("irregular.pitch_range_deg = [{}, {}]: {why}", r[0], r[1]));
+            issues.push(ConfigIssue::value(
+                "irregular.pitch_range_deg",
+                format!("[{}, {}]", r[0], r[1]),
+                why,
+            ));
         }
         for (field, list) in
             [("grid.pitch_deg", &self.grid.pitch_deg), ("regular.pitch_deg", &self.regular.pitch_deg)]
         {
             if list.is_empty() {
-                issues.push(format!("{field} = []: give at least one view angle"));
+                issues.push(ConfigIssue::value(field, "[]", "give at least one view angle"));
             }
             for &p in list.iter() {
                 if !(p.is_finite() && (0.0..=89.0).contains(&p)) {
-                    issues.push(format!("{field} contains {p}: view angles must be in [0, 89] degrees"));
+                    issues.push(ConfigIssue::field(
+                        field,
+                        format!("contains {p}; view angles must be in [0, 89] degrees"),
+                    ));
                 }
             }
         }
         for &y in &self.grid.yaw_deg {
             if !y.is_finite() {
-                issues.push(format!("grid.yaw_deg contains {y}: must be finite"));
+                issues.push(ConfigIssue::field("grid.yaw_deg", format!("contains {y}; each must be finite")));
             }
         }
         if let Some(h) = self.regular.line_heading_deg {
             if !h.is_finite() {
-                issues.push(format!("regular.line_heading_deg = {h}: must be finite"));
+                issues.push(ConfigIssue::value("regular.line_heading_deg", h, "must be finite"));
             }
         }
         if self.irregular.frames_per_sequence == 0 {
-            issues.push("irregular.frames_per_sequence = 0: must be at least 1".to_string());
+            issues.push(ConfigIssue::value("irregular.frames_per_sequence", 0, "must be at least 1"));
         }
         if self.irregular.min_sequence_frames > self.irregular.frames_per_sequence {
-            issues.push(format!(
-                "irregular.min_sequence_frames = {} exceeds irregular.frames_per_sequence = {}",
-                self.irregular.min_sequence_frames, self.irregular.frames_per_sequence
+            issues.push(ConfigIssue::value(
+                "irregular.min_sequence_frames",
+                self.irregular.min_sequence_frames,
+                format!("exceeds irregular.frames_per_sequence = {}", self.irregular.frames_per_sequence),
             ));
         }
         let p = &self.prior;
         for (field, v) in [("prior.sigma_enu_m", p.sigma_enu_m), ("prior.sigma_ypr_deg", p.sigma_ypr_deg)] {
             if v.iter().any(|s| !(s.is_finite() && *s >= 0.0)) {
-                issues.push(format!("{field} = {v:?}: standard deviations must be ≥ 0"));
+                issues.push(ConfigIssue::value(field, format!("{v:?}"), "standard deviations must be ≥ 0"));
             }
         }
         for (field, v) in [("prior.bias_enu_m", p.bias_enu_m), ("prior.bias_ypr_deg", p.bias_ypr_deg)] {
             if v.iter().any(|s| !s.is_finite()) {
-                issues.push(format!("{field} = {v:?}: must be finite"));
+                issues.push(ConfigIssue::value(field, format!("{v:?}"), "must be finite"));
             }
         }
         if issues.is_empty() {
@@ -402,6 +414,8 @@ mod tests {
         .to_string();
         assert!(e.contains("scenes/x.toml") && e.contains("regular.height_range_m = [500, 400]"), "{e}");
         let e = SamplingConfig::from_scene_toml("[sampling.grid]\nspacing = 40.0\n", None).unwrap_err();
-        assert!(e.to_string().contains("unknown field `spacing`"), "{e}");
+        assert!(matches!(e, CameraError::ConfigToml { .. }), "{e:?}");
+        let msg = crate::util::error_chain(&e);
+        assert!(msg.starts_with("invalid [sampling] configuration: unknown field `spacing`"), "{msg}");
     }
 }

@@ -13,12 +13,38 @@ pub enum CameraError {
          (see scenes/cameras/example.toml), e.g. `insgen sample --area <AREA> --camera cam2`"
     )]
     UnknownPreset { name: String, available: String },
-    /// A custom camera file is not valid TOML or breaks one or more rules (all are listed).
-    #[error("{}: invalid camera file:\n  - {}", path.display(), issues.join("\n  - "))]
-    CameraFile { path: PathBuf, issues: Vec<String> },
-    /// The `[sampling]` configuration breaks one or more rules (all are listed, with their field).
-    #[error("invalid [sampling] configuration{}:\n  - {}", origin_suffix(origin), issues.join("\n  - "))]
-    Config { origin: Option<PathBuf>, issues: Vec<String> },
+    /// A custom camera file breaks one or more rules (all are listed, each with its field).
+    #[error("{}: invalid camera file:{}", path.display(), list(issues))]
+    CameraFile { path: PathBuf, issues: Vec<ConfigIssue> },
+    /// A custom camera file is not TOML, or not the camera table (unknown or missing key, wrong type).
+    #[error("{}: invalid camera file", path.display())]
+    CameraToml {
+        path: PathBuf,
+        /// Boxed: TOML's error is large, and errors travel by value.
+        #[source]
+        source: Box<toml::de::Error>,
+    },
+    /// The `[sampling]` configuration breaks one or more rules (all are listed, each with its field).
+    #[error("invalid [sampling] configuration{}:{}", origin_suffix(origin), list(issues))]
+    Config { origin: Option<PathBuf>, issues: Vec<ConfigIssue> },
+    /// The scene file is not TOML, or its `[sampling]` table does not have the expected keys and types.
+    #[error("invalid [sampling] configuration{}", origin_suffix(origin))]
+    ConfigToml {
+        origin: Option<PathBuf>,
+        /// Boxed: TOML's error is large, and errors travel by value.
+        #[source]
+        source: Box<toml::de::Error>,
+    },
+    /// Zero poses were asked for.
+    #[error("--count 0: ask for at least one pose")]
+    ZeroCount,
+    /// A text file (camera TOML, COLMAP model) is not UTF-8.
+    #[error("{}: not UTF-8 text", path.display())]
+    NotUtf8 {
+        path: PathBuf,
+        #[source]
+        source: std::string::FromUtf8Error,
+    },
     /// The area polygon is unusable (fewer than 3 vertices, zero area, non-finite coordinates).
     #[error("area {area}: {what}")]
     Area { area: String, what: String },
@@ -39,9 +65,15 @@ pub enum CameraError {
         visibility: u64,
         hint: String,
     },
-    /// A COLMAP text file is malformed.
-    #[error("{}:{line}: {what}", path.display())]
-    Colmap { path: PathBuf, line: usize, what: String },
+    /// A line of a COLMAP text file (or of a LoD-Loc list) is malformed; `source` says how.
+    #[error("{}:{line}", path.display())]
+    Colmap {
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        #[source]
+        source: ColmapIssue,
+    },
     /// A `poses.jsonl`/`priors.jsonl` line is not a valid pose record.
     #[error("{}:{line}: not a valid pose record", path.display())]
     Jsonl {
@@ -68,6 +100,69 @@ pub enum CameraError {
         #[source]
         source: png::EncodingError,
     },
+}
+
+/// One broken rule of a camera file or a `[sampling]` table: where it is (the TOML key), the value
+/// found there, and the rule. Shown as `field = value: rule`, or `field: rule` without a value.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{field}{}: {rule}", value.as_ref().map(|v| format!(" = {v}")).unwrap_or_default())]
+pub struct ConfigIssue {
+    /// The dotted TOML key from the file's (or table's) root: `width_px`, `grid.height_range_m`,
+    /// `distortion.k1`.
+    pub field: String,
+    /// The offending value as the message shows it (`0`, `[500, 400]`, `"bad name"`), when one value is
+    /// at fault.
+    pub value: Option<String>,
+    /// The rule it breaks, e.g. `must be in 1..=16384`.
+    pub rule: String,
+}
+
+impl ConfigIssue {
+    /// An issue with the value found at `field`.
+    pub fn value(field: impl Into<String>, value: impl std::fmt::Display, rule: impl Into<String>) -> Self {
+        ConfigIssue { field: field.into(), value: Some(value.to_string()), rule: rule.into() }
+    }
+
+    /// An issue with `field` as a whole (missing, or one entry of a list).
+    pub fn field(field: impl Into<String>, rule: impl Into<String>) -> Self {
+        ConfigIssue { field: field.into(), value: None, rule: rule.into() }
+    }
+}
+
+/// What is wrong with one line of a COLMAP `cameras.txt`/`images.txt` or a LoD-Loc list.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ColmapIssue {
+    /// Too few (or too many) fields; `expected` spells the line format.
+    #[error("expected {expected}, got {line:?}")]
+    Fields { expected: &'static str, line: String },
+    #[error("unknown camera model {0:?}")]
+    UnknownModel(String),
+    /// An id or size field that is not a non-negative integer.
+    #[error("{field}: {value:?} is not a valid non-negative integer")]
+    NotInteger { field: &'static str, value: String },
+    /// A parameter, quaternion or translation field that is not a finite number.
+    #[error("{field}: {value:?} is not a finite number")]
+    NotFinite { field: &'static str, value: String },
+    #[error("image size {width_px}×{height_px} is empty")]
+    EmptyImage { width_px: u32, height_px: u32 },
+    #[error("model {model} takes {expected} parameters, found {found}")]
+    ParamCount { model: String, expected: usize, found: usize },
+    #[error("the quaternion (QW QX QY QZ) is zero")]
+    ZeroQuaternion,
+    #[error("duplicate CAMERA_ID {0}")]
+    DuplicateCamera(u32),
+    #[error("duplicate IMAGE_ID {0}")]
+    DuplicateImage(u32),
+    /// The line after an image line is not its POINTS2D list.
+    #[error(
+        "expected the POINTS2D line (X Y POINT3D_ID triples, or empty) of image {image_id}, got {line:?}"
+    )]
+    Points2D { image_id: u32, line: String },
+}
+
+/// Issues as an indented list, one per line.
+fn list(issues: &[ConfigIssue]) -> String {
+    issues.iter().map(|i| format!("\n  - {i}")).collect()
 }
 
 fn origin_suffix(origin: &Option<PathBuf>) -> String {

@@ -297,12 +297,12 @@ pub fn draw_flight_plan(scene: &PreparedScene, poses: &[PoseRecord]) -> (Canvas,
     for r in poses {
         let c = r.pose().centre_m;
         let at = canvas.to_px([c[0], c[1]]);
-        let len_px = 7.0 + 18.0 * r.pitch_deg.to_radians().sin();
-        let yaw = r.yaw_deg.to_radians();
+        let len_px = 7.0 + 18.0 * r.geo.pitch_deg.to_radians().sin();
+        let yaw = r.geo.yaw_deg.to_radians();
         canvas.line(at, [at[0] + len_px * yaw.sin(), at[1] - len_px * yaw.cos()], 1, INK);
     }
     for nadir_pass in [false, true] {
-        for r in poses.iter().filter(|r| (r.pitch_deg <= 1.0) == nadir_pass) {
+        for r in poses.iter().filter(|r| (r.geo.pitch_deg <= 1.0) == nadir_pass) {
             let c = r.pose().centre_m;
             let at = canvas.to_px([c[0], c[1]]);
             if nadir_pass {

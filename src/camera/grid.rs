@@ -15,7 +15,7 @@ use rand::seq::SliceRandom;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
-use super::sample::{Ctx, Frame, SampleStats};
+use super::sample::{Ctx, Frame, SampleStats, Sampled};
 use super::{CameraError, Pose, Trajectory};
 
 /// Lattice nodes inside the polygon (south to north, west to east). The lattice is cell-centred on
@@ -41,12 +41,9 @@ pub(crate) fn lattice_nodes(ctx: &Ctx, spacing_m: f64, margin_m: f64) -> Vec<[f6
     nodes
 }
 
-pub(crate) fn sample(
-    ctx: &Ctx,
-    rng: &mut ChaCha8Rng,
-    count: Option<usize>,
-    stats: &mut SampleStats,
-) -> Result<(Vec<Frame>, Vec<f64>), CameraError> {
+pub(crate) fn sample(ctx: &Ctx, rng: &mut ChaCha8Rng) -> Result<Sampled, CameraError> {
+    let count = ctx.count;
+    let mut stats = SampleStats::default();
     let g = &ctx.cfg.grid;
     let nodes = lattice_nodes(ctx, g.spacing_m, g.margin_m);
     if nodes.is_empty() {
@@ -102,7 +99,7 @@ pub(crate) fn sample(
                 };
                 let h = if lo < h_hi { rng.gen_range(lo..=h_hi) } else { lo };
                 let pose = Pose::from_ypr_deg(yaw, pitch, 0.0, [p[0], p[1], ctx.ground_m + h]);
-                if let Ok(f) = ctx.check(&pose, stats) {
+                if let Ok(f) = ctx.check(&pose, &mut stats) {
                     round.push((k, pose, f));
                     ctx.progress.inc(1);
                     break;
@@ -121,7 +118,7 @@ pub(crate) fn sample(
         }
     }
     if frames.is_empty() || (count.is_some() && frames.len() < wanted) {
-        return Err(ctx.too_few(Trajectory::Grid, frames.len(), wanted, stats));
+        return Err(ctx.too_few(Trajectory::Grid, frames.len(), wanted, &stats));
     }
-    Ok((frames, fractions))
+    Ok(Sampled { frames, fractions, stats })
 }

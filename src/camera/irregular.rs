@@ -20,7 +20,7 @@
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
-use super::sample::{Ctx, Frame, RunCollector, SampleStats};
+use super::sample::{Ctx, RunCollector, SampleStats, Sampled};
 use super::{CameraError, Pose, Trajectory};
 
 /// Proportional gain of the heading pursuit (turn rate commanded per degree of heading error).
@@ -59,12 +59,9 @@ struct Targets {
     leg_limit: usize,
 }
 
-pub(crate) fn sample(
-    ctx: &Ctx,
-    rng: &mut ChaCha8Rng,
-    count: Option<usize>,
-    stats: &mut SampleStats,
-) -> Result<(Vec<Frame>, Vec<f64>), CameraError> {
+pub(crate) fn sample(ctx: &Ctx, rng: &mut ChaCha8Rng) -> Result<Sampled, CameraError> {
+    let count = ctx.count;
+    let mut stats = SampleStats::default();
     let ic = &ctx.cfg.irregular;
     let wanted = count.unwrap_or(ic.default_frames as usize);
     ctx.progress.start(wanted as u64, "poses");
@@ -122,8 +119,8 @@ pub(crate) fn sample(
                 0.0,
                 [s.p[0], s.p[1], ctx.ground_m + s.height_agl_m],
             );
-            let verdict = ctx.check(&pose, stats).ok().map(|f| (pose, f));
-            runs.offer(verdict, stats);
+            let verdict = ctx.check(&pose, &mut stats).ok().map(|f| (pose, f));
+            runs.offer(verdict, &mut stats);
             if runs.full() || stats.candidates >= budget {
                 break;
             }
@@ -161,11 +158,11 @@ pub(crate) fn sample(
                 tg.pitch_deg = pitch_target;
             }
         }
-        runs.end_run(stats);
+        runs.end_run(&mut stats);
     }
     let placed = runs.frames.len();
     if placed < wanted {
-        return Err(ctx.too_few(Trajectory::Irregular, placed, wanted, stats));
+        return Err(ctx.too_few(Trajectory::Irregular, placed, wanted, &stats));
     }
-    Ok((runs.frames, runs.fractions))
+    Ok(Sampled { frames: runs.frames, fractions: runs.fractions, stats })
 }

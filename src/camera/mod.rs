@@ -30,9 +30,9 @@ pub mod sample;
 pub mod visibility;
 
 pub use config::SamplingConfig;
-pub use error::CameraError;
+pub use error::{CameraError, ColmapIssue, ConfigIssue};
 pub use intrinsics::Intrinsics;
 pub use pose::Pose;
 pub use preset::CameraSpec;
-pub use record::{PoseRecord, Trajectory};
+pub use record::{EnuCamera, GeoPose, PoseRecord, Trajectory};
 pub use sample::{sample_area, write_sample, SampleOutput, SampleStats};

@@ -25,6 +25,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use super::error::ConfigIssue;
 use super::{CameraError, Intrinsics, Trajectory};
 
 /// Names of the built-in presets, in table order.
@@ -149,25 +150,25 @@ impl CameraSpec {
     /// Reads a custom camera TOML file (`schemas/camera.schema.json`).
     ///
     /// # Errors
-    /// [`CameraError::File`] when it cannot be read, [`CameraError::CameraFile`] listing every problem.
+    /// [`CameraError::File`] when it cannot be read, [`CameraError::NotUtf8`] when it is not text, and
+    /// the errors of [`CameraSpec::from_toml_str`].
     pub fn load(path: &Path) -> Result<Self, CameraError> {
         let bytes = crate::util::read_file(path)?;
-        let text = String::from_utf8(bytes).map_err(|e| CameraError::CameraFile {
-            path: path.to_path_buf(),
-            issues: vec![format!("not UTF-8 text: {e}")],
-        })?;
+        let text = String::from_utf8(bytes)
+            .map_err(|source| CameraError::NotUtf8 { path: path.to_path_buf(), source })?;
         Self::from_toml_str(&text, path)
     }
 
     /// Parses and validates a custom camera from TOML text; `path` is used in error messages only.
     ///
     /// # Errors
-    /// [`CameraError::CameraFile`] with one entry per problem (field name and offending value).
+    /// [`CameraError::CameraToml`] when the text is not TOML or not a camera table (TOML's error, with
+    /// its line, as the source); [`CameraError::CameraFile`] with one entry per broken rule (field and
+    /// offending value).
     pub fn from_toml_str(text: &str, path: &Path) -> Result<Self, CameraError> {
-        let fail = |issues: Vec<String>| CameraError::CameraFile { path: PathBuf::from(path), issues };
-        let raw: RawCamera =
-            toml::from_str(text).map_err(|e| fail(vec![e.to_string().trim().to_string()]))?;
-        raw.into_spec().map_err(fail)
+        let raw: RawCamera = toml::from_str(text)
+            .map_err(|e| CameraError::CameraToml { path: PathBuf::from(path), source: Box::new(e) })?;
+        raw.into_spec().map_err(|issues| CameraError::CameraFile { path: PathBuf::from(path), issues })
     }
 
     /// Projects a point given in the area's ENU frame (metres) to pixel coordinates for a camera at
@@ -207,48 +208,57 @@ struct RawCamera {
 const MAX_SIDE_PX: i64 = 16384;
 
 impl RawCamera {
-    fn into_spec(self) -> Result<CameraSpec, Vec<String>> {
+    /// The camera, or every broken rule with its field.
+    fn into_spec(self) -> Result<CameraSpec, Vec<ConfigIssue>> {
         let mut issues = Vec::new();
         let name_ok = !self.name.is_empty()
             && self.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
+        let name = format!("{:?}", self.name);
         if !name_ok {
-            issues.push(format!(
-                "name = {:?}: must be non-empty and use only letters, digits, '_' and '-' (it names the output \
-                 directory)",
-                self.name
+            issues.push(ConfigIssue::value(
+                "name",
+                name,
+                "must be non-empty and use only letters, digits, '_' and '-' (it names the output directory)",
             ));
         } else if PRESET_NAMES.contains(&self.name.as_str()) {
-            issues.push(format!("name = {:?}: is a built-in preset name; choose another", self.name));
+            issues.push(ConfigIssue::value("name", name, "is a built-in preset name; choose another"));
         }
         for (field, v) in [("width_px", self.width_px), ("height_px", self.height_px)] {
             if !(1..=MAX_SIDE_PX).contains(&v) {
-                issues.push(format!("{field} = {v}: must be in 1..={MAX_SIDE_PX}"));
+                issues.push(ConfigIssue::value(field, v, format!("must be in 1..={MAX_SIDE_PX}")));
             }
         }
         for (field, v) in
             [("sensor_width_mm", self.sensor_width_mm), ("sensor_height_mm", self.sensor_height_mm)]
         {
             if !(v.is_finite() && v > 0.0) {
-                issues.push(format!("{field} = {v}: must be a positive number of millimetres"));
+                issues.push(ConfigIssue::value(field, v, "must be a positive number of millimetres"));
             }
         }
         let hfov_deg = match (self.hfov_deg, self.focal_mm) {
             (None, None) => {
-                issues.push("give hfov_deg (horizontal field of view) or focal_mm".to_string());
+                issues.push(ConfigIssue::field(
+                    "hfov_deg",
+                    "missing; give it (the horizontal field of view) or focal_mm",
+                ));
                 None
             }
             (Some(h), f) => {
                 if !(h.is_finite() && h > 0.0 && h < 180.0) {
-                    issues.push(format!("hfov_deg = {h}: must be in (0, 180) degrees"));
+                    issues.push(ConfigIssue::value("hfov_deg", h, "must be in (0, 180) degrees"));
                     None
                 } else {
                     if let Some(f) = f {
                         let expect = focal_mm_from_hfov(self.sensor_width_mm, h);
                         if !(f.is_finite() && (f - expect).abs() <= 1e-3 * expect) {
-                            issues.push(format!(
-                                "focal_mm = {f} disagrees with hfov_deg = {h} and sensor_width_mm = {} \
-                                 (which give {expect:.4} mm); give only one of them",
-                                self.sensor_width_mm
+                            issues.push(ConfigIssue::value(
+                                "focal_mm",
+                                f,
+                                format!(
+                                    "disagrees with hfov_deg = {h} and sensor_width_mm = {} (which give \
+                                     {expect:.4} mm); give only one of them",
+                                    self.sensor_width_mm
+                                ),
                             ));
                         }
                     }
@@ -257,7 +267,11 @@ impl RawCamera {
             }
             (None, Some(f)) => {
                 if !(f.is_finite() && f > 0.0) {
-                    issues.push(format!("focal_mm = {f}: must be a positive number of millimetres"));
+                    issues.push(ConfigIssue::value(
+                        "focal_mm",
+                        f,
+                        "must be a positive number of millimetres",
+                    ));
                     None
                 } else {
                     Some(2.0 * (0.5 * self.sensor_width_mm / f).atan().to_degrees())
@@ -267,7 +281,7 @@ impl RawCamera {
         for (field, v) in [("fx_px", self.fx_px), ("fy_px", self.fy_px)] {
             if let Some(v) = v {
                 if !(v.is_finite() && v > 0.0) {
-                    issues.push(format!("{field} = {v}: must be a positive number of pixels"));
+                    issues.push(ConfigIssue::value(field, v, "must be a positive number of pixels"));
                 }
             }
         }
@@ -275,14 +289,22 @@ impl RawCamera {
         {
             if let Some(v) = v {
                 if !(v.is_finite() && v >= 0.0 && v <= side as f64) {
-                    issues.push(format!("{field} = {v}: must lie inside the image, in [0, {side}] pixels"));
+                    issues.push(ConfigIssue::value(
+                        field,
+                        v,
+                        format!("must lie inside the image, in [0, {side}] pixels"),
+                    ));
                 }
             }
         }
         if let Some(d) = &self.distortion {
             for (field, v) in [("k1", d.k1), ("k2", d.k2), ("p1", d.p1), ("p2", d.p2), ("k3", d.k3)] {
                 if !v.is_finite() {
-                    issues.push(format!("distortion.{field} = {v}: must be a finite number"));
+                    issues.push(ConfigIssue::value(
+                        format!("distortion.{field}"),
+                        v,
+                        "must be a finite number",
+                    ));
                 }
             }
         }
@@ -349,7 +371,26 @@ mod tests {
                     sensor_height_mm = 5\nhfov_deg = 190\ncx_px = 5000\n";
         let e = CameraSpec::from_toml_str(text, Path::new("x.toml")).unwrap_err();
         let CameraError::CameraFile { issues, .. } = &e else { panic!("{e}") };
-        assert_eq!(issues.len(), 5, "{issues:#?}");
-        assert!(e.to_string().starts_with("x.toml: invalid camera file"));
+        let fields: Vec<&str> = issues.iter().map(|i| i.field.as_str()).collect();
+        assert_eq!(fields, ["name", "width_px", "sensor_width_mm", "hfov_deg", "cx_px"], "{issues:#?}");
+        assert_eq!(
+            e.to_string(),
+            "x.toml: invalid camera file:\n  \
+             - name = \"bad name\": must be non-empty and use only letters, digits, '_' and '-' (it names the \
+             output directory)\n  \
+             - width_px = 0: must be in 1..=16384\n  \
+             - sensor_width_mm = -1: must be a positive number of millimetres\n  \
+             - hfov_deg = 190: must be in (0, 180) degrees\n  \
+             - cx_px = 5000: must lie inside the image, in [0, 0] pixels"
+        );
+    }
+
+    #[test]
+    fn custom_camera_toml_errors_keep_their_cause() {
+        let e = CameraSpec::from_toml_str("name = \"c\"\nwidth = 10\n", Path::new("x.toml")).unwrap_err();
+        assert!(matches!(e, CameraError::CameraToml { .. }), "{e:?}");
+        let msg = crate::util::error_chain(&e);
+        assert!(msg.starts_with("x.toml: invalid camera file: TOML parse error at line 2"), "{msg}");
+        assert!(msg.contains("unknown field `width`"), "{msg}");
     }
 }

@@ -18,6 +18,7 @@ use rand_distr::StandardNormal;
 use super::config::PriorNoise;
 use super::{Pose, PoseRecord};
 use crate::geo::EnuFrame;
+use crate::util::median;
 
 /// ChaCha8 stream used for prior noise (stream 0 is the pose sampler's).
 pub const PRIOR_STREAM: u64 = 1;
@@ -60,7 +61,7 @@ pub fn make_priors(
                 r.trajectory,
                 r.sequence,
                 r.index,
-                r.intrinsics,
+                r.view.intrinsics,
                 &noisy,
                 enu,
                 ground_enu_m,
@@ -81,18 +82,7 @@ pub fn median_errors(truth: &[PoseRecord], prior: &[PoseRecord]) -> Option<(f64,
         t.push(pa.translation_error_m(&pb));
         r.push(pa.rotation_error_deg(&pb));
     }
-    Some((median(&mut t), median(&mut r)))
-}
-
-/// Median of a non-empty slice (mean of the two middle values for even lengths).
-pub fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
+    Some((median(&t)?, median(&r)?))
 }
 
 #[cfg(test)]
@@ -111,7 +101,7 @@ mod tests {
             t.push(gt.translation_error_m(&p));
             r.push(gt.rotation_error_deg(&p));
         }
-        let (mt, mr) = (median(&mut t), median(&mut r));
+        let (mt, mr) = (median(&t).unwrap(), median(&r).unwrap());
         // Expected: 9.75 m (200 000-draw numpy simulation of the same model) and 0.674 × 3° = 2.02°
         // (the median of |N(0, 3°)|; pitch and roll add < 0.01°).
         assert!((9.4..10.1).contains(&mt), "median translation {mt} m");

@@ -35,6 +35,23 @@ pub struct PoseRecord {
     /// own sequence of length 1.
     pub sequence: u32,
     pub index: u32,
+    /// Intrinsics and pose in the area's ENU frame (`intrinsics`, `cam_to_world_enu`, `colmap_qvec`,
+    /// `colmap_tvec` in the JSON).
+    #[serde(flatten)]
+    pub view: EnuCamera,
+    /// Camera centre in ECEF (EPSG:4978), metres.
+    pub ecef_m: [f64; 3],
+    /// Position on WGS84 and attitude (`lat_deg` … `roll_deg` in the JSON).
+    #[serde(flatten)]
+    pub geo: GeoPose,
+    /// Height of the camera above the area's ground level, metres.
+    pub height_above_ground_m: f64,
+}
+
+/// A camera in the area's ENU frame: its intrinsics and its pose, given both as a 4×4 and in COLMAP's
+/// form. Flattened into `poses.jsonl` records and COCO images (the same four keys in both).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct EnuCamera {
     pub intrinsics: Intrinsics,
     /// Camera-to-world in the area's ENU frame (OpenCV camera axes), metres; rows in the file.
     #[serde(with = "crate::util::row_major")]
@@ -42,9 +59,13 @@ pub struct PoseRecord {
     /// COLMAP world-to-camera quaternion (qw, qx, qy, qz) and translation, ENU world frame.
     pub colmap_qvec: [f64; 4],
     pub colmap_tvec: [f64; 3],
-    /// Camera centre in ECEF (EPSG:4978), metres.
-    pub ecef_m: [f64; 3],
-    /// Camera centre in WGS84 with ellipsoidal height.
+}
+
+/// Where a camera is on the globe and how it is turned: what a UAV's GNSS and IMU would log.
+/// Flattened into `poses.jsonl` records and COCO images (the same six keys in both).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct GeoPose {
+    /// Camera centre in WGS84 with ellipsoidal height: degrees, degrees, metres.
     pub lat_deg: f64,
     pub lon_deg: f64,
     pub h_m: f64,
@@ -53,8 +74,6 @@ pub struct PoseRecord {
     pub yaw_deg: f64,
     pub pitch_deg: f64,
     pub roll_deg: f64,
-    /// Height of the camera above the area's ground level, metres.
-    pub height_above_ground_m: f64,
 }
 
 impl PoseRecord {
@@ -82,24 +101,21 @@ impl PoseRecord {
             trajectory,
             sequence,
             index,
-            intrinsics,
-            cam_to_world_enu: pose.cam_to_world(),
-            colmap_qvec: pose.colmap_qvec(),
-            colmap_tvec: pose.t_cam_from_world().to_array(),
+            view: EnuCamera {
+                intrinsics,
+                cam_to_world_enu: pose.cam_to_world(),
+                colmap_qvec: pose.colmap_qvec(),
+                colmap_tvec: pose.t_cam_from_world().to_array(),
+            },
             ecef_m: ecef.to_array(),
-            lat_deg: g.lat_deg,
-            lon_deg: g.lon_deg,
-            h_m: g.h_m,
-            yaw_deg,
-            pitch_deg,
-            roll_deg,
+            geo: GeoPose { lat_deg: g.lat_deg, lon_deg: g.lon_deg, h_m: g.h_m, yaw_deg, pitch_deg, roll_deg },
             height_above_ground_m: c.z - ground_enu_m,
         }
     }
 
     /// The pose (from `cam_to_world_enu`, the authoritative field).
     pub fn pose(&self) -> Pose {
-        Pose::from_cam_to_world(&self.cam_to_world_enu)
+        Pose::from_cam_to_world(&self.view.cam_to_world_enu)
     }
 }
 
@@ -123,14 +139,16 @@ impl std::fmt::Display for Trajectory {
     }
 }
 
+/// A strategy name that is none of `grid`, `regular`, `irregular`.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown strategy {0:?}: expected one of grid, regular, irregular")]
+pub struct UnknownTrajectory(pub String);
+
 impl std::str::FromStr for Trajectory {
-    type Err = String;
+    type Err = UnknownTrajectory;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Trajectory::ALL
-            .into_iter()
-            .find(|t| t.as_str() == s)
-            .ok_or_else(|| format!("unknown strategy {s:?}: expected one of grid, regular, irregular"))
+        Trajectory::ALL.into_iter().find(|t| t.as_str() == s).ok_or_else(|| UnknownTrajectory(s.to_string()))
     }
 }
 

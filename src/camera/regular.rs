@@ -16,7 +16,7 @@
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
-use super::sample::{Ctx, Frame, RunCollector, SampleStats};
+use super::sample::{Ctx, RunCollector, SampleStats, Sampled};
 use super::{CameraError, Pose, Trajectory};
 
 /// One straight piece of a survey line: its flight heading and the frame positions in flight order.
@@ -76,12 +76,9 @@ pub(crate) fn plan_pass(ctx: &Ctx, heading_deg: f64, shift_frac: f64) -> Vec<Seg
     segments
 }
 
-pub(crate) fn sample(
-    ctx: &Ctx,
-    rng: &mut ChaCha8Rng,
-    count: Option<usize>,
-    stats: &mut SampleStats,
-) -> Result<(Vec<Frame>, Vec<f64>), CameraError> {
+pub(crate) fn sample(ctx: &Ctx, rng: &mut ChaCha8Rng) -> Result<Sampled, CameraError> {
+    let count = ctx.count;
+    let mut stats = SampleStats::default();
     let r = &ctx.cfg.regular;
     let heading = r.line_heading_deg.unwrap_or_else(|| ctx.poly.principal_axis_heading_deg());
     let first_pass = plan_pass(ctx, heading, 0.0);
@@ -111,13 +108,13 @@ pub(crate) fn sample(
             let h = if lo < h_hi { rng.gen_range(lo..=h_hi) } else { h_hi };
             for p in &seg.points {
                 let pose = Pose::from_ypr_deg(seg.yaw_deg, pitch, 0.0, [p[0], p[1], ctx.ground_m + h]);
-                let verdict = ctx.check(&pose, stats).ok().map(|f| (pose, f));
-                runs.offer(verdict, stats);
+                let verdict = ctx.check(&pose, &mut stats).ok().map(|f| (pose, f));
+                runs.offer(verdict, &mut stats);
                 if runs.full() {
                     break;
                 }
             }
-            runs.end_run(stats);
+            runs.end_run(&mut stats);
         }
         pass += 1;
         let progressed = runs.frames.len() > before;
@@ -133,7 +130,7 @@ pub(crate) fn sample(
     }
     let placed = runs.frames.len();
     if placed == 0 || (count.is_some() && placed < wanted) {
-        return Err(ctx.too_few(Trajectory::Regular, placed, wanted, stats));
+        return Err(ctx.too_few(Trajectory::Regular, placed, wanted, &stats));
     }
-    Ok((runs.frames, runs.fractions))
+    Ok(Sampled { frames: runs.frames, fractions: runs.fractions, stats })
 }

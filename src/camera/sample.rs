@@ -91,6 +91,14 @@ pub(crate) struct Frame {
     pub index: u32,
 }
 
+/// What a strategy's sampler hands back: the accepted frames in flight order, each one's share of
+/// building rays (paired by position), and the run's counters.
+pub(crate) struct Sampled {
+    pub frames: Vec<Frame>,
+    pub fractions: Vec<f64>,
+    pub stats: SampleStats,
+}
+
 /// Why a candidate was rejected.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Reject {
@@ -99,7 +107,8 @@ pub(crate) enum Reject {
     Visibility,
 }
 
-/// What every sampler shares: the area, the buildings, the camera and the settings.
+/// What every sampler shares: the area, the buildings, the camera, the settings and the number of
+/// poses asked for.
 pub(crate) struct Ctx<'a> {
     pub area: &'a str,
     pub poly: AreaPolygon,
@@ -107,6 +116,8 @@ pub(crate) struct Ctx<'a> {
     pub ground_m: f64,
     pub camera: &'a CameraSpec,
     pub cfg: &'a SamplingConfig,
+    /// `--count`: poses wanted; `None` takes the strategy's natural coverage.
+    pub count: Option<usize>,
     pub progress: &'a dyn Progress,
 }
 
@@ -258,6 +269,7 @@ impl<'p> RunCollector<'p> {
 ///
 /// # Errors
 /// [`CameraError::Config`] for invalid settings (e.g. an impossible height range),
+/// [`CameraError::ZeroCount`] for `count = Some(0)`,
 /// [`CameraError::Area`] for an empty or degenerate area polygon or one no lattice node fits in,
 /// [`CameraError::TooFewPoses`] when the candidate budget (`count × max_attempts_per_pose`) runs out.
 pub fn sample_area(
@@ -272,10 +284,7 @@ pub fn sample_area(
     let m = &scene.manifest;
     let area = m.area.as_str();
     if count == Some(0) {
-        return Err(CameraError::Config {
-            origin: None,
-            issues: vec!["--count 0: ask for at least one pose".into()],
-        });
+        return Err(CameraError::ZeroCount);
     }
     let poly = AreaPolygon::new(area, &m.area_polygon_enu_m)?;
     if !m.ground_enu_m.is_finite() {
@@ -291,16 +300,17 @@ pub fn sample_area(
         ground_m: m.ground_enu_m,
         camera,
         cfg,
+        count,
         progress,
     };
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let mut stats = SampleStats::default();
     let strategy = camera.strategy;
-    let (frames, fractions) = match strategy {
-        Trajectory::Grid => super::grid::sample(&ctx, &mut rng, count, &mut stats)?,
-        Trajectory::Regular => super::regular::sample(&ctx, &mut rng, count, &mut stats)?,
-        Trajectory::Irregular => super::irregular::sample(&ctx, &mut rng, count, &mut stats)?,
+    let sampler = match strategy {
+        Trajectory::Grid => super::grid::sample,
+        Trajectory::Regular => super::regular::sample,
+        Trajectory::Irregular => super::irregular::sample,
     };
+    let Sampled { frames, fractions, mut stats } = sampler(&ctx, &mut rng)?;
     progress.finish();
 
     let enu =

@@ -12,6 +12,47 @@ use crate::loc::query::{load_predictions, QuerySource};
 use crate::loc::search::{CoarseParams, FineParams, SearchOptions, Stages};
 use crate::scene::PreparedScene;
 
+/// `--weighting`: how per-instance Dice scores are combined ([`Weighting`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum WeightingArg {
+    /// By the instance's confidence score.
+    Conf,
+    /// By the instance's bounding-box area (the paper's main tables).
+    #[default]
+    Area,
+}
+
+impl From<WeightingArg> for Weighting {
+    fn from(w: WeightingArg) -> Self {
+        match w {
+            WeightingArg::Conf => Weighting::Conf,
+            WeightingArg::Area => Weighting::Area,
+        }
+    }
+}
+
+/// `--cost`: which cost to use ([`CostKind`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum CostArg {
+    /// Best-match Dice per query instance (InsLoD-Loc).
+    #[default]
+    Instance,
+    /// IoU of the merged query mask with all rendered buildings (LoD-Loc v2 baseline).
+    Semantic,
+    /// Query instances merged into one mask, then instance scoring (the paper's ablation).
+    Merged,
+}
+
+impl From<CostArg> for CostKind {
+    fn from(c: CostArg) -> Self {
+        match c {
+            CostArg::Instance => CostKind::Instance,
+            CostArg::Semantic => CostKind::Semantic,
+            CostArg::Merged => CostKind::Merged,
+        }
+    }
+}
+
 /// Localizes every query of <workdir>/<area>/<camera> (poses.jsonl = ground truth, priors.jsonl =
 /// priors, or the LoD-Loc/COLMAP lists given with --query-list/--gt-poses/--prior-poses) against the
 /// area's instanced LoD model, and writes results.jsonl, est_poses_*.txt, summary.{md,json} and
@@ -62,11 +103,11 @@ pub struct Args {
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Cost(s) to evaluate; repeat to compare (each gives rows of the table).
-    #[arg(long = "cost", value_enum, default_values_t = [CostKind::Instance])]
-    pub costs: Vec<CostKind>,
+    #[arg(long = "cost", value_enum, default_values_t = [CostArg::Instance])]
+    pub costs: Vec<CostArg>,
     /// Instance weighting: by box area (the paper's main tables) or by confidence score.
-    #[arg(long, value_enum, default_value_t = Weighting::Area)]
-    pub weighting: Weighting,
+    #[arg(long, value_enum, default_value_t = WeightingArg::Area)]
+    pub weighting: WeightingArg,
     /// Erode the oracle masks by K pixels (at the masks' own resolution).
     #[arg(long, value_name = "K", default_value_t = 0, conflicts_with = "dilate")]
     pub erode: u32,
@@ -225,8 +266,8 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     let opts = EvalOptions {
         queries,
         out_dir: out_dir.clone(),
-        costs: args.costs.clone(),
-        weighting: args.weighting,
+        costs: args.costs.iter().map(|&c| c.into()).collect(),
+        weighting: args.weighting.into(),
         source,
         search: SearchOptions {
             coarse: {

@@ -6,6 +6,27 @@ use anyhow::{bail, Context};
 
 use crate::label::stage::{self, MaskPlan, DEFAULT_MIN_AREA_PX};
 use crate::label::Connectivity;
+
+/// `--connectivity`: the pixel neighbourhood of instances ([`Connectivity`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum ConnectivityArg {
+    /// Edge neighbours only.
+    #[value(name = "4")]
+    Four,
+    /// Edge and corner neighbours (default: a building's diagonal-touching pixels stay one instance).
+    #[default]
+    #[value(name = "8")]
+    Eight,
+}
+
+impl From<ConnectivityArg> for Connectivity {
+    fn from(c: ConnectivityArg) -> Self {
+        match c {
+            ConnectivityArg::Four => Connectivity::Four,
+            ConnectivityArg::Eight => Connectivity::Eight,
+        }
+    }
+}
 use crate::render::{DepthRange, Renderer};
 use crate::scene::PreparedScene;
 use crate::util::Shard;
@@ -39,7 +60,7 @@ pub struct Args {
 
     /// Pixel connectivity of instances (8 keeps diagonal-touching pixels together).
     #[arg(long, value_name = "4|8", value_enum, default_value = "8")]
-    pub connectivity: Connectivity,
+    pub connectivity: ConnectivityArg,
 
     /// Leave components smaller than this out of the instance lists.
     ///
@@ -89,7 +110,7 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<(MaskPlan, PathBu
     }
     let area_dir = global.workdir.join(&args.area);
     let mut plan = MaskPlan::new(area_dir.join(&args.camera));
-    plan.connectivity = args.connectivity;
+    plan.connectivity = args.connectivity.into();
     plan.min_area_px = args.min_area;
     plan.visible_fraction = args.visible_fraction;
     plan.depth = args.depth;
@@ -182,7 +203,7 @@ mod tests {
             let c = parse(&[]).unwrap();
             let a = &c.args;
             assert_eq!((a.area.as_str(), a.camera.as_str()), ("tokyo", "cam2"));
-            assert_eq!(a.connectivity, Connectivity::Eight);
+            assert_eq!(a.connectivity, ConnectivityArg::Eight);
             assert_eq!(a.min_area, DEFAULT_MIN_AREA_PX);
             assert!(!a.visible_fraction && !a.depth && !a.force);
             assert_eq!((a.preview, a.limit, a.shard), (0, None, None));
@@ -203,7 +224,7 @@ mod tests {
 
         #[test]
         fn connectivity() {
-            assert_eq!(parse(&["--connectivity", "4"]).unwrap().args.connectivity, Connectivity::Four);
+            assert_eq!(parse(&["--connectivity", "4"]).unwrap().args.connectivity, ConnectivityArg::Four);
             assert!(parse(&["--connectivity", "6"]).is_err());
         }
 

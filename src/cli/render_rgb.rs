@@ -138,7 +138,7 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<Plan> {
         .iter()
         .enumerate()
         .filter(|(i, _)| args.shard.is_none_or(|s| s.contains(*i)))
-        .map(|(_, r)| FrameRequest { name: r.name.clone(), intrinsics: r.intrinsics, pose: r.pose() })
+        .map(|(_, r)| FrameRequest { name: r.name.clone(), intrinsics: r.view.intrinsics, pose: r.pose() })
         .collect();
     if let Some(n) = args.limit {
         frames.truncate(n);

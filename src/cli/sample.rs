@@ -44,7 +44,7 @@ pub struct Args {
     pub strategy: Option<Trajectory>,
 }
 
-fn parse_strategy(s: &str) -> Result<Trajectory, String> {
+fn parse_strategy(s: &str) -> Result<Trajectory, crate::camera::record::UnknownTrajectory> {
     s.parse()
 }
 

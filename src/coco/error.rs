@@ -2,6 +2,8 @@
 
 use std::path::PathBuf;
 
+/// The cause chain on one line (one helper for the whole crate).
+pub(crate) use crate::util::error_chain as chain_string;
 use crate::util::FileError;
 
 use super::rle::RleError;
@@ -87,18 +89,6 @@ impl CocoError {
     pub(crate) fn json(path: &std::path::Path, source: serde_json::Error) -> Self {
         CocoError::Json { path: path.to_path_buf(), line: None, source }
     }
-}
-
-/// An error and its causes on one line (`a: b: c`), for lists of failures that cannot all be sources.
-pub(crate) fn chain_string(e: &dyn std::error::Error) -> String {
-    let mut s = e.to_string();
-    let mut cur = e.source();
-    while let Some(c) = cur {
-        s.push_str(": ");
-        s.push_str(&c.to_string());
-        cur = c.source();
-    }
-    s
 }
 
 fn list_others(others: &[String]) -> String {

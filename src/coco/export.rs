@@ -282,7 +282,7 @@ fn process_frame(
             inst.width, inst.height
         )));
     }
-    let k = &pose.intrinsics;
+    let k = &pose.view.intrinsics;
     if (k.width_px, k.height_px) != (w, h) {
         return Err(mismatch(format!(
             "poses.jsonl gives {}×{} px for this frame, the ID map is {w}×{h} px",
@@ -459,16 +459,8 @@ fn process_frame(
         frame: pose.name.clone(),
         mask_file,
         connectivity: inst.connectivity,
-        intrinsics: pose.intrinsics,
-        cam_to_world_enu: pose.cam_to_world_enu,
-        colmap_qvec: pose.colmap_qvec,
-        colmap_tvec: pose.colmap_tvec,
-        lat_deg: pose.lat_deg,
-        lon_deg: pose.lon_deg,
-        h_m: pose.h_m,
-        yaw_deg: pose.yaw_deg,
-        pitch_deg: pose.pitch_deg,
-        roll_deg: pose.roll_deg,
+        view: pose.view,
+        geo: pose.geo,
     };
     Ok(FrameResult { image, annotations, dropped })
 }

@@ -12,7 +12,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::camera::Intrinsics;
+use crate::camera::record::{EnuCamera, GeoPose};
 use crate::label::Connectivity;
 use crate::scene::BuildingId;
 
@@ -156,22 +156,14 @@ pub struct Image {
     pub mask_file: String,
     /// Extension: connectivity of the connected components.
     pub connectivity: Connectivity,
-    /// Extension: pinhole intrinsics in pixels (OpenCV/COLMAP convention, pixel centres at +0.5).
-    pub intrinsics: Intrinsics,
-    /// Extension: camera-to-world in the area's ENU frame (OpenCV camera axes), metres; rows in the file.
-    #[serde(with = "crate::util::row_major")]
-    pub cam_to_world_enu: glam::DMat4,
-    /// Extension: COLMAP world-to-camera quaternion (qw, qx, qy, qz) and translation (metres, ENU).
-    pub colmap_qvec: [f64; 4],
-    pub colmap_tvec: [f64; 3],
-    /// Extension: camera centre, WGS84 degrees and ellipsoidal height in metres.
-    pub lat_deg: f64,
-    pub lon_deg: f64,
-    pub h_m: f64,
-    /// Extension: yaw (clockwise from north), pitch (tilt from nadir), roll, degrees.
-    pub yaw_deg: f64,
-    pub pitch_deg: f64,
-    pub roll_deg: f64,
+    /// Extension: the frame's intrinsics (pixels, OpenCV/COLMAP convention, pixel centres at +0.5) and
+    /// pose in the area's ENU frame, as in `poses.jsonl`.
+    #[serde(flatten)]
+    pub view: EnuCamera,
+    /// Extension: camera centre (WGS84 degrees, ellipsoidal height in metres) and yaw, pitch, roll
+    /// (degrees), as in `poses.jsonl`.
+    #[serde(flatten)]
+    pub geo: GeoPose,
 }
 
 /// `annotations[]`: one building instance in one image.

@@ -453,16 +453,8 @@ mod tests {
                 frame: format!("{id}"),
                 mask_file: format!("a/cam2/masks/{id}.png"),
                 connectivity: crate::label::Connectivity::Eight,
-                intrinsics: pose.intrinsics,
-                cam_to_world_enu: pose.cam_to_world_enu,
-                colmap_qvec: pose.colmap_qvec,
-                colmap_tvec: pose.colmap_tvec,
-                lat_deg: 0.0,
-                lon_deg: 0.0,
-                h_m: 0.0,
-                yaw_deg: 0.0,
-                pitch_deg: 0.0,
-                roll_deg: 0.0,
+                view: pose.view,
+                geo: pose.geo,
             })
             .collect();
         let annotations = anns

@@ -48,7 +48,7 @@ use proj_sys as sys;
 
 use super::ellipsoid::{ecef_to_geodetic, geodetic_to_ecef};
 use super::pj::{AxisInfo, Context, Obj};
-use super::{GeoError, Geodetic};
+use super::{CrsError, GeoError, Geodetic, ProjError};
 
 /// How a format orders coordinate axes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -153,10 +153,8 @@ impl Crs {
     /// is not in `proj.db` (e.g. EPSG:999999), or the CRS is of a kind that cannot be placed on the globe
     /// (vertical-only, engineering, …).
     pub fn parse(name: &str) -> Result<Crs, GeoError> {
-        let unknown = |why: String| GeoError::UnknownCrs { name: name.to_string(), why };
-        let codes = parse_codes(name).map_err(unknown)?;
-        let ctx = Context::new().map_err(unknown)?;
-        resolve(&ctx, name, &codes).map_err(unknown)
+        let parsed = parse_codes(name).and_then(|codes| resolve(&Context::new()?, name, &codes));
+        parsed.map_err(|e| GeoError::UnknownCrs { name: name.to_string(), source: Box::new(e) })
     }
 
     /// The CRS with this EPSG code.
@@ -165,9 +163,8 @@ impl Crs {
     /// As [`Crs::parse`].
     pub fn from_epsg(code: u32) -> Result<Crs, GeoError> {
         let given = format!("EPSG:{code}");
-        let unknown = |why: String| GeoError::UnknownCrs { name: given.clone(), why };
-        let ctx = Context::new().map_err(unknown)?;
-        resolve(&ctx, &given, &[code]).map_err(unknown)
+        let resolved = Context::new().map_err(CrsError::from).and_then(|ctx| resolve(&ctx, &given, &[code]));
+        resolved.map_err(|e| GeoError::UnknownCrs { name: given, source: Box::new(e) })
     }
 
     /// What the third coordinate means (rule in the module doc): ellipsoidal for geocentric and 3D
@@ -218,16 +215,11 @@ impl fmt::Display for Crs {
     }
 }
 
-/// The spellings accepted, for error messages.
-const EXPECTED: &str = "expected an EPSG code such as EPSG:6697, urn:ogc:def:crs:EPSG::6697, \
-                        http://www.opengis.net/def/crs/EPSG/0/6697 or a compound \
-                        urn:ogc:def:crs,crs:EPSG::6668,crs:EPSG::6695";
-
 /// Splits a CRS name into one EPSG code (simple or compound CRS) or two (horizontal + vertical).
-fn parse_codes(name: &str) -> Result<Vec<u32>, String> {
+fn parse_codes(name: &str) -> Result<Vec<u32>, CrsError> {
     let s = name.trim();
     if s.is_empty() {
-        return Err(format!("empty CRS name; {EXPECTED}"));
+        return Err(CrsError::Empty);
     }
     let l = s.to_ascii_lowercase();
     let codes = if let Some(rest) =
@@ -237,9 +229,7 @@ fn parse_codes(name: &str) -> Result<Vec<u32>, String> {
         rest.split(',')
             .map(|part| {
                 let part = part.trim();
-                let p = part
-                    .strip_prefix("crs:")
-                    .ok_or_else(|| format!("compound URN component {part:?} does not start with crs:"))?;
+                let p = part.strip_prefix("crs:").ok_or_else(|| CrsError::UrnComponent(part.to_string()))?;
                 urn_code(p)
             })
             .collect::<Result<Vec<_>, _>>()?
@@ -247,8 +237,8 @@ fn parse_codes(name: &str) -> Result<Vec<u32>, String> {
         // "1=http://www.opengis.net/def/crs/EPSG/0/28992&2=http://…/5709".
         let mut parts = Vec::new();
         for kv in rest.split('&') {
-            let (k, v) = kv.split_once('=').ok_or_else(|| format!("compound URL part {kv:?} is not k=v"))?;
-            let k: u32 = k.trim().parse().map_err(|_| format!("compound URL key {k:?} is not a number"))?;
+            let (k, v) = kv.split_once('=').ok_or_else(|| CrsError::UrlPart(kv.to_string()))?;
+            let k: u32 = k.trim().parse().map_err(|_| CrsError::UrlKey(k.to_string()))?;
             parts.push((k, url_code(v.trim())?));
         }
         parts.sort_by_key(|&(k, _)| k);
@@ -264,27 +254,27 @@ fn parse_codes(name: &str) -> Result<Vec<u32>, String> {
     } else if l.bytes().all(|b| b.is_ascii_digit()) {
         vec![epsg_code(&l)?]
     } else {
-        return Err(format!("not a recognised CRS name; {EXPECTED}"));
+        return Err(CrsError::NotRecognised);
     };
     match codes.len() {
         1 | 2 => Ok(codes),
-        n => Err(format!("a compound CRS must have 1 or 2 components (horizontal, vertical), found {n}")),
+        n => Err(CrsError::ComponentCount(n)),
     }
 }
 
 /// "EPSG:<version>:<code>" (version may be empty) → code.
-fn urn_code(rest: &str) -> Result<u32, String> {
+fn urn_code(rest: &str) -> Result<u32, CrsError> {
     let mut it = rest.splitn(3, ':');
     let auth = it.next().unwrap_or("");
     let (version, code) = (it.next(), it.next());
     if auth != "epsg" {
-        return Err(format!("authority {:?} is not supported (only EPSG codes are)", auth.to_uppercase()));
+        return Err(CrsError::Authority(auth.to_uppercase()));
     }
     match (version, code) {
         (Some(_), Some(code)) => epsg_code(code),
         // "urn:ogc:def:crs:EPSG:6697" (no version field) is a common slip; accept it.
         (Some(code), None) => epsg_code(code),
-        _ => Err(format!("URN has no code; {EXPECTED}")),
+        _ => Err(CrsError::UrnWithoutCode),
     }
 }
 
@@ -294,32 +284,30 @@ fn strip_url<'a>(l: &'a str, prefix: &str) -> Option<&'a str> {
 }
 
 /// "http://www.opengis.net/def/crs/EPSG/0/6697" or "http://www.opengis.net/gml/srs/epsg.xml#6697" → code.
-fn url_code(l: &str) -> Result<u32, String> {
+fn url_code(l: &str) -> Result<u32, CrsError> {
     let l = l.to_ascii_lowercase();
     if let Some(rest) = strip_url(&l, "www.opengis.net/def/crs/") {
         let segs: Vec<&str> = rest.trim_end_matches('/').split('/').collect();
         return match segs.as_slice() {
             ["epsg", _version, code] => epsg_code(code),
-            [auth, _, _] => {
-                Err(format!("authority {:?} is not supported (only EPSG codes are)", auth.to_uppercase()))
-            }
-            _ => Err(format!("URL path {rest:?} is not <authority>/<version>/<code>; {EXPECTED}")),
+            [auth, _, _] => Err(CrsError::Authority(auth.to_uppercase())),
+            _ => Err(CrsError::UrlPath(rest.to_string())),
         };
     }
     if let Some(code) = strip_url(&l, "www.opengis.net/gml/srs/epsg.xml#") {
         return epsg_code(code);
     }
-    Err(format!("not an OGC CRS URL; {EXPECTED}"))
+    Err(CrsError::NotOgcUrl)
 }
 
-fn epsg_code(s: &str) -> Result<u32, String> {
+fn epsg_code(s: &str) -> Result<u32, CrsError> {
     let s = s.trim();
     if s.is_empty() || !s.bytes().all(|b| b.is_ascii_digit()) {
-        return Err(format!("EPSG code {s:?} is not a positive integer; {EXPECTED}"));
+        return Err(CrsError::NotACode(s.to_string()));
     }
     match s.parse::<u32>() {
         Ok(c) if c > 0 => Ok(c),
-        _ => Err(format!("EPSG code {s:?} is out of range")),
+        _ => Err(CrsError::CodeOutOfRange(s.to_string())),
     }
 }
 
@@ -344,7 +332,7 @@ fn epsg_of(obj: &Obj) -> Option<u32> {
 }
 
 /// Kind and axes of a horizontal (or geocentric) CRS object; `None` kind if it is something else.
-fn horizontal_kind(ctx: &Context, obj: &Obj) -> Result<(Option<CrsKind>, Vec<AxisInfo>), String> {
+fn horizontal_kind(ctx: &Context, obj: &Obj) -> Result<(Option<CrsKind>, Vec<AxisInfo>), ProjError> {
     let axes = ctx.axes(obj)?;
     let kind = match obj.kind() {
         sys::PJ_TYPE_PJ_TYPE_GEOGRAPHIC_2D_CRS => Some(CrsKind::Geographic2D),
@@ -358,7 +346,7 @@ fn horizontal_kind(ctx: &Context, obj: &Obj) -> Result<(Option<CrsKind>, Vec<Axi
 }
 
 /// Resolves parsed codes in PROJ's database into a [`Crs`].
-fn resolve(ctx: &Context, given: &str, codes: &[u32]) -> Result<Crs, String> {
+fn resolve(ctx: &Context, given: &str, codes: &[u32]) -> Result<Crs, CrsError> {
     let area = |o: &Obj| ctx.area_of_use(o);
     match *codes {
         [code] => {
@@ -375,20 +363,12 @@ fn resolve(ctx: &Context, given: &str, codes: &[u32]) -> Result<Crs, String> {
             }
             let (kind, axes) = horizontal_kind(ctx, &obj)?;
             let Some(kind) = kind else {
-                let hint = if t == sys::PJ_TYPE_PJ_TYPE_VERTICAL_CRS {
-                    format!(
-                        "; a height system alone cannot be placed on the globe: give a compound such as \
-                         urn:ogc:def:crs,crs:EPSG::<horizontal>,crs:EPSG::{code}"
-                    )
-                } else {
-                    String::new()
-                };
-                return Err(format!(
-                    "EPSG:{code} ({}) is a {} CRS; insgen needs a geographic, projected, geocentric or \
-                     compound CRS{hint}",
-                    obj.name(),
-                    type_name(t)
-                ));
+                return Err(CrsError::Unsupported {
+                    code,
+                    name: obj.name(),
+                    kind: type_name(t),
+                    vertical: t == sys::PJ_TYPE_PJ_TYPE_VERTICAL_CRS,
+                });
             };
             let height_unit_m = match kind {
                 CrsKind::Geographic2D => 1.0,
@@ -412,35 +392,29 @@ fn resolve(ctx: &Context, given: &str, codes: &[u32]) -> Result<Crs, String> {
             let v = ctx.crs_from_database("EPSG", vc)?;
             compound(ctx, given, &h, &v)
         }
-        _ => Err(format!("expected 1 or 2 EPSG codes, got {}", codes.len())),
+        _ => Err(CrsError::ComponentCount(codes.len())),
     }
 }
 
 /// A compound CRS from its horizontal and vertical components.
-fn compound(ctx: &Context, given: &str, h: &Obj, v: &Obj) -> Result<Crs, String> {
+fn compound(ctx: &Context, given: &str, h: &Obj, v: &Obj) -> Result<Crs, CrsError> {
     let (kind, h_axes) = horizontal_kind(ctx, h)?;
     let kind = match kind {
         Some(k @ (CrsKind::Geographic2D | CrsKind::Projected2D)) => k,
         _ => {
-            return Err(format!(
-                "the first component of a compound CRS must be a 2D geographic or projected CRS, but {} is \
-                 {}",
-                h.name(),
-                kind.map(|k| k.to_string()).unwrap_or_else(|| type_name(h.kind()).to_string())
-            ))
+            return Err(CrsError::CompoundHorizontal {
+                name: h.name(),
+                kind: kind.map(|k| k.to_string()).unwrap_or_else(|| type_name(h.kind()).to_string()),
+            })
         }
     };
     if v.kind() != sys::PJ_TYPE_PJ_TYPE_VERTICAL_CRS {
-        return Err(format!(
-            "the second component of a compound CRS must be a vertical CRS, but {} is not",
-            v.name()
-        ));
+        return Err(CrsError::CompoundVertical { name: v.name() });
     }
     let v_axes = ctx.axes(v)?;
-    let horizontal_epsg =
-        epsg_of(h).ok_or_else(|| format!("the horizontal component {} has no EPSG code", h.name()))?;
-    let vertical_epsg =
-        epsg_of(v).ok_or_else(|| format!("the vertical component {} has no EPSG code", v.name()))?;
+    let no_code = |part, o: &Obj| CrsError::NoEpsgCode { part, name: o.name() };
+    let horizontal_epsg = epsg_of(h).ok_or_else(|| no_code("horizontal", h))?;
+    let vertical_epsg = epsg_of(v).ok_or_else(|| no_code("vertical", v))?;
     let height_unit_m = v_axes.first().map(|a| a.unit_factor).unwrap_or(1.0);
     Ok(Crs {
         horizontal_epsg,
@@ -485,7 +459,7 @@ impl fmt::Debug for CrsTransform {
 
 impl CrsTransform {
     fn new(crs: Crs) -> Result<CrsTransform, GeoError> {
-        let err = |why: String| GeoError::UnknownCrs { name: crs.given.clone(), why };
+        let err = |e: ProjError| GeoError::UnknownCrs { name: crs.given.clone(), source: Box::new(e.into()) };
         let ctx = Context::new().map_err(err)?;
         let engine = match crs.kind {
             CrsKind::Geocentric if crs.horizontal_epsg == 4978 && crs.height_unit_m == 1.0 => {
@@ -654,6 +628,7 @@ pub fn proj_search_paths() -> Vec<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::util::error_chain;
 
     fn codes(s: &str) -> Vec<u32> {
         parse_codes(s).unwrap_or_else(|e| panic!("{s:?}: {e}"))
@@ -711,7 +686,7 @@ mod tests {
                 ("urn:ogc:def:crs,crs:EPSG::6668,crs:EPSG::6695,crs:EPSG::5703", "1 or 2 components"),
                 ("urn:ogc:def:crs,EPSG::6668", "does not start with crs:"),
             ] {
-                let e = parse_codes(s).expect_err(s);
+                let e = parse_codes(s).expect_err(s).to_string();
                 assert!(e.contains(why), "{s:?}: {e}");
             }
         }
@@ -783,20 +758,30 @@ mod tests {
 
         #[test]
         fn unknown_and_unsupported_codes_are_errors_naming_them() {
+            let chain = |name: &str| error_chain(&Crs::parse(name).unwrap_err());
             let e = Crs::parse("EPSG:999999").unwrap_err();
-            let msg = e.to_string();
-            assert!(matches!(e, GeoError::UnknownCrs { .. }));
+            let GeoError::UnknownCrs { source, .. } = &e else { panic!("{e:?}") };
+            assert!(
+                matches!(**source, CrsError::Proj(ProjError::NotInDatabase { code: 999999, .. })),
+                "{e:?}"
+            );
+            let msg = error_chain(&e);
             assert!(msg.contains("EPSG:999999") && msg.contains("proj.db"), "{msg}");
             // A vertical CRS alone (EPSG:5703 NAVD88 height) cannot be placed on the globe.
-            let msg = Crs::parse("EPSG:5703").unwrap_err().to_string();
+            let msg = chain("EPSG:5703");
             assert!(msg.contains("vertical") && msg.contains("compound"), "{msg}");
             // A compound with the parts swapped.
-            let msg = Crs::parse("urn:ogc:def:crs,crs:EPSG::6695,crs:EPSG::6668").unwrap_err().to_string();
+            let msg = chain("urn:ogc:def:crs,crs:EPSG::6695,crs:EPSG::6668");
             assert!(msg.contains("first component"), "{msg}");
-            let msg = Crs::parse("urn:ogc:def:crs,crs:EPSG::6668,crs:EPSG::4326").unwrap_err().to_string();
+            let msg = chain("urn:ogc:def:crs,crs:EPSG::6668,crs:EPSG::4326");
             assert!(msg.contains("second component"), "{msg}");
-            let msg = Crs::parse("garbage").unwrap_err().to_string();
-            assert!(msg.contains("\"garbage\""), "{msg}");
+            assert_eq!(
+                chain("garbage"),
+                "unknown or unsupported CRS \"garbage\" (set an explicit `crs = \"EPSG:NNNN\"` for this \
+                 source in the scene file): not a recognised CRS name; expected an EPSG code such as \
+                 EPSG:6697, urn:ogc:def:crs:EPSG::6697, http://www.opengis.net/def/crs/EPSG/0/6697 or a \
+                 compound urn:ogc:def:crs,crs:EPSG::6668,crs:EPSG::6695"
+            );
         }
     }
 

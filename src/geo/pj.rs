@@ -19,6 +19,8 @@ use std::sync::Mutex;
 
 use proj_sys as sys;
 
+use super::ProjError;
+
 /// PROJ's "transformation failed" marker value (`HUGE_VAL`).
 const HUGE: f64 = f64::INFINITY;
 
@@ -60,11 +62,11 @@ unsafe impl Send for Context {}
 
 impl Context {
     /// Creates a context with network access disabled and PROJ's log captured.
-    pub(crate) fn new() -> Result<Context, String> {
+    pub(crate) fn new() -> Result<Context, ProjError> {
         // SAFETY: plain constructor; null is checked.
         let ptr = unsafe { sys::proj_context_create() };
         if ptr.is_null() {
-            return Err("PROJ could not create a context (out of memory?)".into());
+            return Err(ProjError::NoContext);
         }
         let log = Box::new(Mutex::new(String::new()));
         // SAFETY: ptr is a live context; the log box outlives it (dropped after proj_context_destroy).
@@ -102,18 +104,20 @@ impl Context {
         // (PROJ has no public call to reset a context's errno; the captured log is the primary source.)
     }
 
-    fn wrap(&self, ptr: *mut sys::PJ, what: &str) -> Result<Obj, String> {
+    /// The object `ptr`, or, when PROJ returned null, the error `fail` builds from PROJ's reason.
+    fn wrap(&self, ptr: *mut sys::PJ, fail: impl FnOnce(String) -> ProjError) -> Result<Obj, ProjError> {
         if ptr.is_null() {
-            Err(format!("{what}: {}", self.last_error()))
+            Err(fail(self.last_error()))
         } else {
             Ok(Obj { ptr })
         }
     }
 
     /// Looks up a CRS in PROJ's database (`proj.db`) by authority and code.
-    pub(crate) fn crs_from_database(&self, auth: &str, code: u32) -> Result<Obj, String> {
+    pub(crate) fn crs_from_database(&self, auth: &str, code: u32) -> Result<Obj, ProjError> {
         self.clear_error();
-        let auth_c = CString::new(auth).map_err(|_| "authority name contains NUL".to_string())?;
+        let auth_c = CString::new(auth)
+            .map_err(|_| ProjError::Nul { what: "authority name", value: auth.to_string() })?;
         let code_c = CString::new(code.to_string()).expect("decimal digits contain no NUL");
         // SAFETY: live context, valid C strings, null options.
         let ptr = unsafe {
@@ -126,7 +130,12 @@ impl Context {
                 ptr::null(),
             )
         };
-        self.wrap(ptr, &format!("{auth}:{code} is not in PROJ's database ({})", self.database_path()))
+        self.wrap(ptr, |reason| ProjError::NotInDatabase {
+            auth: auth.to_string(),
+            code,
+            database: self.database_path(),
+            reason,
+        })
     }
 
     /// The path of the `proj.db` this context uses.
@@ -136,23 +145,25 @@ impl Context {
     }
 
     /// The i-th component of a compound CRS.
-    pub(crate) fn sub_crs(&self, crs: &Obj, index: i32) -> Result<Obj, String> {
+    pub(crate) fn sub_crs(&self, crs: &Obj, index: i32) -> Result<Obj, ProjError> {
         self.clear_error();
         // SAFETY: live context and object.
         let ptr = unsafe { sys::proj_crs_get_sub_crs(self.ptr, crs.ptr, index) };
-        self.wrap(ptr, &format!("component {index} of compound CRS {}", crs.name()))
+        self.wrap(ptr, |reason| ProjError::SubCrs { crs: crs.name(), index, reason })
     }
 
     /// The axes of a CRS's coordinate system, in the CRS's (authority) order.
-    pub(crate) fn axes(&self, crs: &Obj) -> Result<Vec<AxisInfo>, String> {
+    pub(crate) fn axes(&self, crs: &Obj) -> Result<Vec<AxisInfo>, ProjError> {
         self.clear_error();
+        let fail = |what: String, reason: String| ProjError::Axes { what, crs: crs.name(), reason };
         // SAFETY: live context and object.
-        let cs = self
-            .wrap(unsafe { sys::proj_crs_get_coordinate_system(self.ptr, crs.ptr) }, "coordinate system")?;
+        let cs = self.wrap(unsafe { sys::proj_crs_get_coordinate_system(self.ptr, crs.ptr) }, |reason| {
+            fail("coordinate system".into(), reason)
+        })?;
         // SAFETY: live context and object.
         let n = unsafe { sys::proj_cs_get_axis_count(self.ptr, cs.ptr) };
         if n < 0 {
-            return Err(format!("axis count of {}: {}", crs.name(), self.last_error()));
+            return Err(fail("axis count".into(), self.last_error()));
         }
         let mut out = Vec::with_capacity(n as usize);
         for i in 0..n {
@@ -178,7 +189,7 @@ impl Context {
                 )
             };
             if ok == 0 {
-                return Err(format!("axis {i} of {}: {}", crs.name(), self.last_error()));
+                return Err(fail(format!("axis {i}"), self.last_error()));
             }
             // SAFETY: strings from PROJ as described above.
             unsafe {
@@ -207,32 +218,33 @@ impl Context {
     /// PROJ's `proj_create_crs_to_crs` between two CRS objects: all candidate operations, the one to
     /// use chosen per point by area of use (exactly as pyproj's `Transformer.from_crs`). Input and
     /// output in the CRSs' authority axis order.
-    pub(crate) fn crs_to_crs(&self, src: &Obj, dst: &Obj) -> Result<Obj, String> {
+    pub(crate) fn crs_to_crs(&self, src: &Obj, dst: &Obj) -> Result<Obj, ProjError> {
         self.clear_error();
         // SAFETY: live context and objects; null area and options.
         let ptr = unsafe {
             sys::proj_create_crs_to_crs_from_pj(self.ptr, src.ptr, dst.ptr, ptr::null_mut(), ptr::null())
         };
-        self.wrap(ptr, &format!("no coordinate operation from {} to {}", src.name(), dst.name()))
+        self.wrap(ptr, |reason| ProjError::NoOperation { from: src.name(), to: dst.name(), reason })
     }
 
     /// The same operation with input and output in "visualisation" order: longitude/easting first.
-    pub(crate) fn normalize_for_visualization(&self, op: &Obj) -> Result<Obj, String> {
+    pub(crate) fn normalize_for_visualization(&self, op: &Obj) -> Result<Obj, ProjError> {
         self.clear_error();
         // SAFETY: live context and object.
         let ptr = unsafe { sys::proj_normalize_for_visualization(self.ptr, op.ptr) };
-        self.wrap(ptr, "normalising the axis order")
+        self.wrap(ptr, |reason| ProjError::Normalize { operation: op.name(), reason })
     }
 
     /// Creates an object from a PROJ string or WKT/PROJJSON definition (tests compare with raw PROJ
     /// pipelines).
     #[cfg(test)]
-    pub(crate) fn create(&self, definition: &str) -> Result<Obj, String> {
+    pub(crate) fn create(&self, definition: &str) -> Result<Obj, ProjError> {
         self.clear_error();
-        let def = CString::new(definition).map_err(|_| "definition contains NUL".to_string())?;
+        let def = CString::new(definition)
+            .map_err(|_| ProjError::Nul { what: "definition", value: definition.to_string() })?;
         // SAFETY: live context, valid C string.
         let ptr = unsafe { sys::proj_create(self.ptr, def.as_ptr()) };
-        self.wrap(ptr, &format!("PROJ cannot create {definition:?}"))
+        self.wrap(ptr, |reason| ProjError::Create { definition: definition.to_string(), reason })
     }
 
     /// Transforms coordinates in place through `op` (forward or inverse). `z` may be empty (2D).

@@ -11,16 +11,14 @@ use serde::{Deserialize, Serialize};
 use crate::scene::{BuildingId, IdMap};
 
 /// Pixel neighbourhood for connectivity.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub enum Connectivity {
     /// Edge neighbours only.
     #[serde(rename = "4")]
-    #[value(name = "4")]
     Four,
     /// Edge and corner neighbours (default: a building's diagonal-touching pixels stay one instance).
     #[default]
     #[serde(rename = "8")]
-    #[value(name = "8")]
     Eight,
 }
 

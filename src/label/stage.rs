@@ -211,7 +211,7 @@ pub fn pose_digest(rec: &PoseRecord) -> String {
 /// Whether a frame's outputs exist and match what this plan would write (same pose, size and
 /// settings).
 fn outputs_verify(plan: &MaskPlan, rec: &PoseRecord) -> bool {
-    let k = &rec.intrinsics;
+    let k = &rec.view.intrinsics;
     match IdMap::read_png_size(&plan.png_path(&rec.name)) {
         Ok(size) if size == (k.width_px, k.height_px) => {}
         _ => return false,
@@ -358,8 +358,10 @@ pub fn render_masks(
         log::info!("{skipped} frames already rendered (use --force to redo them)");
     }
     crate::util::create_dir_all(&plan.masks_dir())?;
-    let views: Vec<View> =
-        todo.iter().map(|&i| View { intrinsics: records[i].intrinsics, pose: records[i].pose() }).collect();
+    let views: Vec<View> = todo
+        .iter()
+        .map(|&i| View { intrinsics: records[i].view.intrinsics, pose: records[i].pose() })
+        .collect();
     let options = RenderOptions { range: plan.range, linear_depth: plan.depth };
 
     progress.start(todo.len() as u64, "frames");
@@ -493,11 +495,11 @@ fn write_previews(
         let backdrop = if rgb_path.exists() {
             overlay::read_rgb_png(&rgb_path)?
         } else {
-            let view = View { intrinsics: rec.intrinsics, pose: rec.pose() };
+            let view = View { intrinsics: rec.view.intrinsics, pose: rec.pose() };
             let options = RenderOptions { range: plan.range, linear_depth: true };
             let img = renderer.render(gpu_scene, &view, &options)?;
             // `linear_depth: true` always yields depth; an empty one would only shade as background.
-            overlay::shade_depth(img.depth_m.as_deref().unwrap_or(&[]), &rec.intrinsics)
+            overlay::shade_depth(img.depth_m.as_deref().unwrap_or(&[]), &rec.view.intrinsics)
         };
         tiles.push(overlay::overlay_ids(&ids, &backdrop, 0.45));
     }

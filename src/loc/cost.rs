@@ -22,7 +22,7 @@ use serde::{Deserialize, Serialize};
 pub const DICE_EPS: f64 = 1e-6;
 
 /// How per-instance Dice scores are combined.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum Weighting {
     /// By the instance's confidence score.
@@ -33,9 +33,7 @@ pub enum Weighting {
 }
 
 /// Which cost to use.
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize, clap::ValueEnum, Default,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum CostKind {
     /// Best-match Dice per query instance (InsLoD-Loc).

@@ -332,7 +332,7 @@ pub fn load_queries(src: &QueryPoses) -> Result<Vec<QueryPose>, EvalError> {
                     })?;
                     Ok(QueryPose {
                         name: gt.name.clone(),
-                        intrinsics: gt.intrinsics,
+                        intrinsics: gt.view.intrinsics,
                         gt: gt.pose(),
                         prior: prior.pose(),
                         group: group_of(gt.trajectory).to_string(),
@@ -616,8 +616,8 @@ fn summarise(queries: &[QueryPose], runs: &[Localized], opts: &EvalOptions) -> S
     Summary {
         rows,
         queries: queries.len(),
-        median_seconds_per_query: metrics::median(&secs),
-        median_setup_seconds: metrics::median(&setup_times),
+        median_seconds_per_query: metrics::median_or_nan(&secs),
+        median_setup_seconds: metrics::median_or_nan(&setup_times),
         hypotheses_per_second: if total_s > 0.0 { total_hyp as f64 / total_s } else { 0.0 },
     }
 }

@@ -9,6 +9,12 @@ use serde::{Deserialize, Serialize};
 /// The paper's thresholds: (2 m, 2°), (3 m, 3°), (5 m, 5°).
 pub const THRESHOLDS: [(f64, f64); 3] = [(2.0, 2.0), (3.0, 3.0), (5.0, 5.0)];
 
+/// The median of `values` ([`crate::util::median`]), NaN when there are none: an empty group shows as
+/// NaN in the tables and as `null` in JSON.
+pub fn median_or_nan(values: &[f64]) -> f64 {
+    crate::util::median(values).unwrap_or(f64::NAN)
+}
+
 /// One row of the summary table.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Row {
@@ -19,21 +25,6 @@ pub struct Row {
     pub recall_pct: [f64; 3],
     pub median_translation_m: f64,
     pub median_rotation_deg: f64,
-}
-
-/// Median of a list (NaN for an empty list).
-pub fn median(values: &[f64]) -> f64 {
-    if values.is_empty() {
-        return f64::NAN;
-    }
-    let mut v = values.to_vec();
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
 }
 
 /// Builds a row from (translation m, rotation °) errors.
@@ -51,8 +42,8 @@ pub fn row(method: &str, group: &str, errors: &[(f64, f64)]) -> Row {
         group: group.to_string(),
         queries: n,
         recall_pct: THRESHOLDS.map(|(t, r)| recall(t, r)),
-        median_translation_m: median(&errors.iter().map(|e| e.0).collect::<Vec<_>>()),
-        median_rotation_deg: median(&errors.iter().map(|e| e.1).collect::<Vec<_>>()),
+        median_translation_m: median_or_nan(&errors.iter().map(|e| e.0).collect::<Vec<_>>()),
+        median_rotation_deg: median_or_nan(&errors.iter().map(|e| e.1).collect::<Vec<_>>()),
     }
 }
 

@@ -30,6 +30,13 @@ pub enum QueryError {
     /// An oracle query's ID map cannot be read.
     #[error("query mask unavailable (run `insgen render-masks` for this camera first)")]
     Mask(#[source] crate::scene::IdError),
+    /// A file given as COCO instances does not parse as one.
+    #[error("{}: not a COCO instances file", path.display())]
+    Instances {
+        path: PathBuf,
+        #[source]
+        source: serde_json::Error,
+    },
 }
 
 /// The predictions of one area/camera, by frame name.
@@ -186,10 +193,8 @@ pub fn load_predictions(
     let mut frames: BTreeMap<u64, String> = BTreeMap::new();
     for f in instances_files {
         let bytes = crate::util::read_file(f).map_err(crate::coco::CocoError::from)?;
-        let images: ImagesOnly = serde_json::from_slice(&bytes).map_err(|e| QueryError::Input {
-            path: f.clone(),
-            what: format!("not a COCO instances file: {e}"),
-        })?;
+        let images: ImagesOnly = serde_json::from_slice(&bytes)
+            .map_err(|source| QueryError::Instances { path: f.clone(), source })?;
         for im in images.images {
             if im.area_name.as_deref() == Some(area) && im.camera.as_deref() == Some(camera) {
                 if let Some(frame) = im.frame {

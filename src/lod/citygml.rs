@@ -288,11 +288,11 @@ impl<'p> Parser<'p> {
                     // A tag, comment or CDATA left open at the very end: the file was cut.
                     let at_end = self.file_len.is_some_and(|n| reader.buffer_position() >= n);
                     let what = if at_end && matches!(e, quick_xml::Error::Syntax(_)) {
-                        format!("truncated XML: the file ends inside markup that starts at {at} ({e})")
+                        format!("truncated XML: the file ends inside markup that starts at {at}")
                     } else {
-                        format!("malformed XML at {at}: {e}")
+                        format!("malformed XML at {at}")
                     };
-                    return Err(LodError::malformed(self.path, what));
+                    return Err(LodError::unparsable(self.path, what, e));
                 }
             };
             match event {
@@ -570,12 +570,16 @@ impl<'p> Parser<'p> {
         for attr in e.attributes() {
             let attr = attr.map_err(|err| {
                 let at = self.locate(self.event_pos);
-                LodError::malformed(self.path, format!("malformed XML attribute at {at}: {err}"))
+                LodError::unparsable(
+                    self.path,
+                    format!("malformed XML attribute at {at}"),
+                    quick_xml::Error::from(err),
+                )
             })?;
             if local(attr.key.0) == local_name {
                 let value = attr.normalized_value(quick_xml::XmlVersion::Implicit1_0).map_err(|err| {
                     let at = self.locate(self.event_pos);
-                    LodError::malformed(self.path, format!("malformed XML attribute value at {at}: {err}"))
+                    LodError::unparsable(self.path, format!("malformed XML attribute value at {at}"), err)
                 })?;
                 return Ok(Some(value.into_owned()));
             }

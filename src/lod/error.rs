@@ -10,9 +10,15 @@ pub enum LodError {
     #[error("{}: cannot tell the format from the file name; set `format` (citygml, cityjson, obj, 3dtiles) in the scene file", path.display())]
     UnknownFormat { path: PathBuf },
 
-    /// The file is not well-formed (truncated XML/JSON, bad binary header…).
+    /// The file is not well-formed (truncated XML/JSON, bad binary header…); `source` is the parser's
+    /// own error when there is one.
     #[error("{}: {what}", path.display())]
-    Malformed { path: PathBuf, what: String },
+    Malformed {
+        path: PathBuf,
+        what: String,
+        #[source]
+        source: Option<ParseError>,
+    },
 
     /// A specific object (building, geometry, tile) is invalid; `at` locates it (gml:id, JSON path,
     /// line, tile URI).
@@ -20,9 +26,29 @@ pub enum LodError {
     Invalid { path: PathBuf, at: String, what: String },
 }
 
+/// The error of the parser a reader delegates to, kept as the cause of a [`LodError::Malformed`].
+#[derive(Debug, thiserror::Error)]
+pub enum ParseError {
+    #[error(transparent)]
+    Json(#[from] serde_json::Error),
+    #[error(transparent)]
+    Xml(#[from] quick_xml::Error),
+    #[error(transparent)]
+    Obj(#[from] tobj::LoadError),
+}
+
 impl LodError {
     pub fn malformed(path: impl Into<PathBuf>, what: impl Into<String>) -> Self {
-        LodError::Malformed { path: path.into(), what: what.into() }
+        LodError::Malformed { path: path.into(), what: what.into(), source: None }
+    }
+
+    /// A [`LodError::Malformed`] caused by the parser error `source`.
+    pub fn unparsable(
+        path: impl Into<PathBuf>,
+        what: impl Into<String>,
+        source: impl Into<ParseError>,
+    ) -> Self {
+        LodError::Malformed { path: path.into(), what: what.into(), source: Some(source.into()) }
     }
     pub fn invalid(path: impl Into<PathBuf>, at: impl Into<String>, what: impl Into<String>) -> Self {
         LodError::Invalid { path: path.into(), at: at.into(), what: what.into() }

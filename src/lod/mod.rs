@@ -19,7 +19,7 @@ pub mod obj;
 pub mod split;
 pub mod tiles3d;
 
-pub use error::LodError;
+pub use error::{LodError, ParseError};
 
 use std::path::{Path, PathBuf};
 
@@ -140,6 +140,23 @@ pub struct ReadOptions {
     /// LoD to take (e.g. "2", "1.2"); `None` picks the format's default (the highest available LoD
     /// that is ≤ 2.2 for CityJSON; LoD2 then LoD1 for CityGML).
     pub lod: Option<String>,
+}
+
+impl ReadOptions {
+    /// Checks the weld tolerance before a mesh reader uses it; `path` is the file being read.
+    ///
+    /// # Errors
+    /// [`LodError::Invalid`] at `weld_tolerance_m` when it is negative or not finite.
+    pub fn check_weld_tolerance(&self, path: &Path) -> Result<(), LodError> {
+        match self.weld_tolerance_m {
+            Some(t) if !(t.is_finite() && t >= 0.0) => Err(LodError::invalid(
+                path,
+                "weld_tolerance_m",
+                format!("weld tolerance {t} m must be a finite number ≥ 0"),
+            )),
+            _ => Ok(()),
+        }
+    }
 }
 
 /// Reads one source in the given (or guessed) format.

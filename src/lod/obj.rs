@@ -95,9 +95,8 @@ pub fn find_sidecar(obj_path: &Path) -> Result<(PathBuf, ObjSidecar), LodError> 
         ));
     };
     let bytes = crate::util::read_file(found)?;
-    let sidecar: ObjSidecar = serde_json::from_slice(&bytes).map_err(|e| {
-        LodError::malformed(found, format!("not a valid OBJ sidecar (crs, offset, axes, lod): {e}"))
-    })?;
+    let sidecar: ObjSidecar = serde_json::from_slice(&bytes)
+        .map_err(|e| LodError::unparsable(found, "not a valid OBJ sidecar (crs, offset, axes, lod)", e))?;
     if let Some(bad) = sidecar.offset.iter().find(|c| !c.is_finite()) {
         return Err(LodError::invalid(found, "offset", format!("offset component {bad} is not finite")));
     }
@@ -124,18 +123,10 @@ pub fn read_with_sidecar(
     sidecar: &ObjSidecar,
     opts: &ReadOptions,
 ) -> Result<SourceModel, LodError> {
-    if let Some(t) = opts.weld_tolerance_m {
-        if !(t.is_finite() && t >= 0.0) {
-            return Err(LodError::invalid(
-                path,
-                "weld_tolerance_m",
-                format!("weld tolerance {t} m must be a finite number ≥ 0"),
-            ));
-        }
-    }
+    opts.check_weld_tolerance(path)?;
     let bytes = crate::util::read_file(path)?;
     let text = String::from_utf8_lossy(&bytes);
-    let (mesh, stats) = parse_obj(&text, sidecar).map_err(|what| LodError::malformed(path, what))?;
+    let (mesh, stats) = parse_obj(&text, sidecar, path)?;
     if mesh.triangles.is_empty() {
         return Err(LodError::invalid(path, "faces", "the OBJ has no (non-degenerate) faces"));
     }
@@ -164,7 +155,8 @@ pub fn read_with_sidecar(
 /// `o`, `g`, `usemtl` and `mtllib` lines are dropped before tobj sees the text, so that tobj keeps the
 /// whole file as one model indexed by the file's own vertex numbers (it would otherwise re-index each
 /// object separately and lose the vertices objects share) and never tries to open material files.
-fn parse_obj(text: &str, sidecar: &ObjSidecar) -> Result<(TriMesh, ReadStats), String> {
+/// `path` names the file in errors.
+fn parse_obj(text: &str, sidecar: &ObjSidecar, path: &Path) -> Result<(TriMesh, ReadStats), LodError> {
     let mut filtered = String::with_capacity(text.len());
     for line in text.lines() {
         let keyword = line.split_whitespace().next().unwrap_or("");
@@ -179,7 +171,7 @@ fn parse_obj(text: &str, sidecar: &ObjSidecar) -> Result<(TriMesh, ReadStats), S
     let (models, _materials) = tobj::load_obj_buf(&mut Cursor::new(filtered.as_bytes()), &load, |_| {
         Err(tobj::LoadError::OpenFileFailed)
     })
-    .map_err(|e| format!("cannot parse OBJ: {e}"))?;
+    .map_err(|e| LodError::unparsable(path, "cannot parse OBJ", e))?;
 
     let mut mesh = TriMesh::default();
     let mut stats = ReadStats::default();
@@ -190,7 +182,8 @@ fn parse_obj(text: &str, sidecar: &ObjSidecar) -> Result<(TriMesh, ReadStats), S
         for (k, v) in model.mesh.positions.chunks_exact(3).enumerate() {
             let local = [v[0] as f64, v[1] as f64, v[2] as f64];
             if local.iter().any(|c| !c.is_finite()) {
-                return Err(format!("vertex {} of object {:?} is not finite: {local:?}", k + 1, model.name));
+                let at = format!("vertex {} of object {:?}", k + 1, model.name);
+                return Err(LodError::invalid(path, at, format!("is not finite: {local:?}")));
             }
             let axed = match sidecar.axes {
                 ObjAxes::ZUp => local,
@@ -223,7 +216,7 @@ mod tests {
             // Two groups sharing vertices 2 and 3 by index: one component.
             let obj = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 2 0\n\
                        o roof\nf 1 2 3\ng wall\nusemtl brick\nf 3 4 1\nf 3 5 4\n";
-            let (mesh, stats) = parse_obj(obj, &ObjSidecar::default()).unwrap();
+            let (mesh, stats) = parse_obj(obj, &ObjSidecar::default(), Path::new("t.obj")).unwrap();
             assert_eq!(mesh.triangles.len(), 3);
             assert_eq!(stats.faces, 3);
             assert_eq!(split_connected(&mesh, None).len(), 1);
@@ -234,7 +227,7 @@ mod tests {
             let obj = "v 1 2 3\nv 2 2 3\nv 2 5 3\nv 1 5 3\nf 1 2 3 4\n";
             let sidecar =
                 ObjSidecar { offset: [100.0, 200.0, 10.0], axes: ObjAxes::YUp, ..Default::default() };
-            let (mesh, _) = parse_obj(obj, &sidecar).unwrap();
+            let (mesh, _) = parse_obj(obj, &sidecar, Path::new("t.obj")).unwrap();
             assert_eq!(mesh.triangles.len(), 2);
             // (x, y, z) = (1, 2, 3) → (x, −z, y) = (1, −3, 2) → + offset.
             assert!(mesh.positions.contains(&[101.0, 197.0, 12.0]));
@@ -243,7 +236,7 @@ mod tests {
         #[test]
         fn degenerate_faces_counted() {
             let obj = "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\nf 1 1 2\n";
-            let (mesh, stats) = parse_obj(obj, &ObjSidecar::default()).unwrap();
+            let (mesh, stats) = parse_obj(obj, &ObjSidecar::default(), Path::new("t.obj")).unwrap();
             assert_eq!(mesh.triangles.len(), 1);
             assert_eq!(stats.degenerate_faces, 1);
         }
@@ -251,14 +244,19 @@ mod tests {
         #[test]
         fn out_of_range_index_is_an_error() {
             let obj = "v 0 0 0\nv 1 0 0\nf 1 2 7\n";
-            assert!(parse_obj(obj, &ObjSidecar::default()).is_err());
+            let e = parse_obj(obj, &ObjSidecar::default(), Path::new("t.obj")).unwrap_err();
+            assert!(
+                matches!(e, LodError::Malformed { source: Some(crate::lod::ParseError::Obj(_)), .. }),
+                "{e:?}"
+            );
+            assert!(crate::util::error_chain(&e).starts_with("t.obj: cannot parse OBJ: "), "{e}");
         }
 
         #[test]
         fn large_coordinates_keep_millimetres() {
             let obj =
                 "v 512345.678 3912345.678 40.001\nv 512346 3912345.678 40\nv 512346 3912346 40\nf 1 2 3\n";
-            let (mesh, _) = parse_obj(obj, &ObjSidecar::default()).unwrap();
+            let (mesh, _) = parse_obj(obj, &ObjSidecar::default(), Path::new("t.obj")).unwrap();
             assert_eq!(mesh.positions[0], [512345.678, 3912345.678, 40.001]);
         }
     }

@@ -120,35 +120,31 @@ impl PreparedScene {
     /// Loads a prepared scene directory (`<workdir>/<area>/scene`).
     ///
     /// # Errors
-    /// [`super::SceneError::Artifact`] naming the file that is missing or inconsistent, with a hint to
-    /// run `insgen prepare`.
+    /// [`super::SceneError::Artifact`] naming the file that is missing or inconsistent,
+    /// [`super::SceneError::ArtifactJson`] / [`super::SceneError::ArtifactGlb`] for a file that does not
+    /// parse (the parser's error as the source), each with a hint to run `insgen prepare`.
     pub fn load(dir: &std::path::Path) -> Result<PreparedScene, super::SceneError> {
         use super::SceneError;
-        let hint = "run `insgen prepare --area <name>` first";
+        let hint = "run `insgen prepare --area <name>`";
         let manifest_path = dir.join(MANIFEST_FILE);
         if !manifest_path.is_file() {
             return Err(SceneError::Artifact {
                 path: manifest_path,
-                what: format!("no prepared scene here; {hint}"),
+                what: format!("no prepared scene here; {hint} first"),
             });
         }
         let read_json =
             |name: &str| -> Result<Vec<u8>, SceneError> { Ok(crate::util::read_file(&dir.join(name))?) };
-        let manifest: Manifest =
-            serde_json::from_slice(&read_json(MANIFEST_FILE)?).map_err(|e| SceneError::Artifact {
-                path: dir.join(MANIFEST_FILE),
-                what: format!("not a valid manifest ({e}); {hint} again"),
-            })?;
-        let buildings: Vec<BuildingRecord> =
-            serde_json::from_slice(&read_json(BUILDINGS_FILE)?).map_err(|e| SceneError::Artifact {
-                path: dir.join(BUILDINGS_FILE),
-                what: format!("not a valid building table ({e}); {hint} again"),
-            })?;
+        let json_err = |name: &str, what| {
+            let path = dir.join(name);
+            move |source| SceneError::ArtifactJson { path, what, source }
+        };
+        let manifest: Manifest = serde_json::from_slice(&read_json(MANIFEST_FILE)?)
+            .map_err(json_err(MANIFEST_FILE, "manifest"))?;
+        let buildings: Vec<BuildingRecord> = serde_json::from_slice(&read_json(BUILDINGS_FILE)?)
+            .map_err(json_err(BUILDINGS_FILE, "building table"))?;
         let glb_path = dir.join(GLB_FILE);
-        let mesh = super::glb::read_glb(&glb_path).map_err(|e| SceneError::Artifact {
-            path: glb_path.clone(),
-            what: format!("{e}; {hint} again"),
-        })?;
+        let mesh = super::glb::read_glb(&glb_path).map_err(|source| SceneError::ArtifactGlb { source })?;
         if buildings.len() as u64 != manifest.buildings || mesh.triangle_count() as u64 != manifest.triangles
         {
             return Err(SceneError::Artifact {

@@ -160,13 +160,14 @@ impl SceneConfig {
     /// Reads and checks a scene file.
     ///
     /// # Errors
-    /// [`SceneError::Config`] naming the file: unreadable, not TOML, unknown keys, name mismatch,
-    /// no sources, a source without path, bad geoid settings, an invalid area.
+    /// [`SceneError::File`] when it cannot be read; [`SceneError::ConfigToml`] when it is not TOML or
+    /// has unknown keys (TOML's error as the source); [`SceneError::Config`] naming the file: name
+    /// mismatch, no sources, a source without path, bad geoid settings, an invalid area.
     pub fn load(path: &Path) -> Result<SceneConfig, SceneError> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| SceneError::File(crate::util::FileError::new("reading", path, e)))?;
         let cfg: SceneConfig = toml::from_str(&text)
-            .map_err(|e| SceneError::Config { path: path.into(), what: e.to_string() })?;
+            .map_err(|e| SceneError::ConfigToml { path: path.into(), source: Box::new(e) })?;
         cfg.validate(path)?;
         Ok(cfg)
     }
@@ -306,8 +307,10 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("undulation_m"), "{e}");
-        let e = parse("name = \"x\"\n[[sources]]\npath = \"a\"\nfromat = \"x\"\n").unwrap_err().to_string();
-        assert!(e.contains("fromat"), "{e}");
+        let e = parse("name = \"x\"\n[[sources]]\npath = \"a\"\nfromat = \"x\"\n").unwrap_err();
+        assert!(matches!(e, SceneError::ConfigToml { .. }), "{e:?}");
+        let e = crate::util::error_chain(&e);
+        assert!(e.contains("x.toml: invalid scene file: TOML parse error") && e.contains("fromat"), "{e}");
         let e = parse("name = \"x\"\n[[sources]]\npath = \"a\"\n[area]\nbbox_deg = [1, 1, 0, 0]\n")
             .unwrap_err()
             .to_string();

@@ -306,34 +306,6 @@ fn triangle_area_m2(p: &[[f64; 3]], t: [u32; 3]) -> f64 {
     0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt()
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
-/// Point-in-polygon (even-odd) for a 2D polygon given as an open ring.
-pub fn point_in_polygon(p: [f64; 2], poly: &[[f64; 2]]) -> bool {
-    let mut inside = false;
-    let n = poly.len();
-    let mut j = n - 1;
-    for i in 0..n {
-        let (a, b) = (poly[i], poly[j]);
-        if (a[1] > p[1]) != (b[1] > p[1]) && p[0] < (b[0] - a[0]) * (p[1] - a[1]) / (b[1] - a[1]) + a[0] {
-            inside = !inside;
-        }
-        j = i;
-    }
-    inside
-}
-
 /// Signed area of a 2D ring (positive = counter-clockwise).
 fn signed_area(poly: &[[f64; 2]]) -> f64 {
     let n = poly.len();
@@ -455,12 +427,10 @@ pub fn prepare(
     }
 
     // Origin and ENU frame.
+    let median_base_h_m =
+        util::median(&buildings.iter().map(|b| b.base_h_m).collect::<Vec<_>>()).unwrap_or(0.0);
     let origin = match cfg.origin {
-        Some(o) => Geodetic::new(
-            o.lat_deg,
-            o.lon_deg,
-            o.h_m.unwrap_or_else(|| median(buildings.iter().map(|b| b.base_h_m).collect())),
-        ),
+        Some(o) => Geodetic::new(o.lat_deg, o.lon_deg, o.h_m.unwrap_or(median_base_h_m)),
         None => {
             let lat = [
                 buildings.iter().map(|b| b.lat_range[0]).fold(f64::INFINITY, f64::min),
@@ -470,11 +440,7 @@ pub fn prepare(
                 buildings.iter().map(|b| b.lon_range[0]).fold(f64::INFINITY, f64::min),
                 buildings.iter().map(|b| b.lon_range[1]).fold(f64::NEG_INFINITY, f64::max),
             ];
-            Geodetic::new(
-                0.5 * (lat[0] + lat[1]),
-                0.5 * (lon[0] + lon[1]),
-                median(buildings.iter().map(|b| b.base_h_m).collect()),
-            )
+            Geodetic::new(0.5 * (lat[0] + lat[1]), 0.5 * (lon[0] + lon[1]), median_base_h_m)
         }
     };
     let enu = EnuFrame::new(origin);
@@ -521,7 +487,7 @@ pub fn prepare(
                 lo = [lo[0].min(p[0]), lo[1].min(p[1])];
                 hi = [hi[0].max(p[0]), hi[1].max(p[1])];
             }
-            if !point_in_polygon([0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])], poly) {
+            if !util::point_in_polygon([0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])], poly) {
                 outside += 1;
                 continue;
             }
@@ -588,7 +554,7 @@ pub fn prepare(
             triangles: m.triangles.len() as u64,
         });
     }
-    let ground_enu_m = median(bases);
+    let ground_enu_m = util::median(&bases).unwrap_or(0.0);
     let area_polygon_enu_m = area_polygon.unwrap_or_else(|| {
         let lo = records
             .iter()
@@ -665,16 +631,8 @@ mod tests {
     }
 
     #[test]
-    fn point_in_polygon_square() {
+    fn signed_area_is_positive_counter_clockwise() {
         let sq = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
-        assert!(point_in_polygon([0.5, 0.5], &sq));
-        assert!(!point_in_polygon([1.5, 0.5], &sq));
         assert!(signed_area(&sq) > 0.0);
-    }
-
-    #[test]
-    fn median_even_odd() {
-        assert_eq!(median(vec![3.0, 1.0, 2.0]), 2.0);
-        assert_eq!(median(vec![4.0, 1.0, 2.0, 3.0]), 2.5);
     }
 }

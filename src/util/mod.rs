@@ -1,8 +1,13 @@
-//! Small shared helpers: atomic file output, progress reporting, hashing.
+//! Small shared helpers: atomic file output, progress reporting, hashing, the error chain, and (in
+//! [`math`]) the median and point-in-polygon test.
 //!
 //! Every stage writes its files through [`write_atomic`], so an interrupted or failed run never leaves a
 //! half-written file behind, and reports long work through the [`Progress`] trait, which the CLI
 //! implements with indicatif and tests implement with [`NoProgress`].
+
+pub mod math;
+
+pub use math::{median, point_in_polygon};
 
 use std::fs;
 use std::io::{self, Write};
@@ -98,6 +103,19 @@ pub fn sha256_file(path: &Path) -> Result<String, FileError> {
     let mut h = Sha256::new();
     io::copy(&mut f, &mut h).map_err(|e| FileError::new("reading", path, e))?;
     Ok(hex::encode(h.finalize()))
+}
+
+/// An error and its causes on one line (`a: b: c`), as `main` prints them: for logs and for lists of
+/// failures that cannot all be sources.
+pub fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut s = e.to_string();
+    let mut cur = e.source();
+    while let Some(c) = cur {
+        s.push_str(": ");
+        s.push_str(&c.to_string());
+        cur = c.source();
+    }
+    s
 }
 
 /// Progress reporting for long work. The CLI implements it with an indicatif bar on stderr; library

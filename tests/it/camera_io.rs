@@ -100,8 +100,8 @@ mod colmap {
             assert_eq!(im.camera_id, 1);
             assert_eq!(im.name, format!("{}.png", r.name));
             // Shortest round-trip formatting: the numbers come back bit for bit.
-            assert_eq!(im.qvec, r.colmap_qvec);
-            assert_eq!(im.tvec, r.colmap_tvec);
+            assert_eq!(im.qvec, r.view.colmap_qvec);
+            assert_eq!(im.tvec, r.view.colmap_tvec);
             let (a, b) = (im.pose(), r.pose());
             assert!(
                 a.translation_error_m(&b) < 1e-9 && rot_diff(&a, &b) < 1e-12,
@@ -130,7 +130,7 @@ mod colmap {
         std::fs::write(&p, insgen::camera::colmap::format_pose_list(std::slice::from_ref(&im))).unwrap();
         assert_eq!(insgen::camera::colmap::read_pose_list(&p).unwrap(), vec![im]);
         std::fs::write(&p, "q1.jpg 1 0 0\n").unwrap();
-        let e = insgen::camera::colmap::read_pose_list(&p).unwrap_err().to_string();
+        let e = insgen::util::error_chain(&insgen::camera::colmap::read_pose_list(&p).unwrap_err());
         assert!(e.ends_with("poses.txt:1: expected NAME QW QX QY QZ TX TY TZ, got \"q1.jpg 1 0 0\""), "{e}");
     }
 }
@@ -147,7 +147,7 @@ mod records {
         for r in &back {
             let pose = r.pose();
             // ENU 4×4 ↔ COLMAP.
-            let from_colmap = Pose::from_colmap(r.colmap_qvec, r.colmap_tvec);
+            let from_colmap = Pose::from_colmap(r.view.colmap_qvec, r.view.colmap_tvec);
             assert!(pose.translation_error_m(&from_colmap) < 1e-9 && rot_diff(&pose, &from_colmap) < 1e-12);
             // ENU ↔ ECEF.
             let ecef = enu.enu_to_ecef(pose.centre_m);
@@ -155,18 +155,24 @@ mod records {
             let c = enu.ecef_to_enu(r.ecef_m.into());
             assert!((0..3).all(|k| (c[k] - pose.centre_m[k]).abs() < 1e-6));
             // ECEF ↔ lat/lon/h.
-            let e2 = geodetic_to_ecef(Geodetic { lat_deg: r.lat_deg, lon_deg: r.lon_deg, h_m: r.h_m });
+            let e2 =
+                geodetic_to_ecef(Geodetic { lat_deg: r.geo.lat_deg, lon_deg: r.geo.lon_deg, h_m: r.geo.h_m });
             assert!((0..3).all(|k| (e2[k] - r.ecef_m[k]).abs() < 1e-6));
             let g = ecef_to_geodetic(r.ecef_m);
-            assert!((g.lat_deg - r.lat_deg).abs() < 1e-10 && (g.h_m - r.h_m).abs() < 1e-6);
+            assert!((g.lat_deg - r.geo.lat_deg).abs() < 1e-10 && (g.h_m - r.geo.h_m).abs() < 1e-6);
             // ENU ↔ yaw/pitch/roll.
-            let from_ypr = Pose::from_ypr_deg(r.yaw_deg, r.pitch_deg, r.roll_deg, pose.centre_m);
-            assert!(rot_diff(&pose, &from_ypr) < 1e-12, "{}: ypr {:?}", r.name, (r.yaw_deg, r.pitch_deg));
+            let from_ypr = Pose::from_ypr_deg(r.geo.yaw_deg, r.geo.pitch_deg, r.geo.roll_deg, pose.centre_m);
+            assert!(
+                rot_diff(&pose, &from_ypr) < 1e-12,
+                "{}: ypr {:?}",
+                r.name,
+                (r.geo.yaw_deg, r.geo.pitch_deg)
+            );
             // The rotation block is orthonormal with determinant +1.
             let det = pose.r_world_from_cam.determinant();
             assert!((det - 1.0).abs() < 1e-12);
             // Heights: ellipsoidal h ≈ origin h + ENU up (the curvature drop is r²/2R < 0.2 m within 1.5 km).
-            assert!((r.h_m - (cs::origin().h_m + pose.centre_m[2])).abs() < 0.2);
+            assert!((r.geo.h_m - (cs::origin().h_m + pose.centre_m[2])).abs() < 0.2);
         }
     }
 
@@ -187,9 +193,9 @@ mod records {
             let v: Vec<f64> = line.split_whitespace().map(|t| t.parse().unwrap()).collect();
             // 1e-9° ≈ 0.1 mm; 1 mm in height.
             assert!(
-                (v[0] - r.lat_deg).abs() < 1e-9
-                    && (v[1] - r.lon_deg).abs() < 1e-9
-                    && (v[2] - r.h_m).abs() < 1e-3,
+                (v[0] - r.geo.lat_deg).abs() < 1e-9
+                    && (v[1] - r.geo.lon_deg).abs() < 1e-9
+                    && (v[2] - r.geo.h_m).abs() < 1e-3,
                 "{line} vs {r:?}"
             );
         }
@@ -293,7 +299,7 @@ mod flight_plan {
             [rgb[i], rgb[i + 1], rgb[i + 2]]
         };
         // Nadir cameras are drawn last (blue disc at their position); tilted ones show as orange rings.
-        let nadir = out.poses.iter().rev().find(|r| r.pitch_deg <= 1.0).expect("a nadir pose");
+        let nadir = out.poses.iter().rev().find(|r| r.geo.pitch_deg <= 1.0).expect("a nadir pose");
         let c = nadir.pose().centre_m;
         assert_eq!(px(c[0], c[1]), [30, 90, 200]);
         assert!(rgb.chunks_exact(3).any(|p| p == [225, 110, 20]), "no tilted camera drawn");

@@ -46,7 +46,7 @@ fn check_common(out: &SampleOutput, cfg: &SamplingConfig, height_range_m: [f64; 
             r.name,
             c[2]
         );
-        assert!(r.roll_deg.abs() < 1e-6, "{}: roll {}", r.name, r.roll_deg);
+        assert!(r.geo.roll_deg.abs() < 1e-6, "{}: roll {}", r.name, r.geo.roll_deg);
     }
     assert_eq!(out.poses.len(), out.priors.len());
     assert_eq!(out.stats.accepted as usize, out.poses.len());
@@ -69,7 +69,11 @@ mod grid {
                 let k = (v - o) / 150.0;
                 assert!((k - k.round()).abs() < 1e-9, "{} off the lattice: {c:?}", r.name);
             }
-            assert!(r.pitch_deg.abs() < 1e-9 || (r.pitch_deg - 45.0).abs() < 1e-9, "pitch {}", r.pitch_deg);
+            assert!(
+                r.geo.pitch_deg.abs() < 1e-9 || (r.geo.pitch_deg - 45.0).abs() < 1e-9,
+                "pitch {}",
+                r.geo.pitch_deg
+            );
             assert_eq!(r.index, 0);
         }
         // Lattice nodes inside the L, counted independently; both view angles are tried at each.
@@ -83,7 +87,7 @@ mod grid {
             "{} of {candidates}",
             out.poses.len()
         );
-        let nadir = out.poses.iter().filter(|r| r.pitch_deg < 1.0).count();
+        let nadir = out.poses.iter().filter(|r| r.geo.pitch_deg < 1.0).count();
         assert!(nadir > 0 && nadir < out.poses.len());
         // The tower (top 260 m above ground) forces higher flights right next to it.
         for r in &out.poses {
@@ -103,7 +107,7 @@ mod grid {
         assert_eq!(out.poses.len(), 250);
         check_common(&out, &cfg, [200.0, 500.0]);
         for r in &out.poses {
-            let y = r.yaw_deg;
+            let y = r.geo.yaw_deg;
             assert!([0.0, 90.0, 180.0, 270.0, 360.0].iter().any(|v| (y - v).abs() < 1e-6), "yaw {y}");
         }
         // 250 is more than the (node, view angle) pairs of the 100 m lattice (88 nodes inside the L:
@@ -139,21 +143,21 @@ mod regular {
         }
         for (seq, frames) in &by_seq {
             let first = frames[0];
-            assert!(first.pitch_deg.abs() < 1e-9 || (first.pitch_deg - 45.0).abs() < 1e-9);
+            assert!(first.geo.pitch_deg.abs() < 1e-9 || (first.geo.pitch_deg - 45.0).abs() < 1e-9);
             // Yaw follows the track: 30° or 210°, constant on the line, as are height and tilt.
             assert!(
-                (first.yaw_deg - 30.0).abs() < 1e-6 || (first.yaw_deg - 210.0).abs() < 1e-6,
+                (first.geo.yaw_deg - 30.0).abs() < 1e-6 || (first.geo.yaw_deg - 210.0).abs() < 1e-6,
                 "{}",
-                first.yaw_deg
+                first.geo.yaw_deg
             );
             for w in frames.windows(2) {
                 assert_eq!(w[1].index, w[0].index + 1, "sequence {seq}");
-                assert!((w[1].yaw_deg - w[0].yaw_deg).abs() < 1e-6);
-                assert!((w[1].pitch_deg - w[0].pitch_deg).abs() < 1e-9);
-                assert!((w[1].h_m - w[0].h_m).abs() < 0.01, "height changes along a line");
+                assert!((w[1].geo.yaw_deg - w[0].geo.yaw_deg).abs() < 1e-6);
+                assert!((w[1].geo.pitch_deg - w[0].geo.pitch_deg).abs() < 1e-9);
+                assert!((w[1].geo.h_m - w[0].geo.h_m).abs() < 0.01, "height changes along a line");
                 let (a, b) = (w[0].pose().centre_m, w[1].pose().centre_m);
                 // The next frame is 50 m ahead in the flight (yaw) direction.
-                let yaw = w[0].yaw_deg.to_radians();
+                let yaw = w[0].geo.yaw_deg.to_radians();
                 assert!(
                     (b[0] - a[0] - 50.0 * yaw.sin()).abs() < 1e-6
                         && (b[1] - a[1] - 50.0 * yaw.cos()).abs() < 1e-6
@@ -169,7 +173,10 @@ mod regular {
             assert!((k - k.round()).abs() < 1e-6, "line offsets {offsets:?}");
         }
         // Both view angles were flown.
-        assert!(out.poses.iter().any(|r| r.pitch_deg < 1.0) && out.poses.iter().any(|r| r.pitch_deg > 44.0));
+        assert!(
+            out.poses.iter().any(|r| r.geo.pitch_deg < 1.0)
+                && out.poses.iter().any(|r| r.geo.pitch_deg > 44.0)
+        );
     }
 
     #[test]
@@ -199,9 +206,9 @@ mod irregular {
         let mut pitch_hi = f64::NEG_INFINITY;
         let mut prev_turn: Option<(u32, f64)> = None;
         for r in &out.poses {
-            assert!(r.pitch_deg >= -1e-9 && r.pitch_deg <= 70.0 + 1e-9, "pitch {}", r.pitch_deg);
-            pitch_lo = pitch_lo.min(r.pitch_deg);
-            pitch_hi = pitch_hi.max(r.pitch_deg);
+            assert!(r.geo.pitch_deg >= -1e-9 && r.geo.pitch_deg <= 70.0 + 1e-9, "pitch {}", r.geo.pitch_deg);
+            pitch_lo = pitch_lo.min(r.geo.pitch_deg);
+            pitch_hi = pitch_hi.max(r.geo.pitch_deg);
         }
         for w in out.poses.windows(2) {
             let (a, b) = (&w[0], &w[1]);
@@ -214,12 +221,12 @@ mod irregular {
             let step = ((cb[0] - ca[0]).powi(2) + (cb[1] - ca[1]).powi(2)).sqrt();
             assert!((step - ic.frame_spacing_m).abs() < 1e-6, "speed: {step} m per frame");
             assert!((cb[2] - ca[2]).abs() <= ic.max_climb_m_per_frame + 1e-9, "climb {}", cb[2] - ca[2]);
-            assert!((b.pitch_deg - a.pitch_deg).abs() <= ic.max_pitch_deg_per_frame + 1e-9);
-            let turn = wrap(b.yaw_deg - a.yaw_deg);
+            assert!((b.geo.pitch_deg - a.geo.pitch_deg).abs() <= ic.max_pitch_deg_per_frame + 1e-9);
+            let turn = wrap(b.geo.yaw_deg - a.geo.yaw_deg);
             assert!(turn.abs() <= ic.max_turn_deg_per_frame + 1e-6, "turn {turn}° per frame");
             // The displacement points along the new heading (the camera looks where it flies).
             let dir = (cb[0] - ca[0]).atan2(cb[1] - ca[1]).to_degrees();
-            assert!(wrap(dir - b.yaw_deg).abs() < 1e-6, "heading {} vs track {dir}", b.yaw_deg);
+            assert!(wrap(dir - b.geo.yaw_deg).abs() < 1e-6, "heading {} vs track {dir}", b.geo.yaw_deg);
             if let Some((seq, t)) = prev_turn {
                 if seq == a.sequence {
                     assert!(
@@ -346,7 +353,7 @@ mod projection {
                     continue;
                 }
                 let kk = [k.fx_px, k.fy_px, k.cx_px, k.cy_px];
-                let hand = pinhole(kk, r.yaw_deg, r.pitch_deg, pose.centre_m.to_array(), corner);
+                let hand = pinhole(kk, r.geo.yaw_deg, r.geo.pitch_deg, pose.centre_m.to_array(), corner);
                 assert!(
                     (uv[0] - hand[0]).abs() < 1e-6 && (uv[1] - hand[1]).abs() < 1e-6,
                     "{uv:?} vs {hand:?}"
@@ -409,9 +416,9 @@ mod priors {
             for a in 0..3 {
                 d[a].push(cp[a] - ct[a]);
             }
-            d[3].push((p.yaw_deg - t.yaw_deg + 180.0).rem_euclid(360.0) - 180.0);
-            d[4].push(p.pitch_deg - t.pitch_deg);
-            d[5].push(p.roll_deg - t.roll_deg);
+            d[3].push((p.geo.yaw_deg - t.geo.yaw_deg + 180.0).rem_euclid(360.0) - 180.0);
+            d[4].push(p.geo.pitch_deg - t.geo.pitch_deg);
+            d[5].push(p.geo.roll_deg - t.geo.roll_deg);
         }
         let sigma = [noise.sigma_enu_m, noise.sigma_ypr_deg].concat();
         let bias = [noise.bias_enu_m, noise.bias_ypr_deg].concat();

@@ -123,7 +123,11 @@ fn writes_masks_that_match_a_direct_render_and_resumes() {
     for rec in &recs {
         // The PNG holds exactly what a direct render gives.
         let direct = r
-            .render(&gpu, &View { intrinsics: rec.intrinsics, pose: rec.pose() }, &RenderOptions::default())
+            .render(
+                &gpu,
+                &View { intrinsics: rec.view.intrinsics, pose: rec.pose() },
+                &RenderOptions::default(),
+            )
             .unwrap();
         let png = IdMap::read_png(&plan.png_path(&rec.name)).unwrap();
         assert_eq!(png, direct.ids, "{}", rec.name);
@@ -185,7 +189,7 @@ fn writes_masks_that_match_a_direct_render_and_resumes() {
         Trajectory::Grid,
         3,
         0,
-        recs[3].intrinsics,
+        recs[3].view.intrinsics,
         &moved,
         &EnuFrame::new(Geodetic::new(35.658, 139.701, 40.0)),
         0.0,
@@ -194,7 +198,7 @@ fn writes_masks_that_match_a_direct_render_and_resumes() {
     let resampled = stage::render_masks(&plan, &scene, r, &NoProgress).unwrap();
     assert_eq!((resampled.rendered, resampled.skipped), (1, 5), "a moved pose must not reuse its old mask");
     let direct = r
-        .render(&gpu, &View { intrinsics: recs[3].intrinsics, pose: moved }, &RenderOptions::default())
+        .render(&gpu, &View { intrinsics: recs[3].view.intrinsics, pose: moved }, &RenderOptions::default())
         .unwrap();
     assert_eq!(IdMap::read_png(&plan.png_path("f003")).unwrap(), direct.ids);
 }
@@ -231,7 +235,7 @@ fn shard_limit_depth_visible_fraction_and_preview() {
         let direct = r
             .render(
                 &r.upload(&scene.mesh).unwrap(),
-                &View { intrinsics: rec.intrinsics, pose: rec.pose() },
+                &View { intrinsics: rec.view.intrinsics, pose: rec.pose() },
                 &RenderOptions { linear_depth: true, ..Default::default() },
             )
             .unwrap();
