@@ -4,5 +4,4 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
-export NODEVICE_SELECT=1
 cargo run --quiet -- demo "$@"

@@ -4,7 +4,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
-export NODEVICE_SELECT=1  # silence Mesa device-select warnings on headless machines
+# The binary silences Mesa's device-select layer itself; the test binaries render in-process.
+export NODEVICE_SELECT=1
 export INSGEN_PYTHON="${INSGEN_PYTHON:-$(pwd)/.venv/bin/python}"
 cargo fmt --check
 cargo test --no-fail-fast "$@"

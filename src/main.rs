@@ -1,10 +1,19 @@
 //! The `insgen` binary: parse the command line, run it, print the error chain once.
+//!
+//! Exit status: 0 success, 1 failure (the cause chain on one stderr line), 2 usage error (clap),
+//! 130 stopped by Ctrl-C (SIGINT/SIGTERM) between items.
 
 use std::process::ExitCode;
 
 use clap::Parser;
 
 fn main() -> ExitCode {
+    // Mesa's Vulkan device-select layer prints "XDG_RUNTIME_DIR is invalid or not set" on every
+    // headless run; it only orders GPUs for display servers, and wgpu picks its adapter itself. Set
+    // before any thread exists (set_var is only sound while the process is single-threaded).
+    if std::env::var_os("NODEVICE_SELECT").is_none() {
+        std::env::set_var("NODEVICE_SELECT", "1");
+    }
     let cli = insgen::cli::Cli::parse();
     let level = if cli.global.quiet {
         "error"
@@ -19,6 +28,13 @@ fn main() -> ExitCode {
         .format_timestamp(None)
         .format_target(false)
         .init();
+    // Ctrl-C asks the stages to stop between items (util::interrupt); a second one ends the process.
+    let _ = ctrlc::set_handler(|| {
+        if insgen::util::interrupt::requested() {
+            std::process::exit(130);
+        }
+        insgen::util::interrupt::request();
+    });
     match insgen::cli::run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
@@ -29,6 +45,9 @@ fn main() -> ExitCode {
                 return ExitCode::SUCCESS;
             }
             eprintln!("error: {err:#}");
+            if err.chain().any(insgen::util::interrupt::in_chain) || insgen::util::interrupt::requested() {
+                return ExitCode::from(130);
+            }
             ExitCode::FAILURE
         }
     }

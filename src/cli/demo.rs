@@ -38,7 +38,9 @@ fn step(global: &Global, words: &[&str]) -> anyhow::Result<()> {
     if global.no_progress {
         argv.push("--no-progress".into());
     }
-    eprintln!("==> {}", argv[..1 + words.len()].join(" "));
+    argv.push("--log-every".into());
+    argv.push(global.log_every.to_string());
+    global.printer().status(format!("==> {}", argv[..1 + words.len()].join(" ")));
     let cli = Cli::try_parse_from(&argv).with_context(|| format!("demo step `{}`", words.join(" ")))?;
     super::run(cli).with_context(|| format!("demo step `{}`", words.join(" ")))
 }
@@ -60,7 +62,9 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
             &["render-rgb", "--area", "demo", "--camera", &args.camera, "--limit", "1", "--samples", "16"],
         )?;
     } else if !args.no_rgb {
-        eprintln!("==> skipping render-rgb: .venv-blender is missing (scripts/setup.sh installs it)");
+        global
+            .printer()
+            .status("==> skipping render-rgb: .venv-blender is missing (scripts/setup.sh installs it)");
     }
     step(global, &["export-coco"])?;
     let q = args.queries.to_string();
@@ -85,11 +89,11 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
             "160",
         ],
     )?;
-    eprintln!(
+    global.printer().status(format!(
         "==> done: scenes, poses, masks and previews under {0}/<area>/, COCO under {0}/coco/, localization report \
          under {0}/demo-test/{1}/loc/",
         global.workdir.display(),
         args.camera
-    );
+    ));
     Ok(())
 }

@@ -299,19 +299,17 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         limit: args.limit,
         overlays: args.overlays,
     };
-    let progress = global.progress();
-    let summary = eval::evaluate(&scene, &opts, &progress)
+    let printer = global.printer();
+    let summary = eval::evaluate(&scene, &opts, &printer.progress())
         .with_context(|| format!("evaluating localization on {}/{}", args.area, args.camera))?;
-    if !global.quiet {
-        println!("{}", crate::loc::metrics::markdown(&summary.rows));
-        println!(
-            "{} queries, median {:.2} s/query (+{:.2} s setup), {:.0} hypotheses/s → {}",
-            summary.queries,
-            summary.median_seconds_per_query,
-            summary.median_setup_seconds,
-            summary.hypotheses_per_second,
-            out_dir.display()
-        );
-    }
+    printer.summary(crate::loc::metrics::markdown(&summary.rows));
+    printer.summary(format!(
+        "{} queries, median {:.2} s/query (+{:.2} s setup), {:.0} hypotheses/s → {}",
+        summary.queries,
+        summary.median_seconds_per_query,
+        summary.median_setup_seconds,
+        summary.hypotheses_per_second,
+        out_dir.display()
+    ));
     Ok(())
 }

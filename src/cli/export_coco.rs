@@ -114,7 +114,8 @@ impl Args {
 /// Runs `export-coco`.
 pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     let plan = args.plan(global);
-    let progress = global.progress();
+    let printer = global.printer();
+    let progress = printer.progress();
     let (ex, mut written) = export(&plan, &progress)
         .with_context(|| format!("exporting COCO from {}", plan.workdir.display()))?;
     if ex.frames_without_masks > 0 {

@@ -3,7 +3,8 @@
 //! Each command lives in its own file with an `Args` struct and a `run(&Args, &Global)` function; the
 //! library stages it calls never see clap types. Errors are `anyhow` chains printed once by `main`.
 //!
-//! Exit codes: 0 success, 1 failure (the cause chain is printed on stderr), 2 usage error (clap).
+//! Exit codes: 0 success, 1 failure (the cause chain is printed on stderr), 2 usage error (clap), 130
+//! stopped by Ctrl-C between items.
 
 pub mod demo;
 pub mod eval_loc;
@@ -49,21 +50,23 @@ pub struct Global {
     /// Print only errors.
     #[arg(short, long, global = true)]
     pub quiet: bool,
-    /// Hide progress bars.
+    /// Hide progress bars and progress lines.
     #[arg(long, global = true)]
     pub no_progress: bool,
+    /// When stderr is not a terminal (a batch log), print a progress line every this many seconds.
+    #[arg(long, global = true, value_name = "SECONDS", default_value_t = 30.0, hide_short_help = true)]
+    pub log_every: f64,
 }
 
 impl Global {
-    /// The progress reporter for this run.
-    pub fn progress(&self) -> progress::Bar {
-        use std::io::IsTerminal;
-        let visible =
-            !self.quiet && !self.no_progress && self.verbose == 0 && std::io::stderr().is_terminal();
-        progress::Bar::new(visible)
+    /// The output policy of this run (see [`progress::Printer`]).
+    pub fn printer(&self) -> progress::Printer {
+        progress::Printer::from_global(self)
     }
 }
 
+// One value per process, parsed once: the size difference between variants costs nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Read an area's LoD models and write its instanced scene (GLB + manifest + building table).

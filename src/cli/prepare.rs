@@ -31,27 +31,26 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     for a in &args.areas {
         files.push(find_scene(&global.scenes, a)?);
     }
-    let progress = global.progress();
+    let printer = global.printer();
+    let progress = printer.progress();
     for file in files {
         let area = file.file_stem().and_then(|s| s.to_str()).unwrap_or("area").to_string();
         let out = global.workdir.join(&area).join("scene");
         let report = scene::prepare::prepare(&file, &out, &progress)
             .with_context(|| format!("preparing area {area} from {}", file.display()))?;
         let m = &report.scene.manifest;
-        if !global.quiet {
-            println!(
-                "{area}: {} buildings, {} triangles, {} degenerate faces dropped, geoid {}, origin {:.6}° N {:.6}° E {:.2} m → {} ({:.1} s)",
-                m.buildings,
-                m.triangles,
-                m.degenerate_faces,
-                m.geoid.model,
-                m.origin.lat_deg,
-                m.origin.lon_deg,
-                m.origin.h_m,
-                report.out_dir.display(),
-                report.seconds
-            );
-        }
+        printer.summary(format!(
+            "{area}: {} buildings, {} triangles, {} degenerate faces dropped, geoid {}, origin {:.6}° N {:.6}° E {:.2} m → {} ({:.1} s)",
+            m.buildings,
+            m.triangles,
+            m.degenerate_faces,
+            m.geoid.model,
+            m.origin.lat_deg,
+            m.origin.lon_deg,
+            m.origin.h_m,
+            report.out_dir.display(),
+            report.seconds
+        ));
     }
     Ok(())
 }

@@ -148,8 +148,7 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     let scene =
         PreparedScene::load(&scene_dir).with_context(|| format!("loading {}", scene_dir.display()))?;
     let renderer = Renderer::new().context("setting up the GPU renderer")?;
-    let progress = global.progress();
-    let report = stage::render_masks(&plan, &scene, &renderer, &progress)
+    let report = stage::render_masks(&plan, &scene, &renderer, &global.printer().progress())
         .with_context(|| format!("rendering masks for {}", plan.camera_dir.display()))?;
     log::info!(
         "{} frames in shard {} of {}: {} rendered ({:.2} frames/s), {} already done, {} failed; {} instances; \

@@ -196,20 +196,20 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
         log::warn!("no frames selected (shard/limit leave nothing to render)");
         return Ok(());
     }
-    let progress = global.progress();
-    let summary = render_frames(&plan.render, &plan.frames, &progress)?;
+    let printer = global.printer();
+    let summary = render_frames(&plan.render, &plan.frames, &printer.progress())?;
     let secs: Vec<f64> = summary.rendered.iter().map(|t| t.seconds).collect();
     let mean = if secs.is_empty() { 0.0 } else { secs.iter().sum::<f64>() / secs.len() as f64 };
-    if !global.quiet {
-        eprintln!(
-            "render-rgb: {} frame(s) rendered ({mean:.2} s/frame in Blender), {} already done, {} Blender process(es)",
-            summary.rendered.len(),
-            summary.skipped.len(),
-            summary.setup_seconds.len()
-        );
-        for (ext, n) in &summary.skipped_contents {
-            eprintln!("render-rgb: skipped {n} tile content(s) of type .{ext} (not importable by Blender)");
-        }
+    printer.status(format!(
+        "render-rgb: {} frame(s) rendered ({mean:.2} s/frame in Blender), {} already done, {} Blender process(es)",
+        summary.rendered.len(),
+        summary.skipped.len(),
+        summary.setup_seconds.len()
+    ));
+    for (ext, n) in &summary.skipped_contents {
+        printer.status(format!(
+            "render-rgb: skipped {n} tile content(s) of type .{ext} (not importable by Blender)"
+        ));
     }
     if !args.check_alignment {
         return Ok(());
@@ -245,7 +245,7 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     crate::util::write_json_atomic(&dir.join("report.json"), &report)?;
     crate::util::write_bytes_atomic(&dir.join("report.md"), report.to_markdown().as_bytes())?;
     let fmt = |v: Option<f64>| v.map(|x| format!("{x:.4}")).unwrap_or_else(|| "n/a".into());
-    println!(
+    printer.summary(format!(
         "alignment: median IoU {}, p5 {}, {} pairs over {} frames, pixel agreement {:.5} → {}",
         fmt(report.median_iou),
         fmt(report.p5_iou),
@@ -253,7 +253,7 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
         report.frames,
         report.pixel_agreement,
         dir.join("report.md").display()
-    );
+    ));
     if !report.pass {
         bail!(
             "alignment below target (median ≥ {}, p5 ≥ {}); see {}",
@@ -344,6 +344,7 @@ mod tests {
             verbose: 0,
             quiet: true,
             no_progress: true,
+            log_every: 30.0,
         };
         let e = run(&parse(&[]).unwrap(), &global).unwrap_err().to_string();
         assert!(e.contains("insgen sample --area demo --camera cam2"), "{e}");

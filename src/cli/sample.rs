@@ -171,21 +171,20 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     let plan = Plan::new(args, global)?;
     let scene = PreparedScene::load(&plan.scene_dir)
         .with_context(|| format!("loading the prepared scene of area {}", plan.area))?;
-    let out = execute(&plan, &scene, &global.progress())?;
-    if !global.quiet {
-        let s = &out.stats;
-        println!(
-            "{}: {} {} poses in {} sequences ({} candidates) → {}; prior median error {:.1} m / {:.2}°",
-            plan.area,
-            s.accepted,
-            out.strategy,
-            s.sequences,
-            s.candidates,
-            plan.out_dir.display(),
-            s.prior_median_translation_m,
-            s.prior_median_rotation_deg
-        );
-    }
+    let printer = global.printer();
+    let out = execute(&plan, &scene, &printer.progress())?;
+    let s = &out.stats;
+    printer.summary(format!(
+        "{}: {} {} poses in {} sequences ({} candidates) → {}; prior median error {:.1} m / {:.2}°",
+        plan.area,
+        s.accepted,
+        out.strategy,
+        s.sequences,
+        s.candidates,
+        plan.out_dir.display(),
+        s.prior_median_translation_m,
+        s.prior_median_rotation_deg
+    ));
     Ok(())
 }
 

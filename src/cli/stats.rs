@@ -56,11 +56,12 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
         ReportOptions { contact_sheet_images: args.contact_sheet },
     )
     .with_context(|| format!("writing the statistics report in {}", dir.display()))?;
+    let printer = global.printer();
     for sp in &st.splits {
-        println!(
+        printer.summary(format!(
             "{}: {} images, {} annotations ({} small, {} medium, {} large)",
             sp.split, sp.images, sp.annotations, sp.sizes.small, sp.sizes.medium, sp.sizes.large
-        );
+        ));
     }
     for f in files {
         log::info!("wrote {}", f.display());

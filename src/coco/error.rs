@@ -37,6 +37,9 @@ pub enum CocoError {
         #[source]
         source: png::EncodingError,
     },
+    /// Stopped by Ctrl-C; nothing was written.
+    #[error(transparent)]
+    Interrupted(#[from] crate::util::interrupt::Interrupted),
     /// A pose file cannot be read.
     #[error(transparent)]
     Poses(#[from] crate::camera::CameraError),

@@ -528,12 +528,14 @@ pub fn build(plan: &ExportPlan, image_root: &str, progress: &dyn Progress) -> Re
         .par_iter()
         .map(|&(a, c, f)| {
             let licence = a.manifest.attributions.first().and_then(|s| licence_id.get(s.as_str()).copied());
+            crate::util::interrupt::check()?;
             let r = process_frame(a, c, f, plan, licence);
             progress.inc(1);
             r
         })
         .collect();
     progress.finish();
+    crate::util::interrupt::check()?;
 
     let total = results.len();
     let mut frames = Vec::with_capacity(total);

@@ -75,6 +75,9 @@ pub enum StageError {
     Ids(#[from] IdError),
     #[error(transparent)]
     Overlay(#[from] OverlayError),
+    /// Stopped by Ctrl-C; the frames written so far are complete.
+    #[error(transparent)]
+    Interrupted(#[from] crate::util::interrupt::Interrupted),
     /// Writing the depth EXR failed.
     #[error("{}: writing the depth EXR failed", path.display())]
     Exr {
@@ -396,6 +399,7 @@ pub fn render_masks(
         });
         let result =
             renderer.render_each(&gpu_scene, &views, &options, |k, image| -> Result<(), StageError> {
+                crate::util::interrupt::check()?;
                 let amodal_px = if plan.visible_fraction {
                     let ids = image.ids.visible_buildings();
                     let counts = renderer.isolated_coverage_px(&gpu_scene, &views[k], &ids, &plan.range)?;

@@ -44,6 +44,9 @@ pub enum EvalError {
     Camera(#[from] crate::camera::CameraError),
     #[error("{}: {what}", path.display())]
     Input { path: PathBuf, what: String },
+    /// Stopped by Ctrl-C between queries; nothing was written.
+    #[error(transparent)]
+    Interrupted(#[from] util::interrupt::Interrupted),
 }
 
 /// Options of an evaluation run.
@@ -390,6 +393,7 @@ pub fn evaluate(
     let mut runs: Vec<Localized> = Vec::new();
     progress.start((queries.len() * opts.costs.len()) as u64, "queries");
     for (qi, q) in queries.iter().enumerate() {
+        util::interrupt::check()?;
         let setup = QuerySetup::new(scene, opts, q)?;
         for &kind in &opts.costs {
             let run = setup.localize(opts, kind);

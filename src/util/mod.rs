@@ -13,6 +13,7 @@ use std::fs;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
+pub mod interrupt;
 pub mod row_major;
 pub mod shard;
 pub use shard::{Shard, ShardError};

@@ -673,6 +673,7 @@ fn cli_renders_rgb_and_checks_alignment_against_masks() {
         verbose: 0,
         quiet: true,
         no_progress: true,
+        log_every: 30.0,
     };
     let py_s = py.to_string_lossy().into_owned();
     let parse = |extra: &[&str]| {

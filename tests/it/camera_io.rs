@@ -345,7 +345,14 @@ mod cli {
     use insgen::cli::Global;
 
     fn global(workdir: &Path, scenes: &Path) -> Global {
-        Global { workdir: workdir.into(), scenes: scenes.into(), verbose: 0, quiet: true, no_progress: true }
+        Global {
+            workdir: workdir.into(),
+            scenes: scenes.into(),
+            verbose: 0,
+            quiet: true,
+            no_progress: true,
+            log_every: 30.0,
+        }
     }
 
     fn args(area: &str, camera: &str) -> Args {

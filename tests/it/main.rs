@@ -15,6 +15,7 @@ mod blender_render;
 mod blender_render_tiles;
 mod camera_io;
 mod camera_sampling;
+mod cli_run;
 mod coco_export;
 mod coco_rle;
 mod geo_pyproj;
