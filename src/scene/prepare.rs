@@ -375,7 +375,9 @@ pub fn footprint(positions: &[[f64; 3]], triangles: &[[u32; 3]]) -> (f64, [f64; 
     (n as f64 * cell * cell, [sx / n as f64, sy / n as f64])
 }
 
-/// Runs `prepare` for one scene file, writing the artifact into `out_dir` (`<workdir>/<area>/scene`).
+/// Runs `prepare` for one scene file, writing the artifact into `out_dir` (`<workdir>/<area>/scene`):
+/// reads and geo-references every source, instances the buildings in the area's ENU frame, then
+/// writes the GLB, the building table and the manifest.
 ///
 /// # Errors
 /// [`SceneError`] naming the scene file or source and what is wrong; nothing is written on error.
@@ -384,15 +386,33 @@ pub fn prepare(
     out_dir: &Path,
     progress: &dyn Progress,
 ) -> Result<PrepareReport, SceneError> {
-    let t0 = Instant::now();
+    let started = Instant::now();
     let cfg = SceneConfig::load(scene_file)?;
-    let mut geoid = GeoidSlot { cfg: &cfg, scene_file, geoid: None };
+    let sources = read_sources(scene_file, &cfg, progress)?;
+    let scene = instance(&cfg, sources)?;
+    write_artifact(out_dir, &scene)?;
+    Ok(PrepareReport { scene, out_dir: out_dir.to_path_buf(), seconds: started.elapsed().as_secs_f64() })
+}
 
-    let mut buildings: Vec<EcefBuilding> = Vec::new();
-    let mut sources: Vec<SourceEntry> = Vec::new();
-    let mut degenerate_total = 0u64;
+/// Every source of an area, geo-referenced to ECEF.
+struct Sources {
+    buildings: Vec<EcefBuilding>,
+    entries: Vec<SourceEntry>,
+    degenerate_faces: u64,
+    /// The geoid, when a source needed one (orthometric heights).
+    geoid: Option<Geoid>,
+}
+
+/// Reads and geo-references the sources of `cfg` in order; at least one building.
+fn read_sources(
+    scene_file: &Path,
+    cfg: &SceneConfig,
+    progress: &dyn Progress,
+) -> Result<Sources, SceneError> {
+    let mut geoid = GeoidSlot { cfg, scene_file, geoid: None };
+    let mut out = Sources { buildings: Vec::new(), entries: Vec::new(), degenerate_faces: 0, geoid: None };
     for src in &cfg.sources {
-        let (model, fmt) = read_one(scene_file, &cfg, src)?;
+        let (model, fmt) = read_one(scene_file, cfg, src)?;
         let label = match &src.path {
             Some(p) => p.display().to_string(),
             None => "procedural".to_string(),
@@ -407,8 +427,8 @@ pub fn prepare(
             georeference(scene_file, src, model, &label, &mut geoid, progress)?;
         log::info!("{}: {} buildings ({chain})", model_path.display(), bs.len());
         let dropped = stats.degenerate_faces + dropped_here;
-        degenerate_total += dropped;
-        sources.push(SourceEntry {
+        out.degenerate_faces += dropped;
+        out.entries.push(SourceEntry {
             path: label,
             format: fmt,
             sha256,
@@ -417,19 +437,24 @@ pub fn prepare(
             degenerate_faces: dropped,
             attribution: cfg.attribution.clone(),
         });
-        buildings.append(&mut bs);
+        out.buildings.append(&mut bs);
     }
-    if buildings.is_empty() {
+    if out.buildings.is_empty() {
         return Err(SceneError::Area {
             area: cfg.name.clone(),
             what: "no building with usable geometry in any source".into(),
         });
     }
+    out.geoid = geoid.geoid;
+    Ok(out)
+}
 
-    // Origin and ENU frame.
+/// The area origin: the scene file's, else the centre of the buildings' latitude/longitude bounds; its
+/// height defaults to the median building base.
+fn area_origin(cfg: &SceneConfig, buildings: &[EcefBuilding]) -> Geodetic {
     let median_base_h_m =
         util::median(&buildings.iter().map(|b| b.base_h_m).collect::<Vec<_>>()).unwrap_or(0.0);
-    let origin = match cfg.origin {
+    match cfg.origin {
         Some(o) => Geodetic::new(o.lat_deg, o.lon_deg, o.h_m.unwrap_or(median_base_h_m)),
         None => {
             let lat = [
@@ -442,11 +467,12 @@ pub fn prepare(
             ];
             Geodetic::new(0.5 * (lat[0] + lat[1]), 0.5 * (lon[0] + lon[1]), median_base_h_m)
         }
-    };
-    let enu = EnuFrame::new(origin);
+    }
+}
 
-    // Area polygon in ENU.
-    let area_polygon: Option<Vec<[f64; 2]>> = cfg.area.as_ref().map(|a| {
+/// The scene file's `[area]` as a counter-clockwise ring in ENU metres (open), if it has one.
+fn area_polygon_enu(cfg: &SceneConfig, enu: &EnuFrame) -> Option<Vec<[f64; 2]>> {
+    cfg.area.as_ref().map(|a| {
         let pts: Vec<[f64; 2]> = match (&a.bbox_deg, &a.polygon_deg) {
             (Some(b), _) => vec![[b[0], b[1]], [b[2], b[1]], [b[2], b[3]], [b[0], b[3]]],
             (None, Some(p)) => p.clone(),
@@ -455,7 +481,7 @@ pub fn prepare(
         let mut ring: Vec<[f64; 2]> = pts
             .iter()
             .map(|ll| {
-                let e = enu.geodetic_to_enu(Geodetic::new(ll[1], ll[0], origin.h_m));
+                let e = enu.geodetic_to_enu(Geodetic::new(ll[1], ll[0], enu.origin.h_m));
                 [e[0], e[1]]
             })
             .collect();
@@ -466,22 +492,32 @@ pub fn prepare(
             ring.reverse();
         }
         ring
-    });
+    })
+}
 
-    // ENU conversion, area filter, merge by source id (sorted).
-    struct Merged {
-        source_file: String,
-        lod: String,
-        measured_height_m: Option<f64>,
-        positions: Vec<[f64; 3]>,
-        triangles: Vec<[u32; 3]>,
-    }
+/// One instance before numbering: the parts of every building sharing a source ID, in ENU.
+struct Merged {
+    source_file: String,
+    lod: String,
+    measured_height_m: Option<f64>,
+    positions: Vec<[f64; 3]>,
+    triangles: Vec<[u32; 3]>,
+}
+
+/// Converts the buildings to ENU, drops those whose centre lies outside `area_polygon`, and merges
+/// them by source ID (sorted, so the numbering is reproducible). Returns the merged buildings and how
+/// many were outside.
+fn merge_by_source_id(
+    buildings: Vec<EcefBuilding>,
+    enu: &EnuFrame,
+    area_polygon: Option<&[[f64; 2]]>,
+) -> (BTreeMap<String, Merged>, u64) {
     let mut merged: BTreeMap<String, Merged> = BTreeMap::new();
     let mut outside = 0u64;
     for b in buildings {
         let positions: Vec<[f64; 3]> =
             b.positions_ecef.iter().map(|&p| enu.ecef_to_enu(p.into()).to_array()).collect();
-        if let Some(poly) = &area_polygon {
+        if let Some(poly) = area_polygon {
             let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
             for p in &positions {
                 lo = [lo[0].min(p[0]), lo[1].min(p[1])];
@@ -506,25 +542,19 @@ pub fn prepare(
             m.measured_height_m = b.measured_height_m;
         }
     }
-    if outside > 0 {
-        log::info!("{outside} buildings lie outside the [area] polygon and were left out");
-    }
-    if merged.is_empty() {
-        return Err(SceneError::Area {
-            area: cfg.name.clone(),
-            what: "no building lies inside the [area] polygon".into(),
-        });
-    }
-    if let Some(last) = merged.len().checked_sub(1) {
-        BuildingId::from_index(last).map_err(|source| SceneError::Ids { area: cfg.name.clone(), source })?;
-    }
+    (merged, outside)
+}
 
-    // Scene mesh and building table.
+/// Numbers the merged buildings 1, 2, … in source-ID order and builds the scene mesh and the building
+/// table.
+///
+/// # Panics
+/// When there are more buildings than 24-bit IDs (the caller checks first).
+fn mesh_and_table(merged: BTreeMap<String, Merged>, enu: &EnuFrame) -> (SceneMesh, Vec<BuildingRecord>) {
     let mut mesh = SceneMesh::default();
     let mut records = Vec::with_capacity(merged.len());
-    let mut bases = Vec::with_capacity(merged.len());
     for (k, (source_id, m)) in merged.into_iter().enumerate() {
-        let id = BuildingId::from_index(k).expect("the count was checked against the ID space above");
+        let id = BuildingId::from_index(k).expect("the count was checked against the ID space");
         let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
         for p in &m.positions {
             for a in 0..3 {
@@ -534,7 +564,6 @@ pub fn prepare(
         }
         let (area_m2, c) = footprint(&m.positions, &m.triangles);
         let g = enu.enu_to_geodetic(glam::DVec3::new(c[0], c[1], lo[2]));
-        bases.push(lo[2]);
         let base = mesh.positions_m.len() as u32;
         mesh.positions_m.extend(m.positions.iter().map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]));
         mesh.building_ids.extend(std::iter::repeat_n(id, m.positions.len()));
@@ -554,17 +583,12 @@ pub fn prepare(
             triangles: m.triangles.len() as u64,
         });
     }
-    let ground_enu_m = util::median(&bases).unwrap_or(0.0);
-    let area_polygon_enu_m = area_polygon.unwrap_or_else(|| {
-        let lo = records
-            .iter()
-            .fold([f64::INFINITY; 2], |a, r| [a[0].min(r.bbox_min_enu_m[0]), a[1].min(r.bbox_min_enu_m[1])]);
-        let hi = records.iter().fold([f64::NEG_INFINITY; 2], |a, r| {
-            [a[0].max(r.bbox_max_enu_m[0]), a[1].max(r.bbox_max_enu_m[1])]
-        });
-        vec![[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]]
-    });
-    let geoid_used = match &geoid.geoid {
+    (mesh, records)
+}
+
+/// What the manifest records of the geoid used.
+fn geoid_used(geoid: Option<&Geoid>, origin: Geodetic) -> GeoidUsed {
+    match geoid {
         None | Some(Geoid::None) => {
             GeoidUsed { model: "none".into(), grid: None, undulation_at_origin_m: 0.0 }
         }
@@ -576,7 +600,39 @@ pub fn prepare(
             grid: Some(grid.path().display().to_string()),
             undulation_at_origin_m: g.undulation_m(origin.lat_deg, origin.lon_deg),
         },
-    };
+    }
+}
+
+/// Instances the sources: the area origin and ENU frame, the area filter, one ID per source ID, the
+/// mesh, the building table and the manifest.
+fn instance(cfg: &SceneConfig, sources: Sources) -> Result<PreparedScene, SceneError> {
+    let origin = area_origin(cfg, &sources.buildings);
+    let enu = EnuFrame::new(origin);
+    let area_polygon = area_polygon_enu(cfg, &enu);
+    let (merged, outside) = merge_by_source_id(sources.buildings, &enu, area_polygon.as_deref());
+    if outside > 0 {
+        log::info!("{outside} buildings lie outside the [area] polygon and were left out");
+    }
+    if merged.is_empty() {
+        return Err(SceneError::Area {
+            area: cfg.name.clone(),
+            what: "no building lies inside the [area] polygon".into(),
+        });
+    }
+    BuildingId::from_index(merged.len() - 1)
+        .map_err(|source| SceneError::Ids { area: cfg.name.clone(), source })?;
+    let (mesh, records) = mesh_and_table(merged, &enu);
+    let bases: Vec<f64> = records.iter().map(|r| r.bbox_min_enu_m[2]).collect();
+    let ground_enu_m = util::median(&bases).unwrap_or(0.0);
+    let area_polygon_enu_m = area_polygon.unwrap_or_else(|| {
+        let lo = records
+            .iter()
+            .fold([f64::INFINITY; 2], |a, r| [a[0].min(r.bbox_min_enu_m[0]), a[1].min(r.bbox_min_enu_m[1])]);
+        let hi = records.iter().fold([f64::NEG_INFINITY; 2], |a, r| {
+            [a[0].max(r.bbox_max_enu_m[0]), a[1].max(r.bbox_max_enu_m[1])]
+        });
+        vec![[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]]
+    });
     let manifest = Manifest {
         insgen_version: env!("CARGO_PKG_VERSION").to_string(),
         area: cfg.name.clone(),
@@ -585,25 +641,25 @@ pub fn prepare(
         ecef_from_enu: enu.ecef_from_enu(),
         area_polygon_enu_m,
         ground_enu_m,
-        geoid: geoid_used,
-        sources,
+        geoid: geoid_used(sources.geoid.as_ref(), origin),
+        sources: sources.entries,
         buildings: records.len() as u64,
         triangles: mesh.triangle_count() as u64,
-        degenerate_faces: degenerate_total,
+        degenerate_faces: sources.degenerate_faces,
         attributions: cfg.attribution.iter().cloned().collect(),
     };
+    Ok(PreparedScene { manifest, buildings: records, mesh })
+}
 
-    // Write: GLB and building table first, manifest last (its presence marks a complete artifact).
+/// Writes the artifact: GLB and building table first, the manifest last (its presence marks a complete
+/// artifact).
+fn write_artifact(out_dir: &Path, scene: &PreparedScene) -> Result<(), SceneError> {
     util::create_dir_all(out_dir)?;
-    super::glb::write_glb(&out_dir.join(artifact::GLB_FILE), &mesh, &records)
-        .map_err(|e| SceneError::Artifact { path: out_dir.join(artifact::GLB_FILE), what: e.to_string() })?;
-    util::write_json_atomic(&out_dir.join(artifact::BUILDINGS_FILE), &records)?;
-    util::write_json_atomic(&out_dir.join(artifact::MANIFEST_FILE), &manifest)?;
-    Ok(PrepareReport {
-        scene: PreparedScene { manifest, buildings: records, mesh },
-        out_dir: out_dir.to_path_buf(),
-        seconds: t0.elapsed().as_secs_f64(),
-    })
+    super::glb::write_glb(&out_dir.join(artifact::GLB_FILE), &scene.mesh, &scene.buildings)
+        .map_err(|source| SceneError::ArtifactGlb { source })?;
+    util::write_json_atomic(&out_dir.join(artifact::BUILDINGS_FILE), &scene.buildings)?;
+    util::write_json_atomic(&out_dir.join(artifact::MANIFEST_FILE), &scene.manifest)?;
+    Ok(())
 }
 
 #[cfg(test)]
