@@ -4,6 +4,7 @@
 use std::fmt;
 use std::path::PathBuf;
 
+use crate::lod::tiles3d::ContentError;
 use crate::util::FileError;
 
 /// One problem found in a job before Blender is started, with the JSON path where it sits.
@@ -82,9 +83,17 @@ pub enum BlenderError {
     /// A tileset JSON cannot be used for rendering.
     #[error("tileset {}: {what}", path.display())]
     Tileset { path: PathBuf, what: String },
-    /// A tile's content (b3dm/glb) is malformed or of an unsupported kind.
-    #[error("tile content {}: {what}", path.display())]
-    Tile { path: PathBuf, what: String },
+    /// A selected tile's content (b3dm/glb/glTF/cmpt) cannot be turned into a GLB Blender imports: it
+    /// is malformed, or of a kind or with an extension insgen refuses (named in `source`).
+    #[error("tile content {} (tile {tile_at} of {})", content.display(), tileset.display())]
+    Tile {
+        content: PathBuf,
+        tileset: PathBuf,
+        /// JSON path of the tile in `tileset` (`root.children[2]`).
+        tile_at: String,
+        #[source]
+        source: Box<ContentError>,
+    },
     /// No interpreter with bpy or Blender binary was found.
     #[error("no Blender found: {what}\nhint: run scripts/setup.sh (it calls scripts/setup_blender.sh, which creates .venv-blender with bpy), or pass --blender-python PATH / --blender PATH, or set INSGEN_BLENDER_PYTHON / INSGEN_BLENDER")]
     NotFound { what: String },

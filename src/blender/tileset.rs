@@ -240,9 +240,11 @@ pub fn prepare_tile(tile: &SelectedTile, enu: &EnuFrame, cache_dir: &Path) -> Re
     use sha2::{Digest, Sha256};
     let path = &tile.content;
     let bytes = crate::util::read_file(path)?;
-    let imp = plain::importable_glb(&bytes, path, tile.up_axis).map_err(|what| BlenderError::Tile {
-        path: path.clone(),
-        what: format!("{what} (tile {} of {})", tile.tile_at, tile.tileset.display()),
+    let imp = plain::importable_glb(&bytes, path, tile.up_axis).map_err(|source| BlenderError::Tile {
+        content: path.clone(),
+        tileset: tile.tileset.clone(),
+        tile_at: tile.tile_at.clone(),
+        source: Box::new(source),
     })?;
     let abs = path.canonicalize().unwrap_or_else(|_| path.clone());
     let digest = hex::encode(&Sha256::digest(abs.to_string_lossy().as_bytes())[..8]);

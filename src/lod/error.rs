@@ -2,10 +2,43 @@
 
 use std::path::PathBuf;
 
+use super::tiles3d::ContentError;
+
 #[derive(Debug, thiserror::Error)]
 pub enum LodError {
     #[error(transparent)]
     File(#[from] crate::util::FileError),
+
+    /// A 3D Tiles file read on its own (a `.b3dm`/`.glb`/`.cmpt` content, or the gzip or JSON layer of
+    /// a tileset JSON) cannot be decoded; `source` says what is wrong where.
+    #[error("{}", path.display())]
+    Tiles3d {
+        path: PathBuf,
+        #[source]
+        source: Box<ContentError>,
+    },
+
+    /// A tile content that a tileset references cannot be read or decoded: the tileset JSON, the JSON
+    /// path of the reference (`root.children[3].content`), the URI as written and the file it names.
+    #[error("{}: {at}.uri {uri:?} ({})", tileset.display(), content.display())]
+    Tile {
+        tileset: PathBuf,
+        at: String,
+        uri: String,
+        content: PathBuf,
+        #[source]
+        source: Box<ContentError>,
+    },
+
+    /// An implicit-tiling subtree file of the tile at `at` (in `tileset`) is malformed.
+    #[error("{}: {at}: subtree {}", tileset.display(), subtree.display())]
+    Subtree {
+        tileset: PathBuf,
+        at: String,
+        subtree: PathBuf,
+        #[source]
+        source: Box<ContentError>,
+    },
 
     #[error("{}: cannot tell the format from the file name; set `format` (citygml, cityjson, obj, 3dtiles) in the scene file", path.display())]
     UnknownFormat { path: PathBuf },

@@ -13,7 +13,7 @@ use insgen::lod::tiles3d::{self, TilesReport};
 use insgen::lod::{read_source, Format, Frame, Geometry, LodError, ReadOptions, SourceModel, TriMesh};
 use serde_json::json;
 
-use crate::util::shared_data;
+use crate::util::{error_chain, shared_data};
 
 fn fixture(name: &str) -> PathBuf {
     crate::util::fixture("tiles3d", name)
@@ -342,7 +342,10 @@ fn hand_tileset_missing_content_names_tileset_and_uri() {
     std::fs::remove_file(dir.path().join("ext/f.glb")).unwrap();
     let err = tiles3d::read(&path, &ReadOptions::default()).unwrap_err();
     let msg = err.to_string();
-    assert!(matches!(err, LodError::Invalid { .. }), "{err:?}");
+    assert!(
+        matches!(&err, LodError::Tile { source, .. } if matches!(**source, tiles3d::ContentError::Unreadable(_))),
+        "{err:?}"
+    );
     assert!(msg.contains("ext/tileset.json") && msg.contains("\"f.glb\""), "{msg}");
     assert!(msg.contains("root.contents[0].uri"), "{msg}");
 }
@@ -428,8 +431,12 @@ fn read_err(rel: &str) -> (PathBuf, LodError) {
 #[test]
 fn b3dm_with_wrong_header_length() {
     let (path, err) = read_err("bad_header_length.b3dm");
-    assert!(matches!(err, LodError::Malformed { .. }), "{err:?}");
-    let msg = err.to_string();
+    assert!(
+        matches!(&err, LodError::Tiles3d { source, .. }
+            if matches!(**source, tiles3d::ContentError::ByteLength { byte_length: 1264, length: 1256, .. })),
+        "{err:?}"
+    );
+    let msg = error_chain(&err);
     assert!(msg.starts_with(&path.display().to_string()), "{msg}");
     assert!(msg.contains("byteLength is 1264 but the tile has 1256 bytes"), "{msg}");
 }
@@ -437,15 +444,15 @@ fn b3dm_with_wrong_header_length() {
 #[test]
 fn truncated_b3dm() {
     let (path, err) = read_err("truncated.b3dm");
-    let msg = err.to_string();
-    assert!(matches!(err, LodError::Malformed { .. }), "{err:?}");
+    let msg = error_chain(&err);
+    assert!(matches!(err, LodError::Tiles3d { .. }), "{err:?}");
     assert!(msg.starts_with(&path.display().to_string()) && msg.contains("truncated"), "{msg}");
 }
 
 #[test]
 fn b3dm_section_past_the_end() {
     let (path, err) = read_err("bad_section_length.b3dm");
-    let msg = err.to_string();
+    let msg = error_chain(&err);
     assert!(msg.starts_with(&path.display().to_string()), "{msg}");
     assert!(msg.contains("batchTableJSONByteLength = 1000000 runs past the end"), "{msg}");
 }
@@ -453,7 +460,7 @@ fn b3dm_section_past_the_end() {
 #[test]
 fn tileset_with_missing_tile() {
     let (path, err) = read_err("missing_tile/tileset.json");
-    assert!(matches!(err, LodError::Invalid { .. }), "{err:?}");
+    assert!(matches!(err, LodError::Tile { .. }), "{err:?}");
     let msg = err.to_string();
     assert!(msg.starts_with(&path.display().to_string()), "{msg}");
     assert!(msg.contains("root.content.uri \"data/absent.b3dm\"") && msg.contains("absent.b3dm"), "{msg}");
@@ -462,8 +469,11 @@ fn tileset_with_missing_tile() {
 #[test]
 fn malformed_tileset_json() {
     let (path, err) = read_err("malformed_tileset/tileset.json");
-    assert!(matches!(err, LodError::Malformed { .. }), "{err:?}");
-    let msg = err.to_string();
+    assert!(
+        matches!(&err, LodError::Tiles3d { source, .. } if matches!(**source, tiles3d::ContentError::TilesetJson(_))),
+        "{err:?}"
+    );
+    let msg = error_chain(&err);
     assert!(
         msg.starts_with(&path.display().to_string()) && msg.contains("not a valid 3D Tiles tileset JSON"),
         "{msg}"
@@ -668,7 +678,7 @@ fn batch_id_past_batch_length_is_an_error() {
     let tile = b3dm(&json!({"BATCH_LENGTH": 2}), &json!({"gml_id": ["a", "b"]}), &batched_glb(&[0.0, 2.0]));
     std::fs::write(&path, tile).unwrap();
     let err = tiles3d::read(&path, &ReadOptions::default()).unwrap_err();
-    let msg = err.to_string();
+    let msg = error_chain(&err);
     assert!(
         msg.contains("bad_ids.b3dm")
             && msg.contains("_BATCHID 2 is not below")
@@ -696,7 +706,7 @@ fn unsupported_required_extension_is_named() {
     gltf["extensionsRequired"] = json!(["EXT_mesh_gpu_instancing", "KHR_materials_unlit"]);
     let bin_len = u32::from_le_bytes(g[20 + jlen..24 + jlen].try_into().unwrap()) as usize;
     std::fs::write(&path, glb(&gltf, &g[28 + jlen..28 + jlen + bin_len])).unwrap();
-    let msg = tiles3d::read(&path, &ReadOptions::default()).unwrap_err().to_string();
+    let msg = error_chain(&tiles3d::read(&path, &ReadOptions::default()).unwrap_err());
     assert!(msg.contains("meshopt.glb") && msg.contains("EXT_mesh_gpu_instancing"), "{msg}");
     assert!(
         !msg.contains("requires extension(s) EXT_mesh_gpu_instancing, KHR"),

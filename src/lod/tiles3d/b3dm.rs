@@ -15,6 +15,7 @@
 
 use serde_json::{Map, Value};
 
+use super::error::{ContentError, B3DM_SECTIONS};
 use super::features::{feature_props, FeatureProps, PropValue};
 
 /// Length of the current b3dm header, bytes.
@@ -44,41 +45,40 @@ fn u32_at(bytes: &[u8], at: usize) -> u32 {
     u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]])
 }
 
-/// Parses a JSON chunk padded with spaces or NULs; an empty chunk is an empty object.
-fn parse_json_chunk(bytes: &[u8], what: &str) -> Result<Map<String, Value>, String> {
+/// Parses a JSON chunk (`table` names it) padded with spaces or NULs; an empty chunk is an empty
+/// object.
+fn parse_json_chunk(bytes: &[u8], table: &'static str) -> Result<Map<String, Value>, ContentError> {
     let end = bytes.iter().rposition(|&b| b != 0 && b != b' ').map_or(0, |i| i + 1);
     if end == 0 {
         return Ok(Map::new());
     }
     match serde_json::from_slice::<Value>(&bytes[..end]) {
         Ok(Value::Object(m)) => Ok(m),
-        Ok(_) => Err(format!("{what} JSON is not an object")),
-        Err(e) => Err(format!("{what} JSON is invalid: {e}")),
+        Ok(_) => Err(ContentError::TableNotObject { table }),
+        Err(source) => Err(ContentError::TableJson { table, source }),
     }
 }
 
 /// Parses a b3dm from `bytes` (exactly the tile: a standalone file or a slice of a cmpt).
 ///
 /// # Errors
-/// A message naming the header field or table that is wrong and the numbers involved.
-pub(crate) fn parse(bytes: &[u8]) -> Result<B3dm<'_>, String> {
+/// [`ContentError`] naming the header field or table that is wrong and the numbers involved.
+pub(crate) fn parse(bytes: &[u8]) -> Result<B3dm<'_>, ContentError> {
+    let too_short =
+        || ContentError::TooShort { what: "b3dm header", length: bytes.len(), needed: HEADER_LEN };
     if bytes.len() < 20 {
-        return Err(format!("{} bytes is too short for a b3dm header (28 bytes)", bytes.len()));
+        return Err(too_short());
     }
     if &bytes[0..4] != b"b3dm" {
-        return Err(format!("not a b3dm: magic is {:?}", String::from_utf8_lossy(&bytes[0..4])));
+        return Err(ContentError::NotB3dm { magic: String::from_utf8_lossy(&bytes[0..4]).into_owned() });
     }
     let version = u32_at(bytes, 4);
     if version != 1 {
-        return Err(format!("unsupported b3dm version {version} (expected 1)"));
+        return Err(ContentError::Version { container: "b3dm", version });
     }
     let byte_length = u32_at(bytes, 8) as usize;
     if byte_length != bytes.len() {
-        return Err(format!(
-            "b3dm header byteLength is {byte_length} but the tile has {} bytes{}",
-            bytes.len(),
-            if byte_length > bytes.len() { " (truncated file?)" } else { "" }
-        ));
+        return Err(ContentError::ByteLength { container: "b3dm", byte_length, length: bytes.len() });
     }
     let word = |i: usize| if bytes.len() >= 12 + 4 * (i + 1) { u32_at(bytes, 12 + 4 * i) } else { 0 };
     let (header_len, ft_json, ft_bin, bt_json, bt_bin, legacy_batch_length) =
@@ -91,28 +91,20 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<B3dm<'_>, String> {
         } else if bytes.len() >= HEADER_LEN {
             (HEADER_LEN, word(0) as usize, word(1) as usize, word(2) as usize, word(3) as usize, None)
         } else {
-            return Err(format!("{} bytes is too short for a b3dm header (28 bytes)", bytes.len()));
+            return Err(too_short());
         };
-    let sections = [
-        ("featureTableJSONByteLength", ft_json),
-        ("featureTableBinaryByteLength", ft_bin),
-        ("batchTableJSONByteLength", bt_json),
-        ("batchTableBinaryByteLength", bt_bin),
-    ];
+    let lengths = [ft_json, ft_bin, bt_json, bt_bin];
     let mut end = header_len;
-    for (name, len) in sections {
-        end = end.checked_add(len).filter(|&e| e <= byte_length).ok_or_else(|| {
-            format!(
-                "b3dm header {name} = {len} runs past the end of the tile ({byte_length} bytes; \
-                 sections {}",
-                sections.iter().map(|(n, l)| format!("{n}={l}")).collect::<Vec<_>>().join(", ")
-            ) + ")"
+    for (name, len) in B3DM_SECTIONS.into_iter().zip(lengths) {
+        end = end.checked_add(len).filter(|&e| e <= byte_length).ok_or(ContentError::B3dmSection {
+            name,
+            len,
+            byte_length,
+            lengths,
         })?;
     }
     if end == byte_length {
-        return Err(format!(
-            "the b3dm has no GLB after its tables ({byte_length} bytes all used by header and tables)"
-        ));
+        return Err(ContentError::NoGlb { byte_length });
     }
     let mut at = header_len;
     let mut take = |len: usize| {
@@ -128,18 +120,16 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<B3dm<'_>, String> {
 
     let ft = parse_json_chunk(ft_json, "feature table")?;
     let batch_length = match (ft.get("BATCH_LENGTH"), legacy_batch_length) {
-        (Some(v), _) => v
-            .as_u64()
-            .ok_or_else(|| format!("feature table BATCH_LENGTH is not a non-negative integer: {v}"))?
-            as usize,
+        (Some(v), _) => v.as_u64().ok_or_else(|| ContentError::BatchLength { value: v.clone() })? as usize,
         (None, Some(n)) => n,
-        (None, None) => return Err("feature table has no BATCH_LENGTH".into()),
+        (None, None) => return Err(ContentError::NoBatchLength),
     };
     if batch_length > super::MAX_FEATURES {
-        return Err(format!(
-            "feature table BATCH_LENGTH {batch_length} exceeds {} features",
-            super::MAX_FEATURES
-        ));
+        return Err(ContentError::TooManyFeatures {
+            at: "feature table BATCH_LENGTH".into(),
+            count: batch_length,
+            max: super::MAX_FEATURES,
+        });
     }
     let rtc_center = match ft.get("RTC_CENTER") {
         None => None,
@@ -150,23 +140,22 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<B3dm<'_>, String> {
 }
 
 /// `RTC_CENTER`: `[x, y, z]`, or `{"byteOffset": n}` pointing at three f32 in the binary body.
-fn rtc_center(v: &Value, binary: &[u8]) -> Result<[f64; 3], String> {
+fn rtc_center(v: &Value, binary: &[u8]) -> Result<[f64; 3], ContentError> {
     let c = if let Some(arr) = v.as_array() {
         let nums: Vec<f64> = arr.iter().filter_map(Value::as_f64).collect();
-        <[f64; 3]>::try_from(nums)
-            .map_err(|_| format!("feature table RTC_CENTER must be 3 numbers, got {v}"))?
+        <[f64; 3]>::try_from(nums).map_err(|_| ContentError::RtcCenter { value: v.clone() })?
     } else if let Some(off) = v.get("byteOffset").and_then(Value::as_u64) {
         let off = off as usize;
-        let b = binary.get(off..off.saturating_add(12)).ok_or_else(|| {
-            format!("feature table RTC_CENTER byteOffset {off} + 12 exceeds the binary body")
-        })?;
+        let b = binary
+            .get(off..off.saturating_add(12))
+            .ok_or(ContentError::RtcCenterOffset { offset: off, body: binary.len() })?;
         let f = |i: usize| f32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]) as f64;
         [f(0), f(4), f(8)]
     } else {
-        return Err(format!("feature table RTC_CENTER is neither [x, y, z] nor {{byteOffset}}: {v}"));
+        return Err(ContentError::RtcCenter { value: v.clone() });
     };
     if c.iter().any(|x| !x.is_finite()) {
-        return Err(format!("feature table RTC_CENTER {c:?} is not finite"));
+        return Err(ContentError::NotFinite { at: "feature table RTC_CENTER", values: c.to_vec() });
     }
     Ok(c)
 }
@@ -177,18 +166,27 @@ impl<'a> BatchTable<'a> {
     /// # Errors
     /// When the property is an array shorter than `batch_length`, or a binary reference that is
     /// malformed or runs past the binary body.
-    pub(crate) fn column(&self, name: &str, batch_length: usize) -> Result<Option<Vec<PropValue>>, String> {
+    pub(crate) fn column(
+        &self,
+        name: &str,
+        batch_length: usize,
+    ) -> Result<Option<Vec<PropValue>>, ContentError> {
         let Some(v) = self.json.get(name) else { return Ok(None) };
         if let Some(arr) = v.as_array() {
             if arr.len() < batch_length {
-                return Err(format!(
-                    "batch table property {name:?} has {} values for BATCH_LENGTH {batch_length}",
-                    arr.len()
-                ));
+                return Err(ContentError::BatchPropertyShort {
+                    name: name.to_string(),
+                    values: arr.len(),
+                    batch_length,
+                });
             }
             return Ok(Some(arr[..batch_length].iter().map(PropValue::from_json).collect()));
         }
-        let bad = |what: &str| format!("batch table property {name:?}: {what} ({v})");
+        let bad = |problem: &'static str| ContentError::BatchProperty {
+            name: name.to_string(),
+            problem,
+            value: v.clone(),
+        };
         let offset =
             v.get("byteOffset").and_then(Value::as_u64).ok_or_else(|| bad("no byteOffset"))? as usize;
         let ctype = v.get("componentType").and_then(Value::as_str).ok_or_else(|| bad("no componentType"))?;
@@ -209,10 +207,7 @@ impl<'a> BatchTable<'a> {
         };
         let len = batch_length * n * size;
         let body = offset.checked_add(len).and_then(|end| self.binary.get(offset..end)).ok_or_else(|| {
-            bad(&format!(
-                "{len} bytes at byteOffset {offset} exceed the {}-byte binary body",
-                self.binary.len()
-            ))
+            ContentError::BatchPropertyRange { name: name.to_string(), len, offset, body: self.binary.len() }
         })?;
         // Only the first component of vector properties is kept (insgen reads scalars only).
         Ok(Some(
@@ -235,7 +230,7 @@ impl<'a> BatchTable<'a> {
     }
 
     /// Identity, LoD and height of every batch id (see [`super::features`]).
-    pub(crate) fn feature_props(&self, batch_length: usize) -> Result<Vec<FeatureProps>, String> {
+    pub(crate) fn feature_props(&self, batch_length: usize) -> Result<Vec<FeatureProps>, ContentError> {
         feature_props(batch_length, |name| self.column(name, batch_length))
     }
 }
@@ -245,37 +240,31 @@ impl<'a> BatchTable<'a> {
 /// byteLength.
 ///
 /// # Errors
-/// A message when a length disagrees with the data.
-pub(crate) fn split_cmpt(bytes: &[u8]) -> Result<Vec<&[u8]>, String> {
+/// [`ContentError`] when a length disagrees with the data (with both numbers).
+pub(crate) fn split_cmpt(bytes: &[u8]) -> Result<Vec<&[u8]>, ContentError> {
     if bytes.len() < 16 {
-        return Err(format!("{} bytes is too short for a cmpt header (16 bytes)", bytes.len()));
+        return Err(ContentError::TooShort { what: "cmpt header", length: bytes.len(), needed: 16 });
     }
     let version = u32_at(bytes, 4);
     if version != 1 {
-        return Err(format!("unsupported cmpt version {version} (expected 1)"));
+        return Err(ContentError::Version { container: "cmpt", version });
     }
     let byte_length = u32_at(bytes, 8) as usize;
     if byte_length != bytes.len() {
-        return Err(format!(
-            "cmpt header byteLength is {byte_length} but the tile has {} bytes",
-            bytes.len()
-        ));
+        return Err(ContentError::ByteLength { container: "cmpt", byte_length, length: bytes.len() });
     }
     let tiles_length = u32_at(bytes, 12) as usize;
     let mut tiles = Vec::with_capacity(tiles_length.min(1024));
     let mut at = 16;
     for k in 0..tiles_length {
         if at + 12 > byte_length {
-            return Err(format!(
-                "cmpt inner tile {k} starts at byte {at}, past the end ({byte_length} bytes)"
-            ));
+            return Err(ContentError::CmptTileStart { index: k, at, byte_length });
         }
         let len = u32_at(bytes, at + 8) as usize;
-        let end = at.checked_add(len).filter(|&e| e <= byte_length && len >= 12).ok_or_else(|| {
-            format!(
-                "cmpt inner tile {k} byteLength {len} at byte {at} runs past the end ({byte_length} bytes)"
-            )
-        })?;
+        let end = at
+            .checked_add(len)
+            .filter(|&e| e <= byte_length && len >= 12)
+            .ok_or(ContentError::CmptTileLength { index: k, len, at, byte_length })?;
         tiles.push(&bytes[at..end]);
         at = end;
     }
@@ -343,19 +332,29 @@ mod tests {
         let mut wrong = good.clone();
         wrong[8..12].copy_from_slice(&((good.len() + 4) as u32).to_le_bytes());
         let e = parse(&wrong).unwrap_err();
+        let len = good.len();
+        assert!(
+            matches!(e, ContentError::ByteLength { byte_length, length, .. } if byte_length == len + 4 && length == len),
+            "{e:?}"
+        );
+        let e = e.to_string();
         assert!(e.contains("byteLength") && e.contains("truncated"), "{e}");
         let mut past = good.clone();
         past[12..16].copy_from_slice(&10_000u32.to_le_bytes());
         let e = parse(&past).unwrap_err();
-        assert!(e.contains("featureTableJSONByteLength = 10000"), "{e}");
+        assert!(matches!(
+            e,
+            ContentError::B3dmSection { name: "featureTableJSONByteLength", len: 10_000, .. }
+        ));
+        assert!(e.to_string().contains("featureTableJSONByteLength = 10000"), "{e}");
         assert!(parse(&good[..good.len() - 3]).is_err());
-        assert!(parse(b"b3dm").is_err());
+        assert!(matches!(parse(b"b3dm"), Err(ContentError::TooShort { length: 4, needed: 28, .. })));
     }
 
     #[test]
     fn implausible_batch_length_is_refused() {
         let b = build(r#"{"BATCH_LENGTH":4000000000}"#, &[], "", &[], b"glTF....");
-        assert!(parse(&b).unwrap_err().contains("BATCH_LENGTH 4000000000 exceeds"));
+        assert!(parse(&b).unwrap_err().to_string().contains("BATCH_LENGTH 4000000000 exceeds"));
     }
 
     #[test]
@@ -380,7 +379,11 @@ mod tests {
     fn short_property_array_is_an_error() {
         let b = build(r#"{"BATCH_LENGTH":2}"#, &[], r#"{"gml_id":["a"]}"#, &[], b"glTF....");
         let t = parse(&b).unwrap();
-        assert!(t.batch_table.feature_props(2).unwrap_err().contains("gml_id"));
+        let e = t.batch_table.feature_props(2).unwrap_err();
+        assert!(
+            matches!(&e, ContentError::BatchPropertyShort { name, values: 1, batch_length: 2 } if name == "gml_id")
+        );
+        assert!(e.to_string().contains("gml_id"), "{e}");
     }
 
     #[test]
@@ -393,7 +396,9 @@ mod tests {
             b"glTF....",
         );
         let t = parse(&b).unwrap();
-        assert!(t.batch_table.feature_props(2).unwrap_err().contains("exceed"));
+        let e = t.batch_table.feature_props(2).unwrap_err();
+        assert!(matches!(e, ContentError::BatchPropertyRange { len: 16, offset: 4, body: 8, .. }), "{e:?}");
+        assert!(e.to_string().contains("exceed"), "{e}");
     }
 
     #[test]
@@ -409,6 +414,9 @@ mod tests {
         let tiles = split_cmpt(&c).unwrap();
         assert_eq!(tiles.len(), 2);
         assert_eq!(tiles[1], &inner[..]);
-        assert!(split_cmpt(&c[..c.len() - 1]).is_err());
+        assert!(matches!(
+            split_cmpt(&c[..c.len() - 1]),
+            Err(ContentError::ByteLength { container: "cmpt", .. })
+        ));
     }
 }

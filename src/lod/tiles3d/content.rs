@@ -11,8 +11,9 @@ use std::path::Path;
 use glam::{DMat4, DVec3};
 
 use super::b3dm;
+use super::error::ContentError;
 use super::features::FeatureProps;
-use super::gltf::{self, Gltf, Surface, TableKey, UpAxis, WorldPrimitive};
+use super::gltf::{self, Gltf, LoadUri, Surface, TableKey, UpAxis, WorldPrimitive};
 use super::metadata;
 use crate::lod::TriMesh;
 
@@ -63,35 +64,40 @@ pub(crate) struct DecodedContent {
     pub counters: Counters,
 }
 
+/// The loader of URIs relative to the folder of content `file` (external buffers, images, schemas).
+pub(crate) fn relative_loader(file: &Path) -> impl Fn(&str) -> Result<Vec<u8>, ContentError> {
+    let dir = file.parent().unwrap_or(Path::new(".")).to_path_buf();
+    move |uri: &str| {
+        let path = super::tileset::resolve_uri(&dir, uri)?;
+        std::fs::read(&path).map_err(|source| ContentError::ReadUri { uri: uri.to_string(), path, source })
+    }
+}
+
 /// Decodes one content file's bytes. `file` locates relative buffer and schema URIs; `label` names
 /// the content in synthesized ids; `world_from_tile` is the accumulated tile transform.
 ///
 /// # Errors
-/// A message saying what is wrong (the caller names the file).
+/// [`ContentError`] saying what is wrong where (the caller names the file and the tile).
 pub(crate) fn decode(
     bytes: &[u8],
     file: &Path,
     label: &str,
     world_from_tile: DMat4,
     up: UpAxis,
-) -> Result<DecodedContent, String> {
-    let dir = file.parent().unwrap_or(Path::new(".")).to_path_buf();
-    let load_uri = move |uri: &str| -> Result<Vec<u8>, String> {
-        let p = super::tileset::resolve_uri(&dir, uri)?;
-        std::fs::read(&p).map_err(|e| format!("cannot read {} (referenced as {uri:?}): {e}", p.display()))
-    };
+) -> Result<DecodedContent, ContentError> {
+    let load_uri = relative_loader(file);
     let magic = bytes.get(0..4).unwrap_or(bytes);
     match magic {
         b"b3dm" => {
             let tile = b3dm::parse(bytes)?;
-            let g = gltf::parse_glb(tile.glb, &load_uri).map_err(|e| format!("embedded GLB: {e}"))?;
+            let embedded = |e| ContentError::EmbeddedGlb(Box::new(e));
+            let g = gltf::parse_glb(tile.glb, &load_uri).map_err(embedded)?;
             let batch = tile.batch_table.feature_props(tile.batch_length)?;
             let mut outer = world_from_tile;
             if let Some(c) = tile.rtc_center {
                 outer *= DMat4::from_translation(DVec3::from_array(c));
             }
-            features_of(&g, outer, up, Some(&batch), label, &load_uri)
-                .map_err(|e| format!("embedded GLB: {e}"))
+            features_of(&g, outer, up, Some(&batch), label, &load_uri).map_err(embedded)
         }
         b"glTF" => {
             let g = gltf::parse_glb(bytes, &load_uri)?;
@@ -101,7 +107,7 @@ pub(crate) fn decode(
             let mut out = DecodedContent::default();
             for (k, inner) in b3dm::split_cmpt(bytes)?.into_iter().enumerate() {
                 let part = decode(inner, file, &format!("{label}[{k}]"), world_from_tile, up)
-                    .map_err(|e| format!("cmpt inner tile {k}: {e}"))?;
+                    .map_err(|e| ContentError::CmptTile { index: k, source: Box::new(e) })?;
                 out.features.extend(part.features);
                 append(&mut out.idless, &part.idless);
                 out.counters.add(&part.counters);
@@ -119,10 +125,7 @@ pub(crate) fn decode(
             let g = gltf::parse_gltf_json(json, &load_uri)?;
             features_of(&g, world_from_tile, up, None, label, &load_uri)
         }
-        _ => Err(format!(
-            "unknown tile content (magic {:?}); expected b3dm, glb, cmpt or glTF JSON",
-            String::from_utf8_lossy(magic)
-        )),
+        _ => Err(ContentError::UnknownContent { magic: String::from_utf8_lossy(magic).into_owned() }),
     }
 }
 
@@ -149,8 +152,8 @@ fn features_of(
     up: UpAxis,
     batch: Option<&[FeatureProps]>,
     label: &str,
-    load_uri: &dyn Fn(&str) -> Result<Vec<u8>, String>,
-) -> Result<DecodedContent, String> {
+    load_uri: &LoadUri<'_>,
+) -> Result<DecodedContent, ContentError> {
     let mut outer = outer;
     if let Some(c) = g.cesium_rtc()? {
         outer *= DMat4::from_translation(DVec3::from_array(c));
@@ -238,23 +241,23 @@ fn check_feature_id(
     fid: u32,
     batch: Option<&[FeatureProps]>,
     tables: &[Vec<FeatureProps>],
-) -> Result<(), String> {
+) -> Result<(), ContentError> {
     match table {
         TableKey::Batch => match batch {
             Some(b) if fid as usize >= b.len() => {
-                Err(format!("_BATCHID {fid} is not below the feature table's BATCH_LENGTH {}", b.len()))
+                Err(ContentError::BatchIdRange { id: fid, batch_length: b.len() })
             }
             _ => Ok(()),
         },
         TableKey::Property(t) => match tables.get(t) {
-            None => Err(format!("EXT_mesh_features refers to property table {t}, which does not exist")),
+            None => Err(ContentError::NoPropertyTable { table: t }),
             Some(p) if fid as usize >= p.len() => {
-                Err(format!("feature ID {fid} is not below property table {t}'s count {}", p.len()))
+                Err(ContentError::FeatureIdRange { id: fid, table: t, count: p.len() })
             }
             Some(_) => Ok(()),
         },
         TableKey::Anonymous(s, count) if fid as u64 >= count => {
-            Err(format!("feature ID {fid} is not below featureIds[{s}].featureCount {count}"))
+            Err(ContentError::FeatureCountRange { id: fid, set: s, count })
         }
         TableKey::Anonymous(..) => Ok(()),
     }

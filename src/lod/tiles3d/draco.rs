@@ -6,6 +6,8 @@
 
 use draco_core::{DecoderBuffer, Mesh, MeshDecoder};
 
+use super::error::DracoMeshError;
+
 /// A decoded Draco mesh: positions, triangles, and the other requested attributes per point.
 #[derive(Debug)]
 pub(crate) struct DecodedDraco {
@@ -19,12 +21,13 @@ pub(crate) struct DecodedDraco {
 /// for as (unique id, components), all by Draco unique id.
 ///
 /// # Errors
-/// A message when the bitstream is invalid, is a point cloud, or lacks one of the attributes.
+/// [`DracoMeshError`] when the bitstream is invalid (the decoder's error as the source), is a point
+/// cloud, or lacks one of the attributes or components.
 pub(crate) fn decode(
     bytes: &[u8],
     position_id: u32,
     wanted: &[(u32, usize)],
-) -> Result<DecodedDraco, String> {
+) -> Result<DecodedDraco, DracoMeshError> {
     // The decoder is memory-safe Rust but third-party; a panic on a hostile bitstream must become an
     // error naming the file rather than abort a whole run.
     let mesh = std::panic::catch_unwind(|| {
@@ -32,28 +35,37 @@ pub(crate) fn decode(
         let mut mesh = Mesh::new();
         MeshDecoder::new().decode(&mut buffer, &mut mesh).map(|()| mesh)
     })
-    .map_err(|_| "the Draco decoder failed on this bitstream (panicked)".to_string())?
-    .map_err(|e| format!("cannot decode the Draco bitstream: {e}"))?;
+    .map_err(|_| DracoMeshError::Panicked)?
+    .map_err(DracoMeshError::Decode)?;
 
     let n_points = mesh.num_points();
     if mesh.num_faces() == 0 {
-        return Err("the Draco bitstream holds no triangles (a point cloud?)".into());
+        return Err(DracoMeshError::PointCloud);
     }
     let pos = mesh
         .attribute_by_unique_id(position_id)
-        .ok_or_else(|| format!("the Draco mesh has no attribute with unique id {position_id} (POSITION)"))?;
+        .ok_or(DracoMeshError::NoAttribute { id: position_id, position: true })?;
     if pos.num_components() < 3 {
-        return Err(format!("the Draco POSITION attribute has {} components, not 3", pos.num_components()));
+        return Err(DracoMeshError::Components {
+            id: position_id,
+            position: true,
+            found: pos.num_components() as usize,
+            needed: 3,
+        });
     }
     let positions =
         pos.read_f32s(n_points, 3).chunks_exact(3).map(|c| [c[0] as f64, c[1] as f64, c[2] as f64]).collect();
     let mut attributes = Vec::with_capacity(wanted.len());
     for &(id, n) in wanted {
-        let att = mesh
-            .attribute_by_unique_id(id)
-            .ok_or_else(|| format!("the Draco mesh has no attribute with unique id {id}"))?;
+        let att =
+            mesh.attribute_by_unique_id(id).ok_or(DracoMeshError::NoAttribute { id, position: false })?;
         if (att.num_components() as usize) < n {
-            return Err(format!("the Draco attribute {id} has {} components, not {n}", att.num_components()));
+            return Err(DracoMeshError::Components {
+                id,
+                position: false,
+                found: att.num_components() as usize,
+                needed: n,
+            });
         }
         attributes.push(att.read_f32s(n_points, n).into_iter().map(f64::from).collect());
     }
@@ -67,8 +79,11 @@ mod tests {
 
     #[test]
     fn garbage_is_an_error_not_a_panic() {
-        assert!(decode(b"DRACO\x02\x02\x01\x01\x00\x00", 0, &[]).is_err());
-        assert!(decode(b"not draco at all", 0, &[]).is_err());
-        assert!(decode(&[], 0, &[]).is_err());
+        for bytes in [&b"DRACO\x02\x02\x01\x01\x00\x00"[..], b"not draco at all", &[]] {
+            let e = decode(bytes, 0, &[]).unwrap_err();
+            // The decoder's own error is kept as the cause.
+            assert!(matches!(e, DracoMeshError::Decode(_)), "{e:?}");
+            assert!(std::error::Error::source(&e).is_some());
+        }
     }
 }

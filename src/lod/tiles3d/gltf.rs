@@ -22,6 +22,7 @@ use serde::Deserialize;
 use serde_json::Value;
 
 use super::draco;
+use super::error::{AccessorProblem, ContentError, GltfIssue};
 
 /// Required extensions this reader implements or that do not affect geometry.
 pub const HANDLED_EXTENSIONS: &[&str] = &[
@@ -280,18 +281,26 @@ impl TextureInfo {
     /// The `KHR_texture_transform` of this reference, if any.
     ///
     /// # Errors
-    /// A message when the extension object is malformed or not finite.
-    pub fn transform(&self) -> Result<Option<TextureTransform>, String> {
+    /// [`ContentError::Json`] when the extension object is malformed, [`ContentError::NotFinite`]
+    /// (offset, rotation, scale) when a number is not finite; paths are relative to the reference.
+    pub fn transform(&self) -> Result<Option<TextureTransform>, ContentError> {
         let Some(v) = self.extensions.get("KHR_texture_transform") else { return Ok(None) };
-        let t: TextureTransform =
-            serde_json::from_value(v.clone()).map_err(|e| format!("KHR_texture_transform: {e}"))?;
+        let t: TextureTransform = serde_json::from_value(v.clone())
+            .map_err(|source| ContentError::Json { at: "extensions.KHR_texture_transform".into(), source })?;
         if !(t.offset.iter().chain(&t.scale).all(|v| v.is_finite()) && t.rotation.is_finite()) {
-            return Err("KHR_texture_transform has non-finite values".into());
+            let values = [t.offset[0], t.offset[1], t.rotation, t.scale[0], t.scale[1]].to_vec();
+            return Err(ContentError::NotFinite {
+                at: "extensions.KHR_texture_transform (offset, rotation, scale)",
+                values,
+            });
         }
         Ok(Some(t))
     }
     /// The UV set the texture reads (the transform's `texCoord` overrides the reference's).
-    pub fn uv_set(&self) -> Result<usize, String> {
+    ///
+    /// # Errors
+    /// As [`TextureInfo::transform`].
+    pub fn uv_set(&self) -> Result<usize, ContentError> {
         Ok(self.transform()?.and_then(|t| t.tex_coord).unwrap_or(self.tex_coord))
     }
 }
@@ -462,33 +471,26 @@ pub(crate) struct Gltf<'a> {
 /// Splits a GLB and parses its JSON. `load_uri` loads buffers that have a `uri`.
 ///
 /// # Errors
-/// A message saying what is wrong (the caller adds the file name).
-pub(crate) fn parse_glb<'a>(
-    bytes: &'a [u8],
-    load_uri: &dyn Fn(&str) -> Result<Vec<u8>, String>,
-) -> Result<Gltf<'a>, String> {
+/// [`ContentError`] saying what is wrong where (the caller adds the file name).
+pub(crate) fn parse_glb<'a>(bytes: &'a [u8], load_uri: &LoadUri<'_>) -> Result<Gltf<'a>, ContentError> {
     // The header is checked here so that the `gltf` crate only ever sees a consistent one (it
     // subtracts 12 from the length field unchecked) and never the padding a b3dm may add after it.
     if bytes.len() < 20 || &bytes[0..4] != b"glTF" {
-        return Err(format!(
-            "not a GLB: {} bytes starting with {:?}",
-            bytes.len(),
-            String::from_utf8_lossy(&bytes[..bytes.len().min(4)])
-        ));
+        return Err(ContentError::NotGlb {
+            length: bytes.len(),
+            magic: String::from_utf8_lossy(&bytes[..bytes.len().min(4)]).into_owned(),
+        });
     }
     let word = |i: usize| u32::from_le_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]) as usize;
     let version = word(4);
     if version != 2 {
-        return Err(format!(
-            "glTF version {version} content is not supported; only glTF 2.0 is (upgrade the tileset, \
-             e.g. with `npx 3d-tiles-tools upgrade`)"
-        ));
+        return Err(ContentError::GlbVersion { version });
     }
     let length = word(8);
     if !(20..=bytes.len()).contains(&length) {
-        return Err(format!("GLB header length is {length} but {} bytes are available", bytes.len()));
+        return Err(ContentError::GlbLength { length, available: bytes.len() });
     }
-    let glb = gltf::Glb::from_slice(&bytes[..length]).map_err(|e| format!("not a valid GLB: {e}"))?;
+    let glb = gltf::Glb::from_slice(&bytes[..length]).map_err(|e| ContentError::Glb(Box::new(e)))?;
     let root = parse_json(&glb.json)?;
     let bin = glb.bin;
     let mut buffers = Vec::with_capacity(root.buffers.len());
@@ -500,75 +502,85 @@ pub(crate) fn parse_glb<'a>(
         match (&b.uri, i) {
             (None, 0) => match &bin {
                 Some(bin) => buffers.push(bin.clone()),
-                None => return Err("buffers[0] has no uri but the GLB has no BIN chunk".into()),
+                None => return Err(ContentError::NoBinChunk),
             },
-            (None, _) => {
-                return Err(format!("buffers[{i}] has no uri (only buffers[0] may use the BIN chunk)"))
-            }
-            (Some(uri), _) => buffers.push(Cow::Owned(load_buffer_uri(uri, load_uri)?)),
+            (None, index) => return Err(ContentError::GlbBufferWithoutUri { index }),
+            (Some(uri), _) => buffers.push(Cow::Owned(load_buffer_uri(i, uri, load_uri)?)),
         }
     }
     finish(root, buffers)
 }
 
 /// Parses a `.gltf` JSON asset; every buffer needs a `uri`.
-pub(crate) fn parse_gltf_json<'a>(
-    bytes: &[u8],
-    load_uri: &dyn Fn(&str) -> Result<Vec<u8>, String>,
-) -> Result<Gltf<'a>, String> {
+///
+/// # Errors
+/// As [`parse_glb`].
+pub(crate) fn parse_gltf_json<'a>(bytes: &[u8], load_uri: &LoadUri<'_>) -> Result<Gltf<'a>, ContentError> {
     let root = parse_json(bytes)?;
     let mut buffers = Vec::with_capacity(root.buffers.len());
     for (i, b) in root.buffers.iter().enumerate() {
         match &b.uri {
             None if b.is_meshopt_fallback() => buffers.push(Cow::Owned(Vec::new())),
-            Some(uri) => buffers.push(Cow::Owned(load_buffer_uri(uri, load_uri)?)),
-            None => return Err(format!("buffers[{i}] has no uri in a .gltf JSON asset")),
+            Some(uri) => buffers.push(Cow::Owned(load_buffer_uri(i, uri, load_uri)?)),
+            None => return Err(ContentError::GltfBufferWithoutUri { index: i }),
         }
     }
     finish(root, buffers)
 }
 
-fn parse_json(json: &[u8]) -> Result<Root, String> {
+fn parse_json(json: &[u8]) -> Result<Root, ContentError> {
     // GLB pads the JSON chunk with spaces; some writers pad with NULs.
     let end = json.iter().rposition(|&b| b != 0 && b != b' ').map_or(0, |i| i + 1);
-    let root: Root = serde_json::from_slice(&json[..end]).map_err(|e| format!("invalid glTF JSON: {e}"))?;
+    let root: Root = serde_json::from_slice(&json[..end]).map_err(ContentError::GltfJson)?;
     if let Some(asset) = &root.asset {
         if !asset.version.starts_with("2.") {
-            return Err(format!("glTF asset.version {:?} is not supported; only glTF 2.0 is", asset.version));
+            return Err(ContentError::AssetVersion { version: asset.version.clone() });
         }
     }
     Ok(root)
 }
 
-fn finish<'a>(root: Root, buffers: Vec<Cow<'a, [u8]>>) -> Result<Gltf<'a>, String> {
-    let unsupported: Vec<&str> = root
+fn finish<'a>(root: Root, buffers: Vec<Cow<'a, [u8]>>) -> Result<Gltf<'a>, ContentError> {
+    let unsupported: Vec<String> = root
         .extensions_required
         .iter()
-        .map(String::as_str)
-        .filter(|e| !HANDLED_EXTENSIONS.contains(e) && !HANDLED_PREFIXES.iter().any(|p| e.starts_with(p)))
+        .filter(|e| {
+            !HANDLED_EXTENSIONS.contains(&e.as_str()) && !HANDLED_PREFIXES.iter().any(|p| e.starts_with(p))
+        })
+        .cloned()
         .collect();
     if !unsupported.is_empty() {
-        return Err(format!(
-            "the glTF requires extension(s) {} that insgen cannot decode (supported: {})",
-            unsupported.join(", "),
-            HANDLED_EXTENSIONS.join(", ")
-        ));
+        return Err(ContentError::UnsupportedExtensions { extensions: unsupported });
     }
     let mut gltf = Gltf { root, buffers, decoded_views: Vec::new() };
-    let problems = gltf.validate();
-    if !problems.is_empty() {
-        return Err(format!("invalid glTF ({} problem(s)): {}", problems.len(), problems.join("; ")));
+    let issues = gltf.validate();
+    if !issues.is_empty() {
+        return Err(ContentError::Invalid { issues });
     }
     gltf.decode_meshopt_views()?;
     Ok(gltf)
 }
 
-fn load_buffer_uri(uri: &str, load_uri: &dyn Fn(&str) -> Result<Vec<u8>, String>) -> Result<Vec<u8>, String> {
-    if let Some(rest) = uri.strip_prefix("data:") {
-        let (_, data) = rest
-            .split_once(";base64,")
-            .ok_or_else(|| format!("data URI buffer is not base64: {uri:.40}…"))?;
-        return base64_decode(data).ok_or_else(|| "data URI buffer holds invalid base64".to_string());
+/// Loads the file a relative URI names (buffers, images, schemas), relative to the glTF.
+pub(crate) type LoadUri<'a> = dyn Fn(&str) -> Result<Vec<u8>, ContentError> + 'a;
+
+/// The bytes of a `data:` URI with a base64 payload.
+///
+/// # Errors
+/// [`ContentError::DataUriNotBase64`] or [`ContentError::DataUriBase64`], with the URI's start.
+pub(crate) fn data_uri_bytes(uri: &str) -> Result<Vec<u8>, ContentError> {
+    let head = || uri.chars().take(40).collect::<String>();
+    let (_, data) = uri
+        .strip_prefix("data:")
+        .and_then(|rest| rest.split_once(";base64,"))
+        .ok_or_else(|| ContentError::DataUriNotBase64 { head: head() })?;
+    base64_decode(data).ok_or_else(|| ContentError::DataUriBase64 { head: head() })
+}
+
+/// The bytes of `buffers[index]`, whose `uri` is a `data:` URI or a file.
+fn load_buffer_uri(index: usize, uri: &str, load_uri: &LoadUri<'_>) -> Result<Vec<u8>, ContentError> {
+    if uri.starts_with("data:") {
+        return data_uri_bytes(uri).map_err(|e| e.at(format!("buffers[{index}]")));
     }
     load_uri(uri)
 }
@@ -660,48 +672,60 @@ fn read_component(bytes: &[u8], component_type: u32, normalized: bool) -> f64 {
 }
 
 impl<'a> Gltf<'a> {
-    /// Checks every index and byte range; returns all problems, each prefixed by its JSON path.
-    fn validate(&self) -> Vec<String> {
+    /// Checks every index and byte range; returns all problems, each with its JSON path.
+    fn validate(&self) -> Vec<GltfIssue> {
         let r = &self.root;
         let mut p = Vec::new();
+        let mut issue = |at: String, what: String| p.push(GltfIssue { at, what });
         for (i, b) in r.buffers.iter().enumerate() {
             let have = self.buffers[i].len();
             if have < b.byte_length && !(b.is_meshopt_fallback() && have == 0) {
-                p.push(format!("buffers[{i}]: byteLength {} but only {have} bytes available", b.byte_length));
+                issue(
+                    format!("buffers[{i}]"),
+                    format!("byteLength {} but only {have} bytes available", b.byte_length),
+                );
             }
         }
         for (i, v) in r.buffer_views.iter().enumerate() {
             let compressed = v.extensions.contains_key("EXT_meshopt_compression");
             match self.buffers.get(v.buffer) {
-                None => p.push(format!("bufferViews[{i}].buffer: buffer {} does not exist", v.buffer)),
+                None => {
+                    issue(format!("bufferViews[{i}].buffer"), format!("buffer {} does not exist", v.buffer))
+                }
                 Some(_) if compressed => {}
                 Some(buf) => {
                     if v.byte_offset.checked_add(v.byte_length).is_none_or(|end| end > buf.len()) {
-                        p.push(format!(
-                            "bufferViews[{i}]: bytes {}..+{} exceed buffer {} ({} bytes)",
-                            v.byte_offset,
-                            v.byte_length,
-                            v.buffer,
-                            buf.len()
-                        ));
+                        issue(
+                            format!("bufferViews[{i}]"),
+                            format!(
+                                "bytes {}..+{} exceed buffer {} ({} bytes)",
+                                v.byte_offset,
+                                v.byte_length,
+                                v.buffer,
+                                buf.len()
+                            ),
+                        );
                     }
                 }
             }
             if let Some(s) = v.byte_stride {
                 if !(4..=252).contains(&s) || !s.is_multiple_of(4) {
-                    p.push(format!("bufferViews[{i}].byteStride: {s} is not a multiple of 4 in 4..=252"));
+                    issue(
+                        format!("bufferViews[{i}].byteStride"),
+                        format!("{s} is not a multiple of 4 in 4..=252"),
+                    );
                 }
             }
         }
         for (i, a) in r.accessors.iter().enumerate() {
             let at = format!("accessors[{i}]");
             let (Some(n), Some(size)) = (components(&a.kind), component_size(a.component_type)) else {
-                p.push(format!("{at}: unknown type {:?} / componentType {}", a.kind, a.component_type));
+                issue(at, format!("unknown type {:?} / componentType {}", a.kind, a.component_type));
                 continue;
             };
             if let Some(bv) = a.buffer_view {
                 match r.buffer_views.get(bv) {
-                    None => p.push(format!("{at}.bufferView: bufferView {bv} does not exist")),
+                    None => issue(format!("{at}.bufferView"), format!("bufferView {bv} does not exist")),
                     Some(view) => {
                         let stride = view.byte_stride.unwrap_or(n * size);
                         let need = if a.count == 0 {
@@ -713,14 +737,17 @@ impl<'a> Gltf<'a> {
                                 .and_then(|x| x.checked_add(a.byte_offset))
                         };
                         if need.is_none_or(|need| need > view.byte_length) {
-                            p.push(format!(
-                                "{at}: {} elements of {} bytes (stride {stride}) from offset {} exceed \
-                                 bufferView {bv} ({} bytes)",
-                                a.count,
-                                n * size,
-                                a.byte_offset,
-                                view.byte_length
-                            ));
+                            issue(
+                                at.clone(),
+                                format!(
+                                    "{} elements of {} bytes (stride {stride}) from offset {} exceed bufferView \
+                                     {bv} ({} bytes)",
+                                    a.count,
+                                    n * size,
+                                    a.byte_offset,
+                                    view.byte_length
+                                ),
+                            );
                         }
                     }
                 }
@@ -731,7 +758,10 @@ impl<'a> Gltf<'a> {
                     5123 => 2,
                     5125 => 4,
                     t => {
-                        p.push(format!("{at}.sparse.indices.componentType: {t} is not an unsigned integer"));
+                        issue(
+                            format!("{at}.sparse.indices.componentType"),
+                            format!("{t} is not an unsigned integer"),
+                        );
                         continue;
                     }
                 };
@@ -740,17 +770,19 @@ impl<'a> Gltf<'a> {
                     ("values", s.values.buffer_view, s.values.byte_offset, n * size),
                 ] {
                     match r.buffer_views.get(bv) {
-                        None => p.push(format!("{at}.sparse.{what}.bufferView: {bv} does not exist")),
+                        None => {
+                            issue(format!("{at}.sparse.{what}.bufferView"), format!("{bv} does not exist"))
+                        }
                         Some(view) => {
                             if s.count
                                 .checked_mul(len)
                                 .and_then(|x| x.checked_add(off))
                                 .is_none_or(|e| e > view.byte_length)
                             {
-                                p.push(format!(
-                                    "{at}.sparse.{what}: {} entries exceed bufferView {bv}",
-                                    s.count
-                                ));
+                                issue(
+                                    format!("{at}.sparse.{what}"),
+                                    format!("{} entries exceed bufferView {bv}", s.count),
+                                );
                             }
                         }
                     }
@@ -762,12 +794,15 @@ impl<'a> Gltf<'a> {
                 let at = format!("meshes[{m}].primitives[{k}]");
                 for (sem, &acc) in &prim.attributes {
                     if acc >= r.accessors.len() {
-                        p.push(format!("{at}.attributes[\"{sem}\"]: accessor {acc} does not exist"));
+                        issue(
+                            format!("{at}.attributes[\"{sem}\"]"),
+                            format!("accessor {acc} does not exist"),
+                        );
                     }
                 }
                 if let Some(acc) = prim.indices {
                     if acc >= r.accessors.len() {
-                        p.push(format!("{at}.indices: accessor {acc} does not exist"));
+                        issue(format!("{at}.indices"), format!("accessor {acc} does not exist"));
                     }
                 }
             }
@@ -776,16 +811,17 @@ impl<'a> Gltf<'a> {
         for (i, node) in r.nodes.iter().enumerate() {
             for &c in &node.children {
                 match parent_of.get_mut(c) {
-                    None => p.push(format!("nodes[{i}].children: node {c} does not exist")),
-                    Some(Some(first)) => p.push(format!(
-                        "nodes[{i}].children: node {c} is already a child of node {first} (glTF nodes form trees)"
-                    )),
+                    None => issue(format!("nodes[{i}].children"), format!("node {c} does not exist")),
+                    Some(Some(first)) => issue(
+                        format!("nodes[{i}].children"),
+                        format!("node {c} is already a child of node {first} (glTF nodes form trees)"),
+                    ),
                     Some(slot) => *slot = Some(i),
                 }
             }
             if let Some(m) = node.mesh {
                 if m >= r.meshes.len() {
-                    p.push(format!("nodes[{i}].mesh: mesh {m} does not exist"));
+                    issue(format!("nodes[{i}].mesh"), format!("mesh {m} does not exist"));
                 }
             }
             let finite = node.matrix.iter().flatten().all(|v| v.is_finite())
@@ -793,33 +829,39 @@ impl<'a> Gltf<'a> {
                 && node.rotation.iter().flatten().all(|v| v.is_finite())
                 && node.scale.iter().flatten().all(|v| v.is_finite());
             if !finite {
-                p.push(format!("nodes[{i}]: transform has non-finite values"));
+                issue(format!("nodes[{i}]"), "transform has non-finite values".into());
             }
         }
         for (s, scene) in r.scenes.iter().enumerate() {
             for &n in &scene.nodes {
                 if n >= r.nodes.len() {
-                    p.push(format!("scenes[{s}].nodes: node {n} does not exist"));
+                    issue(format!("scenes[{s}].nodes"), format!("node {n} does not exist"));
                 }
             }
         }
         if let Some(s) = r.scene {
             if s >= r.scenes.len() {
-                p.push(format!("scene: scene {s} does not exist"));
+                issue("scene".into(), format!("scene {s} does not exist"));
             }
         }
         p
     }
 
     /// The `CESIUM_RTC.center` translation, if any.
-    pub(crate) fn cesium_rtc(&self) -> Result<Option<[f64; 3]>, String> {
+    ///
+    /// # Errors
+    /// [`ContentError::CesiumRtc`] when the extension is not `{"center": [x, y, z]}`,
+    /// [`ContentError::NotFinite`] when the centre is not finite.
+    pub(crate) fn cesium_rtc(&self) -> Result<Option<[f64; 3]>, ContentError> {
         match self.root.extensions.get("CESIUM_RTC") {
             None => Ok(None),
             Some(v) => {
-                let rtc: CesiumRtc = serde_json::from_value(v.clone())
-                    .map_err(|e| format!("extensions.CESIUM_RTC: expected {{\"center\": [x, y, z]}}: {e}"))?;
+                let rtc: CesiumRtc = serde_json::from_value(v.clone()).map_err(ContentError::CesiumRtc)?;
                 if rtc.center.iter().any(|c| !c.is_finite()) {
-                    return Err("extensions.CESIUM_RTC.center is not finite".into());
+                    return Err(ContentError::NotFinite {
+                        at: "extensions.CESIUM_RTC.center",
+                        values: rtc.center.to_vec(),
+                    });
                 }
                 Ok(Some(rtc.center))
             }
@@ -827,38 +869,35 @@ impl<'a> Gltf<'a> {
     }
 
     /// Decodes every `EXT_meshopt_compression` buffer view into [`Gltf::decoded_views`].
-    fn decode_meshopt_views(&mut self) -> Result<(), String> {
+    fn decode_meshopt_views(&mut self) -> Result<(), ContentError> {
         let mut decoded = vec![None; self.root.buffer_views.len()];
         for (i, v) in self.root.buffer_views.iter().enumerate() {
             let Some(ext) = v.extensions.get("EXT_meshopt_compression") else { continue };
             let at = format!("bufferViews[{i}].extensions.EXT_meshopt_compression");
-            let ext: super::meshopt::MeshoptView =
-                serde_json::from_value(ext.clone()).map_err(|e| format!("{at}: {e}"))?;
-            let buf = self
-                .buffers
-                .get(ext.buffer)
-                .ok_or_else(|| format!("{at}.buffer: buffer {} does not exist", ext.buffer))?;
+            let ext: super::meshopt::MeshoptView = serde_json::from_value(ext.clone())
+                .map_err(|source| ContentError::Json { at: at.clone(), source })?;
+            let buf = self.buffers.get(ext.buffer).ok_or_else(|| {
+                ContentError::Missing { what: "buffer", index: ext.buffer }.at(format!("{at}.buffer"))
+            })?;
             let src = ext
                 .byte_offset
                 .checked_add(ext.byte_length)
                 .and_then(|e| buf.get(ext.byte_offset..e))
-                .ok_or_else(|| {
-                    format!(
-                        "{at}: bytes {}..+{} exceed buffer {} ({} bytes)",
-                        ext.byte_offset,
-                        ext.byte_length,
-                        ext.buffer,
-                        buf.len()
-                    )
+                .ok_or(ContentError::MeshoptRange {
+                    view: i,
+                    offset: ext.byte_offset,
+                    len: ext.byte_length,
+                    buffer: ext.buffer,
+                    buffer_len: buf.len(),
                 })?;
             let out = super::meshopt::decode(&ext, src)
-                .map_err(|e| format!("{at} (EXT_meshopt_compression): {e}"))?;
+                .map_err(|source| ContentError::Meshopt { view: i, source })?;
             if out.len() < v.byte_length {
-                return Err(format!(
-                    "{at}: decodes to {} bytes but the bufferView's byteLength is {} (EXT_meshopt_compression)",
-                    out.len(),
-                    v.byte_length
-                ));
+                return Err(ContentError::MeshoptShort {
+                    view: i,
+                    decoded: out.len(),
+                    byte_length: v.byte_length,
+                });
             }
             decoded[i] = Some(out);
         }
@@ -868,32 +907,43 @@ impl<'a> Gltf<'a> {
 
     /// The bytes of `bufferViews[i]` (validated to lie inside its buffer, or decoded from
     /// `EXT_meshopt_compression`).
-    pub(crate) fn view_bytes(&self, i: usize) -> Result<&[u8], String> {
+    ///
+    /// # Errors
+    /// [`ContentError::Missing`] or [`ContentError::ViewRange`] for a view that validation did not
+    /// check (one named by an extension).
+    pub(crate) fn view_bytes(&self, i: usize) -> Result<&[u8], ContentError> {
         if let Some(Some(d)) = self.decoded_views.get(i) {
             let len = self.root.buffer_views[i].byte_length;
             return Ok(&d[..len]);
         }
-        let v = self.root.buffer_views.get(i).ok_or_else(|| format!("bufferView {i} does not exist"))?;
-        let buf = self.buffers.get(v.buffer).ok_or_else(|| format!("buffer {} does not exist", v.buffer))?;
+        let v =
+            self.root.buffer_views.get(i).ok_or(ContentError::Missing { what: "bufferView", index: i })?;
+        let buf =
+            self.buffers.get(v.buffer).ok_or(ContentError::Missing { what: "buffer", index: v.buffer })?;
         buf.get(v.byte_offset..v.byte_offset + v.byte_length)
-            .ok_or_else(|| format!("bufferView {i} exceeds buffer {}", v.buffer))
+            .ok_or(ContentError::ViewRange { view: i, buffer: v.buffer })
     }
 
-    /// Reads accessor `i` as `count × components` f64 values (normalised integers mapped to [0, 1] or
-    /// [−1, 1]; sparse substitutions applied). Byte ranges were checked by `validate`.
-    fn read_accessor(&self, i: usize) -> Result<(usize, Vec<f64>), String> {
+    /// Reads accessor `i`, referenced at JSON path `at`, as `count × components` f64 values
+    /// (normalised integers mapped to [0, 1] or [−1, 1]; sparse substitutions applied). Byte ranges
+    /// were checked by `validate`.
+    fn read_accessor(&self, i: usize, at: &str) -> Result<(usize, Vec<f64>), ContentError> {
         let r = &self.root;
-        let a = r.accessors.get(i).ok_or_else(|| format!("accessor {i} does not exist"))?;
-        let n = components(&a.kind).ok_or_else(|| format!("accessors[{i}]: unknown type {:?}", a.kind))?;
+        let bad = |problem| ContentError::Accessor { at: at.to_string(), accessor: Some(i), problem };
+        let a =
+            r.accessors.get(i).ok_or_else(|| ContentError::Missing { what: "accessor", index: i }.at(at))?;
+        let n =
+            components(&a.kind).ok_or_else(|| bad(AccessorProblem::UnknownType { kind: a.kind.clone() }))?;
         let size = component_size(a.component_type)
-            .ok_or_else(|| format!("accessors[{i}]: unknown componentType {}", a.component_type))?;
+            .ok_or_else(|| bad(AccessorProblem::UnknownComponentType { component_type: a.component_type }))?;
         if a.buffer_view.is_none() && a.count > MAX_ZERO_ACCESSOR {
-            return Err(format!("accessors[{i}]: {} elements without a bufferView is implausible", a.count));
+            return Err(bad(AccessorProblem::ZeroFilled { count: a.count }));
         }
         let mut out = vec![0.0; a.count * n];
+        let view_bytes = |v: usize| self.view_bytes(v).map_err(|e| e.at(format!("accessors[{i}]")));
         if let Some(bv) = a.buffer_view {
             let stride = r.buffer_views[bv].byte_stride.unwrap_or(n * size);
-            let bytes = self.view_bytes(bv)?;
+            let bytes = view_bytes(bv)?;
             for (e, chunk) in out.chunks_exact_mut(n).enumerate() {
                 let start = a.byte_offset + e * stride;
                 for (c, slot) in chunk.iter_mut().enumerate() {
@@ -903,14 +953,14 @@ impl<'a> Gltf<'a> {
             }
         }
         if let Some(s) = &a.sparse {
-            let idx_bytes = self.view_bytes(s.indices.buffer_view)?;
-            let val_bytes = self.view_bytes(s.values.buffer_view)?;
+            let idx_bytes = view_bytes(s.indices.buffer_view)?;
+            let val_bytes = view_bytes(s.values.buffer_view)?;
             let isize = component_size(s.indices.component_type).unwrap_or(4);
             for k in 0..s.count {
                 let at = s.indices.byte_offset + k * isize;
                 let e = read_component(&idx_bytes[at..at + isize], s.indices.component_type, false) as usize;
                 if e >= a.count {
-                    return Err(format!("accessors[{i}].sparse: index {e} ≥ count {}", a.count));
+                    return Err(bad(AccessorProblem::SparseIndex { index: e, count: a.count }));
                 }
                 for c in 0..n {
                     let at = s.values.byte_offset + (k * n + c) * size;
@@ -926,13 +976,13 @@ impl<'a> Gltf<'a> {
     /// Returns them with the number of primitives skipped because they are points or lines.
     ///
     /// # Errors
-    /// A message naming the glTF object that is wrong.
+    /// [`ContentError`] naming the glTF object that is wrong by its JSON path.
     pub(crate) fn world_primitives(
         &self,
         outer: DMat4,
         up: UpAxis,
         surface: Surface,
-    ) -> Result<(Vec<WorldPrimitive>, u64), String> {
+    ) -> Result<(Vec<WorldPrimitive>, u64), ContentError> {
         let r = &self.root;
         let roots: Vec<usize> = match r.scene.or(if r.scenes.is_empty() { None } else { Some(0) }) {
             Some(s) => r.scenes[s].nodes.clone(),
@@ -956,16 +1006,14 @@ impl<'a> Gltf<'a> {
         let mut stack: Vec<(usize, DMat4, usize)> = roots.iter().rev().map(|&n| (n, base, 0)).collect();
         while let Some((n, parent, depth)) = stack.pop() {
             if depth > r.nodes.len() {
-                return Err(format!("nodes[{n}]: the node hierarchy has a cycle"));
+                return Err(ContentError::NodeCycle { node: n });
             }
             let node = &r.nodes[n];
             let world = parent * node_matrix(node);
             if let Some(m) = node.mesh {
                 for k in 0..r.meshes[m].primitives.len() {
                     if let std::collections::btree_map::Entry::Vacant(slot) = local.entry((m, k)) {
-                        let decoded = self
-                            .local_primitive(m, k, surface)
-                            .map_err(|e| format!("meshes[{m}].primitives[{k}]: {e}"))?;
+                        let decoded = self.local_primitive(m, k, surface)?;
                         if decoded.is_none() {
                             skipped += 1;
                         }
@@ -995,25 +1043,34 @@ impl<'a> Gltf<'a> {
         Ok((out, skipped))
     }
 
-    /// Decodes one primitive in its local frame; `None` for points and lines.
+    /// Decodes `meshes[m].primitives[k]` in its local frame; `None` for points and lines. Errors
+    /// carry JSON paths from the glTF root (`meshes[0].primitives[1].attributes["POSITION"]`).
     fn local_primitive(
         &self,
         m: usize,
         k: usize,
         surface: Surface,
-    ) -> Result<Option<LocalPrimitive>, String> {
+    ) -> Result<Option<LocalPrimitive>, ContentError> {
         let prim = &self.root.meshes[m].primitives[k];
         if !(4..=6).contains(&prim.mode) {
             return Ok(None);
         }
-        let feature_set = self.feature_set(prim)?;
+        let at = format!("meshes[{m}].primitives[{k}]");
+        let attribute_at = |name: &str| format!("{at}.attributes[\"{name}\"]");
+        let feature_set = self.feature_set(prim, &at)?;
         // The base colour texture's UV set and transform, when the surface is wanted.
         let texture = match (surface, prim.material) {
             (Surface::Yes, Some(mi)) => {
-                let mat =
-                    self.root.materials.get(mi).ok_or_else(|| format!("material {mi} does not exist"))?;
+                let mat = self.root.materials.get(mi).ok_or_else(|| {
+                    ContentError::Missing { what: "material", index: mi }.at(format!("{at}.material"))
+                })?;
                 match mat.base_color_texture() {
-                    Some(t) => Some((t.uv_set()?, t.transform()?)),
+                    Some(t) => {
+                        let texture_at = || format!("materials[{mi}].pbrMetallicRoughness.baseColorTexture");
+                        let uv_set = t.uv_set().map_err(|e| e.at(texture_at()))?;
+                        let transform = t.transform().map_err(|e| e.at(texture_at()))?;
+                        Some((uv_set, transform))
+                    }
                     None => None,
                 }
             }
@@ -1021,11 +1078,12 @@ impl<'a> Gltf<'a> {
         };
         let uv_name = texture.map(|(set, _)| format!("TEXCOORD_{set}"));
         let fid0_name = "_FEATURE_ID_0";
+        let draco_at = format!("{at}.extensions.KHR_draco_mesh_compression");
         let draco_ext = match prim.extensions.get("KHR_draco_mesh_compression") {
             None => None,
             Some(v) => Some(
                 serde_json::from_value::<DracoExtension>(v.clone())
-                    .map_err(|e| format!("extensions.KHR_draco_mesh_compression: {e}"))?,
+                    .map_err(|source| ContentError::Json { at: draco_at.clone(), source })?,
             ),
         };
 
@@ -1034,7 +1092,7 @@ impl<'a> Gltf<'a> {
                 let pos_id = *ext
                     .attributes
                     .get("POSITION")
-                    .ok_or("KHR_draco_mesh_compression.attributes has no POSITION")?;
+                    .ok_or_else(|| ContentError::NoPosition { at: format!("{draco_at}.attributes") })?;
                 // (unique id, components) of each wanted attribute, and where it lands.
                 let mut wanted: Vec<(u32, usize)> = Vec::new();
                 let mut slot = |name: Option<&str>, n: usize| -> Option<usize> {
@@ -1045,26 +1103,39 @@ impl<'a> Gltf<'a> {
                 let f_slot = slot(feature_set.as_ref().map(|(name, _, _)| name.as_str()), 1);
                 let uv_slot = slot(uv_name.as_deref(), 2);
                 let fid0_slot = if surface == Surface::Yes { slot(Some(fid0_name), 1) } else { None };
-                let bytes = self.view_bytes(ext.buffer_view)?;
+                let bytes =
+                    self.view_bytes(ext.buffer_view).map_err(|e| e.at(format!("{draco_at}.bufferView")))?;
                 let mut d = draco::decode(bytes, pos_id, &wanted)
-                    .map_err(|e| format!("KHR_draco_mesh_compression: {e}"))?;
+                    .map_err(|source| ContentError::Draco { at: draco_at.clone(), source })?;
                 let mut take = |s: Option<usize>| s.map(|i| std::mem::take(&mut d.attributes[i]));
                 let (f, uv, fid0) = (take(f_slot), take(uv_slot), take(fid0_slot));
                 (d.positions, d.triangles, f, uv, fid0)
             }
             None => {
-                let acc =
-                    *prim.attributes.get("POSITION").ok_or("the primitive has no POSITION attribute")?;
-                let (n, flat) = self.read_accessor(acc)?;
+                let acc = *prim
+                    .attributes
+                    .get("POSITION")
+                    .ok_or_else(|| ContentError::NoPosition { at: format!("{at}.attributes") })?;
+                let pos_at = attribute_at("POSITION");
+                let (n, flat) = self.read_accessor(acc, &pos_at)?;
                 if n != 3 {
-                    return Err(format!("POSITION accessor {acc} is not VEC3"));
+                    return Err(ContentError::Accessor {
+                        at: pos_at,
+                        accessor: Some(acc),
+                        problem: AccessorProblem::Type { expected: "VEC3" },
+                    });
                 }
                 let positions: Vec<[f64; 3]> = flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
                 let indices: Vec<u32> = match prim.indices {
                     Some(acc) => {
-                        let (n, flat) = self.read_accessor(acc)?;
+                        let idx_at = format!("{at}.indices");
+                        let (n, flat) = self.read_accessor(acc, &idx_at)?;
                         if n != 1 {
-                            return Err(format!("indices accessor {acc} is not SCALAR"));
+                            return Err(ContentError::Accessor {
+                                at: idx_at,
+                                accessor: Some(acc),
+                                problem: AccessorProblem::Type { expected: "SCALAR" },
+                            });
                         }
                         flat.into_iter().map(|v| v as u32).collect()
                     }
@@ -1078,9 +1149,13 @@ impl<'a> Gltf<'a> {
         if let Some(name) = &uv_name {
             if uv_values.is_none() {
                 if let Some(&acc) = prim.attributes.get(name) {
-                    let (n, flat) = self.read_accessor(acc)?;
+                    let (n, flat) = self.read_accessor(acc, &attribute_at(name))?;
                     if n != 2 {
-                        return Err(format!("{name} accessor {acc} is not VEC2"));
+                        return Err(ContentError::Accessor {
+                            at: attribute_at(name),
+                            accessor: Some(acc),
+                            problem: AccessorProblem::Type { expected: "VEC2" },
+                        });
                     }
                     uv_values = Some(flat);
                 }
@@ -1088,25 +1163,40 @@ impl<'a> Gltf<'a> {
         }
         if surface == Surface::Yes && fid0_values.is_none() {
             if let Some(&acc) = prim.attributes.get(fid0_name) {
-                let (n, flat) = self.read_accessor(acc)?;
+                let (n, flat) = self.read_accessor(acc, &attribute_at(fid0_name))?;
                 if n != 1 {
-                    return Err(format!("{fid0_name} accessor {acc} is not SCALAR"));
+                    return Err(ContentError::Accessor {
+                        at: attribute_at(fid0_name),
+                        accessor: Some(acc),
+                        problem: AccessorProblem::Type { expected: "SCALAR" },
+                    });
                 }
                 fid0_values = Some(flat);
             }
         }
         if let Some(bad) = positions.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
-            return Err(format!("vertex {bad} has a non-finite position {:?}", positions[bad]));
+            return Err(ContentError::NonFiniteVertex {
+                at: at.clone(),
+                vertex: bad,
+                position: positions[bad],
+            });
         }
         let n_vertices = positions.len();
         if let Some(t) = triangles.iter().find(|t| t.iter().any(|&i| i as usize >= n_vertices)) {
-            return Err(format!("triangle {t:?} refers past the {n_vertices} vertices"));
+            return Err(ContentError::TriangleIndex { at: at.clone(), triangle: *t, vertices: n_vertices });
         }
+        // A per-vertex attribute (from an accessor, or from Draco) with the wrong number of values.
+        let count_error = |name: &str, values: usize| ContentError::Accessor {
+            at: attribute_at(name),
+            accessor: prim.attributes.get(name).copied(),
+            problem: AccessorProblem::Count { values, vertices: n_vertices },
+        };
         let uv = match uv_values {
             None => None,
             Some(flat) => {
                 if flat.len() != 2 * n_vertices {
-                    return Err(format!("the UVs have {} values for {n_vertices} vertices", flat.len() / 2));
+                    let name = uv_name.as_deref().unwrap_or("TEXCOORD_0");
+                    return Err(count_error(name, flat.len() / 2));
                 }
                 let transform = texture.and_then(|(_, t)| t);
                 Some(
@@ -1118,7 +1208,7 @@ impl<'a> Gltf<'a> {
         };
         if let Some(f) = &fid0_values {
             if f.len() != n_vertices {
-                return Err(format!("{fid0_name} has {} values for {n_vertices} vertices", f.len()));
+                return Err(count_error(fid0_name, f.len()));
             }
         }
 
@@ -1129,21 +1219,29 @@ impl<'a> Gltf<'a> {
                     Some(v) => v,
                     None => {
                         let acc = prim.attributes[&name];
-                        let (n, flat) = self.read_accessor(acc)?;
+                        let (n, flat) = self.read_accessor(acc, &attribute_at(&name))?;
                         if n != 1 {
-                            return Err(format!("{name} accessor {acc} is not SCALAR"));
+                            return Err(ContentError::Accessor {
+                                at: attribute_at(&name),
+                                accessor: Some(acc),
+                                problem: AccessorProblem::Type { expected: "SCALAR" },
+                            });
                         }
                         flat
                     }
                 };
                 if values.len() != n_vertices {
-                    return Err(format!("{name} has {} values for {n_vertices} vertices", values.len()));
+                    return Err(count_error(&name, values.len()));
                 }
                 let mut ids = Vec::with_capacity(values.len());
                 for v in values {
                     let id = v.round();
                     if !(v.is_finite() && (v - id).abs() < 1e-3 && (0.0..=u32::MAX as f64).contains(&id)) {
-                        return Err(format!("{name} value {v} is not a feature ID (a non-negative integer)"));
+                        return Err(ContentError::Accessor {
+                            at: attribute_at(&name),
+                            accessor: prim.attributes.get(&name).copied(),
+                            problem: AccessorProblem::NotFeatureId { value: v },
+                        });
                     }
                     ids.push(if Some(id as u64) == null_id { None } else { Some(id as u32) });
                 }
@@ -1153,13 +1251,18 @@ impl<'a> Gltf<'a> {
         Ok(Some(LocalPrimitive { positions, triangles, features, uv, feature_id0: fid0_values }))
     }
 
-    /// Which attribute holds the primitive's feature IDs: the first `EXT_mesh_features` set stored in
-    /// a vertex attribute, else `_BATCHID` (or the pre-1.0 `BATCHID`).
-    /// Returns (attribute name, table, nullFeatureId).
-    fn feature_set(&self, prim: &Primitive) -> Result<Option<(String, TableKey, Option<u64>)>, String> {
+    /// Which attribute holds the primitive's (at JSON path `at`) feature IDs: the first
+    /// `EXT_mesh_features` set stored in a vertex attribute, else `_BATCHID` (or the pre-1.0
+    /// `BATCHID`). Returns (attribute name, table, nullFeatureId).
+    fn feature_set(
+        &self,
+        prim: &Primitive,
+        at: &str,
+    ) -> Result<Option<(String, TableKey, Option<u64>)>, ContentError> {
         if let Some(v) = prim.extensions.get("EXT_mesh_features") {
-            let mf: MeshFeatures = serde_json::from_value(v.clone())
-                .map_err(|e| format!("extensions.EXT_mesh_features: {e}"))?;
+            let mf: MeshFeatures = serde_json::from_value(v.clone()).map_err(|source| {
+                ContentError::Json { at: format!("{at}.extensions.EXT_mesh_features"), source }
+            })?;
             for (s, set) in mf.feature_ids.iter().enumerate() {
                 let Some(a) = set.attribute else { continue };
                 let name = format!("_FEATURE_ID_{a}");
@@ -1170,9 +1273,7 @@ impl<'a> Gltf<'a> {
                     .and_then(|a| a.get(&name))
                     .is_some();
                 if !prim.attributes.contains_key(&name) && !in_draco {
-                    return Err(format!(
-                        "EXT_mesh_features.featureIds[{s}] names attribute {name}, which is missing"
-                    ));
+                    return Err(ContentError::FeatureIdAttribute { at: at.to_string(), set: s, name });
                 }
                 let table = match set.property_table {
                     Some(t) => TableKey::Property(t),
@@ -1244,27 +1345,72 @@ mod tests {
         assert_eq!(assemble(&[0, 1, 2, 3, 4], 4), vec![[0, 1, 2]]);
     }
 
+    /// A loader for tests that read no external files.
+    fn no_uri(uri: &str) -> Result<Vec<u8>, ContentError> {
+        Err(ContentError::Missing { what: "test file", index: uri.len() })
+    }
+
     #[test]
     fn glb_header_is_checked_before_the_gltf_crate_sees_it() {
-        let no_uri = |_: &str| -> Result<Vec<u8>, String> { Err("no files".into()) };
         let mut b = b"glTF".to_vec();
         b.extend_from_slice(&2u32.to_le_bytes());
         b.extend_from_slice(&4u32.to_le_bytes()); // length < header size
         b.extend_from_slice(&[0; 12]);
-        assert!(parse_glb(&b, &no_uri).err().unwrap().contains("length is 4"));
+        let e = parse_glb(&b, &no_uri).err().unwrap();
+        assert!(matches!(e, ContentError::GlbLength { length: 4, available: 24 }), "{e:?}");
+        assert!(e.to_string().contains("length is 4"), "{e}");
         b[4..8].copy_from_slice(&1u32.to_le_bytes());
-        assert!(parse_glb(&b, &no_uri).err().unwrap().contains("glTF version 1"));
-        assert!(parse_glb(b"b3dm", &no_uri).err().unwrap().contains("not a GLB"));
+        let e = parse_glb(&b, &no_uri).err().unwrap();
+        assert!(matches!(e, ContentError::GlbVersion { version: 1 }), "{e:?}");
+        assert!(e.to_string().contains("glTF version 1"), "{e}");
+        let e = parse_glb(b"b3dm", &no_uri).err().unwrap();
+        assert!(e.to_string().contains("not a GLB"), "{e}");
+    }
+
+    #[test]
+    fn invalid_json_keeps_the_parser_error() {
+        let e = parse_gltf_json(b"{\"asset\": ", &no_uri).err().unwrap();
+        assert!(matches!(e, ContentError::GltfJson(_)), "{e:?}");
+        let chain = crate::lod::tiles3d::error::chain(&e);
+        assert!(chain.starts_with("invalid glTF JSON: EOF while parsing"), "{chain}");
+    }
+
+    #[test]
+    fn accessor_problems_name_the_attribute_path() {
+        // POSITION points at a SCALAR accessor.
+        let json = br#"{"asset": {"version": "2.0"},
+            "buffers": [{"byteLength": 12, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAA"}],
+            "bufferViews": [{"buffer": 0, "byteLength": 12}],
+            "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "SCALAR"}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+            "nodes": [{"mesh": 0}]}"#;
+        let g = parse_gltf_json(json, &no_uri).unwrap();
+        let e = g.world_primitives(DMat4::IDENTITY, UpAxis::Z, Surface::No).unwrap_err();
+        assert!(
+            matches!(&e, ContentError::Accessor { at, accessor: Some(0), problem: AccessorProblem::Type { expected: "VEC3" } }
+                if at == "meshes[0].primitives[0].attributes[\"POSITION\"]"),
+            "{e:?}"
+        );
+        assert_eq!(
+            e.to_string(),
+            "meshes[0].primitives[0].attributes[\"POSITION\"] (accessor 0): is not VEC3"
+        );
     }
 
     #[test]
     fn validation_reports_every_problem_with_its_path() {
-        let no_uri = |_: &str| -> Result<Vec<u8>, String> { Err("no files".into()) };
         let json = br#"{"asset": {"version": "2.0"},
             "nodes": [{"children": [1]}, {"mesh": 3}, {"children": [1, 9]}],
             "meshes": [{"primitives": [{"attributes": {"POSITION": 4}}]}],
             "accessors": [{"bufferView": 2, "componentType": 5126, "count": 1, "type": "VEC3"}]}"#;
         let e = parse_gltf_json(json, &no_uri).err().unwrap();
+        let ContentError::Invalid { issues } = &e else { panic!("{e:?}") };
+        assert_eq!(issues.len(), 5);
+        assert_eq!(
+            issues[0],
+            GltfIssue { at: "accessors[0].bufferView".into(), what: "bufferView 2 does not exist".into() }
+        );
+        let e = e.to_string();
         for part in [
             "5 problem(s)",
             "accessors[0].bufferView: bufferView 2 does not exist",

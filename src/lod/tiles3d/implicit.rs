@@ -21,7 +21,8 @@ use std::path::{Path, PathBuf};
 use glam::{DMat3, DMat4, DVec3};
 use serde::Deserialize;
 
-use super::tileset::{resolve_uri, BoundingVolume, ContentRef, Refine, Tile, TileJson};
+use super::error::ContentError;
+use super::tileset::{resolve_uri, uri_error, BoundingVolume, ContentRef, Refine, Tile, TileJson};
 use crate::lod::LodError;
 
 /// `implicitTiling`.
@@ -204,71 +205,80 @@ struct AvailabilityJson {
     constant: Option<u8>,
 }
 
-fn parse_subtree(bytes: &[u8], file: &Path) -> Result<Subtree, String> {
+/// Parses a subtree file (binary or JSON); `file` locates its external buffers.
+///
+/// # Errors
+/// [`ContentError`] naming the header field, chunk, buffer or availability that is wrong.
+fn parse_subtree(bytes: &[u8], file: &Path) -> Result<Subtree, ContentError> {
     let (json, bin): (&[u8], &[u8]) = if bytes.starts_with(b"subt") {
         if bytes.len() < 24 {
-            return Err(format!("{} bytes is too short for a subtree header (24 bytes)", bytes.len()));
+            return Err(ContentError::TooShort { what: "subtree header", length: bytes.len(), needed: 24 });
         }
         let u32_at = |i: usize| u32::from_le_bytes(bytes[i..i + 4].try_into().expect("4 bytes"));
         let u64_at = |i: usize| u64::from_le_bytes(bytes[i..i + 8].try_into().expect("8 bytes"));
         let version = u32_at(4);
         if version != 1 {
-            return Err(format!("subtree version {version} is not supported (expected 1)"));
+            return Err(ContentError::Version { container: "subtree", version });
         }
         let (jl, bl) = (u64_at(8), u64_at(16));
-        let end_json = 24u64.checked_add(jl).filter(|&e| e <= bytes.len() as u64).ok_or_else(|| {
-            format!("subtree jsonByteLength {jl} runs past the end of the file ({} bytes)", bytes.len())
-        })? as usize;
-        let end_bin =
-            (end_json as u64).checked_add(bl).filter(|&e| e <= bytes.len() as u64).ok_or_else(|| {
-                format!("subtree binaryByteLength {bl} runs past the end of the file ({} bytes)", bytes.len())
-            })? as usize;
+        let past_end = |name, len| ContentError::SubtreeChunk { name, len, length: bytes.len() };
+        let end_json = 24u64
+            .checked_add(jl)
+            .filter(|&e| e <= bytes.len() as u64)
+            .ok_or_else(|| past_end("jsonByteLength", jl))? as usize;
+        let end_bin = (end_json as u64)
+            .checked_add(bl)
+            .filter(|&e| e <= bytes.len() as u64)
+            .ok_or_else(|| past_end("binaryByteLength", bl))? as usize;
         (&bytes[24..end_json], &bytes[end_json..end_bin])
     } else {
         (bytes, &[])
     };
     let end = json.iter().rposition(|&b| b != 0 && b != b' ').map_or(0, |i| i + 1);
-    let st: SubtreeJson =
-        serde_json::from_slice(&json[..end]).map_err(|e| format!("subtree JSON is invalid: {e}"))?;
+    let st: SubtreeJson = serde_json::from_slice(&json[..end])
+        .map_err(|source| ContentError::Json { at: "subtree JSON".into(), source })?;
     let dir = file.parent().unwrap_or(Path::new("."));
     let mut buffers: Vec<Vec<u8>> = Vec::with_capacity(st.buffers.len());
     for (i, b) in st.buffers.iter().enumerate() {
         let data = match &b.uri {
             None => bin.to_vec(),
             Some(uri) => {
-                let p = resolve_uri(dir, uri).map_err(|e| format!("buffers[{i}]: {e}"))?;
-                std::fs::read(&p).map_err(|e| format!("buffers[{i}]: cannot read {}: {e}", p.display()))?
+                let p =
+                    resolve_uri(dir, uri).map_err(|e| ContentError::from(e).at(format!("buffers[{i}]")))?;
+                std::fs::read(&p).map_err(|source| {
+                    ContentError::ReadUri { uri: uri.clone(), path: p, source }.at(format!("buffers[{i}]"))
+                })?
             }
         };
         if data.len() < b.byte_length {
-            return Err(format!(
-                "buffers[{i}]: byteLength {} but {} bytes available",
-                b.byte_length,
-                data.len()
-            ));
+            return Err(ContentError::BufferLength {
+                index: i,
+                byte_length: b.byte_length,
+                available: data.len(),
+            });
         }
         buffers.push(data);
     }
-    let avail = |a: &AvailabilityJson, at: &str| -> Result<Availability, String> {
+    let avail = |a: &AvailabilityJson, at: &str| -> Result<Availability, ContentError> {
         match (a.bitstream, a.constant) {
             (Some(v), _) => {
-                let view = st
-                    .buffer_views
-                    .get(v)
-                    .ok_or_else(|| format!("{at}.bitstream: bufferView {v} does not exist"))?;
+                let view = st.buffer_views.get(v).ok_or_else(|| {
+                    ContentError::Missing { what: "bufferView", index: v }.at(format!("{at}.bitstream"))
+                })?;
                 let buf = buffers.get(view.buffer).ok_or_else(|| {
-                    format!("bufferViews[{v}].buffer: buffer {} does not exist", view.buffer)
+                    ContentError::Missing { what: "buffer", index: view.buffer }
+                        .at(format!("bufferViews[{v}].buffer"))
                 })?;
                 let bytes = view
                     .byte_offset
                     .checked_add(view.byte_length)
                     .and_then(|e| buf.get(view.byte_offset..e))
-                    .ok_or_else(|| format!("bufferViews[{v}] runs past buffer {}", view.buffer))?;
+                    .ok_or(ContentError::ViewRange { view: v, buffer: view.buffer })?;
                 Ok(Availability::Bits(bytes.to_vec()))
             }
             (None, Some(c)) if c <= 1 => Ok(Availability::Constant(c == 1)),
-            (None, Some(c)) => Err(format!("{at}.constant: {c} is not 0 or 1")),
-            (None, None) => Err(format!("{at}: needs a bitstream or a constant")),
+            (None, Some(value)) => Err(ContentError::AvailabilityConstant { at: at.to_string(), value }),
+            (None, None) => Err(ContentError::NoAvailability { at: at.to_string() }),
         }
     };
     let tiles = avail(&st.tile_availability, "tileAvailability")?;
@@ -329,11 +339,14 @@ impl Expander<'_> {
             "{}.implicitTiling.subtrees {{level {}, x {}, y {}, z {}}}",
             self.root.at, c.level, c.x, c.y, c.z
         );
-        let file =
-            resolve_uri(self.root.dir, &uri).map_err(|e| LodError::invalid(self.root.tileset, &at, e))?;
+        let file = resolve_uri(self.root.dir, &uri).map_err(|e| uri_error(self.root.tileset, &at, e))?;
         let bytes = crate::util::read_file(&file)?;
-        parse_subtree(&bytes, &file)
-            .map_err(|e| LodError::invalid(self.root.tileset, at, format!("subtree {}: {e}", file.display())))
+        parse_subtree(&bytes, &file).map_err(|e| LodError::Subtree {
+            tileset: self.root.tileset.to_path_buf(),
+            at,
+            subtree: file,
+            source: Box::new(e),
+        })
     }
 
     fn volume(&self, c: Coord) -> BoundingVolume {
@@ -406,8 +419,8 @@ impl Expander<'_> {
             // the tile has content; an absent one is read as "none available").
             if st.contents.get(k).is_some_and(|a| a.get(index)) {
                 let uri = substitute(template, c);
-                let file = resolve_uri(self.root.dir, &uri)
-                    .map_err(|e| LodError::invalid(self.root.tileset, c_at, e))?;
+                let file =
+                    resolve_uri(self.root.dir, &uri).map_err(|e| uri_error(self.root.tileset, c_at, e))?;
                 contents.push(ContentRef {
                     uri,
                     file,
@@ -513,7 +526,10 @@ mod tests {
         assert!(!st.contents[0].get(0) && st.contents[0].get(1));
         assert!(!st.child_subtrees.get(3));
         let e = parse_subtree(&b[..30], Path::new("x.subtree")).unwrap_err();
-        assert!(e.contains("runs past the end"), "{e}");
-        assert!(parse_subtree(b"subt\x01\x00", Path::new("x")).unwrap_err().contains("too short"));
+        assert!(matches!(e, ContentError::SubtreeChunk { name: "jsonByteLength", length: 30, .. }), "{e:?}");
+        assert!(e.to_string().contains("runs past the end"), "{e}");
+        let e = parse_subtree(b"subt\x01\x00", Path::new("x")).unwrap_err();
+        assert!(matches!(e, ContentError::TooShort { length: 6, needed: 24, .. }), "{e:?}");
+        assert!(e.to_string().contains("too short"), "{e}");
     }
 }

@@ -14,6 +14,8 @@
 
 use serde::Deserialize;
 
+use super::error::MeshoptError;
+
 /// `bufferViews[i].extensions.EXT_meshopt_compression`.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(rename_all = "camelCase")]
@@ -38,24 +40,26 @@ const MAX_DECODED_BYTES: usize = 1 << 30;
 /// the extension's buffer).
 ///
 /// # Errors
-/// A message naming the broken precondition or the decoder's error code.
-pub(crate) fn decode(ext: &MeshoptView, source: &[u8]) -> Result<Vec<u8>, String> {
+/// [`MeshoptError`] naming the broken precondition or the decoder's error code.
+pub(crate) fn decode(ext: &MeshoptView, source: &[u8]) -> Result<Vec<u8>, MeshoptError> {
     let (count, stride) = (ext.count, ext.byte_stride);
     let total = count
         .checked_mul(stride)
         .filter(|&t| t <= MAX_DECODED_BYTES)
-        .ok_or_else(|| format!("count {count} × byteStride {stride} exceeds {MAX_DECODED_BYTES} bytes"))?;
+        .ok_or(MeshoptError::TooLarge { count, stride, max: MAX_DECODED_BYTES })?;
     let mut out = vec![0u8; total];
-    let code = match ext.mode.as_str() {
+    let (mode, code) = match ext.mode.as_str() {
         "ATTRIBUTES" => {
             if stride == 0 || stride > 256 || stride % 4 != 0 {
-                return Err(format!(
-                    "ATTRIBUTES mode needs a byteStride that is a multiple of 4 in 4..=256, not {stride}"
-                ));
+                return Err(MeshoptError::Stride {
+                    what: "ATTRIBUTES mode",
+                    expected: "that is a multiple of 4 in 4..=256",
+                    stride,
+                });
             }
             // SAFETY: `out` holds count × stride bytes, the decoder's destination size; the source
             // slice is valid for its length.
-            unsafe {
+            let code = unsafe {
                 ::meshopt::ffi::meshopt_decodeVertexBuffer(
                     out.as_mut_ptr().cast(),
                     count,
@@ -63,18 +67,21 @@ pub(crate) fn decode(ext: &MeshoptView, source: &[u8]) -> Result<Vec<u8>, String
                     source.as_ptr(),
                     source.len(),
                 )
-            }
+            };
+            ("ATTRIBUTES", code)
         }
         "TRIANGLES" | "INDICES" => {
+            let mode = if ext.mode == "TRIANGLES" { "TRIANGLES" } else { "INDICES" };
             if stride != 2 && stride != 4 {
-                return Err(format!("{} mode needs a byteStride of 2 or 4, not {stride}", ext.mode));
+                let what = if mode == "TRIANGLES" { "TRIANGLES mode" } else { "INDICES mode" };
+                return Err(MeshoptError::Stride { what, expected: "of 2 or 4", stride });
             }
-            if ext.mode == "TRIANGLES" && count % 3 != 0 {
-                return Err(format!("TRIANGLES mode needs a count that is a multiple of 3, not {count}"));
+            if mode == "TRIANGLES" && count % 3 != 0 {
+                return Err(MeshoptError::TriangleCount { count });
             }
             // SAFETY: as above; index_size is 2 or 4 as the decoder asserts.
-            unsafe {
-                if ext.mode == "TRIANGLES" {
+            let code = unsafe {
+                if mode == "TRIANGLES" {
                     ::meshopt::ffi::meshopt_decodeIndexBuffer(
                         out.as_mut_ptr().cast(),
                         count,
@@ -91,39 +98,48 @@ pub(crate) fn decode(ext: &MeshoptView, source: &[u8]) -> Result<Vec<u8>, String
                         source.len(),
                     )
                 }
-            }
+            };
+            (mode, code)
         }
-        other => return Err(format!("mode {other:?} is not ATTRIBUTES, TRIANGLES or INDICES")),
+        other => return Err(MeshoptError::UnknownMode { mode: other.to_string() }),
     };
     if code != 0 {
-        return Err(format!("the meshopt {} decoder failed (code {code}): the data is corrupt", ext.mode));
+        return Err(MeshoptError::Corrupt { mode, code });
     }
     let filter = ext.filter.as_deref().unwrap_or("NONE");
-    if filter != "NONE" && ext.mode != "ATTRIBUTES" {
-        return Err(format!("filter {filter} applies to ATTRIBUTES mode only, not {}", ext.mode));
+    if filter != "NONE" && mode != "ATTRIBUTES" {
+        return Err(MeshoptError::FilterMode { filter: filter.to_string(), mode });
     }
     // SAFETY (all three): `out` holds count × stride bytes and the stride is one the filter accepts.
     match filter {
         "NONE" => {}
         "OCTAHEDRAL" => {
             if stride != 4 && stride != 8 {
-                return Err(format!("OCTAHEDRAL filter needs byteStride 4 or 8, not {stride}"));
+                return Err(MeshoptError::Stride {
+                    what: "OCTAHEDRAL filter",
+                    expected: "of 4 or 8",
+                    stride,
+                });
             }
             unsafe { ::meshopt::ffi::meshopt_decodeFilterOct(out.as_mut_ptr().cast(), count, stride) }
         }
         "QUATERNION" => {
             if stride != 8 {
-                return Err(format!("QUATERNION filter needs byteStride 8, not {stride}"));
+                return Err(MeshoptError::Stride { what: "QUATERNION filter", expected: "of 8", stride });
             }
             unsafe { ::meshopt::ffi::meshopt_decodeFilterQuat(out.as_mut_ptr().cast(), count, stride) }
         }
         "EXPONENTIAL" => {
             if stride % 4 != 0 {
-                return Err(format!("EXPONENTIAL filter needs a byteStride multiple of 4, not {stride}"));
+                return Err(MeshoptError::Stride {
+                    what: "EXPONENTIAL filter",
+                    expected: "that is a multiple of 4",
+                    stride,
+                });
             }
             unsafe { ::meshopt::ffi::meshopt_decodeFilterExp(out.as_mut_ptr().cast(), count, stride) }
         }
-        other => return Err(format!("filter {other:?} is not NONE, OCTAHEDRAL, QUATERNION or EXPONENTIAL")),
+        other => return Err(MeshoptError::UnknownFilter { filter: other.to_string() }),
     }
     Ok(out)
 }
@@ -194,11 +210,23 @@ mod tests {
             mode: mode.into(),
             filter: None,
         };
-        assert!(decode(&e("ATTRIBUTES", 4, 6), &[0; 10]).unwrap_err().contains("multiple of 4"));
-        assert!(decode(&e("TRIANGLES", 4, 4), &[0; 10]).unwrap_err().contains("multiple of 3"));
-        assert!(decode(&e("TRIANGLES", 3, 3), &[0; 10]).unwrap_err().contains("2 or 4"));
-        assert!(decode(&e("ATTRIBUTES", 4, 8), b"garbage!").unwrap_err().contains("corrupt"));
-        assert!(decode(&e("POINTS", 4, 8), b"").unwrap_err().contains("POINTS"));
-        assert!(decode(&e("ATTRIBUTES", usize::MAX / 2, 8), b"").unwrap_err().contains("exceeds"));
+        let msg =
+            |mode: &str, count, stride, source: &[u8]| decode(&e(mode, count, stride), source).unwrap_err();
+        let err = msg("ATTRIBUTES", 4, 6, &[0; 10]);
+        assert!(matches!(err, MeshoptError::Stride { what: "ATTRIBUTES mode", stride: 6, .. }), "{err:?}");
+        assert!(err.to_string().contains("multiple of 4"), "{err}");
+        let err = msg("TRIANGLES", 4, 4, &[0; 10]);
+        assert_eq!(err, MeshoptError::TriangleCount { count: 4 });
+        assert!(err.to_string().contains("multiple of 3"), "{err}");
+        let err = msg("TRIANGLES", 3, 3, &[0; 10]);
+        assert!(err.to_string().contains("2 or 4"), "{err}");
+        let err = msg("ATTRIBUTES", 4, 8, b"garbage!");
+        assert!(matches!(err, MeshoptError::Corrupt { mode: "ATTRIBUTES", .. }), "{err:?}");
+        assert!(err.to_string().contains("corrupt"), "{err}");
+        let err = msg("POINTS", 4, 8, b"");
+        assert!(err.to_string().contains("POINTS"), "{err}");
+        let err = msg("ATTRIBUTES", usize::MAX / 2, 8, b"");
+        assert!(matches!(err, MeshoptError::TooLarge { stride: 8, .. }), "{err:?}");
+        assert!(err.to_string().contains("exceeds"), "{err}");
     }
 }

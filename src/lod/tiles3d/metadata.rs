@@ -11,8 +11,9 @@ use std::collections::BTreeMap;
 use serde::Deserialize;
 use serde_json::Value;
 
+use super::error::ContentError;
 use super::features::{feature_props, FeatureProps, PropValue};
-use super::gltf::Gltf;
+use super::gltf::{Gltf, LoadUri};
 
 /// `EXT_structural_metadata` on the glTF root.
 #[derive(Debug, Deserialize)]
@@ -79,44 +80,45 @@ struct TableProperty {
 /// `load_uri` loads an external `schemaUri` relative to the glTF.
 ///
 /// # Errors
-/// A message naming the table and property that cannot be read.
+/// [`ContentError`] naming the table and property that cannot be read.
 pub(crate) fn property_tables(
     gltf: &Gltf<'_>,
-    load_uri: &dyn Fn(&str) -> Result<Vec<u8>, String>,
-) -> Result<Vec<Vec<FeatureProps>>, String> {
+    load_uri: &LoadUri<'_>,
+) -> Result<Vec<Vec<FeatureProps>>, ContentError> {
     let Some(v) = gltf.root.extensions.get("EXT_structural_metadata") else { return Ok(Vec::new()) };
-    let meta: StructuralMetadata =
-        serde_json::from_value(v.clone()).map_err(|e| format!("extensions.EXT_structural_metadata: {e}"))?;
+    let meta: StructuralMetadata = serde_json::from_value(v.clone())
+        .map_err(|source| ContentError::Json { at: "extensions.EXT_structural_metadata".into(), source })?;
     let schema = match (meta.schema, &meta.schema_uri) {
         (Some(s), _) => s,
         (None, Some(uri)) => {
-            let bytes = load_uri(uri)?;
-            serde_json::from_slice(&bytes)
-                .map_err(|e| format!("EXT_structural_metadata schemaUri {uri:?}: {e}"))?
+            let bytes = load_uri(uri).map_err(|e| e.at("extensions.EXT_structural_metadata.schemaUri"))?;
+            serde_json::from_slice(&bytes).map_err(|source| ContentError::Json {
+                at: format!("EXT_structural_metadata schemaUri {uri:?}"),
+                source,
+            })?
         }
-        (None, None) => return Err("EXT_structural_metadata has neither schema nor schemaUri".into()),
+        (None, None) => return Err(ContentError::NoSchema),
     };
     let mut out = Vec::with_capacity(meta.property_tables.len());
     for (t, table) in meta.property_tables.iter().enumerate() {
         if table.count > super::MAX_FEATURES {
-            return Err(format!(
-                "EXT_structural_metadata.propertyTables[{t}].count {} exceeds {} features",
-                table.count,
-                super::MAX_FEATURES
-            ));
+            return Err(ContentError::TooManyFeatures {
+                at: format!("EXT_structural_metadata.propertyTables[{t}].count"),
+                count: table.count,
+                max: super::MAX_FEATURES,
+            });
         }
-        let class = schema.classes.get(&table.class).ok_or_else(|| {
-            format!(
-                "EXT_structural_metadata.propertyTables[{t}].class {:?} is not in the schema",
-                table.class
-            )
-        })?;
+        let class = schema
+            .classes
+            .get(&table.class)
+            .ok_or_else(|| ContentError::UnknownClass { table: t, class: table.class.clone() })?;
         let props = feature_props(table.count, |name| {
             let (Some(tp), Some(cp)) = (table.properties.get(name), class.properties.get(name)) else {
                 return Ok(None);
             };
-            read_property(gltf, table.count, tp, cp)
-                .map_err(|e| format!("EXT_structural_metadata.propertyTables[{t}].properties[{name:?}]: {e}"))
+            read_property(gltf, table.count, tp, cp).map_err(|e| {
+                e.at(format!("EXT_structural_metadata.propertyTables[{t}].properties[{name:?}]"))
+            })
         })?;
         out.push(props);
     }
@@ -129,38 +131,43 @@ fn read_property(
     count: usize,
     tp: &TableProperty,
     cp: &ClassProperty,
-) -> Result<Option<Vec<PropValue>>, String> {
+) -> Result<Option<Vec<PropValue>>, ContentError> {
     if cp.array {
         return Ok(None);
     }
-    let values = gltf.view_bytes(tp.values)?;
+    let values = gltf.view_bytes(tp.values).map_err(|e| e.at("values"))?;
     match cp.kind.as_str() {
         "STRING" => {
-            let offsets_view = tp.string_offsets.ok_or("STRING property without stringOffsets")?;
+            let offsets_view = tp.string_offsets.ok_or(ContentError::NoStringOffsets)?;
             let offset_type = tp.string_offset_type.as_deref().unwrap_or("UINT32");
-            let offsets = read_uints(gltf.view_bytes(offsets_view)?, offset_type, count.saturating_add(1))?;
+            let offset_bytes = gltf.view_bytes(offsets_view).map_err(|e| e.at("stringOffsets"))?;
+            let offsets = read_uints(offset_bytes, offset_type, count.saturating_add(1))?;
             let mut out = Vec::with_capacity(count);
             for w in offsets.windows(2) {
-                let (a, b) = (w[0] as usize, w[1] as usize);
-                let s = values.get(a..b).ok_or_else(|| format!("string bytes {a}..{b} exceed the values"))?;
-                let s =
-                    std::str::from_utf8(s).map_err(|_| format!("string at bytes {a}..{b} is not UTF-8"))?;
+                let (start, end) = (w[0] as usize, w[1] as usize);
+                let s = values.get(start..end).ok_or(ContentError::StringRange { start, end })?;
+                let s = std::str::from_utf8(s).map_err(|source| ContentError::StringUtf8 {
+                    start,
+                    end,
+                    source,
+                })?;
                 out.push(PropValue::Str(s.to_string()));
             }
             Ok(Some(out))
         }
         "SCALAR" => {
-            let ctype = cp.component_type.as_deref().ok_or("SCALAR property without componentType")?;
+            let ctype = cp.component_type.as_deref().ok_or(ContentError::NoComponentType)?;
             let size = match ctype {
                 "INT8" | "UINT8" => 1,
                 "INT16" | "UINT16" => 2,
                 "INT32" | "UINT32" | "FLOAT32" => 4,
                 "INT64" | "UINT64" | "FLOAT64" => 8,
-                _ => return Err(format!("unknown componentType {ctype:?}")),
+                _ => return Err(ContentError::UnknownComponentType { component_type: ctype.to_string() }),
             };
-            let body = count.checked_mul(size).and_then(|len| values.get(..len)).ok_or_else(|| {
-                format!("{count} values of {size} bytes exceed the {}-byte buffer view", values.len())
-            })?;
+            let body = count
+                .checked_mul(size)
+                .and_then(|len| values.get(..len))
+                .ok_or(ContentError::ValuesRange { count, size, available: values.len() })?;
             let no_data = cp.no_data.as_ref().and_then(Value::as_f64);
             let offset = tp.offset.or(cp.offset).unwrap_or(0.0);
             let scale = tp.scale.or(cp.scale).unwrap_or(1.0);
@@ -181,18 +188,18 @@ fn read_property(
     }
 }
 
-fn read_uints(bytes: &[u8], kind: &str, n: usize) -> Result<Vec<u64>, String> {
+fn read_uints(bytes: &[u8], kind: &str, n: usize) -> Result<Vec<u64>, ContentError> {
     let size = match kind {
         "UINT8" => 1,
         "UINT16" => 2,
         "UINT32" => 4,
         "UINT64" => 8,
-        _ => return Err(format!("unknown offset type {kind:?}")),
+        _ => return Err(ContentError::UnknownOffsetType { kind: kind.to_string() }),
     };
     let body = n
         .checked_mul(size)
         .and_then(|len| bytes.get(..len))
-        .ok_or_else(|| format!("{n} offsets of {size} bytes exceed their buffer view"))?;
+        .ok_or(ContentError::OffsetsRange { count: n, size })?;
     Ok(body
         .chunks_exact(size)
         .map(|c| {

@@ -12,6 +12,13 @@
 //! and generates test tilesets. The Blender stage (`blender::tileset`) uses [`Tileset`]
 //! for its per-frame tile selection: this module is the one reader of 3D Tiles in insgen.
 //!
+//! # Errors
+//! Decoders return a [`ContentError`] saying what is wrong where inside the file (a JSON path such
+//! as `meshes[0].primitives[1].attributes["POSITION"]`, byte counts, the refused extension), with
+//! the JSON, I/O, gzip, Draco, meshopt or WebP error as its source ([`error`]); the tileset reader
+//! wraps it with the file and tile ([`LodError::Tile`], [`LodError::Tiles3d`],
+//! [`LodError::Subtree`]).
+//!
 //! # Buildings
 //! One [`SourceBuilding`] per feature: the feature ID (`_BATCHID`, or `_FEATURE_ID_n` of
 //! `EXT_mesh_features`) selects a row of the batch/property table whose `gml_id` (see
@@ -35,6 +42,7 @@
 pub(crate) mod b3dm;
 pub(crate) mod content;
 pub(crate) mod draco;
+pub mod error;
 pub mod features;
 pub mod gltf;
 pub(crate) mod implicit;
@@ -44,6 +52,9 @@ pub mod plain;
 pub mod tileset;
 pub mod write;
 
+pub use error::{
+    AccessorProblem, ContentError, DracoMeshError, GltfIssue, MeshoptError, UriError, WebpError,
+};
 pub use gltf::UpAxis;
 pub use tileset::{BoundingVolume, ContentRef, Refine, Tile, Tileset};
 
@@ -70,8 +81,9 @@ pub const MAX_GUNZIPPED_BYTES: u64 = 1 << 30;
 /// some servers and exporters store tile contents and tileset JSON gzip-compressed.
 ///
 /// # Errors
-/// A message when the gzip stream is corrupt or inflates past [`MAX_GUNZIPPED_BYTES`].
-pub(crate) fn maybe_gunzip(bytes: &[u8]) -> Result<std::borrow::Cow<'_, [u8]>, String> {
+/// [`ContentError::Gunzip`] when the gzip stream is corrupt, [`ContentError::GunzipTooLarge`] when it
+/// inflates past [`MAX_GUNZIPPED_BYTES`].
+pub(crate) fn maybe_gunzip(bytes: &[u8]) -> Result<std::borrow::Cow<'_, [u8]>, ContentError> {
     use std::io::Read;
     if !bytes.starts_with(&[0x1f, 0x8b]) {
         return Ok(std::borrow::Cow::Borrowed(bytes));
@@ -80,9 +92,9 @@ pub(crate) fn maybe_gunzip(bytes: &[u8]) -> Result<std::borrow::Cow<'_, [u8]>, S
     flate2::read::GzDecoder::new(bytes)
         .take(MAX_GUNZIPPED_BYTES + 1)
         .read_to_end(&mut out)
-        .map_err(|e| format!("gzip-compressed content cannot be inflated: {e}"))?;
+        .map_err(ContentError::Gunzip)?;
     if out.len() as u64 > MAX_GUNZIPPED_BYTES {
-        return Err(format!("gzip-compressed content inflates past {MAX_GUNZIPPED_BYTES} bytes"));
+        return Err(ContentError::GunzipTooLarge { limit: MAX_GUNZIPPED_BYTES });
     }
     Ok(std::borrow::Cow::Owned(out))
 }
@@ -114,8 +126,9 @@ pub struct TilesReport {
 /// content into buildings in ECEF (see the module docs); the [`TilesReport`] is logged.
 ///
 /// # Errors
-/// [`LodError`] naming the tileset or content file and what is wrong; nothing is returned when any
-/// content fails.
+/// [`LodError`] naming the tileset or content file and what is wrong: [`LodError::Tile`] (tileset,
+/// tile, URI and content file) or [`LodError::Tiles3d`] (a content read on its own) around the
+/// [`ContentError`]; nothing is returned when any content fails.
 pub fn read(path: &Path, opts: &ReadOptions) -> Result<SourceModel, LodError> {
     let (model, report) = read_with_report(path, opts)?;
     log::info!(
@@ -165,7 +178,7 @@ pub fn read_with_report(path: &Path, opts: &ReadOptions) -> Result<(SourceModel,
         vec![ContentJob {
             file: path.to_path_buf(),
             label,
-            at: path.display().to_string(),
+            referenced_by: None,
             world_from_tile: DMat4::IDENTITY,
             up: gltf::UpAxis::Y,
         }]
@@ -176,15 +189,9 @@ pub fn read_with_report(path: &Path, opts: &ReadOptions) -> Result<(SourceModel,
         .par_iter()
         .map(|job| {
             let bytes = crate::util::read_file(&job.file)?;
-            let what_at = |what: String| {
-                let what = if is_json { format!("{what} (tile content of {})", job.at) } else { what };
-                LodError::malformed(&job.file, what)
-            };
-            let bytes = maybe_gunzip(&bytes).map_err(what_at)?;
-            content::decode(&bytes, &job.file, &job.label, job.world_from_tile, job.up).map_err(|what| {
-                let what = if is_json { format!("{what} (tile content of {})", job.at) } else { what };
-                LodError::malformed(&job.file, what)
-            })
+            maybe_gunzip(&bytes)
+                .and_then(|bytes| content::decode(&bytes, &job.file, &job.label, job.world_from_tile, job.up))
+                .map_err(|e| job.error(e))
         })
         .collect();
 

@@ -35,7 +35,9 @@ use std::path::Path;
 use glam::{DMat4, DVec3};
 use serde_json::{json, Value};
 
-use super::gltf::{self, Gltf, Surface, UpAxis};
+use super::content::relative_loader;
+use super::error::{ContentError, WebpError};
+use super::gltf::{self, Gltf, LoadUri, Surface, UpAxis};
 use super::write::GlbBuilder;
 use super::{b3dm, maybe_gunzip};
 
@@ -82,15 +84,12 @@ fn sniff(bytes: &[u8]) -> ImageKind {
 /// Converts a tile content's bytes (`file` locates external buffers and images) into a plain GLB.
 ///
 /// # Errors
-/// A message saying what is wrong, naming the extension when one is refused (the caller names the
-/// file and the tile).
-pub fn importable_glb(bytes: &[u8], file: &Path, up: UpAxis) -> Result<Importable, String> {
+/// [`ContentError`] saying what is wrong where, naming the extension when one is refused
+/// ([`ContentError::Basisu`], [`ContentError::Dds`], [`ContentError::UnsupportedExtensions`], …);
+/// the caller names the file and the tile.
+pub fn importable_glb(bytes: &[u8], file: &Path, up: UpAxis) -> Result<Importable, ContentError> {
     let bytes = maybe_gunzip(bytes)?;
-    let dir = file.parent().unwrap_or(Path::new(".")).to_path_buf();
-    let load_uri = move |uri: &str| -> Result<Vec<u8>, String> {
-        let p = super::tileset::resolve_uri(&dir, uri)?;
-        std::fs::read(&p).map_err(|e| format!("cannot read {} (referenced as {uri:?}): {e}", p.display()))
-    };
+    let load_uri = relative_loader(file);
     let mut parts = Vec::new();
     collect(&bytes, DMat4::IDENTITY, up, &load_uri, &mut parts, "")?;
     build(&parts, &load_uri)
@@ -108,15 +107,16 @@ fn collect<'a>(
     bytes: &'a [u8],
     outer: DMat4,
     up: UpAxis,
-    load_uri: &dyn Fn(&str) -> Result<Vec<u8>, String>,
+    load_uri: &LoadUri<'_>,
     parts: &mut Vec<Part<'a>>,
     label: &str,
-) -> Result<(), String> {
+) -> Result<(), ContentError> {
     let magic = bytes.get(0..4).unwrap_or(bytes);
     let (g, outer) = match magic {
         b"b3dm" => {
             let tile = b3dm::parse(bytes)?;
-            let g = gltf::parse_glb(tile.glb, load_uri).map_err(|e| format!("embedded GLB: {e}"))?;
+            let g =
+                gltf::parse_glb(tile.glb, load_uri).map_err(|e| ContentError::EmbeddedGlb(Box::new(e)))?;
             let outer = match tile.rtc_center {
                 Some(c) => outer * DMat4::from_translation(DVec3::from_array(c)),
                 None => outer,
@@ -127,16 +127,12 @@ fn collect<'a>(
         b"cmpt" => {
             for (k, inner) in b3dm::split_cmpt(bytes)?.into_iter().enumerate() {
                 collect(inner, outer, up, load_uri, parts, &format!("{label}cmpt[{k}]/"))
-                    .map_err(|e| format!("cmpt inner tile {k}: {e}"))?;
+                    .map_err(|e| ContentError::CmptTile { index: k, source: Box::new(e) })?;
             }
             return Ok(());
         }
         b"i3dm" | b"pnts" => {
-            return Err(format!(
-                "{} content (instanced models / point clouds) cannot be rendered; only b3dm, glb, glTF \
-                 and cmpt contents can",
-                String::from_utf8_lossy(magic)
-            ))
+            return Err(ContentError::NotRenderable { kind: String::from_utf8_lossy(magic).into_owned() })
         }
         _ if bytes.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{')
             || bytes.starts_with(b"\xEF\xBB\xBF") =>
@@ -144,12 +140,7 @@ fn collect<'a>(
             let json = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
             (gltf::parse_gltf_json(json, load_uri)?, outer)
         }
-        _ => {
-            return Err(format!(
-                "unknown tile content (magic {:?}); expected b3dm, glb, cmpt or glTF JSON",
-                String::from_utf8_lossy(magic)
-            ))
-        }
+        _ => return Err(ContentError::UnknownContent { magic: String::from_utf8_lossy(magic).into_owned() }),
     };
     let outer = match g.cesium_rtc()? {
         Some(c) => outer * DMat4::from_translation(DVec3::from_array(c)),
@@ -173,10 +164,7 @@ const DECODED: &[&str] = &[
     "EXT_structural_metadata",
 ];
 
-fn build(
-    parts: &[Part<'_>],
-    load_uri: &dyn Fn(&str) -> Result<Vec<u8>, String>,
-) -> Result<Importable, String> {
+fn build(parts: &[Part<'_>], load_uri: &LoadUri<'_>) -> Result<Importable, ContentError> {
     // The centre of all positions (tile frame, f64).
     let mut lo = DVec3::INFINITY;
     let mut hi = DVec3::NEG_INFINITY;
@@ -214,7 +202,10 @@ fn build(
                     Some(&o) => o,
                     None => {
                         let at = format!("materials[{mi}]");
-                        let m = r.materials.get(mi).ok_or_else(|| format!("{at} does not exist"))?;
+                        let m = r
+                            .materials
+                            .get(mi)
+                            .ok_or(ContentError::Missing { what: "material", index: mi })?;
                         let mut out = json!({
                             "name": format!("{}{}", part.label, m.name.clone().unwrap_or_else(|| format!("material_{mi}"))),
                             "pbrMetallicRoughness": {"baseColorFactor": m.base_color_factor(), "metallicFactor": 0.0, "roughnessFactor": 1.0},
@@ -223,7 +214,7 @@ fn build(
                         if let Some(t) = m.base_color_texture() {
                             let (img, mime, sampler) =
                                 texture_image(&part.gltf, t.index, load_uri, &mut decoded).map_err(|e| {
-                                    format!("{at}.pbrMetallicRoughness.baseColorTexture: {e}")
+                                    e.at(format!("{at}.pbrMetallicRoughness.baseColorTexture"))
                                 })?;
                             let view = b.push_view(&img, None);
                             images.push(json!({
@@ -299,24 +290,21 @@ fn build(
 fn texture_image(
     g: &Gltf<'_>,
     index: usize,
-    load_uri: &dyn Fn(&str) -> Result<Vec<u8>, String>,
+    load_uri: &LoadUri<'_>,
     decoded: &mut BTreeSet<String>,
-) -> Result<(Vec<u8>, &'static str, Option<Value>), String> {
+) -> Result<(Vec<u8>, &'static str, Option<Value>), ContentError> {
     let r = &g.root;
-    let tex = r.textures.get(index).ok_or_else(|| format!("texture {index} does not exist"))?;
+    let tex = r.textures.get(index).ok_or(ContentError::Missing { what: "texture", index })?;
     let sampler = match tex.sampler {
         None => None,
-        Some(s) => Some(
-            r.samplers
-                .get(s)
-                .cloned()
-                .ok_or_else(|| format!("textures[{index}].sampler {s} does not exist"))?,
-        ),
+        Some(s) => Some(r.samplers.get(s).cloned().ok_or_else(|| {
+            ContentError::Missing { what: "sampler", index: s }.at(format!("textures[{index}].sampler"))
+        })?),
     };
     let ext_source =
         |name: &str| tex.extensions.get(name).and_then(|e| e.get("source")).and_then(Value::as_u64);
     // Candidates in order of preference: PNG/JPEG `source`, then WebP (decoded), refusing KTX2/DDS.
-    let mut candidates: Vec<(usize, &str)> = Vec::new();
+    let mut candidates: Vec<(usize, &'static str)> = Vec::new();
     if let Some(s) = tex.source {
         candidates.push((s, "source"));
     }
@@ -325,75 +313,68 @@ fn texture_image(
     }
     let mut refused = None;
     for (src, via) in &candidates {
-        let bytes = image_bytes(g, *src, load_uri).map_err(|e| format!("images[{src}]: {e}"))?;
+        let bytes = image_bytes(g, *src, load_uri).map_err(|e| e.at(format!("images[{src}]")))?;
+        let via = *via;
         match sniff(&bytes) {
             ImageKind::Png => return Ok((bytes, "image/png", sampler)),
             ImageKind::Jpeg => return Ok((bytes, "image/jpeg", sampler)),
             ImageKind::Webp => {
-                let png =
-                    webp_to_png(&bytes).map_err(|e| format!("images[{src}] (EXT_texture_webp): {e}"))?;
+                let png = webp_to_png(&bytes).map_err(|source| ContentError::Webp { image: *src, source })?;
                 decoded.insert("EXT_texture_webp".into());
                 return Ok((png, "image/png", sampler));
             }
             ImageKind::Ktx2 => {
-                refused = Some(format!("images[{src}] (via {via}) is KTX2 (KHR_texture_basisu)"))
+                refused = Some(ContentError::UnreadableImage {
+                    image: *src,
+                    via,
+                    kind: "KTX2 (KHR_texture_basisu)",
+                })
             }
-            ImageKind::Dds => refused = Some(format!("images[{src}] (via {via}) is DDS (MSFT_texture_dds)")),
+            ImageKind::Dds => {
+                refused =
+                    Some(ContentError::UnreadableImage { image: *src, via, kind: "DDS (MSFT_texture_dds)" })
+            }
             ImageKind::Unknown => {
-                refused = Some(format!("images[{src}] (via {via}) is not PNG, JPEG or WebP"))
+                refused =
+                    Some(ContentError::UnreadableImage { image: *src, via, kind: "not PNG, JPEG or WebP" })
             }
         }
     }
-    if let Some(s) = ext_source("KHR_texture_basisu") {
-        return Err(format!(
-            "textures[{index}] needs KHR_texture_basisu (KTX2 / Basis Universal, images[{s}]), which insgen \
-             cannot decode; re-encode the tileset's textures as JPEG or PNG (e.g. `npx gltf-transform png`)"
-        ));
+    if let Some(image) = ext_source("KHR_texture_basisu") {
+        return Err(ContentError::Basisu { texture: index, image });
     }
-    if let Some(s) = ext_source("MSFT_texture_dds") {
-        return Err(format!(
-            "textures[{index}] needs MSFT_texture_dds (images[{s}]), which insgen cannot decode"
-        ));
+    if let Some(image) = ext_source("MSFT_texture_dds") {
+        return Err(ContentError::Dds { texture: index, image });
     }
-    Err(refused.unwrap_or_else(|| format!("textures[{index}] has no image insgen can read")))
+    Err(refused.unwrap_or(ContentError::NoTextureImage { texture: index }))
 }
 
-fn image_bytes(
-    g: &Gltf<'_>,
-    i: usize,
-    load_uri: &dyn Fn(&str) -> Result<Vec<u8>, String>,
-) -> Result<Vec<u8>, String> {
-    let img = g.root.images.get(i).ok_or("does not exist")?;
+/// The bytes of `images[i]`: its buffer view, `data:` URI or file (errors relative to the image).
+fn image_bytes(g: &Gltf<'_>, i: usize, load_uri: &LoadUri<'_>) -> Result<Vec<u8>, ContentError> {
+    let img = g.root.images.get(i).ok_or(ContentError::Missing { what: "image", index: i })?;
     match (&img.uri, img.buffer_view) {
-        (_, Some(v)) => Ok(g.view_bytes(v)?.to_vec()),
-        (Some(uri), None) => {
-            if let Some(rest) = uri.strip_prefix("data:") {
-                let (_, data) = rest.split_once(";base64,").ok_or("data URI is not base64")?;
-                gltf::base64_decode(data).ok_or_else(|| "data URI holds invalid base64".to_string())
-            } else {
-                load_uri(uri)
-            }
-        }
-        (None, None) => Err("has neither a uri nor a bufferView".into()),
+        (_, Some(v)) => Ok(g.view_bytes(v).map_err(|e| e.at("bufferView"))?.to_vec()),
+        (Some(uri), None) if uri.starts_with("data:") => gltf::data_uri_bytes(uri),
+        (Some(uri), None) => load_uri(uri),
+        (None, None) => Err(ContentError::ImageWithoutData),
     }
 }
 
 /// Decodes a WebP image and encodes it as an 8-bit RGB(A) PNG.
-fn webp_to_png(bytes: &[u8]) -> Result<Vec<u8>, String> {
-    let mut dec =
-        image_webp::WebPDecoder::new(std::io::Cursor::new(bytes)).map_err(|e| format!("WebP: {e}"))?;
+fn webp_to_png(bytes: &[u8]) -> Result<Vec<u8>, WebpError> {
+    let mut dec = image_webp::WebPDecoder::new(std::io::Cursor::new(bytes)).map_err(WebpError::Decode)?;
     let (w, h) = dec.dimensions();
     let alpha = dec.has_alpha();
-    let n = dec.output_buffer_size().ok_or("WebP image too large")?;
+    let n = dec.output_buffer_size().ok_or(WebpError::TooLarge)?;
     let mut buf = vec![0u8; n];
-    dec.read_image(&mut buf).map_err(|e| format!("WebP: {e}"))?;
+    dec.read_image(&mut buf).map_err(WebpError::Decode)?;
     let mut out = Vec::new();
     {
         let mut enc = png::Encoder::new(&mut out, w, h);
         enc.set_color(if alpha { png::ColorType::Rgba } else { png::ColorType::Rgb });
         enc.set_depth(png::BitDepth::Eight);
-        let mut wr = enc.write_header().map_err(|e| format!("PNG: {e}"))?;
-        wr.write_image_data(&buf).map_err(|e| format!("PNG: {e}"))?;
+        let mut wr = enc.write_header().map_err(WebpError::Png)?;
+        wr.write_image_data(&buf).map_err(WebpError::Png)?;
     }
     Ok(out)
 }

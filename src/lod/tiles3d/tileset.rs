@@ -37,6 +37,7 @@ use std::path::{Component, Path, PathBuf};
 use glam::{DMat3, DMat4, DVec3};
 use serde::Deserialize;
 
+use super::error::{ContentError, UriError};
 use super::gltf::UpAxis;
 use super::implicit::{self, ImplicitTilingJson};
 use crate::lod::LodError;
@@ -236,6 +237,17 @@ impl ContentRef {
         format!("{}: {}", self.tileset.display(), self.at)
     }
 
+    /// [`LodError::Tile`]: this content cannot be read or decoded, because of `source`.
+    pub(crate) fn error(&self, source: ContentError) -> LodError {
+        LodError::Tile {
+            tileset: self.tileset.clone(),
+            at: self.at.clone(),
+            uri: self.uri.clone(),
+            content: self.file.clone(),
+            source: Box::new(source),
+        }
+    }
+
     /// Whether the content is an external tileset: a `.json` file name, or a file whose JSON has a
     /// `root` (a glTF JSON has none). A file that cannot be read is not one (its reader reports it).
     pub fn is_external_tileset(&self) -> bool {
@@ -287,15 +299,18 @@ impl Tileset {
     /// is the transform of the tile that references it (identity for a root tileset).
     ///
     /// # Errors
-    /// The file is unreadable ([`LodError::File`]), not a tileset JSON ([`LodError::Malformed`]),
-    /// invalid ([`LodError::Invalid`], every problem listed with its JSON path), requires an
-    /// unsupported extension (named), or its implicit tiling is broken (subtree file named).
+    /// The file is unreadable ([`LodError::File`]), not a tileset JSON ([`LodError::Tiles3d`] with
+    /// the gzip or JSON error), invalid ([`LodError::Invalid`], every problem listed with its JSON
+    /// path), requires an unsupported extension (named), names a URI that is not a local file
+    /// ([`LodError::Tiles3d`] with the [`UriError`]), or its implicit tiling is broken (subtree file
+    /// named, [`LodError::Subtree`]).
     pub fn load(path: &Path, world_from_parent: DMat4) -> Result<Tileset, LodError> {
         let bytes = crate::util::read_file(path)?;
-        let bytes = super::maybe_gunzip(&bytes).map_err(|e| LodError::malformed(path, e))?;
+        let tiles3d_error = |source| LodError::Tiles3d { path: path.to_path_buf(), source: Box::new(source) };
+        let bytes = super::maybe_gunzip(&bytes).map_err(tiles3d_error)?;
         let json = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&bytes);
-        let tileset: TilesetJson = serde_json::from_slice(json)
-            .map_err(|e| LodError::malformed(path, format!("not a valid 3D Tiles tileset JSON: {e}")))?;
+        let tileset: TilesetJson =
+            serde_json::from_slice(json).map_err(|e| tiles3d_error(ContentError::TilesetJson(e)))?;
         let problems = validate(&tileset);
         if let Some((at, what)) = problems.first() {
             let more = if problems.len() > 1 {
@@ -356,7 +371,14 @@ impl Builder<'_> {
             }
             (None, None) => vec![],
         };
-        if let Some(it) = implicit_of(t).map_err(|what| LodError::invalid(self.tileset, at, what))? {
+        let implicit = implicit_of(t).map_err(|source| LodError::Tiles3d {
+            path: self.tileset.to_path_buf(),
+            source: Box::new(ContentError::Json {
+                at: format!("{at}.extensions.3DTILES_implicit_tiling"),
+                source,
+            }),
+        })?;
+        if let Some(it) = implicit {
             let templates: Vec<(String, String)> = content_jsons
                 .iter()
                 .map(|(a, c)| (a.clone(), c.uri().unwrap_or_default().to_string()))
@@ -394,7 +416,7 @@ impl Builder<'_> {
     }
 
     fn content(&self, uri: &str, at: &str) -> Result<ContentRef, LodError> {
-        let file = resolve_uri(self.dir, uri).map_err(|e| LodError::invalid(self.tileset, at, e))?;
+        let file = resolve_uri(self.dir, uri).map_err(|e| uri_error(self.tileset, at, e))?;
         Ok(ContentRef { uri: uri.to_string(), file, tileset: self.tileset.to_path_buf(), at: at.to_string() })
     }
 }
@@ -407,16 +429,20 @@ pub(crate) fn parse_refine(r: Option<&str>) -> Option<Refine> {
     }
 }
 
-/// The tile's implicit tiling: 1.1's `implicitTiling` or the `3DTILES_implicit_tiling` extension.
-fn implicit_of(t: &TileJson) -> Result<Option<ImplicitTilingJson>, String> {
+/// [`LodError::Tiles3d`] for a URI at JSON path `at` of `tileset` that names no local file.
+pub(crate) fn uri_error(tileset: &Path, at: &str, e: UriError) -> LodError {
+    LodError::Tiles3d { path: tileset.to_path_buf(), source: Box::new(ContentError::Uri(e).at(at)) }
+}
+
+/// The tile's implicit tiling: 1.1's `implicitTiling` or the `3DTILES_implicit_tiling` extension
+/// (whose JSON error is returned when it is malformed).
+fn implicit_of(t: &TileJson) -> Result<Option<ImplicitTilingJson>, serde_json::Error> {
     if let Some(it) = &t.implicit_tiling {
         return Ok(Some(it.clone()));
     }
     match t.extensions.get("3DTILES_implicit_tiling") {
         None => Ok(None),
-        Some(v) => serde_json::from_value(v.clone())
-            .map(Some)
-            .map_err(|e| format!("extensions.3DTILES_implicit_tiling: {e}")),
+        Some(v) => serde_json::from_value(v.clone()).map(Some),
     }
 }
 
@@ -427,11 +453,22 @@ pub(crate) struct ContentJob {
     pub file: PathBuf,
     /// The file relative to the root tileset's folder (`/`-separated): names it in synthesized ids.
     pub label: String,
-    /// Where it is referenced: `"<tileset.json>: root.children[3].content"`.
-    pub at: String,
+    /// Where it is referenced; `None` for a content read on its own.
+    pub referenced_by: Option<ContentRef>,
     /// Tile frame → tileset (ECEF) frame.
     pub world_from_tile: DMat4,
     pub up: UpAxis,
+}
+
+impl ContentJob {
+    /// The error for this content failing with `source`: [`LodError::Tile`] when a tileset references
+    /// it, [`LodError::Tiles3d`] naming the file otherwise.
+    pub(crate) fn error(&self, source: ContentError) -> LodError {
+        match &self.referenced_by {
+            Some(c) => c.error(source),
+            None => LodError::Tiles3d { path: self.file.clone(), source: Box::new(source) },
+        }
+    }
 }
 
 /// The traversal's result.
@@ -500,13 +537,7 @@ fn walk_tile(
         out.contents_skipped += tile.contents.len() as u64;
     }
     for c in tile.contents.iter().filter(|_| read_contents) {
-        let head = peek(&c.file).map_err(|e| {
-            LodError::invalid(
-                &ts.path,
-                format!("{}.uri {:?}", c.at, c.uri),
-                format!("tile content {} cannot be read: {e}", c.file.display()),
-            )
-        })?;
+        let head = peek(&c.file).map_err(|e| c.error(ContentError::Unreadable(e)))?;
         if head == Peek::Json && is_tileset_json(&c.file) {
             walk_tileset(&c.file, tile.world_from_tile, root_dir, stack, out)?;
         } else {
@@ -520,7 +551,7 @@ fn walk_tile(
             out.jobs.push(ContentJob {
                 file: c.file.clone(),
                 label,
-                at: c.location(),
+                referenced_by: Some(c.clone()),
                 world_from_tile: tile.world_from_tile,
                 up: ts.up,
             });
@@ -626,23 +657,21 @@ fn validate_tile(tile: &TileJson, at: &str, p: &mut Vec<(String, String)>) {
 /// and `data:` URIs refused.
 ///
 /// # Errors
-/// A message for remote URIs and invalid percent-encoding.
-pub(crate) fn resolve_uri(dir: &Path, uri: &str) -> Result<PathBuf, String> {
+/// [`UriError`] for remote and `data:` URIs, URIs without a path, and invalid percent-encoding.
+pub(crate) fn resolve_uri(dir: &Path, uri: &str) -> Result<PathBuf, UriError> {
     let lower = uri.to_ascii_lowercase();
     if lower.contains("://") || lower.starts_with("data:") {
-        return Err(format!(
-            "URI {uri:?} is not a relative file path; only local tilesets are read (download it first)"
-        ));
+        return Err(UriError::NotLocal { uri: uri.to_string() });
     }
     let bare = uri.split(['?', '#']).next().unwrap_or("");
     if bare.is_empty() {
-        return Err(format!("URI {uri:?} names no file"));
+        return Err(UriError::NoFile { uri: uri.to_string() });
     }
     Ok(dir.join(percent_decode(bare)?))
 }
 
 /// `%XX` → byte, the result read as UTF-8.
-fn percent_decode(s: &str) -> Result<String, String> {
+fn percent_decode(s: &str) -> Result<String, UriError> {
     let b = s.as_bytes();
     let mut out = Vec::with_capacity(b.len());
     let mut i = 0;
@@ -655,14 +684,14 @@ fn percent_decode(s: &str) -> Result<String, String> {
                     out.push(v);
                     i += 3;
                 }
-                None => return Err(format!("URI {s:?} has an invalid %-escape at byte {i}")),
+                None => return Err(UriError::PercentEscape { uri: s.to_string(), at: i }),
             }
         } else {
             out.push(b[i]);
             i += 1;
         }
     }
-    String::from_utf8(out).map_err(|_| format!("URI {s:?} does not decode to UTF-8"))
+    String::from_utf8(out).map_err(|source| UriError::NotUtf8 { uri: s.to_string(), source })
 }
 
 /// Lexical normalisation: removes `.` and folds `..` (no file-system access).

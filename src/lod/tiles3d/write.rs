@@ -40,9 +40,13 @@ use crate::util::FileError;
 pub enum WriteError {
     #[error(transparent)]
     File(#[from] FileError),
-    /// An encoder refused the data (the message says which and why).
-    #[error("encoding {what}: {detail}")]
-    Encode { what: String, detail: String },
+    /// An encoder refused the data: `what` was being encoded, `source` is the encoder's error.
+    #[error("encoding {what}")]
+    Encode {
+        what: &'static str,
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
     /// The input cannot make a tileset.
     #[error("cannot build a tileset: {0}")]
     Input(&'static str),
@@ -555,7 +559,7 @@ fn tile_texture(roof: [u8; 3], wall: [u8; 3], webp: bool) -> Result<(Vec<u8>, &'
         let mut out = Vec::new();
         image_webp::WebPEncoder::new(&mut out)
             .encode(&rgb, 4, 2, image_webp::ColorType::Rgb8)
-            .map_err(|e| WriteError::Encode { what: "a WebP texture".into(), detail: e.to_string() })?;
+            .map_err(|e| WriteError::Encode { what: "a WebP texture", source: Box::new(e) })?;
         return Ok((out, "image/webp"));
     }
     let mut out = Vec::new();
@@ -563,11 +567,10 @@ fn tile_texture(roof: [u8; 3], wall: [u8; 3], webp: bool) -> Result<(Vec<u8>, &'
         let mut enc = png::Encoder::new(&mut out, 4, 2);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
-        let mut w = enc
-            .write_header()
-            .map_err(|e| WriteError::Encode { what: "a PNG texture".into(), detail: e.to_string() })?;
-        w.write_image_data(&rgb)
-            .map_err(|e| WriteError::Encode { what: "a PNG texture".into(), detail: e.to_string() })?;
+        let png_error =
+            |e: png::EncodingError| WriteError::Encode { what: "a PNG texture", source: Box::new(e) };
+        let mut w = enc.write_header().map_err(png_error)?;
+        w.write_image_data(&rgb).map_err(png_error)?;
     }
     Ok((out, "image/png"))
 }
@@ -869,7 +872,7 @@ fn draco_encode(
     use draco_core::draco_types::DataType;
     use draco_core::geometry_attribute::{GeometryAttributeType, PointAttribute};
     use draco_core::geometry_indices::{FaceIndex, PointIndex};
-    let err = |detail: String| WriteError::Encode { what: "a Draco mesh".into(), detail };
+    let err = |what, e: draco_core::DracoError| WriteError::Encode { what, source: Box::new(e) };
     let n = pos.len();
     let mut mesh = draco_core::mesh::Mesh::new();
     mesh.set_num_points(n);
@@ -892,13 +895,13 @@ fn draco_encode(
     let mut enc = draco_core::mesh_encoder::MeshEncoder::new();
     enc.set_mesh(mesh);
     let mut buf = draco_core::encoder_buffer::EncoderBuffer::new();
-    enc.encode(&options, &mut buf).map_err(|e| err(format!("{e:?}")))?;
+    enc.encode(&options, &mut buf).map_err(|e| err("a Draco mesh", e))?;
     let bytes = buf.data().to_vec();
     // The point count the decoder will produce (the encoder may merge or split points).
     let mut d = draco_core::mesh::Mesh::new();
     draco_core::MeshDecoder::new()
         .decode(&mut draco_core::DecoderBuffer::new(&bytes), &mut d)
-        .map_err(|e| err(format!("the encoded mesh does not decode: {e}")))?;
+        .map_err(|e| err("a Draco mesh (decoding the encoded mesh back)", e))?;
     Ok((bytes, d.num_points(), fid))
 }
 
