@@ -192,17 +192,7 @@ pub struct MaskReport {
     pub previews: Vec<PathBuf>,
 }
 
-/// The error and its causes on one line (`a: b: c`), for per-frame failure lists.
-pub fn error_chain(e: &dyn std::error::Error) -> String {
-    let mut s = e.to_string();
-    let mut cur = e.source();
-    while let Some(c) = cur {
-        s.push_str(": ");
-        s.push_str(&c.to_string());
-        cur = c.source();
-    }
-    s
-}
+pub use crate::util::error_chain;
 
 /// SHA-256 (hex) of a pose record's JSON: what a frame's outputs were rendered from.
 pub fn pose_digest(rec: &PoseRecord) -> String {

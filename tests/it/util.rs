@@ -191,14 +191,4 @@ pub fn prepare_repo_scene(name: &str, dir: &Path) -> insgen::scene::PreparedScen
     insgen::scene::PreparedScene::load(dir).unwrap_or_else(|e| panic!("loading {name}: {e}"))
 }
 
-/// An error and its causes on one line (`a: b: c`), as `insgen` prints it (`{:#}`).
-pub fn error_chain(e: &dyn std::error::Error) -> String {
-    let mut s = e.to_string();
-    let mut cur = e.source();
-    while let Some(c) = cur {
-        s.push_str(": ");
-        s.push_str(&c.to_string());
-        cur = c.source();
-    }
-    s
-}
+pub use insgen::util::error_chain;
