@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 
 use crate::camera::PoseRecord;
-use crate::label::{label_components, Connectivity, FrameInstances};
+use crate::label::{label_components, Connectivity, FrameInstances, Labelling};
 use crate::scene::{BuildingId, BuildingRecord, IdMap, Manifest};
 use crate::util::{FileError, Progress};
 
@@ -256,7 +256,9 @@ struct FrameResult {
     dropped: DropCounts,
 }
 
-/// Decodes, verifies and annotates one frame (ids are assigned later).
+/// Decodes, verifies and annotates one frame (ids are assigned later): reads the instance list and the
+/// ID map, checks that they agree, makes one draft per component (or building), filters and encodes
+/// them, and describes the image.
 fn process_frame(
     area: &AreaInput,
     camera: &CameraInput,
@@ -266,6 +268,23 @@ fn process_frame(
 ) -> Result<FrameResult, CocoError> {
     let inst: FrameInstances = read_json(&frame.instances)?;
     let map = IdMap::read_png(&frame.mask)?;
+    let (lab, kept) = verified_components(area, camera, frame, plan, &inst, &map)?;
+    let drafts = drafts(plan.unit, frame, &inst, &lab, &kept)?;
+    let (annotations, dropped) = annotations(drafts, plan, area, map.width(), map.height());
+    let image = image_record(area, camera, frame, &inst, [map.width(), map.height()], licence);
+    Ok(FrameResult { image, annotations, dropped })
+}
+
+/// The connected components of `map` and the indices of those `inst` lists, after checking that the
+/// instance list, `poses.jsonl` and the ID map agree (frame, size, components, building table).
+fn verified_components(
+    area: &AreaInput,
+    camera: &CameraInput,
+    frame: &FrameInput,
+    plan: &ExportPlan,
+    inst: &FrameInstances,
+    map: &IdMap,
+) -> Result<(Labelling, Vec<usize>), CocoError> {
     let mismatch = |reason: String| CocoError::Mismatch {
         instances: frame.instances.clone(),
         id_map: frame.mask.clone(),
@@ -289,7 +308,7 @@ fn process_frame(
             k.width_px, k.height_px
         )));
     }
-    let lab = label_components(&map, inst.connectivity);
+    let lab = label_components(map, inst.connectivity);
     let kept: Vec<usize> = (0..lab.components.len())
         .filter(|&i| lab.components[i].area_px >= inst.min_component_area_px)
         .collect();
@@ -346,12 +365,24 @@ fn process_frame(
             });
         }
     }
+    Ok((lab, kept))
+}
+
+/// One draft per listed component, or per building with its components merged.
+fn drafts(
+    unit: AnnotationUnit,
+    frame: &FrameInput,
+    inst: &FrameInstances,
+    lab: &Labelling,
+    kept: &[usize],
+) -> Result<Vec<Draft>, CocoError> {
+    let (w, h) = (lab.width, lab.height);
     let rles = encode_labels(&lab.labels, h, w, lab.components.len()).map_err(|source| CocoError::Rle {
         path: frame.mask.clone(),
         context: "encoding the connected components".into(),
         source,
     })?;
-    let drafts: Vec<Draft> = match plan.unit {
+    Ok(match unit {
         AnnotationUnit::Component => kept
             .iter()
             .zip(&inst.instances)
@@ -391,8 +422,18 @@ fn process_frame(
             }
             out
         }
-    };
+    })
+}
 
+/// The drafts that pass the filters, encoded (RLE, or polygons with `--polygons`), and what the
+/// filters dropped.
+fn annotations(
+    drafts: Vec<Draft>,
+    plan: &ExportPlan,
+    area: &AreaInput,
+    w: u32,
+    h: u32,
+) -> (Vec<Annotation>, DropCounts) {
     let f = &plan.filters;
     let mut dropped = DropCounts::default();
     let mut annotations = Vec::with_capacity(drafts.len());
@@ -444,10 +485,23 @@ fn process_frame(
         });
     }
 
+    (annotations, dropped)
+}
+
+/// The image record of a frame (ids are assigned later).
+fn image_record(
+    area: &AreaInput,
+    camera: &CameraInput,
+    frame: &FrameInput,
+    inst: &FrameInstances,
+    [w, h]: [u32; 2],
+    licence: Option<u32>,
+) -> Image {
+    let pose = &frame.pose;
     let base = format!("{}/{}", area.name, camera.name);
     let mask_file = format!("{base}/masks/{}.png", pose.name);
     let file_name = if frame.has_rgb { format!("{base}/rgb/{}.png", pose.name) } else { mask_file.clone() };
-    let image = Image {
+    Image {
         id: 0,
         file_name,
         width: w,
@@ -461,8 +515,7 @@ fn process_frame(
         connectivity: inst.connectivity,
         view: pose.view,
         geo: pose.geo,
-    };
-    Ok(FrameResult { image, annotations, dropped })
+    }
 }
 
 /// `image_root` for files in `out_dir`: the relative path from `out_dir` to `workdir` when the output
