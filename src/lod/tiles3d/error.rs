@@ -421,15 +421,5 @@ pub enum WebpError {
     Png(#[source] png::EncodingError),
 }
 
-/// The error and its causes on one line (`a: b: c`), as `main` prints them.
 #[cfg(test)]
-pub(crate) fn chain(e: &dyn std::error::Error) -> String {
-    let mut s = e.to_string();
-    let mut cur = e.source();
-    while let Some(c) = cur {
-        s.push_str(": ");
-        s.push_str(&c.to_string());
-        cur = c.source();
-    }
-    s
-}
+pub(crate) use crate::util::error_chain as chain;
