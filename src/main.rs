@@ -14,7 +14,8 @@ fn main() -> ExitCode {
     if std::env::var_os("NODEVICE_SELECT").is_none() {
         std::env::set_var("NODEVICE_SELECT", "1");
     }
-    let cli = insgen::cli::Cli::parse();
+    let argv: Vec<String> = std::env::args().collect();
+    let cli = insgen::cli::Cli::parse_from(&argv);
     let level = if cli.global.quiet {
         "error"
     } else {
@@ -35,7 +36,7 @@ fn main() -> ExitCode {
         }
         insgen::util::interrupt::request();
     });
-    match insgen::cli::run(cli) {
+    match insgen::cli::run_logged(cli, &argv) {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
             // A closed pipe (e.g. `insgen inspect | head`) is not a failure.

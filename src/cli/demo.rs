@@ -42,7 +42,7 @@ fn step(global: &Global, words: &[&str]) -> anyhow::Result<()> {
     argv.push(global.log_every.to_string());
     global.printer().status(format!("==> {}", argv[..1 + words.len()].join(" ")));
     let cli = Cli::try_parse_from(&argv).with_context(|| format!("demo step `{}`", words.join(" ")))?;
-    super::run(cli).with_context(|| format!("demo step `{}`", words.join(" ")))
+    super::run_logged(cli, &argv).with_context(|| format!("demo step `{}`", words.join(" ")))
 }
 
 pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {

@@ -16,6 +16,7 @@ pub mod render_masks;
 pub mod render_rgb;
 pub mod sample;
 pub mod stats;
+pub mod verify;
 
 use std::path::PathBuf;
 
@@ -87,6 +88,51 @@ pub enum Command {
     EvalLoc(eval_loc::Args),
     /// Summarise a building-model file or a prepared area.
     Inspect(inspect::Args),
+    /// Check an exported dataset against its manifest (files, sizes, masks, RGB frames).
+    Verify(verify::Args),
+}
+
+impl Command {
+    /// The subcommand as typed (`render-masks`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Command::Prepare(_) => "prepare",
+            Command::Demo(_) => "demo",
+            Command::Sample(_) => "sample",
+            Command::RenderMasks(_) => "render-masks",
+            Command::RenderRgb(_) => "render-rgb",
+            Command::ExportCoco(_) => "export-coco",
+            Command::Stats(_) => "stats",
+            Command::EvalLoc(_) => "eval-loc",
+            Command::Inspect(_) => "inspect",
+            Command::Verify(_) => "verify",
+        }
+    }
+}
+
+/// Runs the parsed command line `argv` and, for commands that write into the workdir, logs it in
+/// `<workdir>/commands.jsonl` (the dataset manifest's provenance; see [`crate::util::provenance`]).
+pub fn run_logged(cli: Cli, argv: &[String]) -> anyhow::Result<()> {
+    let logged = !matches!(cli.command, Command::Demo(_) | Command::Inspect(_) | Command::Verify(_));
+    let workdir = cli.global.workdir.clone();
+    let name = cli.command.name().to_string();
+    let started = std::time::Instant::now();
+    let result = run(cli);
+    if logged && workdir.is_dir() {
+        use crate::util::provenance::{self, CommandRecord};
+        let record = CommandRecord {
+            argv: argv.to_vec(),
+            command: name,
+            ok: result.is_ok(),
+            seconds: started.elapsed().as_secs_f64(),
+            insgen_version: provenance::VERSION.into(),
+            git_commit: provenance::GIT_COMMIT.into(),
+        };
+        if let Err(e) = provenance::append_command(&workdir, &record) {
+            log::warn!("cannot log the command: {}", crate::util::error_chain(&e));
+        }
+    }
+    result
 }
 
 /// Runs the parsed command line.
@@ -102,6 +148,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Stats(a) => stats::run(a, g),
         Command::EvalLoc(a) => eval_loc::run(a, g),
         Command::Inspect(a) => inspect::run(a, g),
+        Command::Verify(a) => verify::run(a, g),
     }
 }
 

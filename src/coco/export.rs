@@ -698,11 +698,22 @@ pub fn export(plan: &ExportPlan, progress: &dyn Progress) -> Result<(Export, Vec
         ds.info.image_root = root.clone();
     }
     let mut written = Vec::new();
+    let mut files = Vec::new();
     for (split, ds) in &ex.datasets {
         let path = plan.out_dir.join(split.file_name());
         write_dataset(&path, ds)?;
+        files.push((*split, split.file_name(), crate::util::sha256_file(&path)?));
         written.push(path);
     }
+    // The manifest and the card last: they describe the files above.
+    let manifest = super::manifest::DatasetManifest::new(plan, &ex.datasets, &files);
+    manifest.write(&plan.out_dir)?;
+    written.push(plan.out_dir.join(super::manifest::MANIFEST_FILE));
+    let refs: Vec<(Split, &Dataset)> = ex.datasets.iter().map(|(s, d)| (*s, d)).collect();
+    let card = super::card::card_markdown(&manifest, &super::stats::compute(&refs));
+    let card_path = plan.out_dir.join(super::card::CARD_FILE);
+    crate::util::write_bytes_atomic(&card_path, card.as_bytes())?;
+    written.push(card_path);
     Ok((ex, written))
 }
 

@@ -11,18 +11,23 @@
 //! - [`format`]: the COCO file types with insgen's extension keys;
 //! - [`export`]: the `export-coco` stage;
 //! - [`stats`]: per-split statistics, histograms and a contact sheet;
+//! - [`manifest`], [`card`], [`verify`]: the dataset manifest (`dataset.json`), the dataset card
+//!   (`README.md`) and the check of a dataset against them (`insgen verify`);
 //! - [`results`]: reading and validating COCO results (predictions);
 //! - [`polygon`]: outer-boundary polygons for `--polygons`;
 //! - [`raster`]: a tiny raster for figures (ID maps are [`crate::scene::IdMap`]).
 
+pub mod card;
 pub mod error;
 pub mod export;
 pub mod format;
+pub mod manifest;
 pub mod polygon;
 pub mod raster;
 pub mod results;
 pub mod rle;
 pub mod stats;
+pub mod verify;
 
 pub use error::CocoError;
 pub use export::{ExportPlan, Split};

@@ -14,6 +14,7 @@ use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
 pub mod interrupt;
+pub mod provenance;
 pub mod row_major;
 pub mod shard;
 pub use shard::{Shard, ShardError};

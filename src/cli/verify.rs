@@ -1,0 +1,59 @@
+//! `insgen verify DATASET`: checks an exported dataset (see [`crate::coco::verify`]).
+
+use std::path::PathBuf;
+
+use anyhow::bail;
+
+/// Checks a dataset against its manifest: every file present, decodable and of the size recorded,
+/// every image an RGB frame, every annotation's mask equal to its building's in the ID map.
+///
+/// Reads DATASET/dataset.json, the COCO files it lists, their images and ID maps (through each file's
+/// `info.image_root`). Writes nothing. Prints each problem with its file and exits with status 1 when
+/// there is any.
+#[derive(Debug, Clone, clap::Args)]
+#[command(
+    after_long_help = "Examples:\n  insgen verify runs/coco\n  insgen verify /data/uav-buildings -q && echo ok"
+)]
+pub struct Args {
+    /// The dataset directory (`export-coco`'s output: `<workdir>/coco` by default).
+    #[arg(value_name = "DATASET")]
+    pub dataset: PathBuf,
+}
+
+pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
+    let printer = global.printer();
+    let report = crate::coco::verify::verify(&args.dataset, &printer.progress());
+    for p in &report.problems {
+        eprintln!("problem: {p}");
+    }
+    printer.summary(format!(
+        "{}: {} COCO file(s), {} images, {} annotations checked; {} problem(s)",
+        args.dataset.display(),
+        report.coco_files,
+        report.images,
+        report.annotations,
+        report.problems.len()
+    ));
+    if !report.problems.is_empty() {
+        bail!("{}: {} problem(s) found (listed above)", args.dataset.display(), report.problems.len());
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Debug, Parser)]
+    struct T {
+        #[command(flatten)]
+        args: Args,
+    }
+
+    #[test]
+    fn the_dataset_is_a_required_positional() {
+        assert_eq!(T::try_parse_from(["t", "runs/coco"]).unwrap().args.dataset, PathBuf::from("runs/coco"));
+        assert!(T::try_parse_from(["t"]).is_err());
+    }
+}

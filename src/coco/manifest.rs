@@ -1,0 +1,179 @@
+//! The dataset manifest, `dataset.json` next to the COCO files: what a dataset holds and how it was
+//! made, enough to reproduce and audit it (schema: `schemas/dataset.schema.json`).
+//!
+//! It records the tool (version, git commit), every COCO file with its SHA-256 and counts, the areas
+//! (split, building count, source files with their SHA-256, attributions) and their cameras (frames,
+//! RGB frames, render settings), the export's options, and the command log of the workdir
+//! ([`crate::util::provenance`]: every command line with its seed and options, its duration). The
+//! command durations make it the one file that differs between two otherwise identical runs;
+//! [`super::verify`] checks everything else in it.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use super::export::{ExportPlan, Split};
+use super::format::{AnnotationUnit, Dataset, Filters, SourceInfo};
+use crate::util::provenance::{self, CommandRecord};
+
+/// File name of the manifest in a dataset directory.
+pub const MANIFEST_FILE: &str = "dataset.json";
+/// Value of `format`.
+pub const MANIFEST_FORMAT: &str = "insgen-dataset";
+/// Version of the layout.
+pub const MANIFEST_VERSION: u32 = 1;
+
+/// `dataset.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DatasetManifest {
+    /// Always [`MANIFEST_FORMAT`].
+    pub format: String,
+    /// Always [`MANIFEST_VERSION`].
+    pub version: u32,
+    pub tool: Tool,
+    /// The COCO files, relative to the dataset directory.
+    pub files: Vec<FileEntry>,
+    pub areas: Vec<AreaEntry>,
+    pub export: ExportSettings,
+    /// The workdir's command log at export time, oldest first.
+    pub commands: Vec<CommandRecord>,
+}
+
+/// The program that wrote the dataset.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Tool {
+    pub name: String,
+    pub version: String,
+    pub git_commit: String,
+}
+
+/// One COCO file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FileEntry {
+    pub path: String,
+    pub split: String,
+    pub sha256: String,
+    pub images: u64,
+    pub annotations: u64,
+}
+
+/// One area of the dataset.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AreaEntry {
+    pub name: String,
+    /// The split its images are in (after `--holdout`).
+    pub split: String,
+    pub held_out: bool,
+    pub buildings: u64,
+    pub sources: Vec<SourceInfo>,
+    pub attributions: Vec<String>,
+    pub cameras: Vec<CameraEntry>,
+}
+
+/// One camera of an area.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CameraEntry {
+    pub name: String,
+    /// The preset the poses were sampled with.
+    pub preset: String,
+    /// Images in the dataset.
+    pub images: u64,
+    pub annotations: u64,
+    /// Frame size, pixels.
+    pub width_px: u32,
+    pub height_px: u32,
+}
+
+/// The export's options.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ExportSettings {
+    pub annotation_unit: AnnotationUnit,
+    pub polygons: bool,
+    pub filters: Filters,
+    pub holdout: Vec<String>,
+}
+
+impl DatasetManifest {
+    /// The manifest of the datasets just written: `files` are (split, file name in the dataset
+    /// directory, SHA-256).
+    pub fn new(plan: &ExportPlan, datasets: &[(Split, Dataset)], files: &[(Split, String, String)]) -> Self {
+        let mut areas: BTreeMap<String, AreaEntry> = BTreeMap::new();
+        let mut cameras: BTreeMap<(String, String), CameraEntry> = BTreeMap::new();
+        for (split, ds) in datasets {
+            for a in &ds.info.areas {
+                areas.entry(a.name.clone()).or_insert_with(|| AreaEntry {
+                    name: a.name.clone(),
+                    split: split.as_str().to_string(),
+                    held_out: a.held_out,
+                    buildings: a.buildings,
+                    sources: a.sources.clone(),
+                    attributions: a.attributions.clone(),
+                    cameras: Vec::new(),
+                });
+            }
+            let mut anns_per_image: BTreeMap<u64, u64> = BTreeMap::new();
+            for a in &ds.annotations {
+                *anns_per_image.entry(a.image_id).or_default() += 1;
+            }
+            for im in &ds.images {
+                let c =
+                    cameras.entry((im.area_name.clone(), im.camera.clone())).or_insert_with(|| CameraEntry {
+                        name: im.camera.clone(),
+                        preset: im.preset.clone(),
+                        images: 0,
+                        annotations: 0,
+                        width_px: im.width,
+                        height_px: im.height,
+                    });
+                c.images += 1;
+                c.annotations += anns_per_image.get(&im.id).copied().unwrap_or(0);
+            }
+        }
+        for ((area, _), c) in cameras {
+            if let Some(a) = areas.get_mut(&area) {
+                a.cameras.push(c);
+            }
+        }
+        let counts: BTreeMap<Split, (u64, u64)> =
+            datasets.iter().map(|(s, d)| (*s, (d.images.len() as u64, d.annotations.len() as u64))).collect();
+        DatasetManifest {
+            format: MANIFEST_FORMAT.into(),
+            version: MANIFEST_VERSION,
+            tool: Tool {
+                name: "insgen".into(),
+                version: provenance::VERSION.into(),
+                git_commit: provenance::GIT_COMMIT.into(),
+            },
+            files: files
+                .iter()
+                .map(|(split, path, sha256)| {
+                    let (images, annotations) = counts.get(split).copied().unwrap_or_default();
+                    FileEntry {
+                        path: path.clone(),
+                        split: split.as_str().into(),
+                        sha256: sha256.clone(),
+                        images,
+                        annotations,
+                    }
+                })
+                .collect(),
+            areas: areas.into_values().collect(),
+            export: ExportSettings {
+                annotation_unit: plan.unit,
+                polygons: plan.polygons,
+                filters: plan.filters,
+                holdout: plan.holdout.clone(),
+            },
+            commands: provenance::read_commands(&plan.workdir),
+        }
+    }
+
+    /// Writes the manifest into `dir` atomically.
+    ///
+    /// # Errors
+    /// [`crate::util::FileError`] naming the file.
+    pub fn write(&self, dir: &Path) -> Result<(), crate::util::FileError> {
+        crate::util::write_json_atomic(&dir.join(MANIFEST_FILE), self)
+    }
+}
