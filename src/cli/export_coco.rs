@@ -78,6 +78,10 @@ pub struct Args {
     /// Skip the statistics report.
     #[arg(long)]
     pub no_stats: bool,
+    /// Export labels for every labelled frame, rendered or not: `file_name` names the RGB frame to
+    /// come and `info.images_missing` is true. Without it, frames lacking an RGB frame are left out.
+    #[arg(long)]
+    pub label_only: bool,
     /// Frames on the contact sheet (0 = none).
     #[arg(long, value_name = "N", default_value_t = 12, hide_short_help = true)]
     pub contact_sheet: usize,
@@ -101,6 +105,7 @@ impl Args {
             holdout: self.holdout.clone(),
             unit: if self.per_building { AnnotationUnit::Building } else { AnnotationUnit::Component },
             polygons: self.polygons,
+            label_only: self.label_only,
             filters: Filters {
                 min_area_px: self.min_area,
                 min_visible_fraction: self.min_visible_fraction,
@@ -123,6 +128,26 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
             "{} frame(s) in poses.jsonl have no ID map or instance file yet and were skipped; run \
              `insgen render-masks` for them",
             ex.frames_without_masks
+        );
+    }
+    for m in &ex.frames_without_rgb {
+        log::warn!(
+            "{}/{}: {} labelled frame(s) have no RGB frame{} and were left out; render them with `insgen \
+             render-rgb --area {} --camera {}`{}",
+            m.area,
+            m.camera,
+            m.frames,
+            if m.broken.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    " (broken: {})",
+                    m.broken.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
+                )
+            },
+            m.area,
+            m.camera,
+            if plan.label_only { "" } else { ", or export labels alone with --label-only" }
         );
     }
     let d = ex.dropped;

@@ -87,6 +87,9 @@ pub struct ExportPlan {
     /// the `mask_rle` extension key.
     pub polygons: bool,
     pub filters: Filters,
+    /// List every labelled frame, rendered or not (`info.images_missing`); by default only frames whose
+    /// RGB image exists and decodes at the frame's size are images.
+    pub label_only: bool,
 }
 
 /// Counts of what the filters removed.
@@ -118,7 +121,20 @@ pub struct Export {
     pub datasets: Vec<(Split, Dataset)>,
     /// Frames listed in `poses.jsonl` whose ID map or instance file does not exist (not rendered yet).
     pub frames_without_masks: u64,
+    /// Per (area, camera): labelled frames left out because their RGB frame is missing, does not
+    /// decode, or has another size (not in a `--label-only` export).
+    pub frames_without_rgb: Vec<MissingRgb>,
     pub dropped: DropCounts,
+}
+
+/// Labelled frames of one camera left out for want of an RGB frame.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MissingRgb {
+    pub area: String,
+    pub camera: String,
+    pub frames: u64,
+    /// Up to a few frames whose RGB file exists but is broken (undecodable or of another size).
+    pub broken: Vec<PathBuf>,
 }
 
 struct AreaInput {
@@ -140,7 +156,8 @@ struct FrameInput {
     pose: PoseRecord,
     mask: PathBuf,
     instances: PathBuf,
-    has_rgb: bool,
+    /// `rgb/<frame>.png`, the image (whether rendered or not).
+    rgb: PathBuf,
 }
 
 /// Reads a JSON file into `T`, naming the file in errors.
@@ -221,8 +238,8 @@ fn discover(workdir: &Path) -> Result<(Vec<AreaInput>, u64), CocoError> {
                     missing += 1;
                     continue;
                 }
-                let has_rgb = cam_dir.join("rgb").join(format!("{}.png", pose.name)).is_file();
-                frames.push(FrameInput { pose, mask, instances, has_rgb });
+                let rgb = cam_dir.join("rgb").join(format!("{}.png", pose.name));
+                frames.push(FrameInput { pose, mask, instances, rgb });
             }
             cameras.push(CameraInput { name: cam_name, frames });
         }
@@ -256,23 +273,50 @@ struct FrameResult {
     dropped: DropCounts,
 }
 
-/// Decodes, verifies and annotates one frame (ids are assigned later): reads the instance list and the
-/// ID map, checks that they agree, makes one draft per component (or building), filters and encodes
-/// them, and describes the image.
+/// What became of one frame.
+enum Outcome {
+    Annotated(FrameResult),
+    /// Left out: its RGB frame is missing (`false`) or broken (`true`).
+    NoRgb {
+        broken: bool,
+    },
+}
+
+/// Whether `frame`'s RGB image exists, decodes, and has the frame's size: `Some(false)` missing,
+/// `Some(true)` broken, `None` fine.
+fn rgb_problem(frame: &FrameInput) -> Option<bool> {
+    if !frame.rgb.is_file() {
+        return Some(false);
+    }
+    let k = &frame.pose.view.intrinsics;
+    match super::raster::read_png_rgb(&frame.rgb) {
+        Ok(img) if (img.width, img.height) == (k.width_px, k.height_px) => None,
+        _ => Some(true),
+    }
+}
+
+/// Decodes, verifies and annotates one frame (ids are assigned later): checks its RGB frame (unless
+/// `--label-only`), reads the instance list and the ID map, checks that they agree, makes one draft per
+/// component (or building), filters and encodes them, and describes the image.
 fn process_frame(
     area: &AreaInput,
     camera: &CameraInput,
     frame: &FrameInput,
     plan: &ExportPlan,
     licence: Option<u32>,
-) -> Result<FrameResult, CocoError> {
+) -> Result<Outcome, CocoError> {
+    if !plan.label_only {
+        if let Some(broken) = rgb_problem(frame) {
+            return Ok(Outcome::NoRgb { broken });
+        }
+    }
     let inst: FrameInstances = read_json(&frame.instances)?;
     let map = IdMap::read_png(&frame.mask)?;
     let (lab, kept) = verified_components(area, camera, frame, plan, &inst, &map)?;
     let drafts = drafts(plan.unit, frame, &inst, &lab, &kept)?;
     let (annotations, dropped) = annotations(drafts, plan, area, map.width(), map.height());
     let image = image_record(area, camera, frame, &inst, [map.width(), map.height()], licence);
-    Ok(FrameResult { image, annotations, dropped })
+    Ok(Outcome::Annotated(FrameResult { image, annotations, dropped }))
 }
 
 /// The connected components of `map` and the indices of those `inst` lists, after checking that the
@@ -500,7 +544,7 @@ fn image_record(
     let pose = &frame.pose;
     let base = format!("{}/{}", area.name, camera.name);
     let mask_file = format!("{base}/masks/{}.png", pose.name);
-    let file_name = if frame.has_rgb { format!("{base}/rgb/{}.png", pose.name) } else { mask_file.clone() };
+    let file_name = format!("{base}/rgb/{}.png", pose.name);
     Image {
         id: 0,
         file_name,
@@ -577,7 +621,7 @@ pub fn build(plan: &ExportPlan, image_root: &str, progress: &dyn Progress) -> Re
         .flat_map(|a| a.cameras.iter().flat_map(move |c| c.frames.iter().map(move |f| (a, c, f))))
         .collect();
     progress.start(jobs.len() as u64, "frames");
-    let results: Vec<Result<FrameResult, CocoError>> = jobs
+    let results: Vec<Result<Outcome, CocoError>> = jobs
         .par_iter()
         .map(|&(a, c, f)| {
             let licence = a.manifest.attributions.first().and_then(|s| licence_id.get(s.as_str()).copied());
@@ -628,6 +672,7 @@ pub fn build(plan: &ExportPlan, image_root: &str, progress: &dyn Progress) -> Re
                 url: String::new(),
                 split: split.as_str().into(),
                 image_root: image_root.to_string(),
+                images_missing: plan.label_only,
                 annotation_unit: plan.unit,
                 filters: plan.filters,
                 areas: split_areas
@@ -659,11 +704,23 @@ pub fn build(plan: &ExportPlan, image_root: &str, progress: &dyn Progress) -> Re
         .collect();
     // Frames are in job order: areas, cameras, frames sorted by name.
     let mut frame_iter = frames.into_iter();
+    let mut frames_without_rgb = Vec::new();
     for a in &areas {
         let ds = &mut datasets.iter_mut().find(|(s, _)| *s == a.split).expect("every split has a dataset").1;
         for c in &a.cameras {
-            for _ in &c.frames {
-                let f = frame_iter.next().expect("one result per frame");
+            let mut missing =
+                MissingRgb { area: a.name.clone(), camera: c.name.clone(), frames: 0, broken: Vec::new() };
+            for frame in &c.frames {
+                let f = match frame_iter.next().expect("one result per frame") {
+                    Outcome::Annotated(f) => f,
+                    Outcome::NoRgb { broken } => {
+                        missing.frames += 1;
+                        if broken && missing.broken.len() < 5 {
+                            missing.broken.push(frame.rgb.clone());
+                        }
+                        continue;
+                    }
+                };
                 dropped.add(&f.dropped);
                 if f.annotations.is_empty() && !plan.filters.keep_empty_images {
                     dropped.empty_images += 1;
@@ -679,9 +736,12 @@ pub fn build(plan: &ExportPlan, image_root: &str, progress: &dyn Progress) -> Re
                     ds.annotations.push(ann);
                 }
             }
+            if missing.frames > 0 {
+                frames_without_rgb.push(missing);
+            }
         }
     }
-    Ok(Export { datasets, frames_without_masks, dropped })
+    Ok(Export { datasets, frames_without_masks, frames_without_rgb, dropped })
 }
 
 /// Builds the datasets and writes `instances_{train,val,test}.json` into `plan.out_dir` (atomically,

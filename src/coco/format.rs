@@ -51,6 +51,10 @@ pub struct Info {
     pub filters: Filters,
     /// Extension: the areas in this split, with their provenance.
     pub areas: Vec<AreaInfo>,
+    /// Extension: `true` for a label-only export (`--label-only`): `images[].file_name` names RGB
+    /// frames not rendered yet. Absent in normal exports, where every image is on disk.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub images_missing: bool,
 }
 
 /// Provenance of one area (from its `scene/manifest.json`).

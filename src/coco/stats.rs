@@ -420,6 +420,7 @@ mod tests {
             url: String::new(),
             split: "train".into(),
             image_root: "..".into(),
+            images_missing: false,
             annotation_unit: AnnotationUnit::Component,
             filters: Filters::default(),
             areas: vec![AreaInfo {

@@ -57,7 +57,7 @@ impl AreaSpec {
             frames: 3,
             connectivity: Connectivity::Eight,
             min_component_area_px: 1,
-            rgb_frames: 0,
+            rgb_frames: usize::MAX,
             visible_fraction: false,
             empty_frame: false,
             unrendered_frame: false,
@@ -247,7 +247,7 @@ fn write_area(workdir: &Path, spec: &AreaSpec) {
 fn standard_workdir(root: &Path) -> PathBuf {
     let wd = root.join("runs");
     let mut alpha = AreaSpec::new("alpha", "train", 1);
-    alpha.rgb_frames = 2;
+    alpha.rgb_frames = 2; // its third frame has masks but no RGB frame yet
     alpha.visible_fraction = true;
     alpha.unrendered_frame = true;
     let mut bravo = AreaSpec::new("bravo", "val", 2);
@@ -270,6 +270,7 @@ fn plan(wd: &Path, out: &str) -> ExportPlan {
         unit: AnnotationUnit::Component,
         polygons: false,
         filters: Filters::default(),
+        label_only: false,
     }
 }
 
@@ -286,13 +287,18 @@ fn validate_schema(schema_file: &str, instance: &Value) {
     assert!(errors.is_empty(), "{schema_file}: {errors:#?}");
 }
 
-/// Instance entries of all rendered frames of an area, read back from disk (the filters' reference).
+/// Instance entries of the frames of an area that have an RGB frame (the images of an export), read
+/// back from disk (the filters' reference).
 fn all_entries(wd: &Path, area: &str) -> Vec<(String, InstanceEntry)> {
     let masks = wd.join(area).join("cam2/masks");
+    let has_rgb = |p: &Path| {
+        let frame = p.file_name().unwrap().to_str().unwrap().trim_end_matches(".instances.json").to_string();
+        wd.join(area).join("cam2/rgb").join(format!("{frame}.png")).is_file()
+    };
     let mut files: Vec<_> = std::fs::read_dir(&masks)
         .unwrap()
         .map(|e| e.unwrap().path())
-        .filter(|p| p.to_str().unwrap().ends_with(".instances.json"))
+        .filter(|p| p.to_str().unwrap().ends_with(".instances.json") && has_rgb(p))
         .collect();
     files.sort();
     files
@@ -341,8 +347,12 @@ fn component_export_agrees_with_pycocotools_and_the_id_maps() {
     let wd = standard_workdir(tmp.path());
     let p = plan(&wd, "coco");
     let (ex, written) = export(&p, &NoProgress).unwrap();
-    assert_eq!(written.len(), 3);
+    assert_eq!(written.len(), 5, "three COCO files, dataset.json, README.md");
     assert_eq!(ex.frames_without_masks, 1, "alpha lists one frame it never rendered");
+    // alpha's third frame has masks but no RGB frame: it is left out and counted, never listed.
+    assert_eq!(ex.frames_without_rgb.len(), 1);
+    let m = &ex.frames_without_rgb[0];
+    assert_eq!((m.area.as_str(), m.camera.as_str(), m.frames, m.broken.len()), ("alpha", "cam2", 1, 0));
 
     // Splits by area, from the manifests.
     let files: Vec<Dataset> = ["train", "val", "test"]
@@ -358,15 +368,23 @@ fn component_export_agrees_with_pycocotools_and_the_id_maps() {
     for (d, areas) in files.iter().zip([&["alpha", "delta"][..], &["bravo"], &["charlie"]]) {
         let expected: usize = areas.iter().map(|a| all_entries(&wd, a).len()).sum();
         assert_eq!(d.annotations.len(), expected);
-        assert_eq!(d.images.len(), areas.len() * 3, "empty images are kept by default");
+        let with_rgb = if areas.contains(&"alpha") { areas.len() * 3 - 1 } else { areas.len() * 3 };
+        assert_eq!(d.images.len(), with_rgb, "empty images are kept by default");
         // Ids from 1, consecutive.
         assert!(d.images.iter().enumerate().all(|(i, im)| im.id == i as u64 + 1));
         assert!(d.annotations.iter().enumerate().all(|(i, a)| a.id == i as u64 + 1));
     }
-    // File names: RGB when it exists, else the ID map.
+    // Every image is an RGB frame on disk; its ID map is `mask_file`.
     let train = &files[0];
     assert_eq!(train.images[0].file_name, "alpha/cam2/rgb/alpha_f000.png");
-    assert_eq!(train.images[2].file_name, "alpha/cam2/masks/alpha_f002.png");
+    assert_eq!(train.images[0].mask_file, "alpha/cam2/masks/alpha_f000.png");
+    assert_eq!(train.images[2].file_name, "delta/cam2/rgb/delta_f000.png");
+    for d in &files {
+        assert!(!d.info.images_missing);
+        for im in &d.images {
+            assert!(im.file_name.contains("/rgb/") && wd.join(&im.file_name).is_file(), "{}", im.file_name);
+        }
+    }
     assert_eq!(train.info.image_root, "..");
     assert_eq!(train.licenses[0].url, "https://creativecommons.org/licenses/by/4.0/");
     assert_eq!(train.images[0].license, Some(1));
@@ -376,7 +394,7 @@ fn component_export_agrees_with_pycocotools_and_the_id_maps() {
         .all(|a| matches!(a.segmentation, Segmentation::Rle(_)) && a.component.is_some()));
     assert!(train.annotations.iter().any(|a| a.truncated) && train.annotations.iter().any(|a| !a.truncated));
 
-    for f in &written {
+    for f in written.iter().filter(|f| f.file_name().unwrap().to_str().unwrap().starts_with("instances_")) {
         validate_schema(
             "coco_instances.schema.json",
             &serde_json::from_slice(&std::fs::read(f).unwrap()).unwrap(),
@@ -534,6 +552,115 @@ fn filters_keep_exactly_what_they_should() {
 
     let Some(py) = crate::util::python_with(&["numpy", "pycocotools"]) else { return };
     assert_pycocotools_exact(&py, &p.out_dir, false);
+}
+
+#[test]
+fn label_only_lists_unrendered_frames_by_their_rgb_name_and_says_so() {
+    let tmp = tempfile::tempdir().unwrap();
+    let wd = standard_workdir(tmp.path());
+    // A broken RGB frame (truncated PNG) counts as missing too, and is named.
+    let delta_rgb = wd.join("delta/cam2/rgb/delta_f001.png");
+    let bytes = std::fs::read(&delta_rgb).unwrap();
+    std::fs::write(&delta_rgb, &bytes[..bytes.len() / 2]).unwrap();
+    let (ex, _) = export(&plan(&wd, "coco"), &NoProgress).unwrap();
+    let broken: Vec<_> = ex.frames_without_rgb.iter().flat_map(|m| m.broken.clone()).collect();
+    assert_eq!(broken, vec![delta_rgb.clone()]);
+    assert_eq!(ex.datasets[0].1.images.len(), 4, "alpha 2 + delta 2");
+
+    let mut p = plan(&wd, "labels");
+    p.label_only = true;
+    let (ex, _) = export(&p, &NoProgress).unwrap();
+    assert!(ex.frames_without_rgb.is_empty());
+    let train = load(&p.out_dir.join("instances_train.json"));
+    assert!(train.info.images_missing);
+    assert_eq!(train.images.len(), 6);
+    let f002 = train.images.iter().find(|i| i.frame == "alpha_f002").unwrap();
+    assert_eq!(f002.file_name, "alpha/cam2/rgb/alpha_f002.png", "the frame to come, never the ID map");
+    assert!(!wd.join(&f002.file_name).exists());
+    let json: Value =
+        serde_json::from_slice(&std::fs::read(p.out_dir.join("instances_train.json")).unwrap()).unwrap();
+    assert_eq!(json["info"]["images_missing"], Value::Bool(true));
+    validate_schema("coco_instances.schema.json", &json);
+}
+
+#[test]
+fn verify_passes_an_export_and_reports_each_kind_of_damage() {
+    use insgen::coco::verify::verify;
+    let tmp = tempfile::tempdir().unwrap();
+    let wd = standard_workdir(tmp.path());
+    let p = plan(&wd, "coco");
+    export(&p, &NoProgress).unwrap();
+    let clean = verify(&p.out_dir, &NoProgress);
+    assert!(clean.problems.is_empty(), "{:#?}", clean.problems);
+    assert_eq!(clean.coco_files, 3);
+    assert!(clean.images > 0 && clean.annotations > 0);
+    let manifest: Value =
+        serde_json::from_slice(&std::fs::read(p.out_dir.join("dataset.json")).unwrap()).unwrap();
+    validate_schema("dataset.schema.json", &manifest);
+    let card = std::fs::read_to_string(p.out_dir.join("README.md")).unwrap();
+    assert!(card.contains("| train | `instances_train.json` |") && card.contains("CC BY 4.0"), "{card}");
+
+    let problems = |dir: &Path| -> Vec<String> {
+        verify(dir, &NoProgress).problems.iter().map(|x| x.to_string()).collect()
+    };
+    // Each damage on a fresh copy of the export, each reported with its file.
+    let damaged = |name: &str, damage: &dyn Fn(&Path, &Path)| -> Vec<String> {
+        let wd2 = tmp.path().join(name);
+        copy_dir(&wd, &wd2);
+        damage(&wd2, &wd2.join("coco"));
+        problems(&wd2.join("coco"))
+    };
+    // 1. A truncated ID map.
+    let got = damaged("truncated_png", &|wd, _| {
+        let f = wd.join("delta/cam2/masks/delta_f000.png");
+        let b = std::fs::read(&f).unwrap();
+        std::fs::write(&f, &b[..b.len() / 3]).unwrap();
+    });
+    assert!(got.iter().any(|p| p.contains("delta_f000.png") && p.contains("not a readable PNG")), "{got:#?}");
+    // 2. A deleted RGB frame.
+    let got = damaged("deleted_rgb", &|wd, _| {
+        std::fs::remove_file(wd.join("bravo/cam2/rgb/bravo_f001.png")).unwrap()
+    });
+    assert!(
+        got.iter().any(|p| p.contains("bravo/cam2/rgb/bravo_f001.png") && p.contains("missing")),
+        "{got:#?}"
+    );
+    // 3. An annotation whose RLE does not match its ID map (and 4. a duplicated annotation id), edited
+    //    in the JSON, so the manifest's hash no longer matches either.
+    let got = damaged("bad_rle_dup_id", &|_, coco| {
+        let f = coco.join("instances_train.json");
+        let mut d: Value = serde_json::from_slice(&std::fs::read(&f).unwrap()).unwrap();
+        let anns = d["annotations"].as_array_mut().unwrap();
+        let (a, b) = (anns[0].clone(), anns[1].clone());
+        anns[0]["segmentation"] = b["segmentation"].clone();
+        anns[1]["id"] = a["id"].clone();
+        std::fs::write(&f, serde_json::to_vec(&d).unwrap()).unwrap();
+    });
+    assert!(got.iter().any(|p| p.contains("instances_train.json: annotation 1: its mask")), "{got:#?}");
+    assert!(got.iter().any(|p| p.contains("annotation id 1 is used twice")), "{got:#?}");
+    assert!(got.iter().any(|p| p.contains("SHA-256") && p.contains("changed after export")), "{got:#?}");
+    // Through the binary: each problem printed, non-zero exit.
+    let o = crate::util::insgen(
+        tmp.path(),
+        &["verify", tmp.path().join("bad_rle_dup_id/coco").to_str().unwrap()],
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert!(crate::util::stderr(&o).contains("problem: "), "{}", crate::util::stderr(&o));
+    let o = crate::util::insgen(tmp.path(), &["verify", p.out_dir.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", crate::util::stderr(&o));
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        let t = to.join(e.file_name());
+        if e.file_type().unwrap().is_dir() {
+            copy_dir(&e.path(), &t);
+        } else {
+            std::fs::copy(e.path(), &t).unwrap();
+        }
+    }
 }
 
 #[test]

@@ -92,8 +92,9 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
     }
     assert!(out.join("overlays").read_dir().unwrap().count() == 1, "one overlay PNG");
 
-    // 2. The ground truth as a segmentation model's COCO results (score 1, compressed RLE).
-    ok(cwd, &["export-coco"]);
+    // 2. The ground truth as a segmentation model's COCO results (score 1, compressed RLE); no RGB
+    //    frames were rendered, so the export is label-only.
+    ok(cwd, &["export-coco", "--label-only"]);
     let coco: Value =
         serde_json::from_slice(&std::fs::read(cwd.join("runs/coco/instances_test.json")).unwrap()).unwrap();
     let preds: Vec<Value> = coco["annotations"]
