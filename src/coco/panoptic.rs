@@ -7,15 +7,18 @@
 //!   order opposite to insgen's ID maps (R = high byte), so the ID maps are not panoptic PNGs as they are;
 //! - `panoptic_<split>.json`: `info`, `licenses`, `images` (the instance file's records, unchanged),
 //!   `annotations` (one per image: `image_id`, `file_name`, `segments_info`) and `categories`
-//!   (`building`, `isthing` = 1).
+//!   (`building`: id 1, `isthing` = 1; `background`: id 2, `isthing` = 0).
 //!
-//! Segment ids are the ids of the instance annotations (`instances_<split>.json` `annotations[].id`,
-//! unique in the file and < 2²⁴), not the building IDs: a building seen as two components under the
-//! default per-component export is two annotations, hence two segments, each with the annotation's
-//! `iscrowd`. Each segment carries the extension keys `building_id` and `source_id`. Pixels outside
-//! every kept annotation (background, and instances removed by the export's filters) are 0, "void"
-//! in the panoptic API, which ignores them in PQ. There is no stuff category: the dataset labels
-//! buildings only.
+//! Segment ids of buildings are the ids of the instance annotations (`instances_<split>.json`
+//! `annotations[].id`, unique in the file and < 2²⁴ − 1), not the building IDs: a building seen as two
+//! components under the default per-component export is two annotations, hence two segments. Each
+//! such segment carries the extension keys `building_id` and `source_id`. The crowd annotations of an
+//! image (`export-coco --truncated flag`) are merged into one crowd segment (`iscrowd` = 1, id = the
+//! first of them, extension key `annotation_ids`), as COCO panoptic does: `pq_compute` keeps one crowd
+//! region per category and image. Every pixel where the ID map shows no building is one `background` segment with id
+//! 2²⁴ − 1 (white): the panoptic API's PQ averages over stuff categories too and divides by zero
+//! without one (`pq_average`), and so does Detectron2's evaluator, which calls it. Pixels of buildings
+//! whose instances the export's filters removed are 0, "void", ignored in PQ.
 //!
 //! # References
 //! COCO panoptic format (<https://cocodataset.org/#format-data>, "Panoptic Segmentation");
@@ -65,13 +68,23 @@ pub struct SegmentInfo {
     pub area: u64,
     /// `[x, y, width, height]`, pixels.
     pub bbox: [f64; 4],
-    /// 0, or 1 for instances the COCO export flagged (`--truncated flag`).
+    /// 0, or 1 for the merged instances the COCO export flagged (`--truncated flag`).
     pub iscrowd: u8,
-    /// Extension: the building ID (as in the ID maps and `buildings.json`).
-    pub building_id: BuildingId,
-    /// Extension: the building's source identity.
-    pub source_id: String,
+    /// Extension: the building ID (as in the ID maps and `buildings.json`); absent for background.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub building_id: Option<BuildingId>,
+    /// Extension: the building's source identity; absent for background.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source_id: Option<String>,
+    /// Extension, crowd segment only: the instance annotations merged into it (its `id` is the first).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub annotation_ids: Option<Vec<u64>>,
 }
+
+/// The stuff category of every pixel without a building.
+pub const BACKGROUND_CATEGORY_ID: u32 = 2;
+/// The segment id of the background segment: 2²⁴ − 1 (white in the PNG), above every annotation id.
+pub const BACKGROUND_SEGMENT_ID: u32 = MAX_BUILDING_ID;
 
 /// `categories[]` of a panoptic file.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -143,11 +156,11 @@ fn export_split(
     out_dir: &Path,
     progress: &dyn Progress,
 ) -> Result<PanopticSplitSummary, CocoError> {
-    if let Some(a) = s.dataset.annotations.iter().find(|a| a.id > MAX_BUILDING_ID as u64) {
+    if let Some(a) = s.dataset.annotations.iter().find(|a| a.id >= BACKGROUND_SEGMENT_ID as u64) {
         return Err(CocoError::Invalid {
             path: s.file.clone(),
             problems: vec![format!(
-                "annotations[id={}]: more than 2^24 - 1 annotations in one split do not fit panoptic \
+                "annotations[id={}]: 2^24 - 2 or more annotations in one split do not fit panoptic \
                  segment ids; split the export (`insgen export-coco --holdout`)",
                 a.id
             )],
@@ -170,13 +183,22 @@ fn export_split(
         licenses: s.dataset.licenses.clone(),
         images: s.dataset.images.clone(),
         annotations,
-        categories: vec![PanopticCategory {
-            id: BUILDING_CATEGORY_ID,
-            name: "building".into(),
-            supercategory: "building".into(),
-            isthing: 1,
-            color: [220, 20, 60],
-        }],
+        categories: vec![
+            PanopticCategory {
+                id: BUILDING_CATEGORY_ID,
+                name: "building".into(),
+                supercategory: "building".into(),
+                isthing: 1,
+                color: [220, 20, 60],
+            },
+            PanopticCategory {
+                id: BACKGROUND_CATEGORY_ID,
+                name: "background".into(),
+                supercategory: "background".into(),
+                isthing: 0,
+                color: [128, 128, 128],
+            },
+        ],
     };
     let file = out_dir.join(format!("panoptic_{}.json", s.split));
     crate::util::write_json_atomic(&file, &ds)?;
@@ -193,10 +215,15 @@ fn write_frame(
     let frame = load_frame(s, image, anns)?;
     let w = image.width as usize;
     let mut rgb = vec![0u8; w * image.height as usize * 3];
-    let mut segments_info = Vec::with_capacity(frame.annotations.len());
+    let mut segments_info = Vec::with_capacity(frame.annotations.len() + 2);
+    // All crowd annotations of the image form one segment, as in COCO panoptic: pq_compute keeps one
+    // crowd segment per category and image, and would count predictions over a second one as false.
+    let crowd: Vec<u64> =
+        frame.annotations.iter().filter(|(a, _)| a.iscrowd != 0).map(|(a, _)| a.id).collect();
+    let mut crowd_px = PixelBox::default();
     for (a, rle) in &frame.annotations {
-        // Checked by the caller: every annotation id of the split is below 2^24.
-        let id = a.id as u32;
+        // Checked by the caller: every annotation id of the split is below 2^24 - 1.
+        let id = if a.iscrowd != 0 { crowd[0] as u32 } else { a.id as u32 };
         let px = id_to_rgb(id);
         let mut overlap = None;
         for_each_pixel(rle, |x, y| {
@@ -205,6 +232,9 @@ fn write_frame(
                 overlap.get_or_insert((x, y));
             }
             rgb[o..o + 3].copy_from_slice(&px);
+            if a.iscrowd != 0 {
+                crowd_px.add(x, y);
+            }
         });
         if let Some((x, y)) = overlap {
             return Err(CocoError::Invalid {
@@ -216,14 +246,51 @@ fn write_frame(
                 )],
             });
         }
+        if a.iscrowd == 0 {
+            segments_info.push(SegmentInfo {
+                id,
+                category_id: a.category_id,
+                area: a.area,
+                bbox: a.bbox,
+                iscrowd: 0,
+                building_id: Some(a.building_id),
+                source_id: Some(a.source_id.clone()),
+                annotation_ids: None,
+            });
+        }
+    }
+    if crowd_px.area > 0 {
         segments_info.push(SegmentInfo {
-            id,
-            category_id: a.category_id,
-            area: a.area,
-            bbox: a.bbox,
-            iscrowd: a.iscrowd,
-            building_id: a.building_id,
-            source_id: a.source_id.clone(),
+            id: crowd[0] as u32,
+            category_id: BUILDING_CATEGORY_ID,
+            area: crowd_px.area,
+            bbox: crowd_px.bbox(),
+            iscrowd: 1,
+            building_id: None,
+            source_id: None,
+            annotation_ids: Some(crowd),
+        });
+    }
+    // Background: every pixel without a building (the annotations cover building pixels only, checked
+    // by `load_frame`).
+    let mut bg_px = PixelBox::default();
+    let bg = id_to_rgb(BACKGROUND_SEGMENT_ID);
+    for (i, id) in frame.ids.raw().iter().enumerate() {
+        if *id == 0 {
+            rgb[i * 3..i * 3 + 3].copy_from_slice(&bg);
+            bg_px.add((i % w) as u32, (i / w) as u32);
+        }
+    }
+    if bg_px.area > 0 {
+        segments_info.push(SegmentInfo {
+            id: BACKGROUND_SEGMENT_ID,
+            category_id: BACKGROUND_CATEGORY_ID,
+            area: bg_px.area,
+            bbox: bg_px.bbox(),
+            iscrowd: 0,
+            building_id: None,
+            source_id: None,
+            annotation_ids: None,
         });
     }
     let file_name = format!("{}/{}/{}.png", image.area_name, image.camera, image.frame);
@@ -231,6 +298,38 @@ fn write_frame(
     let bytes = super::raster::encode_png_rgb(&rgb, image.width, image.height, &path)?;
     crate::util::write_bytes_atomic(&path, &bytes)?;
     Ok(PanopticAnnotation { image_id: image.id, file_name, segments_info })
+}
+
+/// Pixel count and bounding box of a set of pixels, accumulated one pixel at a time.
+#[derive(Debug, Clone, Copy)]
+struct PixelBox {
+    area: u64,
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
+}
+
+impl Default for PixelBox {
+    fn default() -> Self {
+        PixelBox { area: 0, x0: u32::MAX, y0: u32::MAX, x1: 0, y1: 0 }
+    }
+}
+
+impl PixelBox {
+    fn add(&mut self, x: u32, y: u32) {
+        self.area += 1;
+        (self.x0, self.y0, self.x1, self.y1) =
+            (self.x0.min(x), self.y0.min(y), self.x1.max(x), self.y1.max(y));
+    }
+
+    /// `[x, y, width, height]` in pixels (COCO); zeros when empty.
+    fn bbox(&self) -> [f64; 4] {
+        if self.area == 0 {
+            return [0.0; 4];
+        }
+        [self.x0 as f64, self.y0 as f64, (self.x1 - self.x0 + 1) as f64, (self.y1 - self.y0 + 1) as f64]
+    }
 }
 
 #[cfg(test)]
