@@ -48,8 +48,9 @@ pub enum TilesetExportError {
     #[error("loading the prepared scene in {}", dir.display())]
     Scene {
         dir: PathBuf,
+        /// Boxed: a scene error is large and this one is rare.
         #[source]
-        source: SceneError,
+        source: Box<SceneError>,
     },
     /// The scene has no triangles: there is nothing to place on the globe.
     #[error("{}: the scene has no triangles; nothing to write", dir.display())]
@@ -78,7 +79,7 @@ pub struct TilesetSummary {
 /// the file that could not be read or written.
 pub fn write_scene_tileset(scene_dir: &Path, out_dir: &Path) -> Result<TilesetSummary, TilesetExportError> {
     let scene = PreparedScene::load(scene_dir)
-        .map_err(|source| TilesetExportError::Scene { dir: scene_dir.to_path_buf(), source })?;
+        .map_err(|e| TilesetExportError::Scene { dir: scene_dir.to_path_buf(), source: Box::new(e) })?;
     let Some((lo, hi)) = scene.mesh.bounds_m() else {
         return Err(TilesetExportError::Empty { dir: scene_dir.to_path_buf() });
     };
