@@ -63,12 +63,13 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     let printer = global.printer();
     if args.json {
         println!("{}", serde_json::to_string_pretty(&st).context("serialising the statistics")?);
-    }
-    for sp in st.splits.iter().filter(|_| !args.json) {
-        printer.summary(format!(
-            "{}: {} images, {} annotations ({} small, {} medium, {} large)",
-            sp.split, sp.images, sp.annotations, sp.sizes.small, sp.sizes.medium, sp.sizes.large
-        ));
+    } else {
+        for sp in &st.splits {
+            printer.summary(format!(
+                "{}: {} images, {} annotations ({} small, {} medium, {} large)",
+                sp.split, sp.images, sp.annotations, sp.sizes.small, sp.sizes.medium, sp.sizes.large
+            ));
+        }
     }
     for f in files {
         log::info!("wrote {}", f.display());

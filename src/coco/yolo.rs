@@ -227,7 +227,9 @@ fn link_image(target: &Path, link: &Path) -> Result<(), CocoError> {
     {
         let rel = relative_path(&abs_dir, &abs_target);
         // Made under a temporary name, then renamed over the old link: atomic like every other output.
-        let tmp = dir.join(format!(".insgen-tmp-link-{}", std::process::id()));
+        // One temporary name per link: frames of one folder are linked in parallel.
+        let name = link.file_name().expect("a link path ends in a file name").to_string_lossy();
+        let tmp = dir.join(format!(".insgen-tmp-link-{name}"));
         let _ = std::fs::remove_file(&tmp);
         std::os::unix::fs::symlink(&rel, &tmp).map_err(|e| FileError::new("linking", &tmp, e))?;
         std::fs::rename(&tmp, link).map_err(|e| FileError::new("renaming into place", link, e))?;

@@ -166,6 +166,14 @@ fn panoptic_pngs_decode_to_the_instance_masks() {
         .filter(|s| s["iscrowd"] == 1)
         .count();
     assert!(crowd > 0, "--truncated flag gives crowd segments in the fixture");
+    // `stats --json` prints the report's numbers for scripts.
+    let st: Value = serde_json::from_str(&run_ok(
+        tmp.path(),
+        &["stats", "--coco", coco.to_str().unwrap(), "--json", "--contact-sheet", "0"],
+    ))
+    .unwrap();
+    assert_eq!(st["splits"].as_array().unwrap().len(), 3);
+    assert!(st["splits"][0]["max_instances_per_image"].as_u64().unwrap() > 0);
     let Some(py) = python_with(&["panopticapi", "pycocotools", "PIL"]) else { return };
     assert_panoptic_exact(&py, &coco);
 }
