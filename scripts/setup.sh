@@ -8,13 +8,21 @@
 #     proj-data                 the EGM96 geoid grid (egm96_15.gtx) for orthometric → ellipsoidal heights
 #     mesa-vulkan-drivers,      Mesa's software Vulkan driver (lavapipe) + loader, so wgpu renders
 #     libvulkan1                without a GPU
+#     chromium                  headless Chromium (SwiftShader WebGL) to open the 3D Tiles export in
+#                               CesiumJS, as a user's browser would
 #     python3, python3-venv     (only if missing) for the Python checks and Blender's bpy
 #     nodejs, npm               (only if missing) for the Khronos glTF validator
 #   Python virtual environments (in the repo, git-ignored)
-#     .venv                     numpy, pyproj (CRS reference), pycocotools (COCO checks), jsonschema
+#     .venv                     numpy, pyproj (CRS reference), pycocotools (COCO checks), jsonschema,
+#                               pycolmap (loads the COLMAP export), panopticapi-lite (the COCO panoptic
+#                               API: rgb2id, pq_compute), pyyaml (reads the YOLO data.yaml)
 #     .venv-blender             bpy 5.0.1 (Blender as a Python module, CPython 3.11) for RGB rendering
 #   npm (in the repo, git-ignored)
-#     node_modules/             gltf-validator (Khronos) to validate the scene GLB
+#     node_modules/             gltf-validator (Khronos) to validate the scene GLB; 3d-tiles-tools and
+#                               cesium (CesiumJS, with its engine) to read and show the 3D Tiles export.
+#                               Installed with --ignore-scripts: no package we use needs its install
+#                               script, and two optional ones (better-sqlite3, sharp) would try to
+#                               download prebuilt binaries from outside the registry
 #
 # Each step checks first and does nothing when its result is already there; a stamp file records the
 # requirement list each environment was built from, so a changed list rebuilds it.
@@ -25,7 +33,7 @@ ROOT=$(pwd)
 say() { printf '[setup] %s\n' "$*" >&2; }
 
 # --- Debian packages --------------------------------------------------------------------------------
-APT_PACKAGES=(pkg-config libproj-dev proj-data libclang-dev mesa-vulkan-drivers libvulkan1)
+APT_PACKAGES=(pkg-config libproj-dev proj-data libclang-dev mesa-vulkan-drivers libvulkan1 chromium)
 command -v python3 >/dev/null 2>&1 || APT_PACKAGES+=(python3 python3-venv)
 command -v node >/dev/null 2>&1 || APT_PACKAGES+=(nodejs)
 command -v npm >/dev/null 2>&1 || APT_PACKAGES+=(npm)
@@ -64,7 +72,7 @@ make_venv() { # dir, stamp text, pip args...
     printf '%s' "$stamp" > "$dir/.insgen-stamp"
 }
 
-PY_REQS=(numpy pyproj pycocotools jsonschema)
+PY_REQS=(numpy pyproj pycocotools jsonschema pycolmap panopticapi-lite pyyaml)
 make_venv "$ROOT/.venv" "${PY_REQS[*]}" "${PY_REQS[@]}"
 
 if [ -f scripts/setup_blender.sh ]; then
@@ -74,8 +82,8 @@ fi
 # --- npm --------------------------------------------------------------------------------------------
 if [ -f package-lock.json ]; then
     if [ ! -f node_modules/.insgen-stamp ] || ! cmp -s package-lock.json node_modules/.insgen-stamp; then
-        say "installing npm packages (gltf-validator)"
-        npm ci --silent --no-audit --no-fund >/dev/null
+        say "installing npm packages (gltf-validator, 3d-tiles-tools, cesium)"
+        npm ci --silent --no-audit --no-fund --ignore-scripts >/dev/null
         cp package-lock.json node_modules/.insgen-stamp
     else
         say "npm packages up to date"

@@ -1,10 +1,13 @@
-//! COLMAP text models (`cameras.txt`, `images.txt`) and the plain query/pose lists of the public
-//! LoD-Loc code, written and read.
+//! COLMAP text models (`cameras.txt`, `images.txt`, `points3D.txt`) and the plain query/pose lists of
+//! the public LoD-Loc code, written and read.
 //!
 //! Formats (COLMAP documentation, "Output format → Text format"):
 //! - `cameras.txt`: `CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]`, one camera per line;
 //! - `images.txt`: two lines per image: `IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME`, then the
 //!   `POINTS2D[]` line as (X, Y, POINT3D_ID) triples — empty here, since insgen has no 2-D points;
+//! - `points3D.txt`: `POINT3D_ID X Y Z R G B ERROR TRACK[]` per point — written with its header and no
+//!   point: the poses are known exactly, there is nothing to triangulate, and COLMAP and pycolmap
+//!   refuse a model directory without this file (`Reconstruction.read_text` opens all three);
 //! - lines starting with `#` are comments.
 //!
 //! The quaternion and translation are world-to-camera (x_cam = R(q) · x_world + t) with OpenCV camera
@@ -133,6 +136,20 @@ pub fn format_images_txt(images: &[ColmapImage]) -> String {
         s.push('\n');
     }
     s
+}
+
+/// The text of a `points3D.txt` file without points (the header COLMAP writes, zero counts), which
+/// keeps every `images.txt` POINTS2D line (empty) consistent with it.
+pub fn format_points3d_txt_empty() -> String {
+    "# 3D point list with one line of data per point:\n\
+     #   POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[] as (IMAGE_ID, POINT2D_IDX)\n\
+     # Number of points: 0, mean track length: 0\n"
+        .to_string()
+}
+
+/// Writes an empty `points3D.txt` atomically (see [`format_points3d_txt_empty`]).
+pub fn write_points3d_txt_empty(path: &Path) -> Result<(), CameraError> {
+    Ok(crate::util::write_bytes_atomic(path, format_points3d_txt_empty().as_bytes())?)
 }
 
 /// Writes `cameras.txt` atomically.
@@ -398,6 +415,14 @@ mod tests {
         std::fs::write(&g, b"a.png \xff\n").unwrap();
         let e = read_pose_list(&g).unwrap_err();
         assert!(matches!(e, CameraError::NotUtf8 { .. }), "{e:?}");
+    }
+
+    #[test]
+    fn empty_points3d_is_only_comments() {
+        let text = format_points3d_txt_empty();
+        assert_eq!(text.lines().count(), 3);
+        assert!(text.lines().all(|l| l.starts_with('#')), "{text}");
+        assert!(text.ends_with("# Number of points: 0, mean track length: 0\n"));
     }
 
     #[test]

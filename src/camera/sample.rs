@@ -4,7 +4,7 @@
 //! Input: a [`PreparedScene`] (area polygon, ground level, building boxes, mesh), a [`CameraSpec`]
 //! (whose `strategy` selects the sampler) and a [`SamplingConfig`]. Output ([`SampleOutput`]): pose
 //! records in the order they were flown, their noisy priors, and counters; [`write_sample`] writes
-//! `poses.jsonl`, `priors.jsonl`, `colmap/{cameras.txt,images.txt}`, `camera.json`, `sampling.json`
+//! `poses.jsonl`, `priors.jsonl`, `colmap/{cameras,images,points3D}.txt`, `camera.json`, `sampling.json`
 //! and `flight_plan.png` into `<workdir>/<area>/<camera>/`.
 //!
 //! Every accepted pose
@@ -374,7 +374,8 @@ struct SamplingRecord<'a> {
 
 /// Writes the outputs of a sampling run into `dir` (`<workdir>/<area>/<camera>/`) and returns the
 /// paths written: `poses.jsonl`, `priors.jsonl`, `colmap/cameras.txt` (one `PINHOLE` camera, id 1),
-/// `colmap/images.txt` (image ids from 1 in flight order, names `<frame>.png`), `camera.json`,
+/// `colmap/images.txt` (image ids from 1 in flight order, names `<frame>.png`), `colmap/points3D.txt`
+/// (no points), `camera.json`,
 /// `sampling.json` and `flight_plan.png`. Every file is written atomically.
 ///
 /// # Errors
@@ -403,6 +404,9 @@ pub fn write_sample(
         .collect();
     let p = colmap.join("images.txt");
     super::colmap::write_images_txt(&p, &images)?;
+    written.push(p);
+    let p = colmap.join("points3D.txt");
+    super::colmap::write_points3d_txt_empty(&p)?;
     written.push(p);
     let p = dir.join(CAMERA_FILE);
     crate::util::write_json_atomic(&p, &out.camera)?;

@@ -10,6 +10,8 @@ use super::{Cli, Global};
 /// Runs prepare → sample → render-masks → export-coco → eval-loc (→ render-rgb when Blender's bpy is
 /// installed) on the demo districts: demo (train), demo-val (val) and demo-test (held out).
 #[derive(Debug, Clone, clap::Args)]
+#[command(after_long_help = "Examples:\n  insgen demo\n  insgen demo --no-rgb --count 8 --queries 2\n  \
+insgen --workdir /tmp/demo-runs demo --camera cam1")]
 pub struct Args {
     /// Camera preset for the demo.
     #[arg(long, value_name = "PRESET", default_value = "cam2")]

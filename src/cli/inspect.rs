@@ -4,12 +4,22 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use anyhow::Context;
+use serde::Serialize;
 
 use super::Global;
 use crate::lod::{self, Frame, Geometry, ReadOptions};
 
 /// Prints a summary of a building-model file (format, CRS, buildings, LoD, faces) or of a prepared area.
+///
+/// Reads the file (CityGML, CityJSON, OBJ, 3D Tiles) or <workdir>/<NAME>/scene/manifest.json; writes
+/// nothing, prints on stdout (with --json: one JSON object; for --area, the manifest).
 #[derive(Debug, Clone, clap::Args)]
+#[command(
+    after_long_help = "Examples:\n  insgen inspect ../shared/data/nl_denhaag_lod2/DenHaag_01.city.json\n  \
+insgen inspect ../shared/data/jp_tokyo_shibuya_plateau_3dtiles/tileset.json --json\n  \
+insgen inspect --area demo\n  \
+insgen inspect --area demo --json | jq .ecef_from_enu"
+)]
 pub struct Args {
     /// A source file (CityGML, CityJSON, OBJ, tileset.json/b3dm/glb).
     #[arg(value_name = "FILE", required_unless_present = "area")]
@@ -20,13 +30,54 @@ pub struct Args {
     /// LoD to read (e.g. 2, 1.2).
     #[arg(long, value_name = "LOD")]
     pub lod: Option<String>,
+    /// Print one JSON object on stdout instead of the text summary.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The summary of a source file, as `--json` prints it.
+#[derive(Debug, Serialize)]
+pub struct SourceSummary {
+    pub file: PathBuf,
+    /// The frame of the coordinates, in words.
+    pub frame: String,
+    pub buildings: usize,
+    /// Buildings per LoD.
+    pub lod: BTreeMap<String, u64>,
+    pub polygons: u64,
+    pub triangles: u64,
+    /// The reader's counters.
+    pub stats: serde_json::Value,
+    /// The first five source IDs.
+    pub first_source_ids: Vec<String>,
 }
 
 pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     if let Some(area) = &args.area {
         let dir = global.workdir.join(area).join("scene");
         let s = crate::scene::PreparedScene::load(&dir)?;
-        println!("{}", serde_json::to_string_pretty(&s.manifest)?);
+        let m = &s.manifest;
+        if args.json {
+            println!("{}", serde_json::to_string_pretty(m)?);
+            return Ok(());
+        }
+        println!("area:       {} ({} split)", m.area, m.split);
+        println!(
+            "origin:     lat {} °, lon {} °, h {} m (WGS84)",
+            m.origin.lat_deg, m.origin.lon_deg, m.origin.h_m
+        );
+        println!("geoid:      {} (N = {} m at the origin)", m.geoid.model, m.geoid.undulation_at_origin_m);
+        println!("buildings:  {}", m.buildings);
+        println!("triangles:  {}", m.triangles);
+        for src in &m.sources {
+            println!(
+                "source:     {} ({}, {} buildings; {})",
+                src.path, src.format, src.buildings, src.crs_chain
+            );
+        }
+        for a in &m.attributions {
+            println!("credit:     {a}");
+        }
         return Ok(());
     }
     let file = args.file.as_ref().expect("clap requires FILE or --area");
@@ -37,24 +88,72 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         Frame::Crs { name: Some(n), axes } => format!("{n} ({axes:?} axis order)"),
         Frame::Crs { name: None, .. } => "none declared (set `crs` in the scene file)".to_string(),
     };
-    let mut lods: BTreeMap<&str, u64> = BTreeMap::new();
+    let mut lods: BTreeMap<String, u64> = BTreeMap::new();
     let (mut polys, mut tris) = (0u64, 0u64);
     for b in &m.buildings {
-        *lods.entry(b.lod.as_str()).or_default() += 1;
+        *lods.entry(b.lod.clone()).or_default() += 1;
         match &b.geometry {
             Geometry::Polygons(p) => polys += p.len() as u64,
             Geometry::Mesh(t) => tris += t.triangles.len() as u64,
         }
     }
-    println!("file:       {}", m.path.display());
-    println!("frame:      {frame}");
-    println!("buildings:  {}", m.buildings.len());
-    println!("LoD:        {}", lods.iter().map(|(k, v)| format!("{k}: {v}")).collect::<Vec<_>>().join(", "));
-    println!("polygons:   {polys}");
-    println!("triangles:  {tris}");
-    println!("stats:      {}", serde_json::to_string(&m.stats)?);
-    for b in m.buildings.iter().take(5) {
-        println!("  {}", b.source_id);
+    let summary = SourceSummary {
+        file: m.path.clone(),
+        frame,
+        buildings: m.buildings.len(),
+        lod: lods,
+        polygons: polys,
+        triangles: tris,
+        stats: serde_json::to_value(&m.stats)?,
+        first_source_ids: m.buildings.iter().take(5).map(|b| b.source_id.clone()).collect(),
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+        return Ok(());
+    }
+    println!("file:       {}", summary.file.display());
+    println!("frame:      {}", summary.frame);
+    println!("buildings:  {}", summary.buildings);
+    println!(
+        "LoD:        {}",
+        summary.lod.iter().map(|(k, v)| format!("{k}: {v}")).collect::<Vec<_>>().join(", ")
+    );
+    println!("polygons:   {}", summary.polygons);
+    println!("triangles:  {}", summary.triangles);
+    println!("stats:      {}", serde_json::to_string(&summary.stats)?);
+    for id in &summary.first_source_ids {
+        println!("  {id}");
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Debug, Parser)]
+    struct T {
+        #[command(flatten)]
+        args: Args,
+    }
+
+    fn parse(argv: &[&str]) -> Result<T, clap::Error> {
+        T::try_parse_from(std::iter::once("t").chain(argv.iter().copied()))
+    }
+
+    #[test]
+    fn json_works_with_a_file_and_with_an_area() {
+        let t = parse(&["f.gml", "--json"]).unwrap();
+        assert!(t.args.json && t.args.file.is_some());
+        let t = parse(&["--area", "demo", "--json"]).unwrap();
+        assert!(t.args.json && t.args.area.as_deref() == Some("demo"));
+        assert!(!parse(&["f.gml"]).unwrap().args.json);
+    }
+
+    #[test]
+    fn file_or_area_is_required_and_not_both() {
+        assert!(parse(&["--json"]).is_err());
+        assert!(parse(&["f.gml", "--area", "demo"]).is_err());
+    }
 }

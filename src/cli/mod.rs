@@ -6,9 +6,13 @@
 //! Exit codes: 0 success, 1 failure (the cause chain is printed on stderr), 2 usage error (clap), 130
 //! stopped by Ctrl-C between items.
 
+pub mod completions;
 pub mod demo;
 pub mod eval_loc;
 pub mod export_coco;
+pub mod export_panoptic;
+pub mod export_tiles;
+pub mod export_yolo;
 pub mod inspect;
 pub mod prepare;
 pub mod progress;
@@ -27,7 +31,9 @@ use clap::{Parser, Subcommand};
 #[command(name = "insgen", version, about, max_term_width = 100)]
 #[command(
     after_long_help = "Typical run:\n  insgen prepare --area demo\n  insgen sample --area demo --camera cam2\n  \
-insgen render-masks --area demo --camera cam2\n  insgen export-coco\n\nOr all at once on the embedded city: insgen demo"
+insgen render-masks --area demo --camera cam2\n  insgen export-coco\n\nOr all at once on the embedded city: insgen demo\n\n\
+Other formats: insgen export-panoptic, insgen export-yolo, insgen export-tiles --area demo\n\
+Shell completions and man pages: insgen completions bash, insgen man --out target/man"
 )]
 pub struct Cli {
     #[command(flatten)]
@@ -90,6 +96,16 @@ pub enum Command {
     Inspect(inspect::Args),
     /// Check an exported dataset against its manifest (files, sizes, masks, RGB frames).
     Verify(verify::Args),
+    /// Export COCO panoptic segmentation from a COCO export.
+    ExportPanoptic(export_panoptic::Args),
+    /// Export YOLO segmentation labels (Ultralytics) from a COCO export.
+    ExportYolo(export_yolo::Args),
+    /// Write a prepared area as a 3D Tiles 1.1 tileset placed on the globe.
+    ExportTiles(export_tiles::Args),
+    /// Print a shell completion script (bash, zsh, fish, elvish, powershell).
+    Completions(completions::CompletionsArgs),
+    /// Write man pages generated from these definitions.
+    Man(completions::ManArgs),
 }
 
 impl Command {
@@ -106,6 +122,11 @@ impl Command {
             Command::EvalLoc(_) => "eval-loc",
             Command::Inspect(_) => "inspect",
             Command::Verify(_) => "verify",
+            Command::ExportPanoptic(_) => "export-panoptic",
+            Command::ExportYolo(_) => "export-yolo",
+            Command::ExportTiles(_) => "export-tiles",
+            Command::Completions(_) => "completions",
+            Command::Man(_) => "man",
         }
     }
 }
@@ -113,7 +134,14 @@ impl Command {
 /// Runs the parsed command line `argv` and, for commands that write into the workdir, logs it in
 /// `<workdir>/commands.jsonl` (the dataset manifest's provenance; see [`crate::util::provenance`]).
 pub fn run_logged(cli: Cli, argv: &[String]) -> anyhow::Result<()> {
-    let logged = !matches!(cli.command, Command::Demo(_) | Command::Inspect(_) | Command::Verify(_));
+    let logged = !matches!(
+        cli.command,
+        Command::Demo(_)
+            | Command::Inspect(_)
+            | Command::Verify(_)
+            | Command::Completions(_)
+            | Command::Man(_)
+    );
     let workdir = cli.global.workdir.clone();
     let name = cli.command.name().to_string();
     let started = std::time::Instant::now();
@@ -149,6 +177,11 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::EvalLoc(a) => eval_loc::run(a, g),
         Command::Inspect(a) => inspect::run(a, g),
         Command::Verify(a) => verify::run(a, g),
+        Command::ExportPanoptic(a) => export_panoptic::run(a, g),
+        Command::ExportYolo(a) => export_yolo::run(a, g),
+        Command::ExportTiles(a) => export_tiles::run(a, g),
+        Command::Completions(a) => completions::run_completions(a, g),
+        Command::Man(a) => completions::run_man(a, g),
     }
 }
 
@@ -160,6 +193,19 @@ mod tests {
     #[test]
     fn cli_definition_is_consistent() {
         Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn every_command_shows_examples_in_long_help() {
+        let mut cmd = Cli::command();
+        for sub in cmd.get_subcommands_mut() {
+            let name = sub.get_name().to_string();
+            let help = sub.render_long_help().to_string();
+            assert!(
+                help.contains("Example") && help.contains(&format!("insgen {name}")),
+                "`insgen {name} --help` shows no example:\n{help}"
+            );
+        }
     }
 
     #[test]

@@ -2,7 +2,7 @@
 //!
 //! Reads `<workdir>/<area>/scene/` (written by `insgen prepare`) and the optional `[sampling]` table of
 //! `<scenes>/<area>.toml`; writes `<workdir>/<area>/<camera>/` (poses.jsonl, priors.jsonl,
-//! colmap/{cameras.txt,images.txt}, camera.json, sampling.json, flight_plan.png). The flags become a
+//! colmap/{cameras,images,points3D}.txt, camera.json, sampling.json, flight_plan.png). The flags become a
 //! [`Plan`] (paths resolved, camera looked up, settings validated) before any work starts.
 
 use std::path::{Path, PathBuf};
@@ -18,7 +18,7 @@ use crate::util::Progress;
 ///
 /// Reads <workdir>/<area>/scene/ (from `insgen prepare`) and the optional [sampling] table of
 /// <scenes>/<area>.toml; writes <workdir>/<area>/<camera>/poses.jsonl, priors.jsonl,
-/// colmap/cameras.txt, colmap/images.txt, camera.json, sampling.json and flight_plan.png.
+/// colmap/{cameras,images,points3D}.txt, camera.json, sampling.json and flight_plan.png.
 #[derive(Debug, Clone, clap::Args)]
 #[command(after_long_help = "Examples:\n  insgen sample --area demo --camera cam2\n  \
 insgen sample --area demo --camera cam1 --count 300 --seed 7\n  \

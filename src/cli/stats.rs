@@ -14,7 +14,8 @@ use crate::coco::stats::{self, ReportOptions};
 /// name (for the contact sheet, found through `info.image_root`). Writes stats.md, stats.json,
 /// hist_instances_per_image.png, hist_sizes.png and contact_sheet.png into the same directory.
 #[derive(Debug, Clone, clap::Args)]
-#[command(after_long_help = "Example:\n  insgen stats --coco runs/coco")]
+#[command(after_long_help = "Examples:\n  insgen stats --coco runs/coco\n  \
+insgen stats --json | jq '.splits[] | {split, images, annotations}'")]
 pub struct Args {
     /// COCO directory [default: <workdir>/coco].
     #[arg(long, value_name = "DIR")]
@@ -22,6 +23,9 @@ pub struct Args {
     /// Frames on the contact sheet (0 = none).
     #[arg(long, value_name = "N", default_value_t = 12)]
     pub contact_sheet: usize,
+    /// Print the statistics as JSON on stdout (the content of stats.json) instead of the summary.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Runs `stats`.
@@ -57,14 +61,37 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     )
     .with_context(|| format!("writing the statistics report in {}", dir.display()))?;
     let printer = global.printer();
-    for sp in &st.splits {
-        printer.summary(format!(
-            "{}: {} images, {} annotations ({} small, {} medium, {} large)",
-            sp.split, sp.images, sp.annotations, sp.sizes.small, sp.sizes.medium, sp.sizes.large
-        ));
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&st).context("serialising the statistics")?);
+    } else {
+        for sp in &st.splits {
+            printer.summary(format!(
+                "{}: {} images, {} annotations ({} small, {} medium, {} large)",
+                sp.split, sp.images, sp.annotations, sp.sizes.small, sp.sizes.medium, sp.sizes.large
+            ));
+        }
     }
     for f in files {
         log::info!("wrote {}", f.display());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Debug, Parser)]
+    struct T {
+        #[command(flatten)]
+        args: Args,
+    }
+
+    #[test]
+    fn json_is_a_switch() {
+        assert!(T::try_parse_from(["t", "--json"]).unwrap().args.json);
+        assert!(!T::try_parse_from(["t"]).unwrap().args.json);
+        assert!(T::try_parse_from(["t", "--json=yes"]).is_err());
+    }
 }

@@ -275,7 +275,7 @@ struct FrameResult {
 
 /// What became of one frame.
 enum Outcome {
-    Annotated(FrameResult),
+    Annotated(Box<FrameResult>),
     /// Left out: its RGB frame is missing (`false`) or broken (`true`).
     NoRgb {
         broken: bool,
@@ -316,7 +316,7 @@ fn process_frame(
     let drafts = drafts(plan.unit, frame, &inst, &lab, &kept)?;
     let (annotations, dropped) = annotations(drafts, plan, area, map.width(), map.height());
     let image = image_record(area, camera, frame, &inst, [map.width(), map.height()], licence);
-    Ok(Outcome::Annotated(FrameResult { image, annotations, dropped }))
+    Ok(Outcome::Annotated(Box::new(FrameResult { image, annotations, dropped })))
 }
 
 /// The connected components of `map` and the indices of those `inst` lists, after checking that the
@@ -712,7 +712,7 @@ pub fn build(plan: &ExportPlan, image_root: &str, progress: &dyn Progress) -> Re
                 MissingRgb { area: a.name.clone(), camera: c.name.clone(), frames: 0, broken: Vec::new() };
             for frame in &c.frames {
                 let f = match frame_iter.next().expect("one result per frame") {
-                    Outcome::Annotated(f) => f,
+                    Outcome::Annotated(f) => *f,
                     Outcome::NoRgb { broken } => {
                         missing.frames += 1;
                         if broken && missing.broken.len() < 5 {

@@ -15,19 +15,25 @@
 //!   (`README.md`) and the check of a dataset against them (`insgen verify`);
 //! - [`results`]: reading and validating COCO results (predictions);
 //! - [`polygon`]: outer-boundary polygons for `--polygons`;
-//! - [`raster`]: a tiny raster for figures (ID maps are [`crate::scene::IdMap`]).
+//! - [`raster`]: a tiny raster for figures (ID maps are [`crate::scene::IdMap`]);
+//! - [`frames`]: an existing export read back, each image's masks checked against its ID map;
+//! - [`panoptic`]: `export-panoptic`, COCO panoptic PNGs and JSON from an export;
+//! - [`yolo`]: `export-yolo`, Ultralytics YOLO segmentation labels and `data.yaml` from an export.
 
 pub mod card;
 pub mod error;
 pub mod export;
 pub mod format;
+pub mod frames;
 pub mod manifest;
+pub mod panoptic;
 pub mod polygon;
 pub mod raster;
 pub mod results;
 pub mod rle;
 pub mod stats;
 pub mod verify;
+pub mod yolo;
 
 pub use error::CocoError;
 pub use export::{ExportPlan, Split};

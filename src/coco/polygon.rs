@@ -1,4 +1,5 @@
-//! Outer-boundary polygons of a binary mask, for `export-coco --polygons`.
+//! Boundary polygons of a binary mask: outer boundaries for `export-coco --polygons`, all rings (holes
+//! too) and rings bridged into one polygon for `export-yolo`.
 //!
 //! COCO polygons cannot hold holes: a courtyard becomes part of the building. The RLE stays the exact
 //! form (and is kept beside the polygons in the `mask_rle` extension key).
@@ -20,9 +21,26 @@ const NONE: u8 = u8::MAX;
 /// `[x1, y1, x2, y2, …]` in pixel-corner coordinates, ordered by their first vertex (top-most, then
 /// left-most). Empty for an empty mask or a buffer of the wrong size.
 pub fn mask_to_polygons(mask: &[u8], width: u32, height: u32) -> Vec<Vec<f64>> {
+    mask_to_rings(mask, width, height).outer
+}
+
+/// Every boundary loop of a mask, in pixel-corner coordinates (`[x1, y1, x2, y2, …]`).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Rings {
+    /// Outer boundaries, clockwise on screen (y down), ordered by their first vertex.
+    pub outer: Vec<Vec<f64>>,
+    /// Hole boundaries, counter-clockwise on screen, ordered by their first vertex. Holes are
+    /// 4-connected background regions enclosed by the mask (the complement of the tracer's
+    /// 8-connectivity).
+    pub holes: Vec<Vec<f64>>,
+}
+
+/// The outer and hole boundaries of `mask` (see [`mask_to_polygons`] for the conventions). Even-odd
+/// filling of all rings at pixel centres gives back exactly the mask.
+pub fn mask_to_rings(mask: &[u8], width: u32, height: u32) -> Rings {
     let (w, h) = (width as usize, height as usize);
     if mask.len() != w * h {
-        return Vec::new();
+        return Rings::default();
     }
     // Crop to the bounding box so the edge tables stay small for small instances in large frames.
     let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0usize, 0usize);
@@ -34,7 +52,7 @@ pub fn mask_to_polygons(mask: &[u8], width: u32, height: u32) -> Vec<Vec<f64>> {
         }
     }
     if x0 == usize::MAX {
-        return Vec::new();
+        return Rings::default();
     }
     let (cw, ch) = (x1 - x0 + 1, y1 - y0 + 1);
     let inside = |x: i64, y: i64| -> bool {
@@ -75,6 +93,7 @@ pub fn mask_to_polygons(mask: &[u8], width: u32, height: u32) -> Vec<Vec<f64>> {
         }
     }
     let mut polygons: Vec<(usize, Vec<f64>)> = Vec::new();
+    let mut holes: Vec<(usize, Vec<f64>)> = Vec::new();
     for start in 0..out.len() {
         for s in 0..2 {
             let dir0 = out[start][s];
@@ -123,18 +142,75 @@ pub fn mask_to_polygons(mask: &[u8], width: u32, height: u32) -> Vec<Vec<f64>> {
             if dir == dir0 {
                 pts.remove(0);
             }
-            if area2 > 0 && pts.len() >= 3 {
+            if area2 != 0 && pts.len() >= 3 {
                 let first = pts.iter().map(|&(px, py)| (py, px)).min().unwrap_or((0, 0));
                 let flat: Vec<f64> = pts
                     .iter()
                     .flat_map(|&(px, py)| [(px + x0 as i64) as f64, (py + y0 as i64) as f64])
                     .collect();
-                polygons.push(((first.0 as usize) << 32 | first.1 as usize, flat));
+                let key = (first.0 as usize) << 32 | first.1 as usize;
+                if area2 > 0 {
+                    polygons.push((key, flat));
+                } else {
+                    holes.push((key, flat));
+                }
             }
         }
     }
     polygons.sort_by_key(|(k, _)| *k);
-    polygons.into_iter().map(|(_, p)| p).collect()
+    holes.sort_by_key(|(k, _)| *k);
+    Rings {
+        outer: polygons.into_iter().map(|(_, p)| p).collect(),
+        holes: holes.into_iter().map(|(_, p)| p).collect(),
+    }
+}
+
+/// Twice the signed area of a ring `[x1, y1, …]` (shoelace; positive for clockwise on screen).
+pub fn ring_area2(ring: &[f64]) -> f64 {
+    let n = ring.len() / 2;
+    (0..n)
+        .map(|i| {
+            let j = (i + 1) % n;
+            ring[2 * i] * ring[2 * j + 1] - ring[2 * j] * ring[2 * i + 1]
+        })
+        .sum()
+}
+
+/// All rings joined into one by zero-width cuts ("bridges"), for formats whose polygons have no holes
+/// and one polygon per instance (YOLO-seg). The largest outer ring is the start; every other ring
+/// (further outer rings, then holes) is spliced in at its vertex nearest to the ring built so far, so
+/// each cut is a segment walked once in each direction. Even-odd (and non-zero) filling of the result
+/// covers exactly the pixel centres the rings cover: a cut is crossed twice by any scanline that
+/// crosses it. Empty when there is no outer ring.
+pub fn bridge_rings(rings: &Rings) -> Vec<[f64; 2]> {
+    let pts = |r: &Vec<f64>| -> Vec<[f64; 2]> { r.chunks_exact(2).map(|c| [c[0], c[1]]).collect() };
+    let mut outer: Vec<&Vec<f64>> = rings.outer.iter().collect();
+    // Largest first; ties keep the tracer's order (sort is stable).
+    outer.sort_by(|a, b| ring_area2(b).total_cmp(&ring_area2(a)));
+    let Some((first, rest)) = outer.split_first() else {
+        return Vec::new();
+    };
+    let mut out = pts(first);
+    for ring in rest.iter().copied().chain(rings.holes.iter()) {
+        let q = pts(ring);
+        let (mut best, mut bi, mut bj) = (f64::INFINITY, 0, 0);
+        for (i, a) in out.iter().enumerate() {
+            for (j, b) in q.iter().enumerate() {
+                let d = (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2);
+                if d < best {
+                    (best, bi, bj) = (d, i, j);
+                }
+            }
+        }
+        // out[..=bi] → q[bj..] → q[..=bj] → out[bi..]: the cut out[bi]–q[bj] is walked both ways.
+        let mut merged = Vec::with_capacity(out.len() + q.len() + 2);
+        merged.extend_from_slice(&out[..=bi]);
+        merged.extend_from_slice(&q[bj..]);
+        merged.extend_from_slice(&q[..=bj]);
+        merged.extend_from_slice(&out[bi..]);
+        out = merged;
+    }
+    out
 }
 
 #[cfg(test)]
@@ -199,6 +275,28 @@ mod tests {
         assert_eq!(p.len(), 2, "{p:?}");
         assert_eq!(rasterise(&p[..1], w, h).iter().map(|&v| v as u32).sum::<u32>(), 2);
         assert_eq!(rasterise(&p, w, h), m);
+    }
+
+    #[test]
+    fn courtyard_rings_and_bridge_keep_the_hole() {
+        let (m, w, h) = grid(&["#######", "#.....#", "#.###.#", "#.....#", "#######", "##..###"]);
+        let r = mask_to_rings(&m, w, h);
+        assert_eq!((r.outer.len(), r.holes.len()), (2, 1), "{r:?}");
+        assert!(r.holes.iter().all(|h| ring_area2(h) < 0.0) && r.outer.iter().all(|o| ring_area2(o) > 0.0));
+        let mut all = r.outer.clone();
+        all.extend(r.holes.iter().cloned());
+        assert_eq!(rasterise(&all, w, h), m);
+        let one: Vec<f64> = bridge_rings(&r).into_iter().flatten().collect();
+        assert_eq!(rasterise(&[one], w, h), m, "bridged ring");
+    }
+
+    #[test]
+    fn bridge_of_separate_blobs_and_nested_island() {
+        let (m, w, h) = grid(&["#####...##", "#...#...##", "#.#.#.....", "#...#...#.", "#####....."]);
+        let r = mask_to_rings(&m, w, h);
+        let one: Vec<f64> = bridge_rings(&r).into_iter().flatten().collect();
+        assert_eq!(rasterise(&[one], w, h), m);
+        assert!(bridge_rings(&Rings::default()).is_empty());
     }
 
     #[test]

@@ -407,6 +407,7 @@ mod cli {
             "priors.jsonl",
             "colmap/cameras.txt",
             "colmap/images.txt",
+            "colmap/points3D.txt",
             "camera.json",
             "sampling.json",
             "flight_plan.png",

@@ -279,10 +279,10 @@ mod determinism {
             let out = sample_area(&scene, &cam, &cfg, Some(60), seed, &NoProgress).unwrap();
             let dir = tmp.path().join(format!("run{k}"));
             let written = write_sample(&dir, &scene, &out).unwrap();
-            assert_eq!(written.len(), 7);
+            assert_eq!(written.len(), 8);
             runs.push(files(&dir));
         }
-        assert_eq!(runs[0].len(), 7);
+        assert_eq!(runs[0].len(), 8);
         assert_eq!(runs[0], runs[1], "same seed must give byte-identical files");
         let poses = |r: &Vec<(String, Vec<u8>)>| r.iter().find(|f| f.0 == "poses.jsonl").unwrap().1.clone();
         assert_ne!(poses(&runs[0]), poses(&runs[2]), "another seed must give other poses");

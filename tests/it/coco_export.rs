@@ -244,7 +244,7 @@ fn write_area(workdir: &Path, spec: &AreaSpec) {
 }
 
 /// The standard workdir: four areas over three splits, with every special case somewhere.
-fn standard_workdir(root: &Path) -> PathBuf {
+pub(crate) fn standard_workdir(root: &Path) -> PathBuf {
     let wd = root.join("runs");
     let mut alpha = AreaSpec::new("alpha", "train", 1);
     alpha.rgb_frames = 2; // its third frame has masks but no RGB frame yet
@@ -262,7 +262,7 @@ fn standard_workdir(root: &Path) -> PathBuf {
     wd
 }
 
-fn plan(wd: &Path, out: &str) -> ExportPlan {
+pub(crate) fn plan(wd: &Path, out: &str) -> ExportPlan {
     ExportPlan {
         workdir: wd.to_path_buf(),
         out_dir: wd.join(out),

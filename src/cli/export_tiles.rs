@@ -1,0 +1,75 @@
+//! `insgen export-tiles`: a prepared area as a 3D Tiles 1.1 tileset placed on the globe.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+
+use crate::scene::tiles::{write_scene_tileset, TILESET_DIR};
+
+/// Write a prepared area as a 3D Tiles 1.1 tileset that CesiumJS shows where it belongs on the globe.
+///
+/// Reads <workdir>/<area>/scene/{scene.glb, manifest.json, buildings.json} (from `insgen prepare`).
+/// Writes tileset.json (root transform = the manifest's ENU→ECEF; the glTF y-up content is turned z-up
+/// by the viewer, as 3D Tiles specifies) and scene.glb (a copy, with its EXT_mesh_features building
+/// IDs and EXT_structural_metadata source IDs) into <workdir>/<area>/scene/tileset/.
+#[derive(Debug, Clone, clap::Args)]
+#[command(after_long_help = "Examples:\n  insgen export-tiles --area demo\n  \
+insgen export-tiles --area tokyo --out /srv/tiles/tokyo\n\n\
+In CesiumJS (serve the folder over HTTP):\n  \
+viewer.scene.primitives.add(await Cesium.Cesium3DTileset.fromUrl(\"tiles/tokyo/tileset.json\"));")]
+pub struct Args {
+    /// The prepared area (<workdir>/<NAME>/scene).
+    #[arg(long, value_name = "NAME")]
+    pub area: String,
+    /// Output directory [default: <workdir>/<NAME>/scene/tileset].
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+}
+
+impl Args {
+    /// The scene directory and the output directory.
+    pub fn dirs(&self, global: &super::Global) -> (PathBuf, PathBuf) {
+        let scene = global.workdir.join(&self.area).join("scene");
+        let out = self.out.clone().unwrap_or_else(|| scene.join(TILESET_DIR));
+        (scene, out)
+    }
+}
+
+/// Runs `export-tiles`.
+pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
+    let (scene, out) = args.dirs(global);
+    let s = write_scene_tileset(&scene, &out)
+        .with_context(|| format!("exporting area {} as 3D Tiles", args.area))?;
+    global.printer().summary(format!("wrote {} and {}", s.tileset.display(), s.content.display()));
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Debug, Parser)]
+    struct T {
+        #[command(flatten)]
+        global: super::super::Global,
+        #[command(flatten)]
+        args: Args,
+    }
+
+    fn parse(argv: &[&str]) -> Result<T, clap::Error> {
+        T::try_parse_from(std::iter::once("t").chain(argv.iter().copied()))
+    }
+
+    #[test]
+    fn area_is_required_and_out_defaults_into_the_scene() {
+        assert!(parse(&[]).is_err());
+        let t = parse(&["--area", "demo"]).unwrap();
+        assert_eq!(
+            t.args.dirs(&t.global),
+            (PathBuf::from("runs/demo/scene"), PathBuf::from("runs/demo/scene/tileset"))
+        );
+        let t = parse(&["--area", "demo", "--out", "o"]).unwrap();
+        assert_eq!(t.args.dirs(&t.global).1, PathBuf::from("o"));
+    }
+}

@@ -1,0 +1,421 @@
+//! The dataset in other tools' formats, each read back by that format's own client:
+//! - COLMAP (`sample`'s `colmap/`): `pycolmap.Reconstruction` (PyPI pycolmap) loads the model; its
+//!   cameras, images and poses equal `poses.jsonl` within 1e-9 (quaternion components, metres, pixels —
+//!   both sides are the same f64 values printed in shortest round-trip form, so the bound is rounding);
+//! - COCO panoptic (`export-panoptic`): panopticapi (PyPI panopticapi-lite: `rgb2id`, `pq_compute`)
+//!   decodes every PNG; each segment's pixels, area and box equal the instance annotation's
+//!   (pycocotools `decode`) exactly, lie on its building in the ID map, the background segment is
+//!   exactly the ID map's 0 pixels, and PQ (things, stuff, all) of the ground truth against itself is 1;
+//! - YOLO-seg (`export-yolo`): Ultralytics' label rules (reimplemented in `scripts/exports_check.py` from
+//!   `ultralytics/data/utils.py`; the `ultralytics` package pulls in torch, too heavy for this machine)
+//!   and an even-odd rasteriser at pixel centres: every label line fills exactly its instance (IoU 1 —
+//!   the polygons are traced along pixel edges without simplification);
+//! - 3D Tiles (`export-tiles`): 3d-tiles-tools traverses the tileset and sees glTF content; CesiumJS's
+//!   engine math (npm @cesium/engine) puts every sampled vertex within 1 cm of where CesiumJS's own ENU
+//!   frame at the manifest's origin puts it (measured: ~12 µm, f32 positions); CesiumJS in headless
+//!   Chromium (Debian chromium, SwiftShader) loads the tileset, its root transform is the manifest's,
+//!   and clicks pick buildings whose `source_id` matches `buildings.json` at positions inside that
+//!   building's ENU box (0.25 m tolerance for `pickPosition`'s depth read-back; measured: 0 m over 28
+//!   picks at 640 × 480);
+//! - the CLI conveniences: completions, man pages and the `--json` outputs, parsed.
+//!
+//! Python comes from `INSGEN_PYTHON` (default `.venv/bin/python`), Node packages from `node_modules/`;
+//! when a client is missing the check prints why and skips, and fails instead under `CI=true`.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use insgen::coco::export::export;
+use insgen::coco::format::{AnnotationUnit, TruncatedPolicy};
+use insgen::coco::panoptic::{export_panoptic, PanopticPlan};
+use insgen::coco::yolo::{export_yolo, YoloPlan};
+use insgen::coco::CocoError;
+use insgen::scene::{BuildingRecord, Manifest};
+use insgen::util::NoProgress;
+use serde_json::Value;
+
+use crate::coco_export::{plan, standard_workdir};
+use crate::util::{assert_schema, insgen, python_with, repo, repo_scene, scratch_with_scenes, skip, stderr};
+
+fn run_ok(cwd: &Path, args: &[&str]) -> String {
+    let o = insgen(cwd, args);
+    assert!(o.status.success(), "insgen {args:?} failed:\n{}", stderr(&o));
+    String::from_utf8(o.stdout).expect("UTF-8 stdout")
+}
+
+/// Runs `scripts/exports_check.py ARGS` with `py`; the JSON it prints.
+fn exports_check(py: &Path, args: &[&str]) -> Value {
+    let out = Command::new(py).arg(repo().join("scripts/exports_check.py")).args(args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "exports_check.py {args:?} failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("exports_check.py prints JSON")
+}
+
+/// `node` with the repository's node_modules holding `package`, or `None` (skip) with the reason.
+fn node_with(package: &str) -> Option<PathBuf> {
+    let node_ok = Command::new("node").arg("--version").output().map(|o| o.status.success()).unwrap_or(false);
+    if !node_ok {
+        skip("`node` is not on PATH (scripts/setup.sh installs it)");
+        return None;
+    }
+    if !repo().join("node_modules").join(package).join("package.json").is_file() {
+        skip(&format!("node_modules/{package} is missing (run scripts/setup.sh)"));
+        return None;
+    }
+    Some(PathBuf::from("node"))
+}
+
+fn read_json<T: serde::de::DeserializeOwned>(p: &Path) -> T {
+    serde_json::from_slice(&std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))).unwrap()
+}
+
+// ------------------------------------------------------------------------------------------ COLMAP
+
+#[test]
+fn colmap_model_loads_in_pycolmap_with_the_sampled_poses() {
+    let dir = scratch_with_scenes(&[("demo", repo_scene("demo"))]);
+    run_ok(dir.path(), &["prepare", "--area", "demo"]);
+    run_ok(dir.path(), &["sample", "--area", "demo", "--camera", "cam2", "--count", "6"]);
+    let cam = dir.path().join("runs/demo/cam2");
+    let points = std::fs::read_to_string(cam.join("colmap/points3D.txt")).unwrap();
+    assert!(points.lines().all(|l| l.starts_with('#')), "no points expected:\n{points}");
+    let Some(py) = python_with(&["pycolmap"]) else { return };
+    let r = exports_check(
+        &py,
+        &["colmap", cam.join("colmap").to_str().unwrap(), cam.join("poses.jsonl").to_str().unwrap()],
+    );
+    eprintln!("pycolmap: {r}");
+    assert_eq!(
+        (r["cameras"].as_u64(), r["images"].as_u64(), r["points3D"].as_u64()),
+        (Some(1), Some(6), Some(0))
+    );
+    assert_eq!(r["poses"], 6);
+    assert_eq!(r["unmatched"], serde_json::json!([]));
+    assert_eq!(r["model"], "PINHOLE");
+    for key in
+        ["max_quat_diff", "max_t_diff_m", "max_centre_diff_m", "max_rotation_diff", "max_intrinsics_diff_px"]
+    {
+        let d = r[key].as_f64().unwrap();
+        assert!(d <= 1e-9, "{key} = {d} (bound 1e-9)");
+    }
+}
+
+// ------------------------------------------------------------------------------------------ panoptic
+
+fn assert_panoptic_exact(py: &Path, coco: &Path) -> Value {
+    let r = exports_check(py, &["panoptic", coco.to_str().unwrap()]);
+    for split in ["train", "val", "test"] {
+        let s = &r["files"][split];
+        eprintln!(
+            "panoptic {split}: {} images, {} segments ({} crowd), PQ {} (things {}, stuff {})",
+            s["images"], s["segments"], s["crowd_segments"], s["pq"], s["pq_things"], s["pq_stuff"]
+        );
+        assert_eq!(s["problems"], serde_json::json!([]), "{split}");
+        assert_eq!(s["same_images"], true, "{split}: images differ from the instance file's");
+        assert_eq!(s["isthing"], serde_json::json!([1, 0]), "building (thing) and background (stuff)");
+        if s["segments"].as_u64().unwrap() > 0 && s["pq_n"].as_u64().unwrap() > 0 {
+            for k in ["pq", "sq", "rq"] {
+                assert!((s[k].as_f64().unwrap() - 1.0).abs() < 1e-12, "{split} {k} = {}", s[k]);
+            }
+        }
+    }
+    r
+}
+
+#[test]
+fn panoptic_pngs_decode_to_the_instance_masks() {
+    let tmp = tempfile::tempdir().unwrap();
+    let wd = standard_workdir(tmp.path());
+    let mut p = plan(&wd, "coco");
+    p.filters.truncated = TruncatedPolicy::Flag;
+    export(&p, &NoProgress).unwrap();
+    let out = run_ok(tmp.path(), &["--workdir", wd.to_str().unwrap(), "export-panoptic"]);
+    assert!(out.contains("train: ") && out.contains("segments"), "{out}");
+    let coco = wd.join("coco");
+    for split in ["train", "val", "test"] {
+        let v: Value = read_json(&coco.join(format!("panoptic_{split}.json")));
+        assert_schema("coco_panoptic.schema.json", &v);
+        let inst: Value = read_json(&coco.join(format!("instances_{split}.json")));
+        let segments: Vec<&Value> = v["annotations"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .flat_map(|a| a["segments_info"].as_array().unwrap())
+            .collect();
+        // One segment per annotation, the crowd ones merged per image.
+        let things: usize = segments
+            .iter()
+            .filter(|s| s["category_id"] == 1)
+            .map(|s| s.get("annotation_ids").map_or(1, |ids| ids.as_array().unwrap().len()))
+            .sum();
+        assert_eq!(things, inst["annotations"].as_array().unwrap().len(), "{split}: every annotation once");
+        // Every image has background pixels in the fixture, hence one background segment each.
+        let stuff: Vec<_> = segments.iter().filter(|s| s["category_id"] == 2).collect();
+        assert_eq!(stuff.len(), v["images"].as_array().unwrap().len(), "{split}");
+        assert!(stuff.iter().all(|s| s["id"] == 16_777_215 && s.get("building_id").is_none()));
+    }
+    let v: Value = read_json(&coco.join("panoptic_train.json"));
+    let crowd = v["annotations"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|a| a["segments_info"].as_array().unwrap())
+        .filter(|s| s["iscrowd"] == 1)
+        .count();
+    assert!(crowd > 0, "--truncated flag gives crowd segments in the fixture");
+    // `stats --json` prints the report's numbers for scripts.
+    let st: Value = serde_json::from_str(&run_ok(
+        tmp.path(),
+        &["stats", "--coco", coco.to_str().unwrap(), "--json", "--contact-sheet", "0"],
+    ))
+    .unwrap();
+    assert_eq!(st["splits"].as_array().unwrap().len(), 3);
+    assert!(st["splits"][0]["max_instances_per_image"].as_u64().unwrap() > 0);
+    let Some(py) = python_with(&["panopticapi", "pycocotools", "PIL"]) else { return };
+    assert_panoptic_exact(&py, &coco);
+}
+
+#[test]
+fn panoptic_of_a_per_building_polygon_export() {
+    let tmp = tempfile::tempdir().unwrap();
+    let wd = standard_workdir(tmp.path());
+    let mut p = plan(&wd, "coco-b");
+    p.unit = AnnotationUnit::Building;
+    p.polygons = true;
+    export(&p, &NoProgress).unwrap();
+    let out = wd.join("pan");
+    let s = export_panoptic(&PanopticPlan { coco_dir: wd.join("coco-b"), out_dir: out.clone() }, &NoProgress)
+        .unwrap();
+    assert_eq!(s.iter().map(|s| s.split.as_str()).collect::<Vec<_>>(), ["train", "val", "test"]);
+    // The checker reads instances_*.json next to the panoptic files.
+    for split in ["train", "val", "test"] {
+        let f = format!("instances_{split}.json");
+        std::fs::copy(wd.join("coco-b").join(&f), out.join(&f)).unwrap();
+    }
+    // image_root is relative to the COCO directory; both directories sit in the workdir.
+    let Some(py) = python_with(&["panopticapi", "pycocotools", "PIL"]) else { return };
+    assert_panoptic_exact(&py, &out);
+}
+
+#[test]
+fn a_stale_coco_export_is_refused_naming_both_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let wd = standard_workdir(tmp.path());
+    export(&plan(&wd, "coco"), &NoProgress).unwrap();
+    // Re-render one frame "after" the export: a different ID map under the same name.
+    let mask = wd.join("alpha/cam2/masks/alpha_f000.png");
+    let blank = insgen::scene::IdMap::background(96, 72);
+    std::fs::write(&mask, blank.encode_png().unwrap()).unwrap();
+    let e = export_panoptic(&PanopticPlan { coco_dir: wd.join("coco"), out_dir: wd.join("p") }, &NoProgress)
+        .unwrap_err();
+    assert!(matches!(e, CocoError::Mismatch { .. }), "{e:?}");
+    let msg = e.to_string();
+    assert!(msg.contains("instances_train.json") && msg.contains("alpha_f000.png"), "{msg}");
+    assert!(msg.contains("run `insgen export-coco` again"), "{msg}");
+    let e =
+        export_yolo(&YoloPlan { coco_dir: wd.join("coco"), out_dir: wd.join("y") }, &NoProgress).unwrap_err();
+    assert!(matches!(e, CocoError::Mismatch { .. }), "{e:?}");
+    let o = insgen(tmp.path(), &["--workdir", wd.to_str().unwrap(), "export-panoptic", "--coco", "nowhere"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("run `insgen export-coco` first or pass --coco DIR"), "{}", stderr(&o));
+}
+
+// ------------------------------------------------------------------------------------------ YOLO
+
+fn assert_yolo_exact(py: &Path, yaml: &Path, coco: &Path) {
+    let r = exports_check(py, &["yolo", yaml.to_str().unwrap(), coco.to_str().unwrap()]);
+    assert_eq!(r["names"], serde_json::json!({"0": "building"}));
+    for split in ["train", "val", "test"] {
+        let s = &r["splits"][split];
+        eprintln!(
+            "yolo {split}: {} images, {} instances, min IoU {}, max vertices {}",
+            s["images"], s["instances"], s["min_iou"], s["max_vertices"]
+        );
+        assert_eq!(s["problems"], serde_json::json!([]), "{split}");
+        assert_eq!(s["images"], s["coco_images"], "{split}: one image link per COCO image");
+        assert_eq!(s["min_iou"].as_f64(), Some(1.0), "{split}: labels fill back exactly");
+    }
+}
+
+#[test]
+fn yolo_labels_fill_back_to_the_instances() {
+    let tmp = tempfile::tempdir().unwrap();
+    let wd = standard_workdir(tmp.path());
+    let mut p = plan(&wd, "coco");
+    p.filters.truncated = TruncatedPolicy::Flag;
+    export(&p, &NoProgress).unwrap();
+    let out = run_ok(tmp.path(), &["--workdir", wd.to_str().unwrap(), "export-yolo"]);
+    assert!(out.contains("crowd left out"), "{out}");
+    let yolo = wd.join("coco/yolo");
+    let yaml = std::fs::read_to_string(yolo.join("data.yaml")).unwrap();
+    assert!(
+        yaml.contains("\ntrain: images/train\nval: images/val\ntest: images/test\nnames:\n  0: building\n"),
+        "{yaml}"
+    );
+    // Links resolve to the COCO file names; label lines have the Ultralytics shape.
+    let link = yolo.join("images/train/alpha/cam2/alpha_f000.png");
+    let target = std::fs::read_link(&link).unwrap();
+    assert!(target.is_relative(), "{}", target.display());
+    assert_eq!(
+        std::fs::canonicalize(&link).unwrap(),
+        std::fs::canonicalize(wd.join("alpha/cam2/rgb/alpha_f000.png")).unwrap()
+    );
+    let label = std::fs::read_to_string(yolo.join("labels/train/alpha/cam2/alpha_f000.txt")).unwrap();
+    for line in label.lines() {
+        let f: Vec<&str> = line.split(' ').collect();
+        assert!(f[0] == "0" && f.len() >= 9 && f.len() % 2 == 1, "{line}");
+        assert!(f[1..].iter().all(|v| (0.0..=1.0).contains(&v.parse::<f64>().unwrap())), "{line}");
+    }
+    let Some(py) = python_with(&["yaml", "pycocotools", "PIL"]) else { return };
+    assert_yolo_exact(&py, &yolo.join("data.yaml"), &wd.join("coco"));
+}
+
+#[test]
+fn yolo_bridges_the_parts_and_holes_of_per_building_instances() {
+    let tmp = tempfile::tempdir().unwrap();
+    let wd = standard_workdir(tmp.path());
+    let mut p = plan(&wd, "coco-b");
+    p.unit = AnnotationUnit::Building;
+    export(&p, &NoProgress).unwrap();
+    let (sum, yaml) =
+        export_yolo(&YoloPlan { coco_dir: wd.join("coco-b"), out_dir: wd.join("yolo-b") }, &NoProgress)
+            .unwrap();
+    assert_eq!(sum.iter().map(|s| s.crowd_skipped).sum::<u64>(), 0);
+    let Some(py) = python_with(&["yaml", "pycocotools", "PIL"]) else { return };
+    assert_yolo_exact(&py, &yaml, &wd.join("coco-b"));
+}
+
+// ------------------------------------------------------------------------------------------ 3D Tiles
+
+/// The demo area prepared in a scratch directory, with its tileset exported by the binary.
+fn demo_tileset() -> tempfile::TempDir {
+    let dir = scratch_with_scenes(&[("demo", repo_scene("demo"))]);
+    run_ok(dir.path(), &["prepare", "--area", "demo"]);
+    let out = run_ok(dir.path(), &["export-tiles", "--area", "demo"]);
+    assert!(out.contains("tileset.json"), "{out}");
+    dir
+}
+
+#[test]
+fn tileset_places_every_vertex_where_cesium_puts_the_area() {
+    let dir = demo_tileset();
+    let scene = dir.path().join("runs/demo/scene");
+    let tiles = scene.join("tileset");
+    let ts: Value = read_json(&tiles.join("tileset.json"));
+    assert_schema("tileset.schema.json", &ts);
+    let m: Manifest = read_json(&scene.join("manifest.json"));
+    let t: Vec<f64> =
+        ts["root"]["transform"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    assert_eq!(t, m.ecef_from_enu.to_cols_array(), "root transform = ecef_from_enu, column-major");
+    assert_eq!(
+        std::fs::read(tiles.join("scene.glb")).unwrap(),
+        std::fs::read(scene.join("scene.glb")).unwrap()
+    );
+    let Some(node) = node_with("3d-tiles-tools") else { return };
+    let out = Command::new(node)
+        .arg(repo().join("scripts/tiles_check.mjs"))
+        .args([&tiles, &scene])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "tiles_check.mjs: {}", String::from_utf8_lossy(&out.stderr));
+    let r: Value = serde_json::from_slice(&out.stdout).unwrap();
+    eprintln!("3d-tiles-tools + @cesium/engine: {r}");
+    assert_eq!(r["content_types"], serde_json::json!(["CONTENT_TYPE_GLB"]));
+    assert_eq!(r["root_transform_matches_manifest"], true);
+    assert!(
+        r["max_vertex_error_m"].as_f64().unwrap() <= 0.01,
+        "vertex error {} m (bound 1 cm)",
+        r["max_vertex_error_m"]
+    );
+    assert!(r["vertices"].as_u64().unwrap() > 1000);
+    assert_eq!(
+        r["feature_ids"].as_u64(),
+        Some(m.buildings),
+        "every building has vertices with its feature ID"
+    );
+    assert_eq!(r["outside_their_building"], serde_json::json!([]));
+    for ext in ["EXT_mesh_features", "EXT_structural_metadata"] {
+        assert!(r["extensions_used"].as_array().unwrap().iter().any(|e| e == ext), "{ext} kept");
+    }
+    assert_eq!(r["property_names"], serde_json::json!(["source_id"]));
+}
+
+#[test]
+fn cesiumjs_in_chromium_picks_the_buildings_where_they_belong() {
+    let dir = demo_tileset();
+    let scene = dir.path().join("runs/demo/scene");
+    let Some(node) = node_with("cesium") else { return };
+    let chromium = ["chromium", "chromium-browser"]
+        .into_iter()
+        .find(|c| Command::new(c).arg("--version").output().map(|o| o.status.success()).unwrap_or(false));
+    let Some(chromium) = chromium else {
+        skip("no `chromium` on PATH (scripts/setup.sh installs Debian's)");
+        return;
+    };
+    let out = Command::new(node)
+        .arg(repo().join("scripts/cesium_check.mjs"))
+        .arg(scene.join("tileset"))
+        .arg(chromium)
+        .output()
+        .unwrap();
+    let r: Value = serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|_| panic!("cesium_check.mjs: {}", String::from_utf8_lossy(&out.stdout)));
+    assert!(out.status.success() && r.get("error").is_none(), "CesiumJS: {r}");
+    eprintln!("CesiumJS {}: {} picks", r["cesium"], r["picks"].as_array().unwrap().len());
+    let m: Manifest = read_json(&scene.join("manifest.json"));
+    let buildings: Vec<BuildingRecord> = read_json(&scene.join("buildings.json"));
+    assert_eq!(r["tiles_loaded"], true);
+    let t: Vec<f64> =
+        r["root_computed_transform"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    assert_eq!(t, m.ecef_from_enu.to_cols_array(), "CesiumJS's root transform is the manifest's ENU→ECEF");
+    // Background row 0 + one row per building in the property table.
+    assert_eq!(r["features_in_root_content"].as_u64(), Some(m.buildings + 1));
+    let enu_from_ecef = m.ecef_from_enu.inverse();
+    let picks = r["picks"].as_array().unwrap();
+    assert!(picks.len() >= 10, "CesiumJS picked only {} buildings", picks.len());
+    for p in picks {
+        let id = p["feature_id"].as_u64().unwrap() as u32;
+        let b = buildings
+            .iter()
+            .find(|b| b.id == id)
+            .unwrap_or_else(|| panic!("picked feature {id}: no such building"));
+        assert_eq!(p["source_id"], b.source_id.as_str(), "feature {id}'s source_id");
+        let e: Vec<f64> = p["ecef_m"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        let enu = enu_from_ecef.transform_point3(glam::DVec3::new(e[0], e[1], e[2])).to_array();
+        for k in 0..3 {
+            assert!(
+                enu[k] >= b.bbox_min_enu_m[k] - 0.25 && enu[k] <= b.bbox_max_enu_m[k] + 0.25,
+                "pick of building {id} at ENU {enu:?} is outside its box {:?}..{:?}",
+                b.bbox_min_enu_m,
+                b.bbox_max_enu_m
+            );
+        }
+    }
+}
+
+// ------------------------------------------------------------------------------------------ CLI
+
+#[test]
+fn completions_man_pages_and_json_outputs() {
+    let dir = scratch_with_scenes(&[("demo", repo_scene("demo"))]);
+    let bash = run_ok(dir.path(), &["completions", "bash"]);
+    assert!(bash.contains("export-panoptic") && bash.contains("complete -F"), "bash completion");
+    let zsh = run_ok(dir.path(), &["completions", "zsh"]);
+    assert!(zsh.starts_with("#compdef insgen"), "{}", &zsh[..40]);
+    let page = run_ok(dir.path(), &["man"]);
+    assert!(page.contains(".TH insgen 1"), "man page on stdout");
+    run_ok(dir.path(), &["man", "--out", "target/man"]);
+    for name in ["insgen.1", "insgen-export-yolo.1", "insgen-completions.1"] {
+        assert!(dir.path().join("target/man").join(name).is_file(), "{name}");
+    }
+    run_ok(dir.path(), &["prepare", "--area", "demo"]);
+    let v: Value =
+        serde_json::from_str(&run_ok(dir.path(), &["inspect", "--area", "demo", "--json"])).unwrap();
+    assert_eq!(v["area"], "demo");
+    assert_schema("manifest.schema.json", &v);
+    let text = run_ok(dir.path(), &["inspect", "--area", "demo"]);
+    assert!(text.starts_with("area:       demo (train split)\n"), "{text}");
+}
