@@ -8,4 +8,5 @@ bash scripts/setup.sh
 export NODEVICE_SELECT=1
 export INSGEN_PYTHON="${INSGEN_PYTHON:-$(pwd)/.venv/bin/python}"
 cargo fmt --check
+cargo clippy --all-targets -- -D warnings
 cargo test --no-fail-fast "$@"

@@ -221,7 +221,11 @@ impl Job {
                 issue(at("name"), format!("{:?} appears twice", f.name));
             }
             let k = &f.intrinsics;
-            if k.width_px == 0 || k.height_px == 0 || !(k.fx_px > 0.0) || !(k.fy_px > 0.0) {
+            if k.width_px == 0
+                || k.height_px == 0
+                || !(k.fx_px.is_finite() && k.fx_px > 0.0)
+                || !(k.fy_px.is_finite() && k.fy_px > 0.0)
+            {
                 issue(at("intrinsics"), format!("{k:?} is not a valid pinhole"));
             }
             if !is_finite_mat(&f.blender_matrix_world) || !is_affine(&f.blender_matrix_world) {

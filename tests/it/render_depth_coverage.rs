@@ -85,7 +85,7 @@ mod coverage {
         let cov = r.isolated_coverage_px(&scene, &view, &ids(&[1, 2, 77]), &DepthRange::default()).unwrap();
         let alone = reference(&[b1], &view.intrinsics, &view.pose);
         let c1 = compare(
-            &r.render(&r.upload(&box_mesh(&[b1])).unwrap(), &view, &RenderOptions::default())
+            r.render(&r.upload(&box_mesh(&[b1])).unwrap(), &view, &RenderOptions::default())
                 .unwrap()
                 .ids
                 .raw(),

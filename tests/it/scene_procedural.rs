@@ -352,7 +352,8 @@ mod city_features {
     fn terraced_neighbours_share_wall_faces() {
         let m = city();
         // Base segment of each wall (bit patterns) → (building, wall height).
-        let mut walls: BTreeMap<([u64; 2], [u64; 2]), Vec<(usize, f64)>> = BTreeMap::new();
+        type Segment = ([u64; 2], [u64; 2]);
+        let mut walls: BTreeMap<Segment, Vec<(usize, f64)>> = BTreeMap::new();
         for (k, b) in m.buildings.iter().enumerate() {
             for w in polygons(b).iter().filter(|p| is_wall(p)) {
                 let a = [w.exterior[0][0].to_bits(), w.exterior[0][1].to_bits()];

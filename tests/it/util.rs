@@ -81,7 +81,7 @@ pub fn coco_check(py: &Path, args: &[&str]) -> serde_json::Value {
 /// A GLB file from a JSON document and a BIN chunk (each padded to 4 bytes as the spec requires).
 pub fn glb(json: &serde_json::Value, bin: &[u8]) -> Vec<u8> {
     let pad = |mut v: Vec<u8>, fill: u8| {
-        while v.len() % 4 != 0 {
+        while !v.len().is_multiple_of(4) {
             v.push(fill);
         }
         v
