@@ -58,18 +58,9 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use clap::Parser;
 
-    #[derive(Debug, Parser)]
-    struct T {
-        #[command(flatten)]
-        global: super::super::Global,
-        #[command(flatten)]
-        args: Args,
-    }
-
-    fn parse(argv: &[&str]) -> Result<T, clap::Error> {
-        T::try_parse_from(std::iter::once("t").chain(argv.iter().copied()))
+    fn parse(argv: &[&str]) -> Result<crate::cli::testing::Parsed<Args>, clap::Error> {
+        crate::cli::testing::parse(argv)
     }
 
     #[test]

@@ -14,6 +14,7 @@ pub mod export_panoptic;
 pub mod export_tiles;
 pub mod export_yolo;
 pub mod inspect;
+pub mod merge;
 pub mod prepare;
 pub mod progress;
 pub mod render_masks;
@@ -24,6 +25,7 @@ pub mod verify;
 
 use std::path::PathBuf;
 
+use anyhow::Context;
 use clap::{Parser, Subcommand};
 
 /// Synthetic building-instance datasets for UAV visual localization against LoD city models.
@@ -96,6 +98,8 @@ pub enum Command {
     Inspect(inspect::Args),
     /// Check an exported dataset against its manifest (files, sizes, masks, RGB frames).
     Verify(verify::Args),
+    /// Merge the work directories of shards (job-array tasks) into --workdir.
+    Merge(merge::Args),
     /// Export COCO panoptic segmentation from a COCO export.
     ExportPanoptic(export_panoptic::Args),
     /// Export YOLO segmentation labels (Ultralytics) from a COCO export.
@@ -122,6 +126,7 @@ impl Command {
             Command::EvalLoc(_) => "eval-loc",
             Command::Inspect(_) => "inspect",
             Command::Verify(_) => "verify",
+            Command::Merge(_) => "merge",
             Command::ExportPanoptic(_) => "export-panoptic",
             Command::ExportYolo(_) => "export-yolo",
             Command::ExportTiles(_) => "export-tiles",
@@ -177,11 +182,43 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::EvalLoc(a) => eval_loc::run(a, g),
         Command::Inspect(a) => inspect::run(a, g),
         Command::Verify(a) => verify::run(a, g),
+        Command::Merge(a) => merge::run(a, g),
         Command::ExportPanoptic(a) => export_panoptic::run(a, g),
         Command::ExportYolo(a) => export_yolo::run(a, g),
         Command::ExportTiles(a) => export_tiles::run(a, g),
         Command::Completions(a) => completions::run_completions(a, g),
         Command::Man(a) => completions::run_man(a, g),
+    }
+}
+
+/// The shard a `--shard` asks for: fixed, or from the scheduler's environment (logged with its
+/// source, so a task's log says which part of the work it did).
+pub(crate) fn resolve_shard(spec: Option<crate::util::ShardSpec>) -> anyhow::Result<crate::util::Shard> {
+    let Some(spec) = spec else { return Ok(crate::util::Shard::default()) };
+    let (shard, from) = spec.resolve(|k| std::env::var(k).ok()).context("--shard")?;
+    if let Some(scheduler) = from {
+        log::info!("shard {shard} (from the {scheduler})");
+    }
+    Ok(shard)
+}
+
+/// Parsing one subcommand's flags together with the global ones, as the binary does — for the
+/// commands' unit tests.
+#[cfg(test)]
+pub(crate) mod testing {
+    use clap::Parser;
+
+    #[derive(Debug, Parser)]
+    pub(crate) struct Parsed<A: clap::Args> {
+        #[command(flatten)]
+        pub global: super::Global,
+        #[command(flatten)]
+        pub args: A,
+    }
+
+    /// `argv` without the program name.
+    pub(crate) fn parse<A: clap::Args>(argv: &[&str]) -> Result<Parsed<A>, clap::Error> {
+        Parsed::try_parse_from(std::iter::once("insgen").chain(argv.iter().copied()))
     }
 }
 

@@ -29,7 +29,7 @@ impl From<ConnectivityArg> for Connectivity {
 }
 use crate::render::{DepthRange, Renderer};
 use crate::scene::PreparedScene;
-use crate::util::Shard;
+use crate::util::ShardSpec;
 
 /// Render instance masks: reads <workdir>/<area>/scene and <camera>/poses.jsonl, writes
 /// <camera>/masks/<frame>.png (24-bit RGB building IDs) and <frame>.instances.json.
@@ -55,8 +55,11 @@ pub struct Args {
     pub camera: String,
 
     /// Render only frames whose line index in poses.jsonl is ≡ I (mod N).
-    #[arg(long, value_name = "I/N")]
-    pub shard: Option<Shard>,
+    ///
+    /// `auto` takes I and N from a Slurm job array (SLURM_ARRAY_TASK_*); `auto/N` takes I from a
+    /// Slurm array or a Kubernetes Indexed Job (JOB_COMPLETION_INDEX) and N as given.
+    #[arg(long, value_name = "I/N|auto|auto/N")]
+    pub shard: Option<ShardSpec>,
 
     /// Pixel connectivity of instances (8 keeps diagonal-touching pixels together).
     #[arg(long, value_name = "4|8", value_enum, default_value = "8")]
@@ -116,7 +119,7 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<(MaskPlan, PathBu
     plan.depth = args.depth;
     plan.preview = args.preview;
     plan.force = args.force;
-    plan.shard = args.shard.unwrap_or_default();
+    plan.shard = super::resolve_shard(args.shard)?;
     plan.limit = args.limit;
     plan.range = DepthRange { near_m: args.near, far_m: args.far };
     Ok((plan, area_dir.join("scene")))
@@ -216,7 +219,14 @@ mod tests {
 
         #[test]
         fn shard() {
-            assert_eq!(parse(&["--shard", "2/5"]).unwrap().args.shard, Some(Shard { index: 2, count: 5 }));
+            assert_eq!(
+                parse(&["--shard", "2/5"]).unwrap().args.shard,
+                Some(ShardSpec::Fixed(crate::util::Shard { index: 2, count: 5 }))
+            );
+            assert_eq!(
+                parse(&["--shard", "auto"]).unwrap().args.shard,
+                Some(ShardSpec::Auto { count: None })
+            );
             let e = parse(&["--shard", "5/5"]).unwrap_err().to_string();
             assert!(e.contains("below the count"), "{e}");
         }

@@ -80,18 +80,15 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use clap::Parser;
 
-    #[derive(Debug, Parser)]
-    struct T {
-        #[command(flatten)]
-        args: Args,
+    fn parse(argv: &[&str]) -> Result<crate::cli::testing::Parsed<Args>, clap::Error> {
+        crate::cli::testing::parse(argv)
     }
 
     #[test]
     fn json_is_a_switch() {
-        assert!(T::try_parse_from(["t", "--json"]).unwrap().args.json);
-        assert!(!T::try_parse_from(["t"]).unwrap().args.json);
-        assert!(T::try_parse_from(["t", "--json=yes"]).is_err());
+        assert!(parse(&["--json"]).unwrap().args.json);
+        assert!(!parse(&[]).unwrap().args.json);
+        assert!(parse(&["--json=yes"]).is_err());
     }
 }

@@ -43,17 +43,14 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use clap::Parser;
 
-    #[derive(Debug, Parser)]
-    struct T {
-        #[command(flatten)]
-        args: Args,
+    fn parse(argv: &[&str]) -> Result<crate::cli::testing::Parsed<Args>, clap::Error> {
+        crate::cli::testing::parse(argv)
     }
 
     #[test]
     fn the_dataset_is_a_required_positional() {
-        assert_eq!(T::try_parse_from(["t", "runs/coco"]).unwrap().args.dataset, PathBuf::from("runs/coco"));
-        assert!(T::try_parse_from(["t"]).is_err());
+        assert_eq!(parse(&["runs/coco"]).unwrap().args.dataset, PathBuf::from("runs/coco"));
+        assert!(parse(&[]).is_err());
     }
 }

@@ -14,10 +14,11 @@ use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
 pub mod interrupt;
+pub mod merge;
 pub mod provenance;
 pub mod row_major;
 pub mod shard;
-pub use shard::{Shard, ShardError};
+pub use shard::{Scheduler, Shard, ShardError, ShardSpec};
 
 /// An I/O error that names the file it happened on.
 #[derive(Debug, thiserror::Error)]

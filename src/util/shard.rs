@@ -1,6 +1,11 @@
 //! Splitting a list of frames (or queries, or areas) over processes: shard `i/N` takes the items whose
 //! position in the list is ≡ i (mod N). Every stage that loops over frames uses the same rule, so the
 //! outputs of N shards together are exactly those of one process.
+//!
+//! On a cluster the shard comes from the scheduler ([`Shard::from_scheduler`]): a Slurm job array
+//! (`SLURM_ARRAY_TASK_ID` with `SLURM_ARRAY_TASK_COUNT`, or with `SLURM_ARRAY_TASK_MIN`/`MAX`/`STEP`)
+//! or a Kubernetes Indexed Job (`JOB_COMPLETION_INDEX`; Kubernetes does not export the completion
+//! count, so it is given as `auto/N`).
 
 use std::str::FromStr;
 
@@ -26,6 +31,79 @@ pub enum ShardError {
     Zero,
     #[error("shard index must be below the count (0..{count}), got {index}/{count}")]
     IndexTooLarge { index: u32, count: u32 },
+    #[error(
+        "--shard auto found no scheduler task index: set by a Slurm job array (SLURM_ARRAY_TASK_ID) or a \
+         Kubernetes Indexed Job (JOB_COMPLETION_INDEX)"
+    )]
+    NoScheduler,
+    #[error("{name}={value:?} is not a non-negative integer")]
+    BadVariable { name: &'static str, value: String },
+    #[error(
+        "JOB_COMPLETION_INDEX is set but Kubernetes does not export the number of completions: give it \
+         as --shard auto/N"
+    )]
+    CountUnknown,
+    #[error("{source} (from {scheduler})")]
+    FromScheduler { scheduler: Scheduler, source: Box<ShardError> },
+}
+
+/// Where a shard taken from the environment came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Scheduler {
+    /// A Slurm job array.
+    Slurm,
+    /// A Kubernetes Indexed Job.
+    Kubernetes,
+}
+
+impl std::fmt::Display for Scheduler {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Scheduler::Slurm => "Slurm job array",
+            Scheduler::Kubernetes => "Kubernetes Indexed Job",
+        })
+    }
+}
+
+/// `--shard`: a fixed `I/N`, or `auto` / `auto/N` (the index, and the count when the scheduler has
+/// one, from the environment when the command starts).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ShardSpec {
+    Fixed(Shard),
+    Auto { count: Option<u32> },
+}
+
+impl FromStr for ShardSpec {
+    type Err = ShardError;
+
+    fn from_str(s: &str) -> Result<Self, ShardError> {
+        let t = s.trim();
+        if t == "auto" {
+            return Ok(ShardSpec::Auto { count: None });
+        }
+        if let Some(n) = t.strip_prefix("auto/") {
+            return match n.trim().parse::<u32>() {
+                Ok(0) => Err(ShardError::Zero),
+                Ok(count) => Ok(ShardSpec::Auto { count: Some(count) }),
+                Err(_) => Err(ShardError::Count(n.to_string())),
+            };
+        }
+        s.parse().map(ShardSpec::Fixed)
+    }
+}
+
+impl ShardSpec {
+    /// The shard to run, and the scheduler it came from (`None` for a fixed one); `env` reads one
+    /// environment variable (e.g. `|k| std::env::var(k).ok()`).
+    pub fn resolve(
+        &self,
+        env: impl Fn(&str) -> Option<String>,
+    ) -> Result<(Shard, Option<Scheduler>), ShardError> {
+        match *self {
+            ShardSpec::Fixed(s) => Ok((s, None)),
+            ShardSpec::Auto { count } => Shard::from_scheduler(env, count).map(|(s, from)| (s, Some(from))),
+        }
+    }
 }
 
 impl Default for Shard {
@@ -39,6 +117,61 @@ impl Shard {
     /// Whether the item at `position` (0-based) belongs to this shard.
     pub fn contains(&self, position: usize) -> bool {
         position % self.count as usize == self.index as usize
+    }
+
+    /// The shard of this task of a job array, read with `env`. Slurm: index `(ID − MIN) / STEP` of
+    /// `COUNT` tasks (or `(MAX − MIN) / STEP + 1` when COUNT is absent); a job array submitted as
+    /// `--array=0-3` or `--array=1-4` gives shards 0/4 … 3/4 either way. Kubernetes: index
+    /// `JOB_COMPLETION_INDEX` of `count`, which must then be given. `count` overrides the
+    /// scheduler's count when given.
+    pub fn from_scheduler(
+        env: impl Fn(&str) -> Option<String>,
+        count: Option<u32>,
+    ) -> Result<(Shard, Scheduler), ShardError> {
+        let var = |name: &'static str| -> Result<Option<u32>, ShardError> {
+            match env(name) {
+                None => Ok(None),
+                Some(v) if v.trim().is_empty() => Ok(None),
+                Some(v) => v.trim().parse().map(Some).map_err(|_| ShardError::BadVariable { name, value: v }),
+            }
+        };
+        let checked = |index: u32, count: u32, scheduler: Scheduler| {
+            let shard = if count == 0 {
+                Err(ShardError::Zero)
+            } else if index >= count {
+                Err(ShardError::IndexTooLarge { index, count })
+            } else {
+                Ok(Shard { index, count })
+            };
+            shard
+                .map(|s| (s, scheduler))
+                .map_err(|e| ShardError::FromScheduler { scheduler, source: Box::new(e) })
+        };
+        if let Some(id) = var("SLURM_ARRAY_TASK_ID")? {
+            let min = var("SLURM_ARRAY_TASK_MIN")?.unwrap_or(0);
+            let step = var("SLURM_ARRAY_TASK_STEP")?.unwrap_or(1).max(1);
+            let index = id.checked_sub(min).map(|d| d / step).ok_or(ShardError::FromScheduler {
+                scheduler: Scheduler::Slurm,
+                source: Box::new(ShardError::BadVariable {
+                    name: "SLURM_ARRAY_TASK_ID",
+                    value: id.to_string(),
+                }),
+            })?;
+            let from_env = match (var("SLURM_ARRAY_TASK_COUNT")?, var("SLURM_ARRAY_TASK_MAX")?) {
+                (Some(n), _) => Some(n),
+                (None, Some(max)) => Some(max.saturating_sub(min) / step + 1),
+                (None, None) => None,
+            };
+            let n = count.or(from_env).ok_or(ShardError::FromScheduler {
+                scheduler: Scheduler::Slurm,
+                source: Box::new(ShardError::Count("SLURM_ARRAY_TASK_COUNT unset".into())),
+            })?;
+            return checked(index, n, Scheduler::Slurm);
+        }
+        if let Some(index) = var("JOB_COMPLETION_INDEX")? {
+            return checked(index, count.ok_or(ShardError::CountUnknown)?, Scheduler::Kubernetes);
+        }
+        Err(ShardError::NoScheduler)
     }
 }
 
@@ -90,6 +223,56 @@ mod tests {
             }
         }
         assert!(hits.iter().all(|&h| h == 1));
+    }
+
+    fn env<'a>(vars: &'a [(&'a str, &'a str)]) -> impl Fn(&str) -> Option<String> + 'a {
+        move |k| vars.iter().find(|(n, _)| *n == k).map(|(_, v)| v.to_string())
+    }
+
+    #[test]
+    fn slurm_arrays_from_zero_or_one_give_the_same_shards() {
+        // --array=0-3: Slurm sets ID, COUNT, MIN, MAX (and STEP).
+        let zero =
+            [("SLURM_ARRAY_TASK_ID", "2"), ("SLURM_ARRAY_TASK_MIN", "0"), ("SLURM_ARRAY_TASK_MAX", "3")];
+        let one =
+            [("SLURM_ARRAY_TASK_ID", "3"), ("SLURM_ARRAY_TASK_MIN", "1"), ("SLURM_ARRAY_TASK_COUNT", "4")];
+        for vars in [&zero[..], &one[..]] {
+            assert_eq!(
+                Shard::from_scheduler(env(vars), None).unwrap(),
+                (Shard { index: 2, count: 4 }, Scheduler::Slurm)
+            );
+        }
+        // --array=0-6:2 → tasks 0,2,4,6 → shards 0..4.
+        let step = [
+            ("SLURM_ARRAY_TASK_ID", "6"),
+            ("SLURM_ARRAY_TASK_MIN", "0"),
+            ("SLURM_ARRAY_TASK_MAX", "6"),
+            ("SLURM_ARRAY_TASK_STEP", "2"),
+        ];
+        assert_eq!(Shard::from_scheduler(env(&step), None).unwrap().0, Shard { index: 3, count: 4 });
+    }
+
+    #[test]
+    fn kubernetes_needs_the_count_and_errors_name_the_variable() {
+        let k8s = [("JOB_COMPLETION_INDEX", "1")];
+        assert_eq!(Shard::from_scheduler(env(&k8s), None).unwrap_err(), ShardError::CountUnknown);
+        assert_eq!(
+            "auto/3".parse::<ShardSpec>().unwrap().resolve(env(&k8s)).unwrap(),
+            (Shard { index: 1, count: 3 }, Some(Scheduler::Kubernetes))
+        );
+        let e = "auto/1".parse::<ShardSpec>().unwrap().resolve(env(&k8s)).unwrap_err().to_string();
+        assert!(e.contains("below the count") && e.contains("Kubernetes"), "{e}");
+        let bad = [("SLURM_ARRAY_TASK_ID", "x")];
+        assert!(Shard::from_scheduler(env(&bad), None)
+            .unwrap_err()
+            .to_string()
+            .contains("SLURM_ARRAY_TASK_ID"));
+        assert_eq!(Shard::from_scheduler(env(&[]), None).unwrap_err(), ShardError::NoScheduler);
+        assert_eq!("auto/0".parse::<ShardSpec>().unwrap_err(), ShardError::Zero);
+        assert_eq!(
+            "1/2".parse::<ShardSpec>().unwrap().resolve(env(&k8s)).unwrap(),
+            (Shard { index: 1, count: 2 }, None)
+        );
     }
 
     #[test]

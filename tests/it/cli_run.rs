@@ -99,3 +99,83 @@ fn a_batch_log_gets_progress_lines_and_no_driver_noise() {
     assert!(!err.contains("XDG_RUNTIME_DIR"), "driver noise on a headless run: {err}");
     assert!(!err.contains('\r'), "a bar was drawn into a log: {err:?}");
 }
+
+/// Every regular file below `root` (relative path → bytes), for comparing whole trees.
+fn tree(root: &Path) -> std::collections::BTreeMap<std::path::PathBuf, Vec<u8>> {
+    let mut out = std::collections::BTreeMap::new();
+    let mut stack = vec![root.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap().map(Result::unwrap) {
+            let p = e.path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                out.insert(p.strip_prefix(root).unwrap().to_path_buf(), std::fs::read(&p).unwrap());
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn slurm_array_shards_merge_into_what_one_process_writes() {
+    let dir = demo_with_poses(10);
+    let cwd = dir.path();
+    for shard in ["task0", "task1"] {
+        let ok = Command::new("cp").args(["-r", "runs", shard]).current_dir(cwd).status().unwrap();
+        assert!(ok.success());
+    }
+    // One process.
+    let run = |args: &[&str]| {
+        let o = crate::util::insgen(cwd, args);
+        assert!(o.status.success(), "{args:?}: {}", crate::util::stderr(&o));
+        o
+    };
+    run(&["render-masks", "--area", "demo", "--camera", "small", "--preview", "0"]);
+    run(&["export-coco", "--label-only"]);
+    // Two tasks of a Slurm job array submitted as --array=1-2, each in its own (node-local) workdir.
+    for (task, workdir) in [("1", "task0"), ("2", "task1")] {
+        let o = Command::new(env!("CARGO_BIN_EXE_insgen"))
+            .args(["--workdir", workdir, "-v", "render-masks", "--area", "demo", "--camera", "small"])
+            .args(["--preview", "0", "--shard", "auto"])
+            .env("SLURM_ARRAY_TASK_ID", task)
+            .env("SLURM_ARRAY_TASK_MIN", "1")
+            .env("SLURM_ARRAY_TASK_MAX", "2")
+            .env("RUST_LOG", "info")
+            .current_dir(cwd)
+            .output()
+            .unwrap();
+        let err = crate::util::stderr(&o);
+        assert!(o.status.success(), "{err}");
+        let index = task.parse::<u32>().unwrap() - 1;
+        assert!(err.contains(&format!("shard {index}/2 (from the Slurm job array)")), "{err}");
+    }
+    let frames = |w: &str| tree(&cwd.join(w).join("demo/small/masks")).len();
+    assert_eq!(frames("task0") + frames("task1"), frames("runs"), "the shards split the frames");
+    assert!(frames("task0") > 0 && frames("task1") > 0);
+    // A shard of another run (here: other poses) conflicts, and a refused merge writes nothing.
+    let poses = cwd.join("task1/demo/small/poses.jsonl");
+    let original = std::fs::read(&poses).unwrap();
+    std::fs::write(&poses, b"{}\n").unwrap();
+    let o = crate::util::insgen(cwd, &["merge", "--workdir", "merged", "task0", "task1"]);
+    let err = crate::util::stderr(&o);
+    assert!(!o.status.success() && err.contains("differ between the work directories"), "{err}");
+    assert!(err.contains("poses.jsonl"), "{err}");
+    assert!(!cwd.join("merged").exists(), "a refused merge writes nothing");
+    std::fs::write(&poses, original).unwrap();
+    // The merge, then the export, equal the single process's byte for byte.
+    run(&["merge", "--workdir", "merged", "task0", "task1"]);
+    run(&["--workdir", "merged", "export-coco", "--label-only"]);
+    let single = tree(&cwd.join("runs/demo"));
+    let merged = tree(&cwd.join("merged/demo"));
+    assert_eq!(single.keys().collect::<Vec<_>>(), merged.keys().collect::<Vec<_>>());
+    for (k, v) in &single {
+        assert!(merged[k] == *v, "{} differs after the merge", k.display());
+    }
+    for split in ["train", "val", "test"] {
+        let name = format!("instances_{split}.json");
+        let a = std::fs::read(cwd.join("runs/coco").join(&name)).unwrap();
+        let b = std::fs::read(cwd.join("merged/coco").join(&name)).unwrap();
+        assert!(a == b, "{name} differs between one process and the merged shards");
+    }
+}
