@@ -4,8 +4,9 @@
 //!
 //! On a cluster the shard comes from the scheduler ([`Shard::from_scheduler`]): a Slurm job array
 //! (`SLURM_ARRAY_TASK_ID` with `SLURM_ARRAY_TASK_COUNT`, or with `SLURM_ARRAY_TASK_MIN`/`MAX`/`STEP`)
-//! or a Kubernetes Indexed Job (`JOB_COMPLETION_INDEX`; Kubernetes does not export the completion
-//! count, so it is given as `auto/N`).
+//! or a Kubernetes Indexed Job (`JOB_COMPLETION_INDEX`). With `auto/N` the task id itself is the index
+//! and N the count: the form for arrays submitted as `0-(N-1)` and resubmitted in part (`--array=3,7`
+//! for the failed tasks only), and for Kubernetes, which does not export the completion count.
 
 use std::str::FromStr;
 
@@ -119,11 +120,12 @@ impl Shard {
         position % self.count as usize == self.index as usize
     }
 
-    /// The shard of this task of a job array, read with `env`. Slurm: index `(ID − MIN) / STEP` of
-    /// `COUNT` tasks (or `(MAX − MIN) / STEP + 1` when COUNT is absent); a job array submitted as
-    /// `--array=0-3` or `--array=1-4` gives shards 0/4 … 3/4 either way. Kubernetes: index
-    /// `JOB_COMPLETION_INDEX` of `count`, which must then be given. `count` overrides the
-    /// scheduler's count when given.
+    /// The shard of this task of a job array, read with `env`.
+    ///
+    /// Without `count` (Slurm only): index `(ID − MIN) / STEP` of `COUNT` tasks (or
+    /// `(MAX − MIN) / STEP + 1` when COUNT is absent), so `--array=0-3` and `--array=1-4` both give
+    /// shards 0/4 … 3/4. With `count`: the task id itself (`SLURM_ARRAY_TASK_ID` or
+    /// `JOB_COMPLETION_INDEX`) is the index, so a partial resubmission keeps each task's shard.
     pub fn from_scheduler(
         env: impl Fn(&str) -> Option<String>,
         count: Option<u32>,
@@ -147,6 +149,9 @@ impl Shard {
                 .map(|s| (s, scheduler))
                 .map_err(|e| ShardError::FromScheduler { scheduler, source: Box::new(e) })
         };
+        if let (Some(id), Some(n)) = (var("SLURM_ARRAY_TASK_ID")?, count) {
+            return checked(id, n, Scheduler::Slurm);
+        }
         if let Some(id) = var("SLURM_ARRAY_TASK_ID")? {
             let min = var("SLURM_ARRAY_TASK_MIN")?.unwrap_or(0);
             let step = var("SLURM_ARRAY_TASK_STEP")?.unwrap_or(1).max(1);
@@ -162,7 +167,7 @@ impl Shard {
                 (None, Some(max)) => Some(max.saturating_sub(min) / step + 1),
                 (None, None) => None,
             };
-            let n = count.or(from_env).ok_or(ShardError::FromScheduler {
+            let n = from_env.ok_or(ShardError::FromScheduler {
                 scheduler: Scheduler::Slurm,
                 source: Box::new(ShardError::Count("SLURM_ARRAY_TASK_COUNT unset".into())),
             })?;
@@ -250,6 +255,10 @@ mod tests {
             ("SLURM_ARRAY_TASK_STEP", "2"),
         ];
         assert_eq!(Shard::from_scheduler(env(&step), None).unwrap().0, Shard { index: 3, count: 4 });
+        // auto/N: a resubmission of the failed tasks (--array=3,7 of 0-7) keeps each task's shard.
+        let again =
+            [("SLURM_ARRAY_TASK_ID", "7"), ("SLURM_ARRAY_TASK_MIN", "3"), ("SLURM_ARRAY_TASK_COUNT", "2")];
+        assert_eq!(Shard::from_scheduler(env(&again), Some(8)).unwrap().0, Shard { index: 7, count: 8 });
     }
 
     #[test]

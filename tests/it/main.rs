@@ -35,3 +35,4 @@ mod render_shibuya;
 mod scene_glb;
 mod scene_prepare;
 mod scene_procedural;
+mod slurm;

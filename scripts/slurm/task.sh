@@ -1,0 +1,80 @@
+#!/usr/bin/env bash
+# One task of an insgen Slurm submission (see submit.sh): task.sh CONFIG prep|masks|rgb|merge.
+# Array tasks render their shard (--shard auto/TASKS: the array index is the shard) in a work
+# directory of their own — node-local scratch when --scratch or $TMPDIR is set — and copy it to
+# <workdir>/.shards/<stage>-<index> when done, marking it done with <stage>-<index>.done beside it.
+#SBATCH --open-mode=append
+set -euo pipefail
+config="$1"
+stage="$2"
+# shellcheck disable=SC1090
+source "$config"
+log() { echo "[insgen-slurm $(date -u +%FT%TZ)] $*"; }
+run() { log "$*"; "$@"; }
+log "stage $stage on $(hostname) (job ${SLURM_JOB_ID:-?}, array task ${SLURM_ARRAY_TASK_ID:-none})"
+case "$stage" in
+    prep)
+        for area in $AREAS; do
+            run "$INSGEN" --workdir "$WORKDIR" --scenes "$SCENES" --no-progress prepare --area "$area"
+            run "$INSGEN" --workdir "$WORKDIR" --scenes "$SCENES" --no-progress sample --area "$area" \
+                --camera "$CAMERA" --count "$COUNT"
+        done
+        ;;
+    masks|rgb)
+        index="${SLURM_ARRAY_TASK_ID:?task.sh $stage runs as an array task}"
+        shards="$WORKDIR/.shards"
+        final="$shards/$stage-$index"
+        if [ -e "$final.done" ]; then
+            log "shard $index already done ($final)"
+            exit 0
+        fi
+        base="${SCRATCH:-${TMPDIR:-/tmp}}"
+        work="$base/insgen-$stage-${SLURM_ARRAY_JOB_ID:-0}-$index"
+        mkdir -p "$work"
+        camera_name="$(basename "$CAMERA" .toml)"
+        for area in $AREAS; do
+            # The inputs of this area: the prepared scene and the sampled poses.
+            mkdir -p "$work/$area/$camera_name"
+            cp -r "$WORKDIR/$area/scene" "$work/$area/"
+            find "$WORKDIR/$area/$camera_name" -maxdepth 1 -type f -exec cp {} "$work/$area/$camera_name/" \;
+            if [ "$stage" = masks ]; then
+                run "$INSGEN" --workdir "$work" --no-progress render-masks --area "$area" --camera "$camera_name" \
+                    --shard "auto/$TASKS" --preview 0
+            else
+                run "$INSGEN" --workdir "$work" --no-progress render-rgb --area "$area" --camera "$camera_name" \
+                    --shard "auto/$TASKS"
+            fi
+        done
+        # Publish the shard whole: copy, then rename into place, then mark it done.
+        mkdir -p "$shards"
+        rm -rf "$final.partial"
+        cp -r "$work" "$final.partial"
+        rm -rf "$final"
+        mv "$final.partial" "$final"
+        touch "$final.done"
+        rm -rf "$work"
+        log "shard $index of $TASKS done → $final"
+        ;;
+    merge)
+        shards=()
+        for stage_name in masks rgb; do
+            [ "$stage_name" = rgb ] && [ "$RGB" != 1 ] && continue
+            for ((i = 0; i < TASKS; i++)); do
+                d="$WORKDIR/.shards/$stage_name-$i"
+                [ -e "$d.done" ] || { log "shard $stage_name-$i is not done; resubmit with scripts/slurm/resubmit.sh"; exit 1; }
+                shards+=("$d")
+            done
+        done
+        run "$INSGEN" --workdir "$WORKDIR" merge "${shards[@]}"
+        if [ "$RGB" = 1 ]; then
+            run "$INSGEN" --workdir "$WORKDIR" --no-progress export-coco
+        else
+            run "$INSGEN" --workdir "$WORKDIR" --no-progress export-coco --label-only
+        fi
+        ;;
+    *)
+        echo "task.sh: unknown stage $stage (prep, masks, rgb or merge)" >&2
+        exit 2
+        ;;
+esac
+log "stage $stage finished"
