@@ -10,6 +10,7 @@
 #     libvulkan1                without a GPU
 #     chromium                  headless Chromium (SwiftShader WebGL) to open the 3D Tiles export in
 #                               CesiumJS, as a user's browser would
+#     time                      GNU time, for the peak-memory benchmark (scripts/bench_memory.sh)
 #     python3, python3-venv     (only if missing) for the Python checks and Blender's bpy
 #     nodejs, npm               (only if missing) for the Khronos glTF validator
 #   Python virtual environments (in the repo, git-ignored)
@@ -33,7 +34,7 @@ ROOT=$(pwd)
 say() { printf '[setup] %s\n' "$*" >&2; }
 
 # --- Debian packages --------------------------------------------------------------------------------
-APT_PACKAGES=(pkg-config libproj-dev proj-data libclang-dev mesa-vulkan-drivers libvulkan1 chromium)
+APT_PACKAGES=(pkg-config libproj-dev proj-data libclang-dev mesa-vulkan-drivers libvulkan1 chromium time)
 command -v python3 >/dev/null 2>&1 || APT_PACKAGES+=(python3 python3-venv)
 command -v node >/dev/null 2>&1 || APT_PACKAGES+=(nodejs)
 command -v npm >/dev/null 2>&1 || APT_PACKAGES+=(npm)

@@ -215,7 +215,10 @@ mod tests {
         assert!(msg.contains("1 file(s) differ") && msg.contains("poses.jsonl"), "{msg}");
         assert!(!out.exists(), "a refused merge writes nothing");
         // A source that is the destination is refused too.
-        assert!(matches!(merge_workdirs(std::slice::from_ref(&a), &a), Err(MergeError::SourceIsDestination(_))));
+        assert!(matches!(
+            merge_workdirs(std::slice::from_ref(&a), &a),
+            Err(MergeError::SourceIsDestination(_))
+        ));
         assert!(matches!(
             merge_workdirs(&[t.path().join("missing")], &out),
             Err(MergeError::NotADirectory(_))

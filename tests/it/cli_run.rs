@@ -100,23 +100,6 @@ fn a_batch_log_gets_progress_lines_and_no_driver_noise() {
     assert!(!err.contains('\r'), "a bar was drawn into a log: {err:?}");
 }
 
-/// Every regular file below `root` (relative path → bytes), for comparing whole trees.
-fn tree(root: &Path) -> std::collections::BTreeMap<std::path::PathBuf, Vec<u8>> {
-    let mut out = std::collections::BTreeMap::new();
-    let mut stack = vec![root.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap().map(Result::unwrap) {
-            let p = e.path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                out.insert(p.strip_prefix(root).unwrap().to_path_buf(), std::fs::read(&p).unwrap());
-            }
-        }
-    }
-    out
-}
-
 #[test]
 fn slurm_array_shards_merge_into_what_one_process_writes() {
     let dir = demo_with_poses(10);
@@ -150,7 +133,7 @@ fn slurm_array_shards_merge_into_what_one_process_writes() {
         let index = task.parse::<u32>().unwrap() - 1;
         assert!(err.contains(&format!("shard {index}/2 (from the Slurm job array)")), "{err}");
     }
-    let frames = |w: &str| tree(&cwd.join(w).join("demo/small/masks")).len();
+    let frames = |w: &str| crate::util::tree(&cwd.join(w).join("demo/small/masks")).len();
     assert_eq!(frames("task0") + frames("task1"), frames("runs"), "the shards split the frames");
     assert!(frames("task0") > 0 && frames("task1") > 0);
     // A shard of another run (here: other poses) conflicts, and a refused merge writes nothing.
@@ -166,8 +149,8 @@ fn slurm_array_shards_merge_into_what_one_process_writes() {
     // The merge, then the export, equal the single process's byte for byte.
     run(&["merge", "--workdir", "merged", "task0", "task1"]);
     run(&["--workdir", "merged", "export-coco", "--label-only"]);
-    let single = tree(&cwd.join("runs/demo"));
-    let merged = tree(&cwd.join("merged/demo"));
+    let single = crate::util::tree(&cwd.join("runs/demo"));
+    let merged = crate::util::tree(&cwd.join("merged/demo"));
     assert_eq!(single.keys().collect::<Vec<_>>(), merged.keys().collect::<Vec<_>>());
     for (k, v) in &single {
         assert!(merged[k] == *v, "{} differs after the merge", k.display());

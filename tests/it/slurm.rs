@@ -176,22 +176,6 @@ fn cannot_run() -> Option<String> {
     None
 }
 
-fn tree(root: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
-    let mut out = std::collections::BTreeMap::new();
-    let mut stack = vec![root.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap().map(Result::unwrap) {
-            let p = e.path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                out.insert(p.strip_prefix(root).unwrap().to_path_buf(), std::fs::read(&p).unwrap());
-            }
-        }
-    }
-    out
-}
-
 #[test]
 fn a_slurm_job_array_makes_the_dataset_one_process_makes() {
     if let Some(why) = cannot_run() {
@@ -268,7 +252,8 @@ fn a_slurm_job_array_makes_the_dataset_one_process_makes() {
         run(args);
     }
     let same = |what: &str| {
-        let (a, b) = (tree(&cwd.join("single").join(what)), tree(&workdir.join(what)));
+        let (a, b) =
+            (crate::util::tree(&cwd.join("single").join(what)), crate::util::tree(&workdir.join(what)));
         assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>(), "{what}: other files");
         for (k, v) in &a {
             assert!(b[k] == *v, "{what}/{} differs between one process and the Slurm array", k.display());
