@@ -86,6 +86,19 @@ pub struct ReadStats {
     pub degenerate_faces: u64,
     /// Triangles or polygons read.
     pub faces: u64,
+    /// Coordinates that are not finite or beyond ±[`MAX_ABS_COORDINATE`] in objects that were *not*
+    /// read (non-building objects, unused vertices): reported with a warning, since nothing built
+    /// from the file uses them. Such a coordinate in a building is an error.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub bad_coordinates_unused: u64,
+    /// Faces dropped as degenerate in geometry that was not chosen (e.g. a LoD0 footprint of a
+    /// building read at LoD2): reported with a warning.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub degenerate_faces_unused: u64,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 /// What one reader produced from one source.
@@ -174,6 +187,75 @@ pub fn read_source(path: &Path, format: Option<Format>, opts: &ReadOptions) -> R
         Format::Obj => obj::read(path, opts),
         Format::Tiles3d => tiles3d::read(path, opts),
     }
+}
+
+/// What the first bytes of a file look like, for messages about a file given in the wrong format
+/// (`"JSON"`, `"XML"`, `"a glTF binary (glb)"`, …).
+pub fn sniff(head: &[u8]) -> &'static str {
+    let head = head.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(head);
+    let text = head.iter().position(|b| !b.is_ascii_whitespace()).map_or(&[][..], |i| &head[i..]);
+    if head.is_empty() {
+        return "empty";
+    }
+    if head.starts_with(b"glTF") {
+        return "a glTF binary (glb)";
+    }
+    if head.starts_with(b"b3dm")
+        || head.starts_with(b"cmpt")
+        || head.starts_with(b"i3dm")
+        || head.starts_with(b"pnts")
+    {
+        return "a 3D Tiles content (b3dm/cmpt/i3dm/pnts)";
+    }
+    if head.starts_with(&[0x1f, 0x8b]) {
+        return "gzip-compressed data";
+    }
+    let probe = &head[..head.len().min(512)];
+    if probe.contains(&0)
+        || std::str::from_utf8(probe).is_err()
+            && std::str::from_utf8(&probe[..probe.len().saturating_sub(4)]).is_err()
+    {
+        return "binary data";
+    }
+    match text.first() {
+        None => "only white space",
+        Some(b'{') | Some(b'[') => "JSON",
+        Some(b'<') => "XML",
+        Some(_) if text.starts_with(b"v ") || text.starts_with(b"mtllib") || text.starts_with(b"o ") => {
+            "a Wavefront OBJ"
+        }
+        Some(_) => "text",
+    }
+}
+
+/// A [`LodError::Malformed`] for a file that is not `expected` at all ("not JSON", "not XML"), naming
+/// what it looks like instead and, when that is another format insgen reads, how to read it as that.
+pub(crate) fn wrong_format(path: &Path, expected: &str, document: &str) -> LodError {
+    let looks = sniff(&head_of(path, 512));
+    let hint = match looks {
+        "JSON" => " (CityJSON or a tileset? name it .json / tileset.json or set `format` in the scene file)",
+        "XML" => " (CityGML? name it .gml or set format = \"citygml\" in the scene file)",
+        "a glTF binary (glb)" | "a 3D Tiles content (b3dm/cmpt/i3dm/pnts)" => {
+            " (3D Tiles? name it .glb/.b3dm or set format = \"3dtiles\" in the scene file)"
+        }
+        "a Wavefront OBJ" => " (name it .obj or set format = \"obj\" in the scene file)",
+        _ => "",
+    };
+    let holds = match looks {
+        "empty" => "the file is empty".to_string(),
+        other => format!("the file holds {other}{hint}"),
+    };
+    LodError::malformed(path, format!("not {expected}: {holds}, not {document}"))
+}
+
+/// The first bytes of a file (at most `n`), for [`sniff`]; empty when unreadable.
+pub(crate) fn head_of(path: &Path, n: usize) -> Vec<u8> {
+    use std::io::Read;
+    let mut buf = Vec::with_capacity(n);
+    if let Ok(f) = std::fs::File::open(path) {
+        let _ = f.take(n as u64).read_to_end(&mut buf);
+    }
+    buf
 }
 
 /// Largest coordinate magnitude a reader accepts, in source units (metres or degrees): anything
