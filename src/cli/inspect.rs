@@ -52,6 +52,10 @@ pub struct SourceSummary {
     pub stats: serde_json::Value,
     /// The first five source IDs.
     pub first_source_ids: Vec<String>,
+    /// Buildings that start at z ≈ 0 while carrying a ground-height attribute (heights relative to
+    /// the ground?), with the attribute; absent when there are none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub relative_heights: Option<String>,
 }
 
 pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
@@ -131,6 +135,16 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         triangles: tris,
         stats: serde_json::to_value(&m.stats)?,
         first_source_ids: m.buildings.iter().take(5).map(|b| b.source_id.clone()).collect(),
+        relative_heights: lod::relative_heights(&m).map(|r| {
+            format!(
+                "{} of {} buildings start at z ≈ 0 m although their {} is not 0: heights above the ground? \
+                 (prepare them with heights = \"above_ground\", ground_attribute = \"{}\")",
+                r.buildings,
+                m.buildings.len(),
+                r.attribute,
+                r.attribute
+            )
+        }),
     };
     if args.json {
         writeln!(out, "{}", serde_json::to_string_pretty(&summary)?)?;
@@ -147,6 +161,9 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     writeln!(out, "polygons:   {}", summary.polygons)?;
     writeln!(out, "triangles:  {}", summary.triangles)?;
     writeln!(out, "stats:      {}", serde_json::to_string(&summary.stats)?)?;
+    if let Some(r) = &summary.relative_heights {
+        writeln!(out, "heights:    {r}")?;
+    }
     for id in &summary.first_source_ids {
         writeln!(out, "  {id}")?;
     }

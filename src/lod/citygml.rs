@@ -891,6 +891,7 @@ impl<'p> Parser<'p> {
             source_id: b.id,
             lod,
             measured_height_m: b.measured_height_m,
+            ground_heights_m: Vec::new(),
             geometry: Geometry::Polygons(polygons),
         });
     }

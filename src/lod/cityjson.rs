@@ -165,6 +165,9 @@ struct Attributes {
     /// Building height in metres (a number, or a numeric string in some exports).
     #[serde(rename = "measuredHeight")]
     measured_height: Option<serde_json::Value>,
+    /// Every other attribute; only ground heights ([`super::is_ground_attribute`]) are kept.
+    #[serde(flatten)]
+    other: BTreeMap<String, serde_json::Value>,
 }
 
 /// One geometry object.
@@ -762,8 +765,23 @@ impl<'p> Reader<'p> {
                 };
                 h.filter(|h| h.is_finite())
             });
+        let ground_heights_m: Vec<(String, f64)> = root
+            .attributes
+            .iter()
+            .flat_map(|a| a.other.iter())
+            .filter(|(k, _)| super::is_ground_attribute(k))
+            .filter_map(|(k, v)| {
+                let h = match v {
+                    serde_json::Value::Number(n) => n.as_f64(),
+                    serde_json::Value::String(s) => s.trim().parse::<f64>().ok(),
+                    _ => None,
+                };
+                h.filter(|h| h.is_finite() && h.abs() < 1e4).map(|h| (k.clone(), h))
+            })
+            .collect();
         self.buildings.push(SourceBuilding {
             source_id: key.clone(),
+            ground_heights_m,
             lod: lod_name.or(top.map(|t| t.0)).unwrap_or_default(),
             measured_height_m,
             geometry: Geometry::Polygons(polygons),

@@ -59,7 +59,68 @@ pub struct SourceBuilding {
     pub lod: String,
     /// `measuredHeight` or an equivalent attribute when the source gives one, in metres.
     pub measured_height_m: Option<f64>,
+    /// Ground (terrain) heights the source gives for the building, in metres, as (attribute, value):
+    /// CityJSON attributes named in [`GROUND_ATTRIBUTES`] or containing "maaiveld", "terrain" or
+    /// "ground". With heights relative to the ground (geometry starting at z ≈ 0) they are what
+    /// `heights = "above_ground"` adds back; see [`relative_heights`].
+    pub ground_heights_m: Vec<(String, f64)>,
     pub geometry: Geometry,
+}
+
+/// Attribute names of a building's ground height in the wild: `TerrainHeight` (Dutch municipal
+/// models), `h_maaiveld`/`b3_h_maaiveld` (BAG/3DBAG), `groundHeight`, `ground_height`.
+pub const GROUND_ATTRIBUTES: &[&str] =
+    &["TerrainHeight", "h_maaiveld", "b3_h_maaiveld", "groundHeight", "ground_height"];
+
+/// Whether an attribute name looks like a ground height (see [`SourceBuilding::ground_heights_m`]).
+pub fn is_ground_attribute(name: &str) -> bool {
+    let l = name.to_ascii_lowercase();
+    GROUND_ATTRIBUTES.contains(&name)
+        || l.contains("maaiveld")
+        || l.contains("terrain")
+        || l.contains("ground")
+}
+
+/// Buildings whose heights look relative to the ground: see [`relative_heights`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct RelativeHeights {
+    /// Buildings whose lowest vertex is within [`RELATIVE_BASE_M`] of z = 0 while their ground
+    /// attribute is farther than that from 0.
+    pub buildings: usize,
+    /// Buildings that carry a ground attribute at all.
+    pub with_ground_attribute: usize,
+    /// The attribute most of them carry.
+    pub attribute: String,
+}
+
+/// How close to z = 0 (metres) a building's lowest vertex must be to count as starting at the ground
+/// of a relative-height model.
+pub const RELATIVE_BASE_M: f64 = 0.5;
+
+/// Detects heights given above the ground: buildings whose geometry starts at z ≈ 0 (within
+/// [`RELATIVE_BASE_M`]) although they carry a ground attribute that is not ≈ 0 (e.g. `TerrainHeight`
+/// = 2.4 m in a Dutch municipal model). `None` when no building looks like that.
+pub fn relative_heights(model: &SourceModel) -> Option<RelativeHeights> {
+    let mut counts: std::collections::BTreeMap<&str, usize> = std::collections::BTreeMap::new();
+    let (mut relative, mut with_attr) = (0, 0);
+    for b in &model.buildings {
+        let Some((name, ground_m)) = b.ground_heights_m.first() else { continue };
+        with_attr += 1;
+        let min_z = match &b.geometry {
+            Geometry::Polygons(ps) => ps
+                .iter()
+                .flat_map(|p| p.exterior.iter().chain(p.interiors.iter().flatten()))
+                .map(|p| p[2])
+                .fold(f64::INFINITY, f64::min),
+            Geometry::Mesh(m) => m.positions.iter().map(|p| p[2]).fold(f64::INFINITY, f64::min),
+        };
+        if min_z.abs() < RELATIVE_BASE_M && ground_m.abs() >= RELATIVE_BASE_M {
+            relative += 1;
+            *counts.entry(name.as_str()).or_default() += 1;
+        }
+    }
+    let attribute = counts.iter().max_by_key(|(_, n)| **n)?.0.to_string();
+    Some(RelativeHeights { buildings: relative, with_ground_attribute: with_attr, attribute })
 }
 
 /// Which frame a model's coordinates are in.

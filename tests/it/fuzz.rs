@@ -312,9 +312,9 @@ fn citygml_slice(bytes: &[u8], members: usize) -> Option<Vec<u8>> {
         }
     }
     let root_close = text.rfind("</")?;
-    let mut out = text[..end].as_bytes().to_vec();
+    let mut out = text.as_bytes()[..end].to_vec();
     out.extend_from_slice(b"\n");
-    out.extend_from_slice(text[root_close..].as_bytes());
+    out.extend_from_slice(&text.as_bytes()[root_close..]);
     Some(out)
 }
 

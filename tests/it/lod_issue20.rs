@@ -171,3 +171,97 @@ mod inspect {
         assert!(status.success() && !err.contains("panicked"), "{status:?}: {err}");
     }
 }
+
+mod relative_heights {
+    use super::*;
+
+    fn scene(extra: &str) -> String {
+        let src = fx("cityjson", "relative_heights_terrain.city.json");
+        format!(
+            "name = \"rel\"\n\n[[sources]]\npath = \"{}\"\n{extra}\n\n[geoid]\nmodel = \"constant\"\nundulation_m = 0.0\n\n\
+             [origin]\nlat_deg = 52.0\nlon_deg = 4.36\nh_m = 0.0\n",
+            src.display()
+        )
+    }
+
+    fn prepare(extra: &str) -> (std::process::Output, Option<serde_json::Value>, Option<serde_json::Value>) {
+        let dir = crate::util::scratch_with_scenes(&[("rel", scene(extra))]);
+        let out = insgen(dir.path(), &["--workdir", "runs", "prepare", "--area", "rel"]);
+        let read = |f: &str| {
+            std::fs::read(dir.path().join("runs/rel/scene").join(f))
+                .ok()
+                .map(|b| serde_json::from_slice(&b).unwrap())
+        };
+        (out, read("manifest.json"), read("buildings.json"))
+    }
+
+    fn min_up_m(buildings: &serde_json::Value, id: &str) -> f64 {
+        let b = buildings.as_array().unwrap().iter().find(|b| b["source_id"] == id).unwrap();
+        b["bbox_min_enu_m"][2].as_f64().unwrap()
+    }
+
+    #[test]
+    fn detected_and_reported_by_the_reader_and_inspect() {
+        let p = fx("cityjson", "relative_heights_terrain.city.json");
+        let m = cityjson::read(&p, &ReadOptions::default()).unwrap();
+        assert_eq!(crate::util::building(&m, "a").ground_heights_m, vec![("TerrainHeight".to_string(), 2.4)]);
+        assert_eq!(crate::util::building(&m, "b").ground_heights_m, vec![("TerrainHeight".to_string(), 3.1)]);
+        let r = insgen::lod::relative_heights(&m).unwrap();
+        assert_eq!((r.buildings, r.with_ground_attribute, r.attribute.as_str()), (2, 2, "TerrainHeight"));
+        let out = insgen(&repo(), &["inspect", p.to_str().unwrap()]);
+        let text = stdout(&out);
+        assert!(
+            text.contains(
+                "heights:    2 of 2 buildings start at z ≈ 0 m although their TerrainHeight is not 0"
+            ),
+            "{text}"
+        );
+        // Absolute models are not flagged.
+        let m = cityjson::read(&fx("cityjson", "cube_epsg_7415.city.json"), &ReadOptions::default()).unwrap();
+        assert_eq!(insgen::lod::relative_heights(&m), None);
+    }
+
+    #[test]
+    fn prepare_warns_and_above_ground_adds_the_attribute() {
+        let (out, manifest, plain) = prepare("");
+        assert!(out.status.success(), "{}", stderr(&out));
+        assert!(
+            stderr(&out).contains("set heights = \"above_ground\" and ground_attribute = \"TerrainHeight\""),
+            "{}",
+            stderr(&out)
+        );
+        assert!(manifest.unwrap()["sources"][0].get("heights").is_none());
+        let plain = plain.unwrap();
+
+        let (out, manifest, lifted) =
+            prepare("heights = \"above_ground\"\nground_attribute = \"TerrainHeight\"");
+        assert!(out.status.success(), "{}", stderr(&out));
+        assert!(!stderr(&out).contains("look relative"), "{}", stderr(&out));
+        let manifest = manifest.unwrap();
+        assert_eq!(
+            manifest["sources"][0]["heights"],
+            "above_ground: + TerrainHeight per building (2 buildings)"
+        );
+        crate::util::assert_schema("manifest.schema.json", &manifest);
+        let lifted = lifted.unwrap();
+        // The same place, the ground added: 2.4 m and 3.1 m higher (1 mm: ENU up vs ellipsoidal height
+        // over 1 km).
+        for (id, lift_m) in [("a", 2.4), ("b", 3.1)] {
+            let d = min_up_m(&lifted, id) - min_up_m(&plain, id);
+            assert!((d - lift_m).abs() < 1e-3, "{id}: lifted by {d} m, expected {lift_m} m");
+        }
+
+        let (out, manifest, lifted) = prepare("heights = \"above_ground\"\nground_height_m = 1.5");
+        assert!(out.status.success(), "{}", stderr(&out));
+        assert_eq!(manifest.unwrap()["sources"][0]["heights"], "above_ground: + 1.5 m");
+        let d = min_up_m(&lifted.unwrap(), "a") - min_up_m(&plain, "a");
+        assert!((d - 1.5).abs() < 1e-3, "{d}");
+    }
+
+    #[test]
+    fn ground_settings_without_above_ground_are_refused() {
+        let (out, _, _) = prepare("ground_attribute = \"TerrainHeight\"");
+        assert_eq!(out.status.code(), Some(1));
+        assert!(stderr(&out).contains("need heights = \"above_ground\""), "{}", stderr(&out));
+    }
+}
