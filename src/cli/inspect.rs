@@ -1,6 +1,7 @@
 //! `insgen inspect`: what a source file holds, or what a prepared area contains.
 
 use std::collections::BTreeMap;
+use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::Context;
@@ -45,47 +46,72 @@ pub struct SourceSummary {
     /// Buildings per LoD.
     pub lod: BTreeMap<String, u64>,
     pub polygons: u64,
+    /// Triangles of the meshes, plus those the polygons make when triangulated (V + 2H − 2 each).
     pub triangles: u64,
     /// The reader's counters.
     pub stats: serde_json::Value,
     /// The first five source IDs.
     pub first_source_ids: Vec<String>,
+    /// Buildings that start at z ≈ 0 while carrying a ground-height attribute (heights relative to
+    /// the ground?), with the attribute; absent when there are none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub relative_heights: Option<String>,
 }
 
 pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
+    // Written with `writeln!` so that a closed pipe (`insgen inspect F | head`) is an error that
+    // `main` treats as success, not a panic of `println!`.
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
     if let Some(area) = &args.area {
         let dir = global.workdir.join(area).join("scene");
         let s = crate::scene::PreparedScene::load(&dir)?;
         let m = &s.manifest;
         if args.json {
-            println!("{}", serde_json::to_string_pretty(m)?);
+            writeln!(out, "{}", serde_json::to_string_pretty(m)?)?;
             return Ok(());
         }
-        println!("area:       {} ({} split)", m.area, m.split);
-        println!(
+        writeln!(out, "area:       {} ({} split)", m.area, m.split)?;
+        writeln!(
+            out,
             "origin:     lat {} °, lon {} °, h {} m (WGS84)",
             m.origin.lat_deg, m.origin.lon_deg, m.origin.h_m
-        );
-        println!("geoid:      {} (N = {} m at the origin)", m.geoid.model, m.geoid.undulation_at_origin_m);
-        println!("buildings:  {}", m.buildings);
-        println!("triangles:  {}", m.triangles);
+        )?;
+        writeln!(
+            out,
+            "geoid:      {} (N = {} m at the origin)",
+            m.geoid.model, m.geoid.undulation_at_origin_m
+        )?;
+        writeln!(out, "buildings:  {}", m.buildings)?;
+        writeln!(out, "triangles:  {}", m.triangles)?;
         for src in &m.sources {
-            println!(
+            writeln!(
+                out,
                 "source:     {} ({}, {} buildings; {})",
                 src.path, src.format, src.buildings, src.crs_chain
-            );
+            )?;
         }
         for a in &m.attributions {
-            println!("credit:     {a}");
+            writeln!(out, "credit:     {a}")?;
         }
         return Ok(());
     }
     let file = args.file.as_ref().expect("clap requires FILE or --area");
     let opts = ReadOptions { lod: args.lod.clone(), weld_tolerance_m: None };
     let m = lod::read_source(file, None, &opts).with_context(|| format!("inspecting {}", file.display()))?;
+    // Resolve the CRS as `prepare` does, so that an unknown code fails here too (exit 1).
     let frame = match &m.frame {
         Frame::Ecef => "ECEF (EPSG:4978)".to_string(),
-        Frame::Crs { name: Some(n), axes } => format!("{n} ({axes:?} axis order)"),
+        Frame::Crs { name: Some(n), axes } => {
+            let crs = crate::geo::Crs::parse(n)
+                .and_then(|crs| crs.transform().map(|_| crs))
+                .with_context(|| format!("inspecting {}: the CRS {n:?} the file declares", file.display()))?;
+            let heights = match crs.heights() {
+                crate::geo::HeightKind::Orthometric => "orthometric heights",
+                crate::geo::HeightKind::Ellipsoidal => "ellipsoidal heights",
+            };
+            format!("{n} = {} ({axes:?} axis order, {heights})", crs.describe())
+        }
         Frame::Crs { name: None, .. } => "none declared (set `crs` in the scene file)".to_string(),
     };
     let mut lods: BTreeMap<String, u64> = BTreeMap::new();
@@ -93,7 +119,10 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     for b in &m.buildings {
         *lods.entry(b.lod.clone()).or_default() += 1;
         match &b.geometry {
-            Geometry::Polygons(p) => polys += p.len() as u64,
+            Geometry::Polygons(p) => {
+                polys += p.len() as u64;
+                tris += p.iter().map(polygon_triangles).sum::<u64>();
+            }
             Geometry::Mesh(t) => tris += t.triangles.len() as u64,
         }
     }
@@ -106,25 +135,46 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         triangles: tris,
         stats: serde_json::to_value(&m.stats)?,
         first_source_ids: m.buildings.iter().take(5).map(|b| b.source_id.clone()).collect(),
+        relative_heights: lod::relative_heights(&m).map(|r| {
+            format!(
+                "{} of {} buildings start at z ≈ 0 m although their {} is not 0: heights above the ground? \
+                 (prepare them with heights = \"above_ground\", ground_attribute = \"{}\")",
+                r.buildings,
+                m.buildings.len(),
+                r.attribute,
+                r.attribute
+            )
+        }),
     };
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        writeln!(out, "{}", serde_json::to_string_pretty(&summary)?)?;
         return Ok(());
     }
-    println!("file:       {}", summary.file.display());
-    println!("frame:      {}", summary.frame);
-    println!("buildings:  {}", summary.buildings);
-    println!(
+    writeln!(out, "file:       {}", summary.file.display())?;
+    writeln!(out, "frame:      {}", summary.frame)?;
+    writeln!(out, "buildings:  {}", summary.buildings)?;
+    writeln!(
+        out,
         "LoD:        {}",
         summary.lod.iter().map(|(k, v)| format!("{k}: {v}")).collect::<Vec<_>>().join(", ")
-    );
-    println!("polygons:   {}", summary.polygons);
-    println!("triangles:  {}", summary.triangles);
-    println!("stats:      {}", serde_json::to_string(&summary.stats)?);
+    )?;
+    writeln!(out, "polygons:   {}", summary.polygons)?;
+    writeln!(out, "triangles:  {}", summary.triangles)?;
+    writeln!(out, "stats:      {}", serde_json::to_string(&summary.stats)?)?;
+    if let Some(r) = &summary.relative_heights {
+        writeln!(out, "heights:    {r}")?;
+    }
     for id in &summary.first_source_ids {
-        println!("  {id}");
+        writeln!(out, "  {id}")?;
     }
     Ok(())
+}
+
+/// The triangles a triangulation of a simple polygon with holes has: V + 2H − 2 for V vertices in
+/// all rings and H holes (Euler's formula; what earcut gives in `prepare` for a valid polygon).
+fn polygon_triangles(p: &lod::Polygon) -> u64 {
+    let v = p.exterior.len() + p.interiors.iter().map(Vec::len).sum::<usize>();
+    (v + 2 * p.interiors.len()).saturating_sub(2) as u64
 }
 
 #[cfg(test)]

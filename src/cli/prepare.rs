@@ -40,10 +40,10 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
             .with_context(|| format!("preparing area {area} from {}", file.display()))?;
         let m = &report.scene.manifest;
         printer.summary(format!(
-            "{area}: {} buildings, {} triangles, {} degenerate faces dropped, geoid {}, origin {:.6}° N {:.6}° E {:.2} m → {} ({:.1} s)",
-            m.buildings,
-            m.triangles,
-            m.degenerate_faces,
+            "{area}: {}, {}, {} dropped, geoid {}, origin {:.6}° N {:.6}° E {:.2} m → {} ({:.1} s)",
+            counted(m.buildings, "building", "buildings"),
+            counted(m.triangles, "triangle", "triangles"),
+            counted(m.degenerate_faces, "degenerate face", "degenerate faces"),
             m.geoid.model,
             m.origin.lat_deg,
             m.origin.lon_deg,
@@ -53,4 +53,20 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         ));
     }
     Ok(())
+}
+
+/// `n` with the singular or plural noun: "1 degenerate face", "2 degenerate faces".
+fn counted(n: impl Into<u64>, one: &str, many: &str) -> String {
+    let n = n.into();
+    format!("{n} {}", if n == 1 { one } else { many })
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn counts_agree_with_their_noun() {
+        assert_eq!(super::counted(1u64, "degenerate face", "degenerate faces"), "1 degenerate face");
+        assert_eq!(super::counted(0u64, "degenerate face", "degenerate faces"), "0 degenerate faces");
+        assert_eq!(super::counted(2u32, "building", "buildings"), "2 buildings");
+    }
 }

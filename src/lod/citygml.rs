@@ -11,9 +11,12 @@
 //! - every top-level `Building` (usually a `cityObjectMember` child); its `BuildingPart`s (inside
 //!   `consistsOfBuildingPart`, any depth) are folded into it and share its `gml:id`; other city
 //!   objects are counted in [`ReadStats::skipped_non_building`];
-//! - geometry from `lod1Solid`, `lod1MultiSurface`, `lod2Solid`, `lod2MultiSurface` (also inside
+//! - geometry from `lod0FootPrint`, `lod0RoofEdge`, `lod0MultiSurface` (flat LoD0, used only for a
+//!   building that has no usable LoD1/LoD2 geometry), `lod1Solid`, `lod1MultiSurface`, `lod2Solid`, `lod2MultiSurface` (also inside
 //!   `boundedBy` surfaces: `WallSurface`, `RoofSurface`, `GroundSurface`, …) and `lod2Geometry`
-//!   (outer `BuildingInstallation`s). LoD0 footprints/roof edges and LoD3/4 are ignored;
+//!   (outer `BuildingInstallation`s). LoD3/4 are ignored. Degenerate faces of LoDs that were not
+//!   chosen (e.g. a broken footprint of a building read at LoD2) are counted in
+//!   [`ReadStats::degenerate_faces_unused`] with a warning;
 //! - GML surfaces: `Solid`/`Shell`/`CompositeSurface`/`MultiSurface`/`OrientableSurface` are walked
 //!   down to `Polygon`/`PolygonPatch`/`Triangle`/`Rectangle` with `exterior`/`interior`
 //!   (`outerBoundaryIs`/`innerBoundaryIs`) `LinearRing`s given as `posList` (with `srsDimension` 2
@@ -51,7 +54,7 @@ use super::{
 use crate::util::FileError;
 
 /// LoDs this reader takes geometry from, by index: 0 = LoD1, 1 = LoD2.
-const LOD_NAMES: [&str; 2] = ["1", "2"];
+const LOD_NAMES: [&str; 3] = ["0", "1", "2"];
 
 /// Reads one CityGML 2.0 file.
 ///
@@ -65,13 +68,14 @@ const LOD_NAMES: [&str; 2] = ["1", "2"];
 pub fn read(path: &Path, opts: &ReadOptions) -> Result<SourceModel, LodError> {
     let forced_lod = match opts.lod.as_deref().map(str::trim) {
         None => None,
-        Some("1") | Some("1.0") => Some(0),
-        Some("2") | Some("2.0") => Some(1),
+        Some("0") | Some("0.0") => Some(0),
+        Some("1") | Some("1.0") => Some(1),
+        Some("2") | Some("2.0") => Some(2),
         Some(other) => {
             return Err(LodError::invalid(
                 path,
                 "option lod",
-                format!("CityGML buildings are read at LoD \"1\" or \"2\", not {other:?}"),
+                format!("CityGML buildings are read at LoD \"0\", \"1\" or \"2\", not {other:?}"),
             ))
         }
     };
@@ -103,7 +107,7 @@ enum Entry {
 /// The building itself or one of its parts: surface lists per LoD.
 #[derive(Debug, Default)]
 struct Component {
-    entries: [Vec<Entry>; 2],
+    entries: [Vec<Entry>; 3],
 }
 
 /// The building being read.
@@ -158,6 +162,8 @@ enum Role {
     PosList,
     Pos,
     Coordinates,
+    /// A `posList`/`pos`/`coordinates` outside any building (roads, relief, …): only checked.
+    SkippedCoords,
 }
 
 /// One open element.
@@ -248,6 +254,10 @@ struct Parser<'p> {
     event_pos: u64,
     /// Size of the file, to tell a truncated file from other syntax errors.
     file_len: Option<u64>,
+    /// Whether the root element (`CityModel`) has been seen.
+    root_seen: bool,
+    /// Where the first unusable coordinate outside any building is (for the warning).
+    first_bad_unused: Option<String>,
 }
 
 fn local(name: &str) -> &str {
@@ -273,6 +283,8 @@ impl<'p> Parser<'p> {
             dropping: Dropping::default(),
             event_pos: 0,
             file_len: None,
+            root_seen: false,
+            first_bad_unused: None,
         }
     }
 
@@ -283,6 +295,8 @@ impl<'p> Parser<'p> {
             self.event_pos = reader.buffer_position();
             let event = match reader.read_event_into(&mut buf) {
                 Ok(ev) => ev,
+                // Garbage before any element (random bytes, a binary file): not XML at all.
+                Err(_) if !self.root_seen => return Err(self.not_xml()),
                 Err(e) => {
                     let at = self.locate(reader.error_position());
                     // A tag, comment or CDATA left open at the very end: the file was cut.
@@ -297,10 +311,12 @@ impl<'p> Parser<'p> {
             };
             match event {
                 Event::Start(e) => {
+                    self.check_root(&e)?;
                     self.start(&e)?;
                     self.names.push(e.name().0);
                 }
                 Event::Empty(e) => {
+                    self.check_root(&e)?;
                     self.start(&e)?;
                     self.names.push(e.name().0);
                     self.end()?;
@@ -311,6 +327,7 @@ impl<'p> Parser<'p> {
                     self.names.pop();
                 }
                 Event::Text(t) if self.capturing => self.text.push_str(&t),
+                Event::Text(t) if !self.root_seen && !t.trim().is_empty() => return Err(self.not_xml()),
                 Event::CData(t) if self.capturing => self.text.push_str(&t),
                 Event::GeneralRef(r) if self.capturing => {
                     let c = match r.resolve_char_ref() {
@@ -339,6 +356,9 @@ impl<'p> Parser<'p> {
             }
             buf.clear();
         }
+        if !self.root_seen {
+            return Err(self.not_xml());
+        }
         if self.names.len() > 0 {
             let at = self.locate(self.event_pos);
             let inside = match &self.building {
@@ -357,6 +377,31 @@ impl<'p> Parser<'p> {
             ));
         }
         Ok(())
+    }
+
+    /// Checks the document's root element: a CityGML `CityModel` (or a WFS/GML `FeatureCollection`
+    /// of city objects).
+    fn check_root(&mut self, e: &BytesStart) -> Result<(), LodError> {
+        if self.root_seen || self.names.len() > 0 {
+            return Ok(());
+        }
+        self.root_seen = true;
+        let qname = e.name();
+        let name = qname.0.to_string();
+        if matches!(local(&name), "CityModel" | "FeatureCollection") {
+            return Ok(());
+        }
+        let at = self.locate(self.event_pos);
+        Err(LodError::invalid(
+            self.path,
+            format!("root element <{name}> ({at})"),
+            "no CityModel element: this XML is not CityGML (its root must be <core:CityModel>)",
+        ))
+    }
+
+    /// The error for a file that is not XML at all, naming what it looks like.
+    fn not_xml(&self) -> LodError {
+        super::wrong_format(self.path, "XML", "a CityGML document (no CityModel element)")
     }
 
     /// Handles a start tag (also the start half of an empty element).
@@ -408,6 +453,7 @@ impl<'p> Parser<'p> {
                     self.envelope.srs_name = self.attr(e, "srsName")?;
                 }
                 "lowerCorner" if parent == Role::DocEnvelope => open.role = Role::LowerCorner,
+                "posList" | "pos" | "coordinates" => open.role = Role::SkippedCoords,
                 "upperCorner" if parent == Role::DocEnvelope => open.role = Role::UpperCorner,
                 _ if parent == Role::Member => self.stats.skipped_non_building += 1,
                 _ => {}
@@ -424,12 +470,17 @@ impl<'p> Parser<'p> {
                         open.role = Role::Part;
                     }
                     "measuredHeight" if parent == Role::Building => open.role = Role::MeasuredHeight,
+                    "lod0FootPrint" | "lod0RoofEdge" | "lod0MultiSurface" => open.role = Role::GeomProp,
                     "lod1Solid" | "lod1MultiSurface" | "lod1Geometry" => open.role = Role::GeomProp,
                     "lod2Solid" | "lod2MultiSurface" | "lod2Geometry" => open.role = Role::GeomProp,
                     _ => {}
                 }
                 if open.role == Role::GeomProp {
-                    let lod = if name.starts_with("lod1") { 0 } else { 1 };
+                    let lod = match name.as_bytes().get(3) {
+                        Some(b'0') => 0,
+                        Some(b'1') => 1,
+                        _ => 2,
+                    };
                     self.building_mut().geom_lod = Some(lod);
                     if let Some(href) = self.attr(e, "href")? {
                         self.push_ref(href);
@@ -527,6 +578,20 @@ impl<'p> Parser<'p> {
             Role::DocEnvelope => self.accepted_box = self.envelope.accepted_box(),
             Role::GeomProp => self.building_mut().geom_lod = None,
             Role::PosList | Role::Pos | Role::Coordinates => self.parse_points(open.role, open.srs_dim)?,
+            Role::SkippedCoords => {
+                let bad = self
+                    .text
+                    .split(|c: char| c.is_ascii_whitespace() || c == ',')
+                    .filter(|t| !t.is_empty())
+                    .filter(|t| {
+                        t.parse::<f64>().map_or(true, |v| !v.is_finite() || v.abs() > MAX_ABS_COORDINATE)
+                    })
+                    .count() as u64;
+                if bad > 0 && self.stats.bad_coordinates_unused == 0 {
+                    self.first_bad_unused = Some(self.locate(self.event_pos));
+                }
+                self.stats.bad_coordinates_unused += bad;
+            }
             Role::Ring => {
                 let b = self.building_mut();
                 if let (Some(ring), Some(poly)) = (b.ring.take(), b.polygon.as_mut()) {
@@ -715,9 +780,9 @@ impl<'p> Parser<'p> {
         let Some(mut b) = self.building.take() else { return };
         let n = b.polygons.len();
         // Per LoD and component: the polygon indices, each polygon once per building and LoD.
-        let mut lists: [Vec<Vec<usize>>; 2] = [Vec::new(), Vec::new()];
-        let mut unresolved: [Vec<String>; 2] = [Vec::new(), Vec::new()];
-        for lod in 0..2 {
+        let mut lists: [Vec<Vec<usize>>; 3] = [Vec::new(), Vec::new(), Vec::new()];
+        let mut unresolved: [Vec<String>; 3] = [Vec::new(), Vec::new(), Vec::new()];
+        for lod in 0..3 {
             let mut seen = vec![false; n];
             for comp in &b.components {
                 let mut list = Vec::new();
@@ -748,10 +813,10 @@ impl<'p> Parser<'p> {
         // dropped) the highest with any polygon at all.
         let chosen: Option<usize> = match self.forced_lod {
             Some(lod) => Some(lod),
-            None => (0..2)
+            None => (0..3)
                 .rev()
                 .find(|&lod| has_lod(lod))
-                .or_else(|| (0..2).rev().find(|&lod| lists[lod].iter().any(|l| !l.is_empty()))),
+                .or_else(|| (0..3).rev().find(|&lod| lists[lod].iter().any(|l| !l.is_empty()))),
         };
         // Which LoD each component contributes: the chosen one, or (by default) its best lower one.
         let mut picks: Vec<(usize, usize)> = Vec::new(); // (component, lod)
@@ -759,9 +824,22 @@ impl<'p> Parser<'p> {
             picks = (0..b.components.len())
                 .map(|c| match self.forced_lod {
                     Some(_) => (c, top),
-                    None => (c, (0..=top).rev().find(|&l| usable(&lists[l][c])).unwrap_or(top)),
+                    // LoD0 (flat) only when the building has nothing better.
+                    None => (c, (top.min(1)..=top).rev().find(|&l| usable(&lists[l][c])).unwrap_or(top)),
                 })
                 .collect();
+        }
+        // Degenerate faces of the LoDs not chosen: reported, not silently lost.
+        let mut picked = vec![false; n];
+        for &(c, l) in &picks {
+            lists[l][c].iter().for_each(|&i| picked[i] = true);
+        }
+        let mut counted = vec![false; n];
+        for i in lists.iter().flatten().flatten().copied() {
+            if !picked[i] && !counted[i] && matches!(b.polygons[i], Err(Dropped::Degenerate)) {
+                counted[i] = true;
+                self.stats.degenerate_faces_unused += 1;
+            }
         }
         let mut polygons = Vec::new();
         let mut degenerate = 0u64;
@@ -813,6 +891,7 @@ impl<'p> Parser<'p> {
             source_id: b.id,
             lod,
             measured_height_m: b.measured_height_m,
+            ground_heights_m: Vec::new(),
             geometry: Geometry::Polygons(polygons),
         });
     }
@@ -822,7 +901,7 @@ impl<'p> Parser<'p> {
             let d = &self.dropping;
             let lod = match self.forced_lod {
                 Some(l) => format!("LoD {}", LOD_NAMES[l]),
-                None => "LoD 1 or 2".to_string(),
+                None => "LoD 0, 1 or 2".to_string(),
             };
             return Err(LodError::invalid(
                 self.path,
@@ -838,6 +917,22 @@ impl<'p> Parser<'p> {
                     self.stats.skipped_non_building
                 ),
             ));
+        }
+        if let Some(at) = &self.first_bad_unused {
+            log::warn!(
+                "{}: {} coordinate value(s) outside any building are not numbers, not finite or beyond \
+                 ±{MAX_ABS_COORDINATE:e} (first at {at}); they belong to objects that are not read, so they are ignored",
+                self.path.display(),
+                self.stats.bad_coordinates_unused
+            );
+        }
+        if self.stats.degenerate_faces_unused > 0 {
+            log::warn!(
+                "{}: {} degenerate face(s) (fewer than 3 distinct points or zero area) in LoDs that were not \
+                 chosen (e.g. lod0FootPrint of a building read at LoD2) were ignored",
+                self.path.display(),
+                self.stats.degenerate_faces_unused
+            );
         }
         if self.dropping.outside_envelope > 0 || self.dropping.unresolved_refs > 0 {
             log::warn!(
@@ -888,6 +983,7 @@ impl Role {
                 | Role::PosList
                 | Role::Pos
                 | Role::Coordinates
+                | Role::SkippedCoords
         )
     }
 }

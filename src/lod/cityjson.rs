@@ -25,8 +25,11 @@
 //!
 //! LoD choice: [`ReadOptions::lod`] forces one (exact match, `"2"` equals `"2.0"`; a building lacking
 //! it counts as without geometry). By default each building gets the highest LoD in [1, 2.2] it has
-//! usable geometry for; a part lacking that LoD contributes its best lower one. The chosen LoD is
-//! reported as the file spells it.
+//! usable geometry for, or its LoD0 (footprint, roof edges: flat) when it has nothing better; a part
+//! lacking that LoD contributes its best lower one. The chosen LoD is reported as the file spells it.
+//! Degenerate faces of geometry that was not chosen are counted in
+//! [`ReadStats::degenerate_faces_unused`] with a warning, and unusable coordinates (non-finite,
+//! |v| > 1e9) that no building uses in [`ReadStats::bad_coordinates_unused`], also with a warning.
 //!
 //! Checks: rings lose their closing vertex and consecutive duplicates; degenerate rings (< 3
 //! distinct points, zero area) are dropped ([`ReadStats::degenerate_faces`]; a degenerate hole is
@@ -52,7 +55,8 @@ use crate::util::FileError;
 
 /// Highest LoD the default choice takes (CityJSON LoDs are "1", "1.2", "2.2", …).
 const MAX_DEFAULT_LOD: f64 = 2.2;
-/// Lowest LoD the default choice takes (LoD0 footprints are flat; force them with `lod = "0"`).
+/// Lowest LoD the default choice prefers; LoD0 (flat footprints, roof edges) is taken only for a
+/// building that has nothing in [1, 2.2] (or with `lod = "0"`).
 const MIN_DEFAULT_LOD: f64 = 1.0;
 
 /// Reads one CityJSON (`.json`) or CityJSONSeq (`.jsonl`) file.
@@ -71,6 +75,9 @@ const MIN_DEFAULT_LOD: f64 = 1.0;
 pub fn read(path: &Path, opts: &ReadOptions) -> Result<SourceModel, LodError> {
     let name = path.file_name().map(|n| n.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
     let mut reader = Reader::new(path, opts);
+    if super::sniff(&super::head_of(path, 512)) != "JSON" {
+        return Err(super::wrong_format(path, "JSON", "a CityJSON document"));
+    }
     if name.ends_with(".jsonl") {
         reader.read_seq()?;
     } else {
@@ -158,6 +165,9 @@ struct Attributes {
     /// Building height in metres (a number, or a numeric string in some exports).
     #[serde(rename = "measuredHeight")]
     measured_height: Option<serde_json::Value>,
+    /// Every other attribute; only ground heights ([`super::is_ground_attribute`]) are kept.
+    #[serde(flatten)]
+    other: BTreeMap<String, serde_json::Value>,
 }
 
 /// One geometry object.
@@ -441,6 +451,8 @@ struct Reader<'p> {
     buildings_seen: u64,
     buildings_empty: u64,
     buildings_degenerate: u64,
+    /// The first unusable coordinate that no building uses: (where, value).
+    first_bad_unused: Option<(String, [f64; 3])>,
 }
 
 impl<'p> Reader<'p> {
@@ -456,6 +468,7 @@ impl<'p> Reader<'p> {
             buildings_seen: 0,
             buildings_empty: 0,
             buildings_degenerate: 0,
+            first_bad_unused: None,
         }
     }
 
@@ -635,6 +648,15 @@ impl<'p> Reader<'p> {
         for group in members.iter().filter(|m| !m.is_empty()) {
             self.read_building(&objects, group, &source, at)?;
         }
+        // Every vertex a building uses was checked above (an unusable one is an error); the others
+        // are counted so that a corrupt value in a road or an unused vertex is still reported.
+        for i in 0..vertices.len() {
+            let p = source.get(i as u32).unwrap_or([f64::NAN; 3]);
+            if p.iter().any(|v| !v.is_finite() || v.abs() > MAX_ABS_COORDINATE) {
+                self.stats.bad_coordinates_unused += 1;
+                self.first_bad_unused.get_or_insert_with(|| (format!("{at}vertices[{i}]"), p));
+            }
+        }
         Ok(())
     }
 
@@ -662,24 +684,25 @@ impl<'p> Reader<'p> {
             components.push(converted);
         }
         let usable = |c: &Converted| c.polygons.iter().any(|p| p.is_ok());
-        let in_default_range =
-            |c: &Converted| c.lod.number().is_some_and(|v| (MIN_DEFAULT_LOD..=MAX_DEFAULT_LOD).contains(&v));
-        // The building's LoD: forced, else the highest in range with a usable polygon, else the
-        // highest in range with any polygon (so that dropped faces are counted).
+        let in_range =
+            |c: &Converted, lo: f64| c.lod.number().is_some_and(|v| (lo..=MAX_DEFAULT_LOD).contains(&v));
+        // The building's LoD: forced, else the highest in [1, 2.2] with a usable polygon, else a usable
+        // LoD0 (footprint, roof edges) when nothing better exists, else the highest with any polygon
+        // (so that dropped faces are counted).
         let top: Option<LodValue> = match &self.forced_lod {
             Some(f) => Some(LodValue(f.clone())),
             None => {
-                let best = |need_usable: bool| {
+                let best = |lo: f64, need_usable: bool| {
                     components
                         .iter()
                         .flatten()
-                        .filter(|c| in_default_range(c) && (!need_usable || usable(c)))
+                        .filter(|c| in_range(c, lo) && (!need_usable || usable(c)))
                         .max_by(|a, b| {
                             a.lod.number().partial_cmp(&b.lod.number()).unwrap_or(std::cmp::Ordering::Equal)
                         })
                         .map(|c| c.lod.clone())
                 };
-                best(true).or_else(|| best(false))
+                best(MIN_DEFAULT_LOD, true).or_else(|| best(0.0, true)).or_else(|| best(0.0, false))
             }
         };
         let mut polygons = Vec::new();
@@ -692,11 +715,9 @@ impl<'p> Reader<'p> {
                     Some(_) => None,
                     None => {
                         let top_v = top.number().unwrap_or(MAX_DEFAULT_LOD);
+                        let lo = if top_v < MIN_DEFAULT_LOD { 0.0 } else { MIN_DEFAULT_LOD };
                         comp.iter()
-                            .filter(|c| {
-                                usable(c)
-                                    && c.lod.number().is_some_and(|v| v >= MIN_DEFAULT_LOD && v <= top_v)
-                            })
+                            .filter(|c| usable(c) && c.lod.number().is_some_and(|v| v >= lo && v <= top_v))
                             .filter_map(|c| c.lod.number())
                             .fold(None, |acc: Option<f64>, v| Some(acc.map_or(v, |a| a.max(v))))
                             .or(Some(top_v))
@@ -708,6 +729,8 @@ impl<'p> Reader<'p> {
                         Some(v) => c.lod.number() == Some(v),
                     };
                     if !take {
+                        self.stats.degenerate_faces_unused +=
+                            c.polygons.iter().filter(|p| p.is_err()).count() as u64;
                         continue;
                     }
                     if lod_name.is_none() && c.lod.matches(&top.0) {
@@ -742,8 +765,23 @@ impl<'p> Reader<'p> {
                 };
                 h.filter(|h| h.is_finite())
             });
+        let ground_heights_m: Vec<(String, f64)> = root
+            .attributes
+            .iter()
+            .flat_map(|a| a.other.iter())
+            .filter(|(k, _)| super::is_ground_attribute(k))
+            .filter_map(|(k, v)| {
+                let h = match v {
+                    serde_json::Value::Number(n) => n.as_f64(),
+                    serde_json::Value::String(s) => s.trim().parse::<f64>().ok(),
+                    _ => None,
+                };
+                h.filter(|h| h.is_finite() && h.abs() < 1e4).map(|h| (k.clone(), h))
+            })
+            .collect();
         self.buildings.push(SourceBuilding {
             source_id: key.clone(),
+            ground_heights_m,
             lod: lod_name.or(top.map(|t| t.0)).unwrap_or_default(),
             measured_height_m,
             geometry: Geometry::Polygons(polygons),
@@ -991,6 +1029,24 @@ impl<'p> Reader<'p> {
                     self.stats.skipped_non_building
                 ),
             ));
+        }
+        if let Some((at, p)) = &self.first_bad_unused {
+            log::warn!(
+                "{}: {} vertex coordinate(s) are not finite or beyond ±{MAX_ABS_COORDINATE:e} (first: {at} = [{}, {}, \
+                 {}]); no building uses them (they belong to skipped objects or to none), so they are ignored",
+                self.path.display(),
+                self.stats.bad_coordinates_unused,
+                short(p[0]),
+                short(p[1]),
+                short(p[2])
+            );
+        }
+        if self.stats.degenerate_faces_unused > 0 {
+            log::warn!(
+                "{}: {} degenerate face(s) in geometry that was not chosen (another LoD) were ignored",
+                self.path.display(),
+                self.stats.degenerate_faces_unused
+            );
         }
         Ok(SourceModel {
             path: self.path.to_path_buf(),

@@ -59,7 +59,68 @@ pub struct SourceBuilding {
     pub lod: String,
     /// `measuredHeight` or an equivalent attribute when the source gives one, in metres.
     pub measured_height_m: Option<f64>,
+    /// Ground (terrain) heights the source gives for the building, in metres, as (attribute, value):
+    /// CityJSON attributes named in [`GROUND_ATTRIBUTES`] or containing "maaiveld", "terrain" or
+    /// "ground". With heights relative to the ground (geometry starting at z ≈ 0) they are what
+    /// `heights = "above_ground"` adds back; see [`relative_heights`].
+    pub ground_heights_m: Vec<(String, f64)>,
     pub geometry: Geometry,
+}
+
+/// Attribute names of a building's ground height in the wild: `TerrainHeight` (Dutch municipal
+/// models), `h_maaiveld`/`b3_h_maaiveld` (BAG/3DBAG), `groundHeight`, `ground_height`.
+pub const GROUND_ATTRIBUTES: &[&str] =
+    &["TerrainHeight", "h_maaiveld", "b3_h_maaiveld", "groundHeight", "ground_height"];
+
+/// Whether an attribute name looks like a ground height (see [`SourceBuilding::ground_heights_m`]).
+pub fn is_ground_attribute(name: &str) -> bool {
+    let l = name.to_ascii_lowercase();
+    GROUND_ATTRIBUTES.contains(&name)
+        || l.contains("maaiveld")
+        || l.contains("terrain")
+        || l.contains("ground")
+}
+
+/// Buildings whose heights look relative to the ground: see [`relative_heights`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct RelativeHeights {
+    /// Buildings whose lowest vertex is within [`RELATIVE_BASE_M`] of z = 0 while their ground
+    /// attribute is farther than that from 0.
+    pub buildings: usize,
+    /// Buildings that carry a ground attribute at all.
+    pub with_ground_attribute: usize,
+    /// The attribute most of them carry.
+    pub attribute: String,
+}
+
+/// How close to z = 0 (metres) a building's lowest vertex must be to count as starting at the ground
+/// of a relative-height model.
+pub const RELATIVE_BASE_M: f64 = 0.5;
+
+/// Detects heights given above the ground: buildings whose geometry starts at z ≈ 0 (within
+/// [`RELATIVE_BASE_M`]) although they carry a ground attribute that is not ≈ 0 (e.g. `TerrainHeight`
+/// = 2.4 m in a Dutch municipal model). `None` when no building looks like that.
+pub fn relative_heights(model: &SourceModel) -> Option<RelativeHeights> {
+    let mut counts: std::collections::BTreeMap<&str, usize> = std::collections::BTreeMap::new();
+    let (mut relative, mut with_attr) = (0, 0);
+    for b in &model.buildings {
+        let Some((name, ground_m)) = b.ground_heights_m.first() else { continue };
+        with_attr += 1;
+        let min_z = match &b.geometry {
+            Geometry::Polygons(ps) => ps
+                .iter()
+                .flat_map(|p| p.exterior.iter().chain(p.interiors.iter().flatten()))
+                .map(|p| p[2])
+                .fold(f64::INFINITY, f64::min),
+            Geometry::Mesh(m) => m.positions.iter().map(|p| p[2]).fold(f64::INFINITY, f64::min),
+        };
+        if min_z.abs() < RELATIVE_BASE_M && ground_m.abs() >= RELATIVE_BASE_M {
+            relative += 1;
+            *counts.entry(name.as_str()).or_default() += 1;
+        }
+    }
+    let attribute = counts.iter().max_by_key(|(_, n)| **n)?.0.to_string();
+    Some(RelativeHeights { buildings: relative, with_ground_attribute: with_attr, attribute })
 }
 
 /// Which frame a model's coordinates are in.
@@ -86,6 +147,19 @@ pub struct ReadStats {
     pub degenerate_faces: u64,
     /// Triangles or polygons read.
     pub faces: u64,
+    /// Coordinates that are not finite or beyond ±[`MAX_ABS_COORDINATE`] in objects that were *not*
+    /// read (non-building objects, unused vertices): reported with a warning, since nothing built
+    /// from the file uses them. Such a coordinate in a building is an error.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub bad_coordinates_unused: u64,
+    /// Faces dropped as degenerate in geometry that was not chosen (e.g. a LoD0 footprint of a
+    /// building read at LoD2): reported with a warning.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub degenerate_faces_unused: u64,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 /// What one reader produced from one source.
@@ -174,6 +248,75 @@ pub fn read_source(path: &Path, format: Option<Format>, opts: &ReadOptions) -> R
         Format::Obj => obj::read(path, opts),
         Format::Tiles3d => tiles3d::read(path, opts),
     }
+}
+
+/// What the first bytes of a file look like, for messages about a file given in the wrong format
+/// (`"JSON"`, `"XML"`, `"a glTF binary (glb)"`, …).
+pub fn sniff(head: &[u8]) -> &'static str {
+    let head = head.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(head);
+    let text = head.iter().position(|b| !b.is_ascii_whitespace()).map_or(&[][..], |i| &head[i..]);
+    if head.is_empty() {
+        return "empty";
+    }
+    if head.starts_with(b"glTF") {
+        return "a glTF binary (glb)";
+    }
+    if head.starts_with(b"b3dm")
+        || head.starts_with(b"cmpt")
+        || head.starts_with(b"i3dm")
+        || head.starts_with(b"pnts")
+    {
+        return "a 3D Tiles content (b3dm/cmpt/i3dm/pnts)";
+    }
+    if head.starts_with(&[0x1f, 0x8b]) {
+        return "gzip-compressed data";
+    }
+    let probe = &head[..head.len().min(512)];
+    if probe.contains(&0)
+        || std::str::from_utf8(probe).is_err()
+            && std::str::from_utf8(&probe[..probe.len().saturating_sub(4)]).is_err()
+    {
+        return "binary data";
+    }
+    match text.first() {
+        None => "only white space",
+        Some(b'{') | Some(b'[') => "JSON",
+        Some(b'<') => "XML",
+        Some(_) if text.starts_with(b"v ") || text.starts_with(b"mtllib") || text.starts_with(b"o ") => {
+            "a Wavefront OBJ"
+        }
+        Some(_) => "text",
+    }
+}
+
+/// A [`LodError::Malformed`] for a file that is not `expected` at all ("not JSON", "not XML"), naming
+/// what it looks like instead and, when that is another format insgen reads, how to read it as that.
+pub(crate) fn wrong_format(path: &Path, expected: &str, document: &str) -> LodError {
+    let looks = sniff(&head_of(path, 512));
+    let hint = match looks {
+        "JSON" => " (CityJSON or a tileset? name it .json / tileset.json or set `format` in the scene file)",
+        "XML" => " (CityGML? name it .gml or set format = \"citygml\" in the scene file)",
+        "a glTF binary (glb)" | "a 3D Tiles content (b3dm/cmpt/i3dm/pnts)" => {
+            " (3D Tiles? name it .glb/.b3dm or set format = \"3dtiles\" in the scene file)"
+        }
+        "a Wavefront OBJ" => " (name it .obj or set format = \"obj\" in the scene file)",
+        _ => "",
+    };
+    let holds = match looks {
+        "empty" => "the file is empty".to_string(),
+        other => format!("the file holds {other}{hint}"),
+    };
+    LodError::malformed(path, format!("not {expected}: {holds}, not {document}"))
+}
+
+/// The first bytes of a file (at most `n`), for [`sniff`]; empty when unreadable.
+pub(crate) fn head_of(path: &Path, n: usize) -> Vec<u8> {
+    use std::io::Read;
+    let mut buf = Vec::with_capacity(n);
+    if let Ok(f) = std::fs::File::open(path) {
+        let _ = f.take(n as u64).read_to_end(&mut buf);
+    }
+    buf
 }
 
 /// Largest coordinate magnitude a reader accepts, in source units (metres or degrees): anything

@@ -139,6 +139,7 @@ pub fn read_with_sidecar(
             source_id: format!("{file_name}#cc{n}"),
             lod: lod.clone(),
             measured_height_m: None,
+            ground_heights_m: Vec::new(),
             geometry: Geometry::Mesh(part),
         })
         .collect();

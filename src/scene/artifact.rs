@@ -70,6 +70,10 @@ pub struct SourceEntry {
     pub degenerate_faces: u64,
     #[serde(default)]
     pub attribution: Option<String>,
+    /// How the source's heights were read when not absolute, e.g. `"above_ground: + TerrainHeight per
+    /// building (120 buildings)"` or `"above_ground: + 2.5 m"`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub heights: Option<String>,
 }
 
 /// The geoid used to turn orthometric heights into ellipsoidal ones.

@@ -12,6 +12,8 @@
 //! crs = "EPSG:6697"              # optional override; required when the file declares none
 //! lod = "2"                      # optional LoD choice
 //! weld_tolerance_m = 0.01        # optional, ID-less meshes only
+//! heights = "above_ground"       # optional: absolute (default) | above_ground
+//! ground_attribute = "TerrainHeight"  # with above_ground: the ground-height attribute (or ground_height_m = 2.5)
 //!
 //! [geoid]                        # orthometric → ellipsoidal heights, for sources with orthometric heights
 //! model = "egm96"                # egm96 (default) | constant | none
@@ -101,6 +103,28 @@ pub struct SourceConfig {
     /// Parameters of the procedural generator (`format = "procedural"`).
     #[serde(default)]
     pub procedural: Option<toml::Table>,
+    /// What the source's heights are measured from: `absolute` (default: the CRS's vertical datum)
+    /// or `above_ground` (geometry starts at z ≈ 0; the ground height is added back per building).
+    #[serde(default)]
+    pub heights: Option<Heights>,
+    /// With `heights = "above_ground"`: the building attribute holding the ground height in metres
+    /// (e.g. `"TerrainHeight"`, `"h_maaiveld"`); default: the ground attribute each building carries.
+    #[serde(default)]
+    pub ground_attribute: Option<String>,
+    /// With `heights = "above_ground"`: one ground height for every building, in metres (instead of
+    /// an attribute).
+    #[serde(default)]
+    pub ground_height_m: Option<f64>,
+}
+
+/// What a source's heights are measured from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Heights {
+    /// Heights in the CRS's vertical datum (or ellipsoidal), as the file says.
+    Absolute,
+    /// Heights above the local ground; the ground height comes from an attribute or a constant.
+    AboveGround,
 }
 
 /// Which geoid turns orthometric source heights into ellipsoidal ones.
@@ -192,6 +216,20 @@ impl SceneConfig {
                     return err(format!(
                         "sources[{i}].format = {f:?}: expected one of citygml, cityjson, obj, 3dtiles, procedural"
                     ));
+                }
+            }
+            let above = s.heights == Some(Heights::AboveGround);
+            if !above && (s.ground_attribute.is_some() || s.ground_height_m.is_some()) {
+                return err(format!(
+                    "sources[{i}]: ground_attribute / ground_height_m need heights = \"above_ground\""
+                ));
+            }
+            if s.ground_attribute.is_some() && s.ground_height_m.is_some() {
+                return err(format!("sources[{i}]: give ground_attribute or ground_height_m, not both"));
+            }
+            if let Some(g) = s.ground_height_m {
+                if !(g.is_finite() && g.abs() <= 1e4) {
+                    return err(format!("sources[{i}].ground_height_m = {g}: must be a height in metres"));
                 }
             }
             if let Some(t) = s.weld_tolerance_m {

@@ -24,7 +24,7 @@ use crate::lod::{self, Format, Frame, Geometry, ReadOptions, SourceModel};
 use crate::util::{self, Progress};
 
 use super::artifact::{self, BuildingRecord, GeoidUsed, Manifest, Origin, PreparedScene, SourceEntry};
-use super::config::{GeoidModel, SceneConfig, SourceConfig};
+use super::config::{GeoidModel, Heights, SceneConfig, SourceConfig};
 use super::ids::BuildingId;
 use super::mesh::SceneMesh;
 use super::triangulate::triangulate_polygon;
@@ -209,8 +209,12 @@ fn georeference(
 
     let mut out = Vec::with_capacity(model.buildings.len());
     progress.start(model.buildings.len() as u64, "buildings");
+    let above_ground = src.heights == Some(Heights::AboveGround);
     for b in model.buildings {
+        // heights = "above_ground": the building's ground height is added to every vertex.
+        let lift_m = if above_ground { ground_height_m(src, &b) } else { 0.0 };
         let to_ecef = |p: [f64; 3]| -> Result<[f64; 3], SceneError> {
+            let p = [p[0], p[1], p[2] + lift_m];
             match &conv {
                 Conv::Ecef => {
                     if p.iter().all(|v| v.is_finite()) {
@@ -295,6 +299,67 @@ fn georeference(
     }
     progress.finish();
     Ok((out, chain, dropped))
+}
+
+/// The ground height added to a building of a source read with `heights = "above_ground"`, in
+/// metres: the constant, the named attribute, or the first ground attribute the building carries
+/// (0 when it has none; [`heights_note`] has warned).
+fn ground_height_m(src: &SourceConfig, b: &lod::SourceBuilding) -> f64 {
+    if let Some(c) = src.ground_height_m {
+        return c;
+    }
+    b.ground_heights_m
+        .iter()
+        .find(|(name, _)| src.ground_attribute.as_ref().is_none_or(|want| want == name))
+        .map_or(0.0, |(_, h)| *h)
+}
+
+/// Checks a source's heights setting against what the file holds: warns when the buildings look
+/// relative to the ground but are read as absolute (the fix to copy), and describes an
+/// `above_ground` reading for the manifest.
+///
+/// # Errors
+/// [`SceneError::Georef`] for `above_ground` on an ECEF source (3D Tiles are absolute by nature).
+fn heights_note(src: &SourceConfig, model: &lod::SourceModel) -> Result<Option<String>, SceneError> {
+    let path = model.path.display();
+    if src.heights != Some(Heights::AboveGround) {
+        if let Some(r) = lod::relative_heights(model) {
+            log::warn!(
+                "{path}: {} of {} building(s) start at z ≈ 0 m although their {} is not 0: the heights look \
+                 relative to the ground and would be placed up to a few metres off; if so, set heights = \
+                 \"above_ground\" and ground_attribute = \"{}\" for this source in the scene file",
+                r.buildings,
+                model.buildings.len(),
+                r.attribute,
+                r.attribute
+            );
+        }
+        return Ok(None);
+    }
+    if matches!(model.frame, lod::Frame::Ecef) {
+        return Err(SceneError::Georef {
+            path: model.path.clone(),
+            what: "heights = \"above_ground\" does not apply to an ECEF (3D Tiles) source".into(),
+            source: None,
+        });
+    }
+    if let Some(c) = src.ground_height_m {
+        return Ok(Some(format!("above_ground: + {c} m")));
+    }
+    let has = |b: &lod::SourceBuilding| {
+        b.ground_heights_m.iter().any(|(n, _)| src.ground_attribute.as_ref().is_none_or(|w| w == n))
+    };
+    let with = model.buildings.iter().filter(|b| has(b)).count();
+    let missing = model.buildings.len() - with;
+    let name = src.ground_attribute.clone().unwrap_or_else(|| "its ground attribute".into());
+    if missing > 0 {
+        log::warn!(
+            "{path}: heights = \"above_ground\" but {missing} of {} building(s) have no {name}; they are left \
+             as they are",
+            model.buildings.len()
+        );
+    }
+    Ok(Some(format!("above_ground: + {name} per building ({with} buildings)")))
 }
 
 fn triangle_area_m2(p: &[[f64; 3]], t: [u32; 3]) -> f64 {
@@ -423,6 +488,7 @@ fn read_sources(
         };
         let stats = model.stats.clone();
         let model_path = model.path.clone();
+        let heights = heights_note(src, &model)?;
         let (mut bs, chain, dropped_here) =
             georeference(scene_file, src, model, &label, &mut geoid, progress)?;
         log::info!("{}: {} buildings ({chain})", model_path.display(), bs.len());
@@ -436,6 +502,7 @@ fn read_sources(
             buildings: bs.len() as u64,
             degenerate_faces: dropped,
             attribution: cfg.attribution.clone(),
+            heights,
         });
         out.buildings.append(&mut bs);
     }

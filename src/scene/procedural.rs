@@ -675,6 +675,7 @@ pub fn generate(spec: &ProceduralSpec, origin: PlaneOrigin) -> Result<SourceMode
                 source_id: format!("demo_b{:0width$}", k + 1),
                 lod: "1".into(),
                 measured_height_m: Some(lot.height_m),
+                ground_heights_m: Vec::new(),
                 geometry: Geometry::Polygons(polygons),
             }
         })

@@ -140,6 +140,7 @@ fn write_area(workdir: &Path, spec: &AreaSpec) {
             buildings: BUILDINGS as u64,
             degenerate_faces: 0,
             attribution: Some("3D city model (Project PLATEAU), MLIT, CC BY 4.0".into()),
+            heights: None,
         }],
         buildings: BUILDINGS as u64,
         triangles: 0,

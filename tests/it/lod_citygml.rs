@@ -188,7 +188,7 @@ mod bad_input {
         let msg = bad("bad_degenerate_ring.gml");
         assert!(
             msg.contains("no buildings with geometry")
-                && msg.contains("1 whose LoD 1 or 2 surfaces are all degenerate"),
+                && msg.contains("1 whose LoD 0, 1 or 2 surfaces are all degenerate"),
             "{msg}"
         );
         assert!(msg.contains("1 face(s) dropped"), "{msg}");

@@ -222,6 +222,7 @@ pub fn read_with_report(path: &Path, opts: &ReadOptions) -> Result<(SourceModel,
                         source_id: f.source_id,
                         lod: f.lod.unwrap_or_else(|| "unknown".to_string()),
                         measured_height_m: f.measured_height_m,
+                        ground_heights_m: Vec::new(),
                         geometry: Geometry::Mesh(f.mesh),
                     });
                 }
@@ -236,6 +237,7 @@ pub fn read_with_report(path: &Path, opts: &ReadOptions) -> Result<(SourceModel,
                     source_id: id,
                     lod: "unknown".to_string(),
                     measured_height_m: None,
+                    ground_heights_m: Vec::new(),
                     geometry: Geometry::Mesh(part),
                 });
             }
