@@ -184,7 +184,7 @@ pub enum BlenderError {
         source: std::io::Error,
     },
     /// Ctrl-C was pressed: the run stopped between frames (finished frames are complete).
-    #[error(transparent)]
+    #[error("rendering stopped between frames")]
     Interrupted(#[from] crate::util::interrupt::Interrupted),
     /// An ID map (EXR from Blender, PNG from the mask renderer) is unreadable or not an ID map.
     #[error(transparent)]

@@ -415,18 +415,19 @@ mod tests {
 
     #[test]
     fn protocol_lines() {
-        assert_eq!(parse_event("12:00 | INFO: glTF import"), None);
+        assert!(parse_event("12:00 | INFO: glTF import").is_none());
         assert_eq!(
-            parse_event(r#"INSGEN {"done": "f_0001", "seconds": 1.5, "cpu_seconds": 2.75}"#),
-            Some(Ok(Event::Done { frame: "f_0001".into(), seconds: 1.5, cpu_seconds: 2.75 }))
+            parse_event(r#"INSGEN {"done": "f_0001", "seconds": 1.5, "cpu_seconds": 2.75}"#)
+                .map(|r| r.unwrap()),
+            Some(Event::Done { frame: "f_0001".into(), seconds: 1.5, cpu_seconds: 2.75 })
         );
         assert_eq!(
-            parse_event(r#"INSGEN {"ready": {"models": 2, "seconds": 0.5}}"#),
-            Some(Ok(Event::Ready { models: 2, seconds: 0.5, device: None, blender: None, bounds: None }))
+            parse_event(r#"INSGEN {"ready": {"models": 2, "seconds": 0.5}}"#).map(|r| r.unwrap()),
+            Some(Event::Ready { models: 2, seconds: 0.5, device: None, blender: None, bounds: None })
         );
         assert_eq!(
-            parse_event(r#"INSGEN {"error": "boom", "frame": null}"#),
-            Some(Ok(Event::Error { message: "boom".into(), frame: None }))
+            parse_event(r#"INSGEN {"error": "boom", "frame": null}"#).map(|r| r.unwrap()),
+            Some(Event::Error { message: "boom".into(), frame: None })
         );
         assert!(matches!(parse_event("INSGEN {not json"), Some(Err(_))));
         assert!(matches!(parse_event(r#"INSGEN {"other": 1}"#), Some(Err(_))));

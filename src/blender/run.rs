@@ -813,6 +813,15 @@ mod tests {
     }
 
     #[test]
+    fn an_interrupted_render_exits_130() {
+        // main maps an Interrupted anywhere in the chain to exit status 130.
+        let e = BlenderError::from(crate::util::interrupt::Interrupted);
+        assert!(crate::util::interrupt::in_chain(&e));
+        let e = anyhow::Error::from(e).context("render-rgb");
+        assert!(crate::util::interrupt::in_chain(e.as_ref()));
+    }
+
+    #[test]
     fn sun_is_seeded_and_in_range() {
         assert_eq!(sun_from_seed(5), sun_from_seed(5));
         assert_ne!(sun_from_seed(5), sun_from_seed(6));
