@@ -36,6 +36,14 @@ pub struct ProcessFailure {
     pub stderr_tail: Vec<String>,
     /// A hint for a recognised failure signature.
     pub hint: Option<String>,
+    /// The malformed protocol line, when that is why the process was stopped.
+    pub protocol: Option<ProtocolError>,
+}
+
+impl std::error::Error for ProcessFailure {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        self.protocol.as_ref().map(|p| p as &(dyn std::error::Error + 'static))
+    }
 }
 
 /// Width of the divider lines around the captured stderr.
@@ -64,6 +72,58 @@ impl fmt::Display for ProcessFailure {
         }
         write!(f, "\n{}", "-".repeat(DIVIDER_WIDTH))
     }
+}
+
+/// A line on Blender's stdout that starts with the protocol prefix but is not a protocol event.
+#[derive(Debug, thiserror::Error)]
+pub enum ProtocolError {
+    /// The JSON after the prefix does not parse.
+    #[error("malformed protocol line {line:?}")]
+    Malformed {
+        line: String,
+        #[source]
+        source: serde_json::Error,
+    },
+    /// The JSON parses but has none of the `ready`, `done`, `error` fields.
+    #[error("protocol line {line:?} has no ready/done/error field")]
+    Unknown { line: String },
+}
+
+/// What is wrong with one output file of a frame (see [`BlenderError::Output`]).
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    #[error("cannot open it")]
+    Open(#[source] std::io::Error),
+    #[error("not a PNG")]
+    NotPng(#[source] png::DecodingError),
+    #[error("the PNG is {bit_depth:?} {color:?}, expected 8-bit RGB")]
+    PngFormat { bit_depth: png::BitDepth, color: png::ColorType },
+    #[error("does not decode as EXR")]
+    Exr(#[source] exr::error::Error),
+    #[error("the EXR has no {0} channel")]
+    MissingChannel(&'static str),
+    #[error("EXR channel {0} is not float32")]
+    NotF32(&'static str),
+    #[error("not an ID map")]
+    Ids(#[source] crate::scene::IdError),
+    #[error("is {width_px}×{height_px} px, expected {expected_width_px}×{expected_height_px}")]
+    Size { width_px: u32, height_px: u32, expected_width_px: u32, expected_height_px: u32 },
+    #[error("re-encoding the PNG")]
+    EncodePng(#[source] png::EncodingError),
+    #[error("re-encoding the EXR")]
+    EncodeExr(#[source] exr::error::Error),
+    #[error("creating a temporary file next to it")]
+    TempFile(#[source] std::io::Error),
+    #[error("renaming it into place")]
+    Rename(#[source] tempfile::PathPersistError),
+    #[error("writing it")]
+    Write(#[source] FileError),
+    #[error("removing Blender's temporary file")]
+    RemoveTmp(#[source] std::io::Error),
+    #[error("Blender reported a frame that is not in the job")]
+    NotInJob,
+    #[error("Blender exited successfully without reporting this frame")]
+    NotReported,
 }
 
 /// Errors of [`crate::blender`].
@@ -106,11 +166,26 @@ pub enum BlenderError {
         source: std::io::Error,
     },
     /// The Blender process failed.
-    #[error("{0}")]
+    #[error(transparent)]
     Failed(Box<ProcessFailure>),
     /// Blender reported a frame done but its output is missing or wrong.
-    #[error("frame {frame:?}: output {}: {what}", path.display())]
-    Output { frame: String, path: PathBuf, what: String },
+    #[error("frame {frame:?}: output {}", path.display())]
+    Output {
+        frame: String,
+        path: PathBuf,
+        #[source]
+        source: OutputError,
+    },
+    /// An output directory does not accept new files.
+    #[error("{} is not writable", dir.display())]
+    NotWritable {
+        dir: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// Ctrl-C was pressed: the run stopped between frames (finished frames are complete).
+    #[error("rendering stopped between frames")]
+    Interrupted(#[from] crate::util::interrupt::Interrupted),
     /// An ID map (EXR from Blender, PNG from the mask renderer) is unreadable or not an ID map.
     #[error(transparent)]
     Ids(#[from] crate::scene::IdError),

@@ -17,12 +17,14 @@ use serde::{Deserialize, Serialize};
 
 use super::camera::{BlenderCamera, Mat4};
 use super::error::JobIssue;
+use crate::camera::record::check_frame_name;
 use crate::camera::Intrinsics;
 
 /// Value of the `format` field.
 pub const JOB_FORMAT: &str = "insgen-blender-job";
-/// Version of the job layout; the script refuses other versions.
-pub const JOB_VERSION: u32 = 1;
+/// Version of the job layout; the script refuses other versions (2: `device`, `max_bounces`,
+/// `denoise_quality`).
+pub const JOB_VERSION: u32 = 2;
 
 /// What the frames show.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -51,6 +53,47 @@ impl Engine {
             Engine::Workbench => "workbench",
         }
     }
+}
+
+/// The Cycles compute device.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Device {
+    /// The best device Blender reports (OptiX, then CUDA, HIP, oneAPI, Metal), else the CPU.
+    Auto,
+    /// The CPU (the default, and the one the tests use).
+    Cpu,
+    /// NVIDIA GPUs through CUDA.
+    Cuda,
+    /// NVIDIA RTX GPUs through OptiX.
+    Optix,
+    /// AMD GPUs through HIP.
+    Hip,
+    /// Intel GPUs through oneAPI.
+    Oneapi,
+}
+
+impl Device {
+    pub fn name(self) -> &'static str {
+        match self {
+            Device::Auto => "auto",
+            Device::Cpu => "cpu",
+            Device::Cuda => "cuda",
+            Device::Optix => "optix",
+            Device::Hip => "hip",
+            Device::Oneapi => "oneapi",
+        }
+    }
+}
+
+/// OpenImageDenoise quality (Blender's `denoising_quality`); the prefilter of the albedo and normal
+/// guides follows it (`FAST` for fast and balanced, `ACCURATE` for high).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DenoiseQuality {
+    Fast,
+    Balanced,
+    High,
 }
 
 /// How a model is shaded in RGB mode.
@@ -132,8 +175,15 @@ pub struct Job {
     pub samples: u32,
     /// Cycles sampling seed.
     pub seed: u32,
-    /// Denoise RGB renders (OpenImageDenoise on the CPU).
+    /// Denoise RGB renders (OpenImageDenoise with albedo and normal guides).
     pub denoise: bool,
+    /// Denoiser quality when `denoise` is set.
+    pub denoise_quality: DenoiseQuality,
+    /// Total light bounces of RGB renders (0 = direct light only; diffuse and glossy bounces are capped
+    /// by it too).
+    pub max_bounces: u32,
+    /// Cycles compute device.
+    pub device: Device,
     /// Render threads; 0 = all cores.
     pub threads: u32,
     /// Print each model's ENU bounds after import (the `ready` protocol line); used by tests.
@@ -150,11 +200,6 @@ fn is_finite_mat(m: &Mat4) -> bool {
 
 fn is_affine(m: &Mat4) -> bool {
     m[3] == [0.0, 0.0, 0.0, 1.0]
-}
-
-/// Whether a frame name can be a file stem: non-empty, no path separators, no leading dot.
-pub fn valid_frame_name(name: &str) -> bool {
-    !name.is_empty() && !name.starts_with('.') && !name.contains(['/', '\\', '\0']) && name != ".."
 }
 
 impl Job {
@@ -215,8 +260,8 @@ impl Job {
         let mut names = BTreeSet::new();
         for (i, f) in self.frames.iter().enumerate() {
             let at = |field: &str| format!("frames[{i}].{field}");
-            if !valid_frame_name(&f.name) {
-                issue(at("name"), format!("{:?} cannot be a file name", f.name));
+            if let Err(e) = check_frame_name(&f.name) {
+                issue(at("name"), format!("{e}: it cannot be a file name"));
             } else if !names.insert(f.name.as_str()) {
                 issue(at("name"), format!("{:?} appears twice", f.name));
             }
@@ -262,14 +307,11 @@ impl Job {
 }
 
 /// Checks that `dir` accepts new files by creating and removing a probe file.
-pub(crate) fn check_writable(dir: &Path) -> Result<(), String> {
-    match tempfile::Builder::new().prefix(".insgen-probe-").tempfile_in(dir) {
-        Ok(f) => {
-            drop(f);
-            Ok(())
-        }
-        Err(e) => Err(format!("{} is not writable: {e}", dir.display())),
-    }
+///
+/// # Errors
+/// The I/O error of creating the probe file.
+pub(crate) fn check_writable(dir: &Path) -> std::io::Result<()> {
+    tempfile::Builder::new().prefix(".insgen-probe-").tempfile_in(dir).map(drop)
 }
 
 #[cfg(test)]
@@ -291,6 +333,9 @@ mod tests {
             samples: 4,
             seed: 7,
             denoise: false,
+            denoise_quality: DenoiseQuality::Fast,
+            max_bounces: 2,
+            device: Device::Cpu,
             threads: 0,
             report_bounds: false,
             models: vec![JobModel {

@@ -15,7 +15,7 @@ use std::process::{Child, Command, Stdio};
 
 use serde::Deserialize;
 
-use super::error::{BlenderError, ProcessFailure};
+use super::error::{BlenderError, ProcessFailure, ProtocolError};
 
 /// Environment variable naming a Python interpreter that can `import bpy`.
 pub const ENV_PYTHON: &str = "INSGEN_BLENDER_PYTHON";
@@ -114,8 +114,16 @@ impl Launcher {
 /// A protocol event printed by the script.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Event {
-    /// The scene is built; `bounds` (when the job asked) gives each model's ENU bounds [min, max] in metres.
-    Ready { models: usize, seconds: f64, bounds: Option<Vec<Option<[[f64; 3]; 2]>>> },
+    /// The scene is built; `device` is the Cycles device chosen (`CPU`, `OPTIX`, `CUDA`, …; `None` for
+    /// Workbench), `blender` Blender's version; `bounds` (when the job asked) gives each model's ENU
+    /// bounds [min, max] in metres.
+    Ready {
+        models: usize,
+        seconds: f64,
+        device: Option<String>,
+        blender: Option<String>,
+        bounds: Option<Vec<Option<[[f64; 3]; 2]>>>,
+    },
     /// A frame's files are written to its temporary paths; wall-clock seconds and CPU seconds (all
     /// threads of the process) spent on it.
     Done { frame: String, seconds: f64, cpu_seconds: f64 },
@@ -127,6 +135,10 @@ pub enum Event {
 struct ReadyJson {
     models: usize,
     seconds: f64,
+    #[serde(default)]
+    device: Option<String>,
+    #[serde(default)]
+    blender: Option<String>,
     #[serde(default)]
     bounds: Option<Vec<Option<[[f64; 3]; 2]>>>,
 }
@@ -147,15 +159,21 @@ struct EventJson {
     frame: Option<String>,
 }
 
-/// Parses one stdout line: `None` for ordinary log lines, `Some(Err(text))` for a malformed protocol line.
-pub fn parse_event(line: &str) -> Option<Result<Event, String>> {
+/// Parses one stdout line: `None` for ordinary log lines, `Some(Err(_))` for a malformed protocol line.
+pub fn parse_event(line: &str) -> Option<Result<Event, ProtocolError>> {
     let body = line.strip_prefix(PROTOCOL_PREFIX)?;
     let ev: EventJson = match serde_json::from_str(body) {
         Ok(e) => e,
-        Err(e) => return Some(Err(format!("malformed protocol line {body:?}: {e}"))),
+        Err(source) => return Some(Err(ProtocolError::Malformed { line: body.to_string(), source })),
     };
     Some(if let Some(r) = ev.ready {
-        Ok(Event::Ready { models: r.models, seconds: r.seconds, bounds: r.bounds })
+        Ok(Event::Ready {
+            models: r.models,
+            seconds: r.seconds,
+            device: r.device,
+            blender: r.blender,
+            bounds: r.bounds,
+        })
     } else if let Some(frame) = ev.done {
         Ok(Event::Done {
             frame,
@@ -165,7 +183,7 @@ pub fn parse_event(line: &str) -> Option<Result<Event, String>> {
     } else if let Some(message) = ev.error {
         Ok(Event::Error { message, frame: ev.frame })
     } else {
-        Err(format!("protocol line {body:?} has no ready/done/error field"))
+        Err(ProtocolError::Unknown { line: body.to_string() })
     })
 }
 
@@ -294,7 +312,7 @@ pub fn run_job(
     let mut ready = false;
     let mut current: Option<String> = None;
     let mut relay_error: Option<BlenderError> = None;
-    let mut protocol_error: Option<String> = None;
+    let mut protocol_error: Option<ProtocolError> = None;
     for line in BufReader::new(stdout).lines() {
         let line = match line {
             Ok(l) => l,
@@ -330,6 +348,11 @@ pub fn run_job(
     let status =
         child.wait().map_err(|source| BlenderError::Spawn { command: shown.clone(), hint: None, source })?;
     let killed = protocol_error.is_some();
+    if !status.success() && crate::util::interrupt::requested() {
+        // Ctrl-C reached Blender too (same process group): the frame in progress is lost, finished
+        // ones are in place; stop like every other stage does.
+        return Err(BlenderError::Interrupted(crate::util::interrupt::Interrupted));
+    }
     if !killed {
         let _ = err_thread.join();
     }
@@ -344,8 +367,8 @@ pub fn run_job(
     if tail.len() > TAIL_LINES {
         tail.drain(..tail.len() - TAIL_LINES);
     }
-    let status_text = match (status.code(), protocol_error, ready) {
-        (_, Some(p), _) => format!("a protocol error: {p}"),
+    let status_text = match (status.code(), &protocol_error, ready) {
+        (_, Some(_), _) => "a protocol error".into(),
         (Some(0), None, false) => "exit status 0 but without building the scene (no ready line)".into(),
         (Some(c), _, _) => format!("exit status {c}"),
         (None, _, _) => signal_text(&status),
@@ -361,6 +384,7 @@ pub fn run_job(
     }
     let hint = hint_for(&log_lines, launcher);
     Err(BlenderError::Failed(Box::new(ProcessFailure {
+        protocol: protocol_error,
         command: shown,
         status: status_text,
         frame,
@@ -391,18 +415,19 @@ mod tests {
 
     #[test]
     fn protocol_lines() {
-        assert_eq!(parse_event("12:00 | INFO: glTF import"), None);
+        assert!(parse_event("12:00 | INFO: glTF import").is_none());
         assert_eq!(
-            parse_event(r#"INSGEN {"done": "f_0001", "seconds": 1.5, "cpu_seconds": 2.75}"#),
-            Some(Ok(Event::Done { frame: "f_0001".into(), seconds: 1.5, cpu_seconds: 2.75 }))
+            parse_event(r#"INSGEN {"done": "f_0001", "seconds": 1.5, "cpu_seconds": 2.75}"#)
+                .map(|r| r.unwrap()),
+            Some(Event::Done { frame: "f_0001".into(), seconds: 1.5, cpu_seconds: 2.75 })
         );
         assert_eq!(
-            parse_event(r#"INSGEN {"ready": {"models": 2, "seconds": 0.5}}"#),
-            Some(Ok(Event::Ready { models: 2, seconds: 0.5, bounds: None }))
+            parse_event(r#"INSGEN {"ready": {"models": 2, "seconds": 0.5}}"#).map(|r| r.unwrap()),
+            Some(Event::Ready { models: 2, seconds: 0.5, device: None, blender: None, bounds: None })
         );
         assert_eq!(
-            parse_event(r#"INSGEN {"error": "boom", "frame": null}"#),
-            Some(Ok(Event::Error { message: "boom".into(), frame: None }))
+            parse_event(r#"INSGEN {"error": "boom", "frame": null}"#).map(|r| r.unwrap()),
+            Some(Event::Error { message: "boom".into(), frame: None })
         );
         assert!(matches!(parse_event("INSGEN {not json"), Some(Err(_))));
         assert!(matches!(parse_event(r#"INSGEN {"other": 1}"#), Some(Err(_))));
@@ -514,14 +539,27 @@ sleep 30"#,
             );
             let t0 = std::time::Instant::now();
             let e = run_job(&l, Path::new("s.py"), Path::new("j.json"), |ev| match ev {
-                Event::Done { frame, .. } => {
-                    Err(BlenderError::Output { frame, path: "x.png".into(), what: "does not decode".into() })
-                }
+                Event::Done { frame, .. } => Err(BlenderError::Output {
+                    frame,
+                    path: "x.png".into(),
+                    source: crate::blender::error::OutputError::NotReported,
+                }),
                 _ => Ok(()),
             })
             .unwrap_err();
             assert!(matches!(e, BlenderError::Output { .. }));
             assert!(t0.elapsed().as_secs() < 20, "the child was not killed");
+        }
+
+        #[test]
+        fn malformed_protocol_line_keeps_its_cause() {
+            let dir = tempfile::tempdir().unwrap();
+            let l = fake(dir.path(), "echo 'INSGEN {oops'\nsleep 30");
+            let e = run_job(&l, Path::new("s.py"), Path::new("j.json"), |_| Ok(())).unwrap_err();
+            assert!(e.to_string().contains("a protocol error"), "{e}");
+            let cause = std::error::Error::source(&e).expect("the protocol error is the source");
+            assert!(cause.to_string().contains("malformed protocol line"), "{cause}");
+            assert!(std::error::Error::source(cause).is_some(), "the JSON error is kept");
         }
 
         #[test]

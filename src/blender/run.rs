@@ -13,13 +13,14 @@ use std::path::{Path, PathBuf};
 use rand::{Rng, SeedableRng};
 
 use super::camera::{blender_matrix_world, cam_to_world_enu, BlenderCamera};
-use super::error::{BlenderError, JobIssue};
+use super::error::{BlenderError, JobIssue, OutputError};
 use super::job::{
-    check_writable, valid_frame_name, Engine, Job, JobFrame, JobModel, Look, Mode, ModelKind, JOB_FORMAT,
-    JOB_VERSION,
+    check_writable, DenoiseQuality, Device, Engine, Job, JobFrame, JobModel, Look, Mode, ModelKind,
+    JOB_FORMAT, JOB_VERSION,
 };
 use super::process::{run_job, Event, Launcher};
 use super::tileset::{prepare_tile, select_tiles, SelectOptions, ENU_FROM_SCENE_GLTF};
+use crate::camera::record::check_frame_name;
 use crate::camera::{Intrinsics, Pose};
 use crate::geo::EnuFrame;
 use crate::util::Progress;
@@ -41,6 +42,39 @@ pub enum SceneSource {
     Tileset { tileset: PathBuf, enu: EnuFrame, select: SelectOptions },
 }
 
+/// The sampling, denoising and bounce settings of RGB renders.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RgbSettings {
+    /// Cycles samples per pixel.
+    pub samples: u32,
+    pub denoise: bool,
+    pub denoise_quality: DenoiseQuality,
+    /// Total light bounces (0 = direct light only).
+    pub max_bounces: u32,
+}
+
+/// Default settings for the procedural look of the LoD model, chosen by measurement on a cam2
+/// 1920×1080 frame of the demo and of Shibuya on 2 CPU cores (bench/rgb_quality.md, reproduced by
+/// scripts/bench_rgb.sh): of the candidates measured, the cheapest that reached 35 dB PSNR against a
+/// converged reference on the demo (35.6 dB; Shibuya reached 32.9 dB). About 43–57 CPU seconds per frame.
+pub const PROCEDURAL_DEFAULTS: RgbSettings =
+    RgbSettings { samples: 2, denoise: true, denoise_quality: DenoiseQuality::Balanced, max_bounces: 2 };
+
+/// Default settings for photogrammetry tilesets: their textures are shown unlit (emission), so light
+/// bounces and the denoiser buy nothing; the samples only anti-alias edges and texture detail.
+pub const UNLIT_DEFAULTS: RgbSettings =
+    RgbSettings { samples: 4, denoise: false, denoise_quality: DenoiseQuality::Fast, max_bounces: 0 };
+
+impl SceneSource {
+    /// The measured default RGB settings for this kind of scene.
+    pub fn default_rgb_settings(&self) -> RgbSettings {
+        match self {
+            SceneSource::Lod { .. } => PROCEDURAL_DEFAULTS,
+            SceneSource::Tileset { .. } => UNLIT_DEFAULTS,
+        }
+    }
+}
+
 /// One frame to render.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrameRequest {
@@ -60,6 +94,12 @@ pub struct RenderPlan {
     /// Cycles sampling seed.
     pub seed: u32,
     pub denoise: bool,
+    /// Denoiser quality (when `denoise`).
+    pub denoise_quality: DenoiseQuality,
+    /// Light bounces of RGB renders (0 = direct light only).
+    pub max_bounces: u32,
+    /// Cycles compute device (`auto` picks the best one Blender reports).
+    pub device: Device,
     /// Render threads (0 = all cores).
     pub threads: u32,
     /// RGB mode: also write a linear float32 EXR per frame.
@@ -109,6 +149,58 @@ pub struct RenderSummary {
     pub models_per_job: Vec<usize>,
     /// Tile contents Blender cannot import, skipped, by extension.
     pub skipped_contents: BTreeMap<String, u64>,
+    /// The device each Blender process rendered on (`CPU`, `OPTIX`, …; the engine name for Workbench).
+    pub devices: Vec<String>,
+}
+
+/// Suffix of the per-frame metadata written next to each RGB frame (`rgb/<frame>.render.json`).
+pub const META_SUFFIX: &str = "render.json";
+
+/// What one Blender process reported about itself.
+#[derive(Debug, Clone)]
+struct ProcessInfo {
+    device: String,
+    blender: Option<String>,
+}
+
+/// How an RGB frame was rendered (`rgb/<frame>.render.json`). No timings: the same job writes the same
+/// bytes.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FrameMeta {
+    pub frame: String,
+    /// `cycles` or `workbench`.
+    pub engine: String,
+    /// The device Blender rendered on (`CPU`, `OPTIX`, `CUDA`, `HIP`, `ONEAPI`, `METAL`), as it reported it.
+    pub device: String,
+    /// The device asked for (`auto`, `cpu`, …).
+    pub device_requested: String,
+    pub samples: u32,
+    pub seed: u32,
+    pub denoise: bool,
+    pub denoise_quality: DenoiseQuality,
+    pub max_bounces: u32,
+    /// Blender's version string.
+    pub blender: Option<String>,
+    /// SHA-256 of the frame's camera and settings (the resume fingerprint).
+    pub fingerprint: String,
+}
+
+impl FrameMeta {
+    fn new(plan: &RenderPlan, f: &FrameRequest, info: Option<&ProcessInfo>) -> Self {
+        FrameMeta {
+            frame: f.name.clone(),
+            engine: plan.engine.name().into(),
+            device: info.map(|i| i.device.clone()).unwrap_or_else(|| "unknown".into()),
+            device_requested: plan.device.name().into(),
+            samples: plan.samples,
+            seed: plan.seed,
+            denoise: plan.denoise,
+            denoise_quality: plan.denoise_quality,
+            max_bounces: plan.max_bounces,
+            blender: info.and_then(|i| i.blender.clone()),
+            fingerprint: frame_fingerprint(plan, f),
+        }
+    }
 }
 
 /// The kind of one output file.
@@ -158,17 +250,16 @@ enum Decoded {
     Exr { width: u32, height: u32, planes: [Vec<f32>; 3] },
 }
 
-fn decode_output(kind: OutputKind, path: &Path) -> Result<Decoded, String> {
+fn decode_output(kind: OutputKind, path: &Path) -> Result<Decoded, OutputError> {
     match kind {
         OutputKind::Png => {
-            let file = std::fs::File::open(path).map_err(|e| format!("cannot open: {e}"))?;
-            let mut reader = png::Decoder::new(std::io::BufReader::new(file))
-                .read_info()
-                .map_err(|e| format!("not a PNG: {e}"))?;
+            let file = std::fs::File::open(path).map_err(OutputError::Open)?;
+            let mut reader =
+                png::Decoder::new(std::io::BufReader::new(file)).read_info().map_err(OutputError::NotPng)?;
             let mut buf = vec![0; reader.output_buffer_size()];
-            let info = reader.next_frame(&mut buf).map_err(|e| format!("does not decode: {e}"))?;
+            let info = reader.next_frame(&mut buf).map_err(OutputError::NotPng)?;
             if info.bit_depth != png::BitDepth::Eight || info.color_type != png::ColorType::Rgb {
-                return Err(format!("is {:?} {:?}, expected 8-bit RGB", info.bit_depth, info.color_type));
+                return Err(OutputError::PngFormat { bit_depth: info.bit_depth, color: info.color_type });
             }
             buf.truncate(info.buffer_size());
             Ok(Decoded::Png { width: info.width, height: info.height, rgb: buf })
@@ -176,21 +267,20 @@ fn decode_output(kind: OutputKind, path: &Path) -> Result<Decoded, String> {
         OutputKind::RgbExr | OutputKind::IdExr => {
             if kind == OutputKind::IdExr {
                 // Checks that every value is a building ID.
-                crate::scene::IdMap::read_exr(path).map_err(|e| e.to_string())?;
+                crate::scene::IdMap::read_exr(path).map_err(OutputError::Ids)?;
             }
-            let img = exr::prelude::read_first_flat_layer_from_file(path)
-                .map_err(|e| format!("does not decode: {e}"))?;
+            let img = exr::prelude::read_first_flat_layer_from_file(path).map_err(OutputError::Exr)?;
             let layer = &img.layer_data;
-            let plane = |name: &str| -> Result<Vec<f32>, String> {
+            let plane = |name: &'static str| -> Result<Vec<f32>, OutputError> {
                 let c = layer
                     .channel_data
                     .list
                     .iter()
                     .find(|c| c.name.eq(name))
-                    .ok_or_else(|| format!("has no {name} channel"))?;
+                    .ok_or(OutputError::MissingChannel(name))?;
                 match &c.sample_data {
                     exr::prelude::FlatSamples::F32(v) => Ok(v.clone()),
-                    _ => Err(format!("channel {name} is not float32")),
+                    _ => Err(OutputError::NotF32(name)),
                 }
             };
             Ok(Decoded::Exr {
@@ -202,25 +292,33 @@ fn decode_output(kind: OutputKind, path: &Path) -> Result<Decoded, String> {
     }
 }
 
-fn check_size(d: &Decoded, k: &Intrinsics) -> Result<(), String> {
+fn check_size(d: &Decoded, k: &Intrinsics) -> Result<(), OutputError> {
     let (w, h) = match d {
         Decoded::Png { width, height, .. } | Decoded::Exr { width, height, .. } => (*width, *height),
     };
     if (w, h) != (k.width_px, k.height_px) {
-        return Err(format!("is {w}×{h} px, expected {}×{}", k.width_px, k.height_px));
+        return Err(OutputError::Size {
+            width_px: w,
+            height_px: h,
+            expected_width_px: k.width_px,
+            expected_height_px: k.height_px,
+        });
     }
     Ok(())
 }
 
 /// Checks that an output decodes, has the expected kind and the frame's size.
-pub fn verify_output(kind: OutputKind, path: &Path, k: &Intrinsics) -> Result<(), String> {
+///
+/// # Errors
+/// [`OutputError`] saying what is wrong with the file.
+pub fn verify_output(kind: OutputKind, path: &Path, k: &Intrinsics) -> Result<(), OutputError> {
     check_size(&decode_output(kind, path)?, k)
 }
 
 /// Verifies Blender's temporary output and writes the final file atomically, re-encoded by insgen so
 /// that it carries no render metadata (Blender stamps render times into PNG and EXR headers): the
 /// same job gives byte-identical files. The temporary file is removed afterwards.
-fn finalize_output(o: &Output, k: &Intrinsics) -> Result<(), String> {
+fn finalize_output(o: &Output, k: &Intrinsics) -> Result<(), OutputError> {
     let decoded = decode_output(o.kind, &o.tmp)?;
     check_size(&decoded, k)?;
     match decoded {
@@ -231,10 +329,10 @@ fn finalize_output(o: &Output, k: &Intrinsics) -> Result<(), String> {
                 enc.set_color(png::ColorType::Rgb);
                 enc.set_depth(png::BitDepth::Eight);
                 enc.set_compression(png::Compression::Fast);
-                let mut w = enc.write_header().map_err(|e| format!("re-encoding PNG: {e}"))?;
-                w.write_image_data(&rgb).map_err(|e| format!("re-encoding PNG: {e}"))?;
+                let mut w = enc.write_header().map_err(OutputError::EncodePng)?;
+                w.write_image_data(&rgb).map_err(OutputError::EncodePng)?;
             }
-            crate::util::write_bytes_atomic(&o.path, &bytes).map_err(|e| e.to_string())?;
+            crate::util::write_bytes_atomic(&o.path, &bytes).map_err(OutputError::Write)?;
         }
         Decoded::Exr { width, height, planes } => {
             let dir = o.path.parent().unwrap_or(Path::new("."));
@@ -242,18 +340,18 @@ fn finalize_output(o: &Output, k: &Intrinsics) -> Result<(), String> {
                 .prefix(TMP_PREFIX)
                 .suffix(".exr")
                 .tempfile_in(dir)
-                .map_err(|e| format!("creating a temporary file: {e}"))?
+                .map_err(OutputError::TempFile)?
                 .into_temp_path();
             let w = width as usize;
             exr::prelude::write_rgb_file(&tmp, w, height as usize, |x, y| {
                 let i = y * w + x;
                 (planes[0][i], planes[1][i], planes[2][i])
             })
-            .map_err(|e| format!("re-encoding EXR: {e}"))?;
-            tmp.persist(&o.path).map_err(|e| format!("renaming into place: {e}"))?;
+            .map_err(OutputError::EncodeExr)?;
+            tmp.persist(&o.path).map_err(OutputError::Rename)?;
         }
     }
-    std::fs::remove_file(&o.tmp).map_err(|e| format!("removing {}: {e}", o.tmp.display()))
+    std::fs::remove_file(&o.tmp).map_err(OutputError::RemoveTmp)
 }
 
 /// Fingerprint of what a frame's outputs depend on: its camera and the plan's render settings (hex
@@ -267,7 +365,7 @@ pub fn frame_fingerprint(plan: &RenderPlan, f: &FrameRequest) -> String {
         }
     };
     let text = format!(
-        "{:?} {:?} {:?} {:?} {} {} {} {} {} {} {} {source}",
+        "{:?} {:?} {:?} {:?} {} {} {} {:?} {} {} {} {} {} {source}",
         f.intrinsics,
         f.pose,
         plan.mode,
@@ -275,6 +373,8 @@ pub fn frame_fingerprint(plan: &RenderPlan, f: &FrameRequest) -> String {
         plan.samples,
         plan.seed,
         plan.denoise,
+        plan.denoise_quality,
+        plan.max_bounces,
         plan.exr,
         plan.look_seed,
         plan.ground_enu_m,
@@ -352,10 +452,10 @@ fn check_request(plan: &RenderPlan, frames: &[FrameRequest]) -> Vec<JobIssue> {
     let mut issues = Vec::new();
     let mut seen = std::collections::BTreeSet::new();
     for (i, f) in frames.iter().enumerate() {
-        if !valid_frame_name(&f.name) {
+        if let Err(e) = check_frame_name(&f.name) {
             issues.push(JobIssue {
                 path: format!("frames[{i}].name"),
-                what: format!("{:?} cannot be a file name", f.name),
+                what: format!("{e}: it cannot be a file name"),
             });
         } else if !seen.insert(f.name.as_str()) {
             issues.push(JobIssue {
@@ -407,12 +507,7 @@ pub fn render_frames(
     }
     for dir in [&plan.out_dir, &plan.work_dir] {
         crate::util::create_dir_all(dir)?;
-        if let Err(what) = check_writable(dir) {
-            return Err(BlenderError::InvalidJob {
-                path: dir.clone(),
-                issues: vec![JobIssue { path: "output".into(), what }],
-            });
-        }
+        check_writable(dir).map_err(|source| BlenderError::NotWritable { dir: dir.clone(), source })?;
     }
     let mut summary = RenderSummary::default();
     let mut todo = Vec::new();
@@ -434,6 +529,7 @@ pub fn render_frames(
     progress.start(todo.len() as u64, "frames");
     let result = (|| {
         for batch in todo.chunks(plan.restart_every) {
+            crate::util::interrupt::check()?;
             run_batch(&plan, &script, &look, batch, progress, &mut summary)?;
         }
         Ok(())
@@ -492,6 +588,9 @@ fn run_batch(
         samples: plan.samples,
         seed: plan.seed,
         denoise: plan.denoise,
+        denoise_quality: plan.denoise_quality,
+        max_bounces: plan.max_bounces,
+        device: plan.device,
         threads: plan.threads,
         report_bounds: plan.report_bounds,
         models,
@@ -514,10 +613,18 @@ fn run_batch(
     }
     let index: BTreeMap<&str, usize> = batch.iter().enumerate().map(|(i, f)| (f.name.as_str(), i)).collect();
     let mut done = vec![false; batch.len()];
+    let mut process_info: Option<ProcessInfo> = None;
     let result = run_job(&plan.launcher, script, &job_path, |ev| {
         match ev {
-            Event::Ready { seconds, bounds, .. } => {
+            Event::Ready { seconds, bounds, device, blender, .. } => {
                 summary.setup_seconds.push(seconds);
+                let device = device.unwrap_or_else(|| plan.engine.name().to_string());
+                log::info!(
+                    "Blender {} renders on {device}",
+                    blender.as_deref().unwrap_or("(unknown version)")
+                );
+                summary.devices.push(device.clone());
+                process_info = Some(ProcessInfo { device, blender });
                 if let Some(b) = bounds {
                     summary.bounds = b;
                 }
@@ -526,25 +633,28 @@ fn run_batch(
                 let i = *index.get(frame.as_str()).ok_or_else(|| BlenderError::Output {
                     frame: frame.clone(),
                     path: job_path.clone(),
-                    what: "Blender reported a frame that is not in the job".into(),
+                    source: OutputError::NotInJob,
                 })?;
                 for o in &outputs[i] {
-                    finalize_output(o, &batch[i].intrinsics).map_err(|what| BlenderError::Output {
+                    finalize_output(o, &batch[i].intrinsics).map_err(|source| BlenderError::Output {
                         frame: frame.clone(),
                         path: o.tmp.clone(),
-                        what,
+                        source,
                     })?;
                 }
-                let stamp = stamp_path(plan, &frame);
-                crate::util::write_bytes_atomic(&stamp, frame_fingerprint(plan, &batch[i]).as_bytes())
-                    .map_err(|e| BlenderError::Output {
-                        frame: frame.clone(),
-                        path: stamp.clone(),
-                        what: e.to_string(),
-                    })?;
+                if plan.mode == Mode::Rgb {
+                    let meta = FrameMeta::new(plan, &batch[i], process_info.as_ref());
+                    crate::util::write_json_atomic(
+                        &plan.out_dir.join(format!("{frame}.{META_SUFFIX}")),
+                        &meta,
+                    )?;
+                }
+                write_stamp(plan, &batch[i])?;
                 done[i] = true;
                 summary.rendered.push(FrameTiming { name: frame, seconds, cpu_seconds });
                 progress.inc(1);
+                // Stop between frames on Ctrl-C: this frame is complete, the next is not started.
+                crate::util::interrupt::check()?;
             }
             Event::Error { .. } => {}
         }
@@ -554,7 +664,7 @@ fn run_batch(
         Some(i) => Err(BlenderError::Output {
             frame: batch[i].name.clone(),
             path: job_path.clone(),
-            what: "Blender exited successfully without reporting this frame".into(),
+            source: OutputError::NotReported,
         }),
         None => Ok(()),
     });
@@ -580,6 +690,9 @@ mod tests {
             samples: 4,
             seed: 0,
             denoise: false,
+            denoise_quality: DenoiseQuality::Fast,
+            max_bounces: 2,
+            device: Device::Cpu,
             threads: 0,
             exr: true,
             source: SceneSource::Lod { glb },
@@ -697,6 +810,15 @@ mod tests {
         }
         let e = render_frames(&p, &[frame("a")], &crate::util::NoProgress).unwrap_err().to_string();
         assert!(e.contains("not writable") && e.contains("rgb"), "{e}");
+    }
+
+    #[test]
+    fn an_interrupted_render_exits_130() {
+        // main maps an Interrupted anywhere in the chain to exit status 130.
+        let e = BlenderError::from(crate::util::interrupt::Interrupted);
+        assert!(crate::util::interrupt::in_chain(&e));
+        let e = anyhow::Error::from(e).context("render-rgb");
+        assert!(crate::util::interrupt::in_chain(e.as_ref()));
     }
 
     #[test]

@@ -7,17 +7,22 @@ use clap::Parser;
 
 use super::{Cli, Global};
 
-/// Runs prepare → sample → render-masks → export-coco → eval-loc (→ render-rgb when Blender's bpy is
-/// installed) on the demo districts: demo (train), demo-val (val) and demo-test (held out).
+/// Runs prepare → sample → render-masks → render-rgb (when Blender's bpy is installed) → export-coco →
+/// eval-loc on the demo districts: demo (train), demo-val (val) and demo-test (held out).
+///
+/// Every labelled frame gets its RGB render, so the COCO dataset at the end lists photos only. The
+/// default camera is cam2 at a quarter of its resolution (<scenes>/cameras/cam2-quarter.toml, 480×270),
+/// which keeps the whole demo within a few minutes on 2 CPU cores; --camera cam2 renders full frames
+/// (about 20 CPU seconds each).
 #[derive(Debug, Clone, clap::Args)]
 #[command(after_long_help = "Examples:\n  insgen demo\n  insgen demo --no-rgb --count 8 --queries 2\n  \
 insgen --workdir /tmp/demo-runs demo --camera cam1")]
 pub struct Args {
-    /// Camera preset for the demo.
-    #[arg(long, value_name = "PRESET", default_value = "cam2")]
-    pub camera: String,
+    /// Camera preset, or a camera TOML file [default: <scenes>/cameras/cam2-quarter.toml].
+    #[arg(long, value_name = "PRESET|FILE")]
+    pub camera: Option<String>,
     /// Poses sampled per district.
-    #[arg(long, value_name = "N", default_value_t = 24)]
+    #[arg(long, value_name = "N", default_value_t = 8)]
     pub count: u32,
     /// Queries localized on the held-out district.
     #[arg(long, value_name = "N", default_value_t = 6)]
@@ -47,28 +52,44 @@ fn step(global: &Global, words: &[&str]) -> anyhow::Result<()> {
     super::run_logged(cli, &argv).with_context(|| format!("demo step `{}`", words.join(" ")))
 }
 
+/// File name of the demo's default camera under `<scenes>/cameras/`.
+pub const DEFAULT_CAMERA_FILE: &str = "cam2-quarter.toml";
+
 pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     let districts = ["demo", "demo-val", "demo-test"];
     let count = args.count.to_string();
+    // `sample` takes a preset or a file; the later steps take the camera's name (its directory).
+    let camera_arg = match &args.camera {
+        Some(c) => c.clone(),
+        None => global.scenes.join("cameras").join(DEFAULT_CAMERA_FILE).display().to_string(),
+    };
+    let camera_name = crate::camera::CameraSpec::resolve(&camera_arg)
+        .with_context(|| format!("demo camera {camera_arg}"))?
+        .name;
+    let camera = camera_name.as_str();
+    let roots =
+        [std::env::current_dir().unwrap_or_default(), std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))];
+    let rgb = !args.no_rgb && crate::blender::Launcher::find(None, None, &roots).is_ok();
+    if !args.no_rgb && !rgb {
+        global.printer().status(
+            "==> skipping render-rgb: no Blender found (scripts/setup.sh installs .venv-blender); export-coco \
+             then lists no image (--label-only keeps the labels)",
+        );
+    }
     for d in districts {
         step(global, &["prepare", "--area", d])?;
-        step(global, &["sample", "--area", d, "--camera", &args.camera, "--count", &count])?;
-        step(global, &["render-masks", "--area", d, "--camera", &args.camera, "--preview", "4"])?;
+        step(global, &["sample", "--area", d, "--camera", &camera_arg, "--count", &count])?;
+        step(global, &["render-masks", "--area", d, "--camera", camera, "--preview", "4"])?;
+        if rgb {
+            // Every labelled frame, at render-rgb's measured defaults.
+            step(global, &["render-rgb", "--area", d, "--camera", camera])?;
+        }
     }
-    let blender_python = std::path::Path::new(".venv-blender/bin/python");
-    if !args.no_rgb && blender_python.exists() {
-        // One frame at 16 samples: a cam2 frame at full resolution takes minutes on 2 cores
-        // (bench/versus_blender.md); render more with `insgen render-rgb`.
-        step(
-            global,
-            &["render-rgb", "--area", "demo", "--camera", &args.camera, "--limit", "1", "--samples", "16"],
-        )?;
-    } else if !args.no_rgb {
-        global
-            .printer()
-            .status("==> skipping render-rgb: .venv-blender is missing (scripts/setup.sh installs it)");
+    if rgb {
+        step(global, &["export-coco"])?;
+    } else {
+        step(global, &["export-coco", "--label-only"])?;
     }
-    step(global, &["export-coco"])?;
     let q = args.queries.to_string();
     step(
         global,
@@ -77,7 +98,7 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
             "--area",
             "demo-test",
             "--camera",
-            &args.camera,
+            camera,
             "--oracle",
             "--limit",
             &q,
@@ -95,7 +116,7 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         "==> done: scenes, poses, masks and previews under {0}/<area>/, COCO under {0}/coco/, localization report \
          under {0}/demo-test/{1}/loc/",
         global.workdir.display(),
-        args.camera
+        camera
     ));
     Ok(())
 }

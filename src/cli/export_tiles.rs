@@ -24,6 +24,22 @@ pub struct Args {
     /// Output directory [default: <workdir>/<NAME>/scene/tileset].
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+    /// Write a synthetic textured tileset in the style of a real service instead of the scene copy:
+    /// a quadtree of tiles, each with its own known colour texture (cesium-ion: Draco, unlit, rotated
+    /// and scaled root, REPLACE and ADD refinement). For testing and benchmarking photogrammetry
+    /// rendering (scripts/bench_rgb.sh); the tiles carry no building IDs a dataset could use.
+    #[arg(long, value_enum, value_name = "STYLE", hide_short_help = true)]
+    pub style: Option<StyleArg>,
+}
+
+/// Style of a synthetic tileset.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum StyleArg {
+    CesiumIon,
+    Google,
+    Plateau,
+    #[value(name = "3dbag")]
+    Bag3d,
 }
 
 impl Args {
@@ -38,6 +54,22 @@ impl Args {
 /// Runs `export-tiles`.
 pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     let (scene, out) = args.dirs(global);
+    if let Some(style) = args.style {
+        use crate::lod::tiles3d::write::{buildings_from_scene, generate_city_tileset, Style};
+        let prepared = crate::scene::artifact::PreparedScene::load(&scene)?;
+        let o = prepared.manifest.origin;
+        let enu = crate::geo::EnuFrame::new(crate::geo::Geodetic::new(o.lat_deg, o.lon_deg, o.h_m));
+        let style = match style {
+            StyleArg::CesiumIon => Style::CesiumIon,
+            StyleArg::Google => Style::Google,
+            StyleArg::Plateau => Style::Plateau,
+            StyleArg::Bag3d => Style::Bag3d,
+        };
+        let g = generate_city_tileset(&buildings_from_scene(&prepared.mesh), &enu, &out, style)
+            .with_context(|| format!("writing a synthetic tileset of area {}", args.area))?;
+        global.printer().summary(format!("wrote {} ({} tiles)", g.tileset.display(), g.tiles.len()));
+        return Ok(());
+    }
     let s = write_scene_tileset(&scene, &out)
         .with_context(|| format!("exporting area {} as 3D Tiles", args.area))?;
     global.printer().summary(format!("wrote {} and {}", s.tileset.display(), s.content.display()));

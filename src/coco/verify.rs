@@ -250,28 +250,43 @@ fn check_image(
             )));
             continue;
         };
-        let expected: Result<Rle, String> = match (unit, a.component) {
-            (AnnotationUnit::Component, Some(c)) => parts
-                .iter()
-                .find(|&&k| lab.components[k].index == c)
-                .map(|&k| rles[k].clone())
-                .ok_or_else(|| format!("building {} has no component {c} in the ID map", a.building_id)),
-            (AnnotationUnit::Component, None) => Err("no `component` in a per-component file".to_string()),
+        let expected = match (unit, a.component) {
+            (AnnotationUnit::Component, Some(c)) => {
+                match parts.iter().find(|&&k| lab.components[k].index == c) {
+                    Some(&k) => rles[k].clone(),
+                    None => {
+                        out.push(at(format!(
+                            "building {} has no component {c} in the ID map",
+                            a.building_id
+                        )));
+                        continue;
+                    }
+                }
+            }
+            (AnnotationUnit::Component, None) => {
+                out.push(at("no `component` in a per-component file".to_string()));
+                continue;
+            }
             (AnnotationUnit::Building, _) => {
                 let all: Vec<Rle> = parts.iter().map(|&k| rles[k].clone()).collect();
-                Rle::union(&all).map_err(|e| e.to_string())
+                match Rle::union(&all) {
+                    Ok(r) => r,
+                    Err(e) => {
+                        out.push(at(e.to_string()));
+                        continue;
+                    }
+                }
             }
         };
         match expected {
-            Err(what) => out.push(at(what)),
-            Ok(e) if e != stored => out.push(at(format!(
+            e if e != stored => out.push(at(format!(
                 "its mask ({} px) is not building {}'s in the ID map {} ({} px)",
                 stored.area(),
                 a.building_id,
                 im.mask_file,
                 e.area()
             ))),
-            Ok(e) => {
+            e => {
                 if a.area != e.area() {
                     out.push(at(format!("area {} but the mask has {} px", a.area, e.area())));
                 }

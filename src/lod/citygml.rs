@@ -53,6 +53,9 @@ use super::{
 };
 use crate::util::FileError;
 
+/// An XML attribute's unescaped value.
+type AttrValue = String;
+
 /// LoDs this reader takes geometry from, by index: 0 = LoD1, 1 = LoD2.
 const LOD_NAMES: [&str; 3] = ["0", "1", "2"];
 
@@ -631,7 +634,7 @@ impl<'p> Parser<'p> {
     }
 
     /// The value of the attribute with this local name (any prefix), unescaped.
-    fn attr(&self, e: &BytesStart, local_name: &str) -> Result<Option<String>, LodError> {
+    fn attr(&self, e: &BytesStart, local_name: &str) -> Result<Option<AttrValue>, LodError> {
         for attr in e.attributes() {
             let attr = attr.map_err(|err| {
                 let at = self.locate(self.event_pos);

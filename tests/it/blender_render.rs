@@ -19,6 +19,7 @@ use std::path::{Path, PathBuf};
 use blender_support::*;
 use glam::{DMat4, DVec3};
 use insgen::blender::align::{building_ious, summarise, FrameAlignment};
+use insgen::blender::job::Device;
 use insgen::blender::run::frame_outputs;
 use insgen::blender::tileset::SelectOptions;
 use insgen::blender::{render_frames, Engine, FrameRequest, Launcher, Mode, RenderPlan, SceneSource};
@@ -36,6 +37,9 @@ fn plan(python: &Path, dir: &Path, mode: Mode, source: SceneSource) -> RenderPla
         samples: 4,
         seed: 1,
         denoise: false,
+        denoise_quality: insgen::blender::job::DenoiseQuality::Fast,
+        max_bounces: 2,
+        device: insgen::blender::job::Device::Cpu,
         // Two render threads: the test machine is shared.
         threads: 2,
         exr: false,
@@ -265,6 +269,37 @@ fn tileset_tiles_are_placed_exactly() {
     let report = check_ids_against_reference(&p, &frames, &boxes);
     eprintln!("tileset: median IoU {:?}, p5 {:?}", report.median_iou, report.p5_iou);
     assert!(report.pass, "{}", report.to_markdown());
+}
+
+/// `--device cpu` is what the frame metadata records, and `auto` falls back to the CPU on this machine
+/// (no GPU; Blender reports no OptiX/CUDA/HIP/oneAPI device). A machine with a GPU would record that GPU
+/// for `auto`: the test then only checks that the device is named.
+#[test]
+fn device_is_chosen_logged_and_recorded() {
+    let Some(py) = blender_python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let glb = write_scene_glb(dir.path(), &box_city());
+    let frame = FrameRequest {
+        name: "d".into(),
+        intrinsics: Intrinsics::from_hfov(32, 24, 50.0),
+        pose: Pose::from_ypr_deg(0.0, 0.0, 0.0, [0.0, 0.0, 120.0]),
+    };
+    for (device, word) in [(Device::Cpu, "cpu"), (Device::Auto, "auto")] {
+        let mut p = plan(&py, dir.path(), Mode::Rgb, SceneSource::Lod { glb: glb.clone() });
+        p.device = device;
+        p.force = true;
+        let s = render_frames(&p, std::slice::from_ref(&frame), &NoProgress).unwrap();
+        let meta: insgen::blender::run::FrameMeta =
+            serde_json::from_slice(&std::fs::read(p.out_dir.join("d.render.json")).unwrap()).unwrap();
+        assert_eq!(meta.device_requested, word);
+        assert_eq!(s.devices, vec![meta.device.clone()]);
+        if device == Device::Cpu || std::env::var_os("INSGEN_TEST_HAS_GPU").is_none() {
+            assert_eq!(meta.device, "CPU", "{word}");
+        } else {
+            assert!(!meta.device.is_empty());
+        }
+        assert_eq!((meta.samples, meta.engine.as_str()), (4, "cycles"));
+    }
 }
 
 #[test]
