@@ -12,7 +12,7 @@ use crate::blender::{render_frames, Engine, FrameRequest, Launcher, Mode, Render
 use crate::geo::{EnuFrame, Geodetic};
 use crate::scene::artifact::{Manifest, GLB_FILE, MANIFEST_FILE};
 use crate::scene::IdMap;
-use crate::util::Shard;
+use crate::util::ShardSpec;
 
 /// Render engine choice on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -84,6 +84,7 @@ impl From<DenoiseQualityArg> for DenoiseQuality {
 #[command(
     after_long_help = "Examples:\n  insgen render-rgb --area demo --camera cam2 --limit 4 --samples 16\n  \
 insgen render-rgb --area demo --camera cam2 --shard 0/2 & insgen render-rgb --area demo --camera cam2 --shard 1/2\n  \
+insgen render-rgb --area demo --camera cam2 --shard auto   # in a Slurm job array\n  \
 insgen render-rgb --area demo --camera cam2 --check-alignment --limit 10"
 )]
 pub struct Args {
@@ -94,8 +95,11 @@ pub struct Args {
     #[arg(long, value_name = "PRESET")]
     pub camera: String,
     /// Render only frames whose index in poses.jsonl is i modulo N (0 ≤ i < N).
-    #[arg(long, value_name = "i/N")]
-    pub shard: Option<Shard>,
+    ///
+    /// `auto` takes i and N from a Slurm job array; `auto/N` takes i from a Slurm array or a
+    /// Kubernetes Indexed Job (JOB_COMPLETION_INDEX) and N as given.
+    #[arg(long, value_name = "i/N|auto|auto/N")]
+    pub shard: Option<ShardSpec>,
     /// Cycles samples per pixel [default: 2 for the procedural look, 4 for a tileset].
     ///
     /// The defaults were chosen by measurement (bench/rgb_quality.md): with the denoiser, 2 samples
@@ -195,10 +199,11 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<Plan> {
     let manifest: Manifest = serde_json::from_slice(&crate::util::read_file(&manifest_path)?)
         .with_context(|| format!("{}: not a scene manifest", manifest_path.display()))?;
     let records = crate::camera::record::read_jsonl(&poses_path)?;
+    let shard = super::resolve_shard(args.shard)?;
     let mut frames: Vec<FrameRequest> = records
         .iter()
         .enumerate()
-        .filter(|(i, _)| args.shard.is_none_or(|s| s.contains(*i)))
+        .filter(|(i, _)| shard.contains(*i))
         .map(|(_, r)| FrameRequest { name: r.name.clone(), intrinsics: r.view.intrinsics, pose: r.pose() })
         .collect();
     if let Some(n) = args.limit {
@@ -375,7 +380,11 @@ mod tests {
 
     #[test]
     fn shard_flag() {
-        assert_eq!(parse(&["--shard", "1/3"]).unwrap().shard, Some(Shard { index: 1, count: 3 }));
+        assert_eq!(
+            parse(&["--shard", "1/3"]).unwrap().shard,
+            Some(ShardSpec::Fixed(crate::util::Shard { index: 1, count: 3 }))
+        );
+        assert_eq!(parse(&["--shard", "auto/4"]).unwrap().shard, Some(ShardSpec::Auto { count: Some(4) }));
         assert!(parse(&["--shard", "3/3"]).is_err());
     }
 
