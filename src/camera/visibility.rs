@@ -323,6 +323,25 @@ mod tests {
     }
 
     #[test]
+    fn census_counts_the_buildings_hit_first() {
+        let ix = index();
+        let k = Intrinsics::from_hfov(640, 480, 90.0);
+        // Straight down from 1000 m over the midpoint: a 90° view spans ±1000 m, both towers in it.
+        let both = Pose::from_ypr_deg(0.0, 0.0, 0.0, [150.0, 0.0, 1000.0]);
+        let c = ix.view_census(&k, &both, [256, 192]);
+        assert_eq!(c.visible_buildings, 2, "{c:?}");
+        assert!(c.building_fraction > 0.0 && c.building_fraction < 0.01, "{c:?}");
+        // Low over the big tower, looking down: only it (the east tower is outside the view).
+        let one = Pose::from_ypr_deg(0.0, 0.0, 0.0, [0.0, 0.0, 110.0]);
+        let c = ix.view_census(&k, &one, [16, 12]);
+        assert_eq!(c.visible_buildings, 1, "{c:?}");
+        assert_eq!(c.building_fraction, 1.0);
+        // A ray through both towers (west face of the big one first) counts only the first.
+        assert_eq!(ix.first_box_hit([-500.0, 0.0, 20.0], [1.0, 0.0, 0.0]), Some(0));
+        assert_eq!(ix.first_box_hit([1000.0, 0.0, 20.0], [-1.0, 0.0, 0.0]), Some(1));
+    }
+
+    #[test]
     fn rays_hit_only_what_they_cross() {
         let ix = index();
         // Straight down onto each tower, and between them.

@@ -87,9 +87,18 @@ struct Draws {
 
 /// Returns `scene` with `p` applied (the manifest is kept; building records are recomputed).
 pub fn perturb(scene: &PreparedScene, p: &MapPerturbation) -> (PreparedScene, PerturbationReport) {
+    let (mesh, buildings, report) = perturb_mesh(&scene.mesh, &scene.buildings, p);
+    (PreparedScene { manifest: scene.manifest.clone(), buildings, mesh }, report)
+}
+
+/// [`perturb`] on a mesh and its building records (every vertex's ID must have a record).
+pub fn perturb_mesh(
+    scene_mesh: &SceneMesh,
+    records: &[BuildingRecord],
+    p: &MapPerturbation,
+) -> (SceneMesh, Vec<BuildingRecord>, PerturbationReport) {
     let mut rng = ChaCha8Rng::seed_from_u64(p.seed);
     let unit = Normal::new(0.0, 1.0).expect("σ = 1 is valid");
-    let records = &scene.buildings;
     let max_id = records.iter().map(|b| b.id.get()).max().unwrap_or(0) as usize;
     // Record index of every building ID.
     let mut slot = vec![usize::MAX; max_id + 1];
@@ -107,12 +116,12 @@ pub fn perturb(scene: &PreparedScene, p: &MapPerturbation) -> (PreparedScene, Pe
         })
         .collect();
     let mut positions: Vec<[f64; 3]> =
-        scene.mesh.positions_m.iter().map(|v| [v[0] as f64, v[1] as f64, v[2] as f64]).collect();
+        scene_mesh.positions_m.iter().map(|v| [v[0] as f64, v[1] as f64, v[2] as f64]).collect();
     // Vertex bounds per building, from the mesh itself (the records' boxes are rounded the same way).
     let bounds = |positions: &[[f64; 3]]| {
         let mut lo = vec![[f64::INFINITY; 3]; records.len()];
         let mut hi = vec![[f64::NEG_INFINITY; 3]; records.len()];
-        for (v, id) in positions.iter().zip(&scene.mesh.building_ids) {
+        for (v, id) in positions.iter().zip(&scene_mesh.building_ids) {
             let i = slot.get(id.get() as usize).copied().unwrap_or(usize::MAX);
             if i == usize::MAX {
                 continue;
@@ -125,7 +134,7 @@ pub fn perturb(scene: &PreparedScene, p: &MapPerturbation) -> (PreparedScene, Pe
         (lo, hi)
     };
     let (lo, hi) = bounds(&positions);
-    for (v, id) in positions.iter_mut().zip(&scene.mesh.building_ids) {
+    for (v, id) in positions.iter_mut().zip(&scene_mesh.building_ids) {
         let i = slot[id.get() as usize];
         let (l, h, d) = (lo[i], hi[i], &draws[i]);
         if p.lod1 && v[2] > l[2] + LOD1_GROUND_BAND_M {
@@ -172,28 +181,25 @@ pub fn perturb(scene: &PreparedScene, p: &MapPerturbation) -> (PreparedScene, Pe
             }
         }
     }
+    // The kept vertices in their order, then the triangles of kept buildings.
     let offset = p.offset_enu_m;
     let mut mesh = SceneMesh::default();
     let mut remap = vec![u32::MAX; positions.len()];
-    let ids = &scene.mesh.building_ids;
-    for tri in scene.mesh.indices.chunks_exact(3) {
-        if tri.iter().any(|&v| dropped[slot[ids[v as usize].get() as usize]]) {
+    let ids = &scene_mesh.building_ids;
+    for (v, q) in positions.iter().enumerate() {
+        let i = slot[ids[v].get() as usize];
+        if dropped[i] {
             continue;
         }
-        for &v in tri {
-            let v = v as usize;
-            if remap[v] == u32::MAX {
-                remap[v] = mesh.positions_m.len() as u32;
-                let q = positions[v];
-                mesh.positions_m.push([
-                    (q[0] + offset[0]) as f32,
-                    (q[1] + offset[1]) as f32,
-                    (q[2] + offset[2]) as f32,
-                ]);
-                mesh.building_ids.push(records[root(&parent, slot[ids[v].get() as usize])].id);
-            }
-            mesh.indices.push(remap[v]);
+        remap[v] = mesh.positions_m.len() as u32;
+        mesh.positions_m.push([(q[0] + offset[0]) as f32, (q[1] + offset[1]) as f32, (q[2] + offset[2]) as f32]);
+        mesh.building_ids.push(records[root(&parent, i)].id);
+    }
+    for tri in scene_mesh.indices.chunks_exact(3) {
+        if tri.iter().any(|&v| remap[v as usize] == u32::MAX) {
+            continue;
         }
+        mesh.indices.extend(tri.iter().map(|&v| remap[v as usize]));
     }
     let buildings = recompute_records(records, &mesh);
     let report = PerturbationReport {
@@ -202,7 +208,7 @@ pub fn perturb(scene: &PreparedScene, p: &MapPerturbation) -> (PreparedScene, Pe
         dropped: dropped.iter().filter(|&&d| d).count(),
         merged,
     };
-    (PreparedScene { manifest: scene.manifest.clone(), buildings, mesh }, report)
+    (mesh, buildings, report)
 }
 
 fn root(parent: &[usize], mut i: usize) -> usize {
@@ -311,4 +317,155 @@ pub fn check_same_frame(query: &PreparedScene, map: &PreparedScene) -> Result<()
         map_lon_deg: m.lon_deg,
         map_h_m: m.h_m,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::BuildingId;
+
+    /// A gable house (ID `id`): a 10 × 6 m box with 6 m walls and a ridge at 9 m along x, its
+    /// south-west corner at (x0, 0, 0), as 8 box corners + 2 ridge points.
+    fn house(mesh: &mut SceneMesh, records: &mut Vec<BuildingRecord>, id: u32, x0: f32) {
+        let base = mesh.positions_m.len() as u32;
+        let id = BuildingId::new(id).unwrap();
+        for z in [0.0, 6.0] {
+            for (x, y) in [(0.0, 0.0), (10.0, 0.0), (10.0, 6.0), (0.0, 6.0)] {
+                mesh.positions_m.push([x0 + x, y, z]);
+            }
+        }
+        mesh.positions_m.extend([[x0, 3.0, 9.0], [x0 + 10.0, 3.0, 9.0]]);
+        mesh.building_ids.extend([id; 10]);
+        // Walls (two triangles each), gables, roof planes.
+        let tris: [[u32; 3]; 12] = [
+            [0, 1, 5],
+            [0, 5, 4],
+            [1, 2, 6],
+            [1, 6, 5],
+            [2, 3, 7],
+            [2, 7, 6],
+            [3, 0, 4],
+            [3, 4, 7],
+            [4, 5, 9],
+            [4, 9, 8],
+            [7, 6, 9],
+            [7, 9, 8],
+        ];
+        mesh.indices.extend(tris.iter().flatten().map(|i| base + i));
+        records.push(BuildingRecord {
+            id,
+            source_id: format!("b{}", id.get()),
+            source_file: "test".into(),
+            lod: "2".into(),
+            height_m: 9.0,
+            measured_height_m: None,
+            footprint_area_m2: 60.0,
+            centroid_lat_deg: 0.0,
+            centroid_lon_deg: 0.0,
+            bbox_min_enu_m: [x0 as f64, 0.0, 0.0],
+            bbox_max_enu_m: [x0 as f64 + 10.0, 6.0, 9.0],
+            triangles: 12,
+        });
+    }
+
+    fn town() -> (SceneMesh, Vec<BuildingRecord>) {
+        let (mut mesh, mut records) = (SceneMesh::default(), Vec::new());
+        house(&mut mesh, &mut records, 1, 0.0);
+        house(&mut mesh, &mut records, 2, 20.0);
+        house(&mut mesh, &mut records, 3, 60.0);
+        (mesh, records)
+    }
+
+    #[test]
+    fn identity_leaves_the_map_as_it_is() {
+        let (mesh, records) = town();
+        let (m, r, report) = perturb_mesh(&mesh, &records, &MapPerturbation::default());
+        assert_eq!(m, mesh);
+        assert_eq!(r, records);
+        assert_eq!(report.buildings_after, 3);
+        assert!(MapPerturbation { seed: 5, ..Default::default() }.is_identity());
+    }
+
+    #[test]
+    fn lod1_extrudes_the_footprint_to_the_top() {
+        let (mesh, records) = town();
+        let (m, r, _) = perturb_mesh(&mesh, &records, &MapPerturbation { lod1: true, ..Default::default() });
+        // Every vertex at the bottom (0 m) or the top (9 m): eaves rise from 6 m to 9 m, the ridge stays.
+        assert!(m.positions_m.iter().all(|v| v[2] == 0.0 || v[2] == 9.0), "{:?}", m.positions_m);
+        assert_eq!(m.positions_m.iter().filter(|v| v[2] == 9.0).count(), 3 * 6);
+        // Footprints and boxes unchanged.
+        assert_eq!(
+            r.iter().map(|b| (b.bbox_min_enu_m, b.bbox_max_enu_m)).collect::<Vec<_>>(),
+            records.iter().map(|b| (b.bbox_min_enu_m, b.bbox_max_enu_m)).collect::<Vec<_>>()
+        );
+    }
+
+    #[test]
+    fn height_error_moves_tops_only_and_is_seeded() {
+        let (mesh, records) = town();
+        let p = MapPerturbation { height_sigma_m: 2.0, seed: 7, ..Default::default() };
+        let (a, ra, _) = perturb_mesh(&mesh, &records, &p);
+        let (b, _, _) = perturb_mesh(&mesh, &records, &p);
+        assert_eq!(a, b, "same seed, same map");
+        let (c, _, _) = perturb_mesh(&mesh, &records, &MapPerturbation { seed: 8, ..p.clone() });
+        assert_ne!(a, c, "another seed, another map");
+        for (before, after) in records.iter().zip(&ra) {
+            assert_eq!(after.bbox_min_enu_m, before.bbox_min_enu_m, "bottoms and footprints stay");
+            assert_eq!(after.bbox_max_enu_m[..2], before.bbox_max_enu_m[..2]);
+            assert_ne!(after.bbox_max_enu_m[2], 9.0, "the top moved");
+            assert!(after.bbox_max_enu_m[2] >= MIN_HEIGHT_M);
+        }
+    }
+
+    #[test]
+    fn shift_and_scale_move_footprints() {
+        let (mesh, records) = town();
+        let (_, r, _) = perturb_mesh(
+            &mesh,
+            &records,
+            &MapPerturbation { shift_sigma_m: 1.0, seed: 1, ..Default::default() },
+        );
+        for (before, after) in records.iter().zip(&r) {
+            let w = |b: &BuildingRecord| b.bbox_max_enu_m[0] - b.bbox_min_enu_m[0];
+            assert!((w(after) - w(before)).abs() < 1e-5, "a shift keeps the size");
+            assert_ne!(after.bbox_min_enu_m[0], before.bbox_min_enu_m[0]);
+            assert_eq!(after.bbox_min_enu_m[2], 0.0);
+        }
+        let (_, r, _) = perturb_mesh(
+            &mesh,
+            &records,
+            &MapPerturbation { scale_sigma: 0.1, seed: 1, ..Default::default() },
+        );
+        for (before, after) in records.iter().zip(&r) {
+            let c = |b: &BuildingRecord| (b.bbox_max_enu_m[0] + b.bbox_min_enu_m[0]) / 2.0;
+            assert!((c(after) - c(before)).abs() < 1e-4, "a scale keeps the centre");
+            let ratio = (after.bbox_max_enu_m[0] - after.bbox_min_enu_m[0]) / 10.0;
+            let ratio_y = (after.bbox_max_enu_m[1] - after.bbox_min_enu_m[1]) / 6.0;
+            assert!((ratio - ratio_y).abs() < 1e-5 && (ratio - 1.0).abs() > 1e-4, "{ratio} {ratio_y}");
+        }
+    }
+
+    #[test]
+    fn drops_merges_and_offset() {
+        let (mesh, records) = town();
+        let (m, r, report) =
+            perturb_mesh(&mesh, &records, &MapPerturbation { drop_fraction: 1.0, ..Default::default() });
+        assert!(m.indices.is_empty() && r.is_empty());
+        assert_eq!((report.dropped, report.buildings_after), (3, 0));
+        // Everything merged: one instance left, its box covering all three houses.
+        let (m, r, report) =
+            perturb_mesh(&mesh, &records, &MapPerturbation { merge_fraction: 1.0, ..Default::default() });
+        assert_eq!(report.buildings_after, 1, "{report:?}");
+        assert_eq!(m.triangle_count(), mesh.triangle_count());
+        assert_eq!((r[0].bbox_min_enu_m[0], r[0].bbox_max_enu_m[0]), (0.0, 70.0));
+        assert_eq!(r[0].triangles, 36);
+        let (m, _, _) = perturb_mesh(
+            &mesh,
+            &records,
+            &MapPerturbation { offset_enu_m: [1.5, -2.0, 0.25], ..Default::default() },
+        );
+        for (a, b) in mesh.positions_m.iter().zip(&m.positions_m) {
+            assert_eq!([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [1.5, -2.0, 0.25]);
+        }
+    }
 }

@@ -643,6 +643,64 @@ mod tests {
         assert_eq!(FineParams { lowres_iterations: Some(0), ..d }.lowres_iterations(), 0);
     }
 
+    /// Two basins: a wide one that wins at the coarse resolution and a narrow one, the true optimum,
+    /// that wins at the fine resolution (issue 15: the ground truth scored better than the estimate).
+    struct TwoBasins {
+        fine: bool,
+    }
+
+    impl Evaluate for TwoBasins {
+        type Error = std::convert::Infallible;
+        fn evaluate(&mut self, hyps: &[Hypothesis]) -> Result<Vec<f64>, Self::Error> {
+            let bump = |h: &Hypothesis, x: f64, width_m: f64| {
+                let d2 =
+                    (h.centre_m[0] - x).powi(2) + h.centre_m[1].powi(2) + (h.centre_m[2] - 200.0).powi(2);
+                (-d2 / (2.0 * width_m * width_m) - h.yaw_deg * h.yaw_deg / 20.0).exp()
+            };
+            let true_height = if self.fine { 1.0 } else { 0.8 };
+            Ok(hyps
+                .iter()
+                .map(|h| (0.9 * bump(h, 10.0, 8.0)).max(true_height * bump(h, -10.0, 2.0)))
+                .collect())
+        }
+    }
+
+    #[test]
+    fn distinct_basins_find_the_optimum_the_joint_beams_miss() {
+        let prior = Hypothesis { centre_m: DVec3::new(0.0, 0.0, 200.0), yaw_deg: 0.0 };
+        let run = |fine: FineParams| {
+            let opts = SearchOptions { fine, ..Default::default() };
+            search(&mut TwoBasins { fine: false }, &mut TwoBasins { fine: true }, prior, &opts, 3, None)
+                .unwrap()
+        };
+        // The paper's joint beams collapse into the basin that wins at the coarse resolution.
+        let joint = run(FineParams::paper());
+        assert!((joint.best.centre_m[0] - 10.0).abs() < 2.0, "{:?}", joint.best);
+        assert!(joint.best_score < 0.95);
+        // Distinct basins keep the narrow one until the fine resolution judges it.
+        let basins = run(FineParams::default());
+        assert!((basins.best.centre_m[0] + 10.0).abs() < 0.5, "{:?}", basins.best);
+        assert!(basins.best_score > 0.95, "{}", basins.best_score);
+    }
+
+    #[test]
+    fn basins_are_no_grid_neighbours_of_a_better_cell() {
+        let prior = Hypothesis { centre_m: DVec3::new(0.0, 0.0, 200.0), yaw_deg: 0.0 };
+        let p = CoarseParams::default();
+        let grid = coarse_grid(&prior, &p);
+        let scores = TwoBasins { fine: false }.evaluate(&grid).unwrap();
+        let ranked = rank(grid.into_iter().zip(scores).collect());
+        let seeds = distinct_basins(&ranked, &p, 4);
+        assert_eq!(seeds.len(), 4);
+        assert_eq!(seeds[0].centre_m[0], 10.0);
+        assert!(seeds.iter().any(|h| h.centre_m[0] == -10.0 && h.yaw_deg == 0.0), "{seeds:?}");
+        for (i, a) in seeds.iter().enumerate() {
+            for b in &seeds[..i] {
+                assert!(!neighbours(a, b, &p), "{a:?} next to {b:?}");
+            }
+        }
+    }
+
     #[test]
     fn default_fine_stage_has_52_candidates() {
         assert_eq!(FineParams::default().candidates_per_iteration(), 52);
