@@ -498,9 +498,19 @@ fn moves(h: &Hypothesis, step_m: f64, step_deg: f64, pivot_m: Option<DVec3>) -> 
     out
 }
 
+/// First step of [`polish`]: metres and degrees.
+pub const POLISH_START_STEP: (f64, f64) = (1.0, 0.2);
+/// Step halvings of [`polish`] (the last level moves by 1/32 of the first step).
+pub const POLISH_LEVELS: u32 = 6;
+/// Improving moves allowed per level of [`polish`].
+pub const POLISH_MOVES_PER_LEVEL: u32 = 10;
+
 /// Deterministic local refinement after the particle filter: evaluate the [`moves`] around the best
-/// pose, take the best improving one, and halve the step when none improves (0.5 m / 0.1° down to
-/// 1/16 of that, at most 8 moves per level). Returns the best, its score and the hypotheses scored.
+/// pose and take the best improving one, then follow it (Hooke–Jeeves pattern moves: the same
+/// displacement ×2, ×4, ×8 scored together, the best improving one taken), so a long valley of the
+/// cost — typically along the optical axis with yaw and sideways motion — is travelled in a few
+/// steps. The step halves when no move improves ([`POLISH_START_STEP`], [`POLISH_LEVELS`],
+/// [`POLISH_MOVES_PER_LEVEL`]). Returns the best, its score and the hypotheses scored.
 ///
 /// # Errors
 /// Whatever the evaluator returns.
@@ -511,22 +521,40 @@ pub fn polish<E: Evaluate>(
     pivot_m: Option<DVec3>,
 ) -> Result<(Hypothesis, f64, u64), E::Error> {
     let mut scored = 0u64;
-    let (mut step_m, mut step_deg) = (0.5, 0.1);
-    for _level in 0..5 {
-        for _ in 0..8 {
+    let (mut step_m, mut step_deg) = POLISH_START_STEP;
+    // Index of the strictly best score above `floor` (ties keep the current pose: deterministic, no
+    // drifting on plateaus).
+    let best_above = |s: &[f64], floor: f64| {
+        s.iter().enumerate().fold(None, |acc: Option<(usize, f64)>, (i, &v)| {
+            if v > acc.map_or(floor, |a| a.1) { Some((i, v)) } else { acc }
+        })
+    };
+    for _level in 0..POLISH_LEVELS {
+        for _ in 0..POLISH_MOVES_PER_LEVEL {
             let cand = moves(&best, step_m, step_deg, pivot_m);
             let s = eval.evaluate(&cand)?;
             scored += cand.len() as u64;
-            // Strictly better only (ties keep the current pose: deterministic, no drifting on plateaus).
-            let (i, &v) =
-                s.iter()
-                    .enumerate()
-                    .fold((usize::MAX, &best_score), |acc, (i, v)| if *v > *acc.1 { (i, v) } else { acc });
-            if i == usize::MAX {
-                break;
-            }
+            let Some((i, v)) = best_above(&s, best_score) else { break };
+            let from = best;
             best = cand[i];
             best_score = v;
+            // Pattern moves along the improving displacement.
+            let (d, dyaw) = (best.centre_m - from.centre_m, best.yaw_deg - from.yaw_deg);
+            loop {
+                let pattern: Vec<Hypothesis> = [1.0, 3.0, 7.0]
+                    .iter()
+                    .map(|k| Hypothesis { centre_m: best.centre_m + d * *k, yaw_deg: best.yaw_deg + dyaw * k })
+                    .collect();
+                let s = eval.evaluate(&pattern)?;
+                scored += pattern.len() as u64;
+                match best_above(&s, best_score) {
+                    Some((j, v)) => {
+                        best = pattern[j];
+                        best_score = v;
+                    }
+                    None => break,
+                }
+            }
         }
         step_m *= 0.5;
         step_deg *= 0.5;
