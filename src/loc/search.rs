@@ -498,6 +498,95 @@ fn moves(h: &Hypothesis, step_m: f64, step_deg: f64, pivot_m: Option<DVec3>) -> 
     out
 }
 
+/// Evaluations of the Nelder–Mead stage of [`polish`].
+pub const SIMPLEX_EVALUATIONS: u32 = 120;
+/// Initial simplex of [`simplex`]: the step in metres (x, y, z) and degrees (yaw).
+pub const SIMPLEX_STEP: (f64, f64) = (1.0, 0.2);
+
+/// Nelder–Mead over (x, y, z, yaw) from `start` (maximising the score), at most `max_evals`
+/// evaluations. The cost's valleys after the particle filter are narrow and diagonal (the camera
+/// moved along its optical axis while yaw and sideways motion trade off, issue 15), where moves along
+/// fixed directions stall; a simplex adapts its shape to them. Coordinates are scaled by
+/// [`SIMPLEX_STEP`] so that 1 m and 0.2° weigh the same. Returns the best, its score, evaluations.
+///
+/// # Errors
+/// Whatever the evaluator returns.
+pub fn simplex<E: Evaluate>(
+    eval: &mut E,
+    start: Hypothesis,
+    start_score: f64,
+    max_evals: u32,
+) -> Result<(Hypothesis, f64, u64), E::Error> {
+    let (sm, sd) = SIMPLEX_STEP;
+    let to_h = |v: [f64; 4]| Hypothesis {
+        centre_m: DVec3::new(v[0] * sm, v[1] * sm, v[2] * sm),
+        yaw_deg: v[3] * sd,
+    };
+    let x0 = [start.centre_m[0] / sm, start.centre_m[1] / sm, start.centre_m[2] / sm, start.yaw_deg / sd];
+    let mut pts: Vec<([f64; 4], f64)> = vec![(x0, start_score)];
+    let verts: Vec<[f64; 4]> = (0..4)
+        .map(|k| {
+            let mut v = x0;
+            v[k] += 1.0;
+            v
+        })
+        .collect();
+    let s = eval.evaluate(&verts.iter().map(|v| to_h(*v)).collect::<Vec<_>>())?;
+    let mut n = verts.len() as u64;
+    pts.extend(verts.into_iter().zip(s));
+    let lerp = |a: [f64; 4], b: [f64; 4], t: f64| -> [f64; 4] { std::array::from_fn(|k| a[k] + t * (b[k] - a[k])) };
+    while n < max_evals as u64 {
+        // Best first (stable: ties keep the earlier vertex).
+        pts.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let worst = pts[4];
+        let centroid: [f64; 4] = std::array::from_fn(|k| pts[..4].iter().map(|p| p.0[k]).sum::<f64>() / 4.0);
+        let mut one = |v: [f64; 4], n: &mut u64| -> Result<f64, E::Error> {
+            *n += 1;
+            Ok(eval.evaluate(&[to_h(v)])?[0])
+        };
+        // Reflection through the centroid of the others.
+        let xr = lerp(centroid, worst.0, -1.0);
+        let fr = one(xr, &mut n)?;
+        if fr > pts[0].1 {
+            let xe = lerp(centroid, worst.0, -2.0);
+            let fe = one(xe, &mut n)?;
+            pts[4] = if fe > fr { (xe, fe) } else { (xr, fr) };
+        } else if fr > pts[3].1 {
+            pts[4] = (xr, fr);
+        } else {
+            // Contraction (outside if the reflection beat the worst, else inside).
+            let xc = if fr > worst.1 { lerp(centroid, xr, 0.5) } else { lerp(centroid, worst.0, 0.5) };
+            let fc = one(xc, &mut n)?;
+            if fc > fr.max(worst.1) {
+                pts[4] = (xc, fc);
+            } else {
+                // Shrink towards the best.
+                let best = pts[0].0;
+                let shrunk: Vec<[f64; 4]> = pts[1..].iter().map(|p| lerp(best, p.0, 0.5)).collect();
+                let s = eval.evaluate(&shrunk.iter().map(|v| to_h(*v)).collect::<Vec<_>>())?;
+                n += shrunk.len() as u64;
+                for (i, (v, f)) in shrunk.into_iter().zip(s).enumerate() {
+                    pts[i + 1] = (v, f);
+                }
+            }
+        }
+        // Collapsed below a centimetre / 0.002°: done.
+        let spread = pts[1..]
+            .iter()
+            .map(|p| (0..4).map(|k| (p.0[k] - pts[0].0[k]).abs()).fold(0.0, f64::max))
+            .fold(0.0, f64::max);
+        if spread < 0.01 {
+            break;
+        }
+    }
+    pts.sort_by(|a, b| b.1.total_cmp(&a.1));
+    if pts[0].1 > start_score {
+        Ok((to_h(pts[0].0), pts[0].1, n))
+    } else {
+        Ok((start, start_score, n))
+    }
+}
+
 /// First step of [`polish`]: metres and degrees.
 pub const POLISH_START_STEP: (f64, f64) = (1.0, 0.2);
 /// Step halvings of [`polish`] (the last level moves by 1/32 of the first step).
@@ -520,7 +609,8 @@ pub fn polish<E: Evaluate>(
     mut best_score: f64,
     pivot_m: Option<DVec3>,
 ) -> Result<(Hypothesis, f64, u64), E::Error> {
-    let mut scored = 0u64;
+    let (b, sc, mut scored) = simplex(eval, best, best_score, SIMPLEX_EVALUATIONS)?;
+    (best, best_score) = (b, sc);
     let (mut step_m, mut step_deg) = POLISH_START_STEP;
     // Index of the strictly best score above `floor` (ties keep the current pose: deterministic, no
     // drifting on plateaus).
