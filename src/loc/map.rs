@@ -192,7 +192,11 @@ pub fn perturb_mesh(
             continue;
         }
         remap[v] = mesh.positions_m.len() as u32;
-        mesh.positions_m.push([(q[0] + offset[0]) as f32, (q[1] + offset[1]) as f32, (q[2] + offset[2]) as f32]);
+        mesh.positions_m.push([
+            (q[0] + offset[0]) as f32,
+            (q[1] + offset[1]) as f32,
+            (q[2] + offset[2]) as f32,
+        ]);
         mesh.building_ids.push(records[root(&parent, i)].id);
     }
     for tri in scene_mesh.indices.chunks_exact(3) {

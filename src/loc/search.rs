@@ -534,7 +534,8 @@ pub fn simplex<E: Evaluate>(
     let s = eval.evaluate(&verts.iter().map(|v| to_h(*v)).collect::<Vec<_>>())?;
     let mut n = verts.len() as u64;
     pts.extend(verts.into_iter().zip(s));
-    let lerp = |a: [f64; 4], b: [f64; 4], t: f64| -> [f64; 4] { std::array::from_fn(|k| a[k] + t * (b[k] - a[k])) };
+    let lerp =
+        |a: [f64; 4], b: [f64; 4], t: f64| -> [f64; 4] { std::array::from_fn(|k| a[k] + t * (b[k] - a[k])) };
     while n < max_evals as u64 {
         // Best first (stable: ties keep the earlier vertex).
         pts.sort_by(|a, b| b.1.total_cmp(&a.1));
@@ -615,9 +616,16 @@ pub fn polish<E: Evaluate>(
     // Index of the strictly best score above `floor` (ties keep the current pose: deterministic, no
     // drifting on plateaus).
     let best_above = |s: &[f64], floor: f64| {
-        s.iter().enumerate().fold(None, |acc: Option<(usize, f64)>, (i, &v)| {
-            if v > acc.map_or(floor, |a| a.1) { Some((i, v)) } else { acc }
-        })
+        s.iter().enumerate().fold(
+            None,
+            |acc: Option<(usize, f64)>, (i, &v)| {
+                if v > acc.map_or(floor, |a| a.1) {
+                    Some((i, v))
+                } else {
+                    acc
+                }
+            },
+        )
     };
     for _level in 0..POLISH_LEVELS {
         for _ in 0..POLISH_MOVES_PER_LEVEL {
@@ -633,7 +641,10 @@ pub fn polish<E: Evaluate>(
             loop {
                 let pattern: Vec<Hypothesis> = [1.0, 3.0, 7.0]
                     .iter()
-                    .map(|k| Hypothesis { centre_m: best.centre_m + d * *k, yaw_deg: best.yaw_deg + dyaw * k })
+                    .map(|k| Hypothesis {
+                        centre_m: best.centre_m + d * *k,
+                        yaw_deg: best.yaw_deg + dyaw * k,
+                    })
                     .collect();
                 let s = eval.evaluate(&pattern)?;
                 scored += pattern.len() as u64;
