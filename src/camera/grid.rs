@@ -65,13 +65,13 @@ pub(crate) fn sample(ctx: &Ctx, rng: &mut ChaCha8Rng) -> Result<Sampled, CameraE
     let budget = ctx.budget(wanted);
     let [h_lo, h_hi] = g.height_range_m;
     let mut frames: Vec<Frame> = Vec::new();
-    let mut fractions: Vec<f64> = Vec::new();
+    let mut fractions: Vec<super::visibility::ViewCensus> = Vec::new();
     'rounds: loop {
         let mut order: Vec<usize> = (0..pairs.len()).collect();
         if count.is_some() {
             order.shuffle(rng);
         }
-        let mut round: Vec<(usize, Pose, f64)> = Vec::new();
+        let mut round: Vec<(usize, Pose, super::visibility::ViewCensus)> = Vec::new();
         let mut exhausted = false;
         for &k in &order {
             if frames.len() + round.len() >= wanted {

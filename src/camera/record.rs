@@ -46,6 +46,10 @@ pub struct PoseRecord {
     pub geo: GeoPose,
     /// Height of the camera above the area's ground level, metres.
     pub height_above_ground_m: f64,
+    /// Distinct buildings the sampler's visibility ray grid sees first (`sample` records it; absent in
+    /// older files and in poses made elsewhere).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub visible_buildings: Option<u32>,
 }
 
 /// A camera in the area's ENU frame: its intrinsics and its pose, given both as a 4×4 and in COLMAP's
@@ -110,6 +114,7 @@ impl PoseRecord {
             ecef_m: ecef.to_array(),
             geo: GeoPose { lat_deg: g.lat_deg, lon_deg: g.lon_deg, h_m: g.h_m, yaw_deg, pitch_deg, roll_deg },
             height_above_ground_m: c.z - ground_enu_m,
+            visible_buildings: None,
         }
     }
 

@@ -14,7 +14,9 @@
 //! - is at least `clearance_m` above the top of every building box within `clearance_radius_m`
 //!   (horizontally) of it;
 //! - sees the city: at least `min_building_fraction` of a coarse grid of viewing rays hits a building
-//!   box ([`BuildingIndex::building_fraction`]).
+//!   box, and at least `min_visible_buildings` distinct boxes are the first hit of some ray
+//!   ([`BuildingIndex::view_census`]): a view of one or two buildings cannot be localized from
+//!   silhouettes. Each pose records its count (`visible_buildings` in `poses.jsonl`).
 //!
 //! Randomness: one ChaCha8 generator seeded with the run's seed (stream 0) drives the sampler; the
 //! priors use stream [`super::prior::PRIOR_STREAM`]. Same inputs and seed → identical outputs.
@@ -28,7 +30,7 @@ use serde::Serialize;
 use super::area::AreaPolygon;
 use super::colmap::{ColmapCamera, ColmapImage};
 use super::config::SamplingConfig;
-use super::visibility::BuildingIndex;
+use super::visibility::{BuildingIndex, ViewCensus};
 use super::{CameraError, CameraSpec, Pose, PoseRecord, Trajectory};
 use crate::geo::{EnuFrame, Geodetic};
 use crate::scene::PreparedScene;
@@ -55,6 +57,10 @@ pub struct SampleStats {
     pub rejected_clearance: u64,
     /// Candidates whose view holds too few building rays.
     pub rejected_visibility: u64,
+    /// Candidates whose view holds enough building rays but fewer distinct buildings than
+    /// `min_visible_buildings`.
+    #[serde(default)]
+    pub rejected_few_buildings: u64,
     /// Accepted frames dropped because their run of consecutive frames was too short.
     pub dropped_short_run_frames: u64,
     /// Sequences (grid: one per frame).
@@ -95,7 +101,7 @@ pub(crate) struct Frame {
 /// building rays (paired by position), and the run's counters.
 pub(crate) struct Sampled {
     pub frames: Vec<Frame>,
-    pub fractions: Vec<f64>,
+    pub fractions: Vec<ViewCensus>,
     pub stats: SampleStats,
 }
 
@@ -105,6 +111,7 @@ pub(crate) enum Reject {
     Outside,
     Clearance,
     Visibility,
+    FewBuildings,
 }
 
 /// What every sampler shares: the area, the buildings, the camera, the settings and the number of
@@ -130,8 +137,8 @@ impl Ctx<'_> {
         }
     }
 
-    /// Checks a candidate and counts it; returns the building-ray share when it is accepted.
-    pub fn check(&self, pose: &Pose, stats: &mut SampleStats) -> Result<f64, Reject> {
+    /// Checks a candidate and counts it; returns what its view holds when it is accepted.
+    pub fn check(&self, pose: &Pose, stats: &mut SampleStats) -> Result<ViewCensus, Reject> {
         stats.candidates += 1;
         let c = pose.centre_m;
         let verdict = if !self.poly.contains([c[0], c[1]]) {
@@ -139,17 +146,20 @@ impl Ctx<'_> {
         } else if c[2] - self.ground_m < self.required_height_agl_m([c[0], c[1]]) {
             Err(Reject::Clearance)
         } else {
-            let f = self.index.building_fraction(&self.camera.intrinsics, pose, self.cfg.visibility_rays);
-            if f >= self.cfg.min_building_fraction {
-                Ok(f)
-            } else {
+            let v = self.index.view_census(&self.camera.intrinsics, pose, self.cfg.visibility_rays);
+            if v.building_fraction < self.cfg.min_building_fraction {
                 Err(Reject::Visibility)
+            } else if v.visible_buildings < self.cfg.min_visible_buildings {
+                Err(Reject::FewBuildings)
+            } else {
+                Ok(v)
             }
         };
         match verdict {
             Err(Reject::Outside) => stats.rejected_outside += 1,
             Err(Reject::Clearance) => stats.rejected_clearance += 1,
             Err(Reject::Visibility) => stats.rejected_visibility += 1,
+            Err(Reject::FewBuildings) => stats.rejected_few_buildings += 1,
             Ok(_) => {}
         }
         verdict
@@ -168,7 +178,15 @@ impl Ctx<'_> {
         wanted: usize,
         stats: &SampleStats,
     ) -> CameraError {
-        let hint = if stats.rejected_clearance >= stats.rejected_visibility.max(stats.rejected_outside) {
+        let hint = if stats.rejected_few_buildings
+            > stats.rejected_clearance.max(stats.rejected_visibility).max(stats.rejected_outside)
+        {
+            format!(
+                "lower min_visible_buildings (now {}) in the scene file's [sampling] table, or raise the \
+                 {strategy} height range so that views hold more buildings",
+                self.cfg.min_visible_buildings
+            )
+        } else if stats.rejected_clearance >= stats.rejected_visibility.max(stats.rejected_outside) {
             format!(
                 "raise the {strategy} height range or lower clearance_m in the scene file's [sampling] table \
                  (the tallest building box reaches {:.0} m above ground)",
@@ -198,8 +216,8 @@ impl Ctx<'_> {
 /// become sequences, until `wanted` frames are collected (the last run may be cut short).
 pub(crate) struct RunCollector<'p> {
     pub frames: Vec<Frame>,
-    pub fractions: Vec<f64>,
-    run: Vec<(Pose, f64)>,
+    pub fractions: Vec<ViewCensus>,
+    run: Vec<(Pose, ViewCensus)>,
     min_len: usize,
     wanted: Option<usize>,
     next_sequence: u32,
@@ -225,7 +243,7 @@ impl<'p> RunCollector<'p> {
     }
 
     /// Offers the next frame of the current line (`None`: the candidate was rejected).
-    pub fn offer(&mut self, frame: Option<(Pose, f64)>, stats: &mut SampleStats) {
+    pub fn offer(&mut self, frame: Option<(Pose, ViewCensus)>, stats: &mut SampleStats) {
         match frame {
             Some(f) => {
                 self.run.push(f);
@@ -317,8 +335,9 @@ pub fn sample_area(
         EnuFrame::new(Geodetic { lat_deg: m.origin.lat_deg, lon_deg: m.origin.lon_deg, h_m: m.origin.h_m });
     let poses: Vec<PoseRecord> = frames
         .iter()
-        .map(|f| {
-            PoseRecord::new(
+        .zip(&fractions)
+        .map(|(f, v)| {
+            let mut record = PoseRecord::new(
                 frame_name(area, &camera.name, f.sequence, f.index),
                 area,
                 &camera.name,
@@ -329,14 +348,19 @@ pub fn sample_area(
                 &f.pose,
                 &enu,
                 m.ground_enu_m,
-            )
+            );
+            record.visible_buildings = Some(v.visible_buildings);
+            record
         })
         .collect();
     let priors = super::prior::make_priors(&poses, &cfg.prior, seed, &enu, m.ground_enu_m);
     stats.accepted = poses.len() as u64;
     stats.sequences = frames.last().map_or(0, |f| f.sequence + 1);
-    stats.mean_building_fraction =
-        if fractions.is_empty() { 0.0 } else { fractions.iter().sum::<f64>() / fractions.len() as f64 };
+    stats.mean_building_fraction = if fractions.is_empty() {
+        0.0
+    } else {
+        fractions.iter().map(|v| v.building_fraction).sum::<f64>() / fractions.len() as f64
+    };
     if let Some((t, r)) = super::prior::median_errors(&poses, &priors) {
         stats.prior_median_translation_m = t;
         stats.prior_median_rotation_deg = r;

@@ -148,8 +148,15 @@ impl BuildingIndex {
     /// Whether the ray `o + t·d` (t ≥ 0, ENU metres) hits any box before it falls below the lowest
     /// box bottom.
     pub fn ray_hits_building(&self, o: [f64; 3], d: [f64; 3]) -> bool {
+        self.first_box_hit(o, d).is_some()
+    }
+
+    /// The box the ray `o + t·d` (t ≥ 0, ENU metres) enters first before it falls below the lowest box
+    /// bottom: its index among the indexed boxes (in the order given to [`BuildingIndex::new`], records
+    /// with invalid boxes skipped).
+    pub fn first_box_hit(&self, o: [f64; 3], d: [f64; 3]) -> Option<u32> {
         if self.is_empty() {
-            return false;
+            return None;
         }
         let t_max = if d[2] < -1e-12 { ((self.floor_m - o[2]) / d[2]).max(0.0) } else { f64::INFINITY };
         // Clip the ray's horizontal trace to the grid.
@@ -159,7 +166,7 @@ impl BuildingIndex {
         for k in 0..2 {
             if d[k].abs() < 1e-15 {
                 if o[k] < g_lo[k] || o[k] > g_hi[k] {
-                    return false;
+                    return None;
                 }
             } else {
                 let (a, b) = ((g_lo[k] - o[k]) / d[k], (g_hi[k] - o[k]) / d[k]);
@@ -168,7 +175,7 @@ impl BuildingIndex {
             }
         }
         if t0 > t1 {
-            return false;
+            return None;
         }
         let start = [o[0] + d[0] * t0, o[1] + d[1] * t0];
         let n = [self.nx as i64, self.ny as i64];
@@ -188,24 +195,55 @@ impl BuildingIndex {
                 t_delta[k] = -self.cell_m / d[k];
             }
         }
+        // The nearest entry so far; boxes of cells not yet visited are entered after the current
+        // cell's exit, so the walk stops once the nearest entry lies before that exit.
+        let mut best: Option<(f64, u32)> = None;
         loop {
-            let cell = &self.cells[(idx[1] * n[0] + idx[0]) as usize];
-            if cell.iter().any(|&b| {
+            for &b in &self.cells[(idx[1] * n[0] + idx[0]) as usize] {
                 let (lo, hi) = &self.boxes[b as usize];
-                ray_box(o, d, lo, hi, t_max)
-            }) {
-                return true;
+                if let Some(t) = ray_box_entry(o, d, lo, hi, t_max) {
+                    if best.is_none_or(|(bt, bi)| t < bt || (t == bt && b < bi)) {
+                        best = Some((t, b));
+                    }
+                }
             }
             let k = if t_next[0] <= t_next[1] { 0 } else { 1 };
+            if let Some((t, b)) = best {
+                if t <= t_next[k] {
+                    return Some(b);
+                }
+            }
             if t_next[k] > t1 {
-                return false;
+                return best.map(|(_, b)| b);
             }
             idx[k] += step[k];
             t_next[k] += t_delta[k];
             if idx[k] < 0 || idx[k] >= n[k] {
-                return false;
+                return best.map(|(_, b)| b);
             }
         }
+    }
+
+    /// What a coarse grid of `rays[0]` × `rays[1]` viewing rays (through the centres of an evenly
+    /// divided image) sees: the share that hits a building box and the number of distinct boxes hit
+    /// first by at least one ray (an estimate of the buildings visible in the view).
+    pub fn view_census(&self, k: &Intrinsics, pose: &Pose, rays: [u32; 2]) -> ViewCensus {
+        let (nx, ny) = (rays[0].max(1), rays[1].max(1));
+        let mut hits = 0u32;
+        let mut seen: Vec<u32> = Vec::new();
+        for j in 0..ny {
+            for i in 0..nx {
+                let u = (i as f64 + 0.5) * k.width_px as f64 / nx as f64;
+                let v = (j as f64 + 0.5) * k.height_px as f64 / ny as f64;
+                if let Some(b) = self.first_box_hit(pose.centre_m.to_array(), pixel_ray_enu(k, pose, u, v)) {
+                    hits += 1;
+                    seen.push(b);
+                }
+            }
+        }
+        seen.sort_unstable();
+        seen.dedup();
+        ViewCensus { building_fraction: hits as f64 / (nx * ny) as f64, visible_buildings: seen.len() as u32 }
     }
 
     /// Share (0..1) of a `rays[0]` × `rays[1]` grid of viewing rays (through the centres of an evenly
@@ -233,24 +271,33 @@ pub fn pixel_ray_enu(k: &Intrinsics, pose: &Pose, u: f64, v: f64) -> [f64; 3] {
     (pose.r_world_from_cam * d_cam).to_array()
 }
 
-/// Slab test: does `o + t·d` meet the box for some t in [0, t_max]?
-fn ray_box(o: [f64; 3], d: [f64; 3], lo: &[f64; 3], hi: &[f64; 3], t_max: f64) -> bool {
+/// What [`BuildingIndex::view_census`] counts for one view.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ViewCensus {
+    /// Share (0..1) of the rays that hit a building box.
+    pub building_fraction: f64,
+    /// Distinct building boxes hit first by at least one ray.
+    pub visible_buildings: u32,
+}
+
+/// Slab test: the smallest t in [0, t_max] at which `o + t·d` is inside the box, if any.
+fn ray_box_entry(o: [f64; 3], d: [f64; 3], lo: &[f64; 3], hi: &[f64; 3], t_max: f64) -> Option<f64> {
     let (mut t0, mut t1) = (0.0f64, t_max);
     for k in 0..3 {
         if d[k].abs() < 1e-15 {
             if o[k] < lo[k] || o[k] > hi[k] {
-                return false;
+                return None;
             }
         } else {
             let (a, b) = ((lo[k] - o[k]) / d[k], (hi[k] - o[k]) / d[k]);
             t0 = t0.max(a.min(b));
             t1 = t1.min(a.max(b));
             if t0 > t1 {
-                return false;
+                return None;
             }
         }
     }
-    true
+    Some(t0)
 }
 
 #[cfg(test)]
@@ -273,6 +320,25 @@ mod tests {
         assert_eq!(ix.tallest_top_near_m([40.0, 0.0], 30.0), Some(100.0));
         assert_eq!(ix.tallest_top_near_m([300.0, 50.0], 50.0), Some(30.0));
         assert_eq!(ix.tallest_top_near_m([5000.0, 0.0], 50.0), None);
+    }
+
+    #[test]
+    fn census_counts_the_buildings_hit_first() {
+        let ix = index();
+        let k = Intrinsics::from_hfov(640, 480, 90.0);
+        // Straight down from 1000 m over the midpoint: a 90° view spans ±1000 m, both towers in it.
+        let both = Pose::from_ypr_deg(0.0, 0.0, 0.0, [150.0, 0.0, 1000.0]);
+        let c = ix.view_census(&k, &both, [256, 192]);
+        assert_eq!(c.visible_buildings, 2, "{c:?}");
+        assert!(c.building_fraction > 0.0 && c.building_fraction < 0.01, "{c:?}");
+        // Low over the big tower, looking down: only it (the east tower is outside the view).
+        let one = Pose::from_ypr_deg(0.0, 0.0, 0.0, [0.0, 0.0, 110.0]);
+        let c = ix.view_census(&k, &one, [16, 12]);
+        assert_eq!(c.visible_buildings, 1, "{c:?}");
+        assert_eq!(c.building_fraction, 1.0);
+        // A ray through both towers (west face of the big one first) counts only the first.
+        assert_eq!(ix.first_box_hit([-500.0, 0.0, 20.0], [1.0, 0.0, 0.0]), Some(0));
+        assert_eq!(ix.first_box_hit([1000.0, 0.0, 20.0], [-1.0, 0.0, 0.0]), Some(1));
     }
 
     #[test]

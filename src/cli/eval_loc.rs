@@ -7,9 +7,10 @@ use crate::loc::cost::{CostKind, Weighting};
 use std::path::PathBuf;
 
 use crate::loc::eval::{self, EvalOptions, QueryPoses};
+use crate::loc::map::{MapPerturbation, MapSummary};
 use crate::loc::oracle::Degradation;
 use crate::loc::query::{load_predictions, QuerySource};
-use crate::loc::search::{CoarseParams, FineParams, SearchOptions, Stages};
+use crate::loc::search::{BeamMode, CoarseParams, FineParams, SearchOptions, Stages};
 use crate::scene::PreparedScene;
 
 /// `--weighting`: how per-instance Dice scores are combined ([`Weighting`]).
@@ -135,9 +136,22 @@ pub struct Args {
     /// Fine stage from the raw prior (ablation).
     #[arg(long)]
     pub no_select: bool,
-    /// Skip the local pattern search after the particle filter (the paper's search exactly).
+    /// Skip the local pattern search after the particle filter.
     #[arg(long)]
     pub no_polish: bool,
+    /// The paper's search exactly: its coarse grid and particle filter (40 iterations, 2 beams × (2
+    /// kept + 2 × 12 perturbations) ranked jointly across beams), no distinct basins, no polish.
+    /// Other search flags given with it still apply.
+    #[arg(long)]
+    pub paper: bool,
+    /// Distinct coarse basins (best coarse cells that are no grid neighbour of a better one) refined
+    /// as separate beams at the coarse width; at the switch to the render width the best --survivors
+    /// go on. 1 keeps only the best cell's basin [default: 4; --paper: the paper's joint beams].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub basins: Option<u32>,
+    /// Basins refined on at the render width [default: 2].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub survivors: Option<u32>,
     /// Width of the fine-stage renders in pixels.
     #[arg(long, value_name = "PX", default_value_t = 640)]
     pub render_width: u32,
@@ -173,6 +187,34 @@ pub struct Args {
     /// Overlay PNGs for the first N queries.
     #[arg(long, value_name = "N", default_value_t = 4)]
     pub overlays: usize,
+    /// Localize against the map of another prepared area (same ENU frame: its scene file must give
+    /// the same [origin]); the queries' poses and masks stay those of --area.
+    #[arg(long, value_name = "NAME")]
+    pub map_area: Option<String>,
+    /// Map perturbation: coarsen LoD2 to LoD1 (each building's footprint extruded to its top).
+    #[arg(long)]
+    pub map_lod1: bool,
+    /// Map perturbation: σ of each building's height error, metres.
+    #[arg(long, value_name = "M", default_value_t = 0.0)]
+    pub map_height_sigma: f64,
+    /// Map perturbation: σ of each building's horizontal footprint shift (east and north), metres.
+    #[arg(long, value_name = "M", default_value_t = 0.0)]
+    pub map_shift_sigma: f64,
+    /// Map perturbation: σ of each building's footprint scale factor − 1 (0.05 ≈ ±5 %).
+    #[arg(long, value_name = "SIGMA", default_value_t = 0.0)]
+    pub map_scale_sigma: f64,
+    /// Map perturbation: fraction of buildings dropped from the map.
+    #[arg(long, value_name = "FRACTION", default_value_t = 0.0)]
+    pub map_drop: f64,
+    /// Map perturbation: fraction of buildings merged into their nearest neighbour.
+    #[arg(long, value_name = "FRACTION", default_value_t = 0.0)]
+    pub map_merge: f64,
+    /// Map perturbation: offset of the whole map, ENU metres.
+    #[arg(long, value_name = "E,N,U", value_parser = parse_offset, allow_hyphen_values = true)]
+    pub map_offset: Option<[f64; 3]>,
+    /// Seed of the map perturbation [default: --seed].
+    #[arg(long, value_name = "SEED")]
+    pub map_seed: Option<u64>,
     /// Output sub-directory under loc/ (default: derived from the options).
     #[arg(long, value_name = "NAME")]
     pub tag: Option<String>,
@@ -189,9 +231,64 @@ fn parse_range_step(s: &str) -> Result<(f64, f64), String> {
     Ok((r, st))
 }
 
+/// Parses `E,N,U` metres.
+fn parse_offset(s: &str) -> Result<[f64; 3], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().map_err(|_| format!("{s:?}: {x:?} is not a number")))
+        .collect::<Result<_, _>>()?;
+    match v.as_slice() {
+        &[e, n, u] if v.iter().all(|x| x.is_finite()) => Ok([e, n, u]),
+        _ => Err(format!("{s:?}: expected E,N,U in metres, e.g. 1.5,-0.5,0")),
+    }
+}
+
+/// The map: the query area's scene or --map-area's (same frame checked), perturbed as asked.
+fn load_map(
+    args: &Args,
+    global: &Global,
+    query_scene: PreparedScene,
+) -> anyhow::Result<(PreparedScene, MapSummary)> {
+    let (scene, area) = match &args.map_area {
+        Some(name) if *name != args.area => {
+            let map = PreparedScene::load(&global.workdir.join(name).join("scene")).with_context(|| {
+                format!("loading the map area {name} (run `insgen prepare --area {name}`)")
+            })?;
+            crate::loc::map::check_same_frame(&query_scene, &map)?;
+            (map, name.clone())
+        }
+        _ => (query_scene, args.area.clone()),
+    };
+    for (name, f) in [("--map-drop", args.map_drop), ("--map-merge", args.map_merge)] {
+        anyhow::ensure!((0.0..=1.0).contains(&f), "{name} {f}: a fraction lies in [0, 1]");
+    }
+    for (name, v) in [
+        ("--map-height-sigma", args.map_height_sigma),
+        ("--map-shift-sigma", args.map_shift_sigma),
+        ("--map-scale-sigma", args.map_scale_sigma),
+    ] {
+        anyhow::ensure!(v.is_finite() && v >= 0.0, "{name} {v}: a standard deviation is ≥ 0");
+    }
+    let perturbation = MapPerturbation {
+        lod1: args.map_lod1,
+        height_sigma_m: args.map_height_sigma,
+        shift_sigma_m: args.map_shift_sigma,
+        scale_sigma: args.map_scale_sigma,
+        drop_fraction: args.map_drop,
+        merge_fraction: args.map_merge,
+        offset_enu_m: args.map_offset.unwrap_or([0.0; 3]),
+        seed: args.map_seed.unwrap_or(args.seed),
+    };
+    if perturbation.is_identity() {
+        return Ok((scene, MapSummary { area, perturbation: None, changes: None }));
+    }
+    let (map, changes) = crate::loc::map::perturb(&scene, &perturbation);
+    Ok((map, MapSummary { area, perturbation: Some(perturbation), changes: Some(changes) }))
+}
+
 pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     let area_dir = global.workdir.join(&args.area);
-    let scene = PreparedScene::load(&area_dir.join("scene"))?;
+    let (scene, map) = load_map(args, global, PreparedScene::load(&area_dir.join("scene"))?)?;
     let degradation = Degradation {
         morph_px: args.dilate as i32 - args.erode as i32,
         drop_fraction: args.drop,
@@ -219,6 +316,15 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         }
         if args.no_polish {
             t.push_str("-nopolish");
+        }
+        if args.paper {
+            t.push_str("-paper");
+        }
+        if let Some(m) = &args.map_area {
+            t.push_str(&format!("-map-{m}"));
+        }
+        if !map.perturbation.as_ref().is_none_or(|p| p.is_identity()) {
+            t.push_str("-perturbed");
         }
         if args.no_yaw_fan {
             t.push_str("-nofan");
@@ -278,11 +384,24 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
                     args.coarse_yaw.unwrap_or((d.yaw_range_deg, d.yaw_step_deg));
                 CoarseParams { xy_range_m, xy_step_m, z_range_m, z_step_m, yaw_range_deg, yaw_step_deg }
             },
-            fine: FineParams {
-                iterations: args.iterations,
-                lowres_iterations: args.lowres_iterations,
-                polish: !args.no_polish,
-                ..FineParams::default()
+            fine: {
+                let base = if args.paper { FineParams::paper() } else { FineParams::default() };
+                let beams_mode = match (base.beams_mode, args.basins, args.survivors) {
+                    (BeamMode::Basins { count, survivors }, b, s) => {
+                        BeamMode::Basins { count: b.unwrap_or(count), survivors: s.unwrap_or(survivors) }
+                    }
+                    (BeamMode::Joint, None, None) => BeamMode::Joint,
+                    (BeamMode::Joint, b, s) => {
+                        BeamMode::Basins { count: b.unwrap_or(4), survivors: s.unwrap_or(2) }
+                    }
+                };
+                FineParams {
+                    iterations: args.iterations,
+                    lowres_iterations: args.lowres_iterations,
+                    polish: base.polish && !args.no_polish,
+                    beams_mode,
+                    ..base
+                }
             },
             stages: match (args.no_select, args.no_refine) {
                 (false, false) => Stages::CoarseAndFine,
@@ -298,6 +417,7 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         yaw_fan: !args.no_yaw_fan,
         limit: args.limit,
         overlays: args.overlays,
+        map,
     };
     let printer = global.printer();
     let summary = eval::evaluate(&scene, &opts, &printer.progress())

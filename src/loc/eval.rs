@@ -21,6 +21,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::cost::{CostKind, Query, Scorer, Weighting};
+use super::map::MapSummary;
 use super::metrics::{self, Row};
 use super::query::{QueryError, QuerySource};
 use super::search::{self, Evaluate, Hypothesis, SearchOptions, SearchResult};
@@ -73,6 +74,8 @@ pub struct EvalOptions {
     pub yaw_fan: bool,
     pub limit: Option<usize>,
     pub overlays: usize,
+    /// The map the scene given to [`evaluate`] is (its area and perturbation), for the summary.
+    pub map: MapSummary,
 }
 
 /// One line of `results.jsonl`.
@@ -117,6 +120,13 @@ pub struct Summary {
     #[serde(default)]
     pub median_setup_seconds: f64,
     pub hypotheses_per_second: f64,
+    /// Recall at (2 m, 2°) per bucket of query instance counts, per cost (every query in one bucket).
+    #[serde(default)]
+    pub instance_buckets: Vec<metrics::BucketRow>,
+    /// The search that ran (stages, coarse grid, particle filter, beams).
+    pub search: SearchOptions,
+    /// The map: its area and perturbation.
+    pub map: MapSummary,
 }
 
 /// Intrinsics scaled to `width_px` (height rounded to keep the aspect ratio).
@@ -580,6 +590,7 @@ fn summarise(queries: &[QueryPose], runs: &[Localized], opts: &EvalOptions) -> S
         g.dedup();
         g
     };
+    let mut instance_buckets = Vec::new();
     let mut push_rows = |method: &str, errs: &[(f64, f64, &str)]| {
         for g in &groups {
             let e: Vec<(f64, f64)> = errs.iter().filter(|e| e.2 == *g).map(|e| (e.0, e.1)).collect();
@@ -607,6 +618,12 @@ fn summarise(queries: &[QueryPose], runs: &[Localized], opts: &EvalOptions) -> S
             CostKind::Merged => "merged instances".to_string(),
         };
         push_rows(&name, &errs);
+        let counted: Vec<(usize, f64, f64)> = results
+            .iter()
+            .filter(|r| r.cost == kind)
+            .map(|r| (r.query_instances, r.translation_error_m, r.rotation_error_deg))
+            .collect();
+        instance_buckets.extend(metrics::bucket_rows(&name, &counted));
     }
     let secs: Vec<f64> = results.iter().map(|r| r.seconds).collect();
     // One setup per query, shared by its costs.
@@ -623,6 +640,9 @@ fn summarise(queries: &[QueryPose], runs: &[Localized], opts: &EvalOptions) -> S
         median_seconds_per_query: metrics::median_or_nan(&secs),
         median_setup_seconds: metrics::median_or_nan(&setup_times),
         hypotheses_per_second: if total_s > 0.0 { total_hyp as f64 / total_s } else { 0.0 },
+        instance_buckets,
+        search: opts.search.clone(),
+        map: opts.map.clone(),
     }
 }
 
@@ -651,13 +671,14 @@ fn write_outputs(out_dir: &Path, runs: &[Localized], summary: &Summary) -> Resul
     util::write_json_atomic(&out_dir.join("summary.json"), summary)?;
     let md = format!(
         "# Localization on {}\n\n{} queries; median {:.2} s per query (search; the query's setup takes {:.2} s \
-         more); {:.0} hypotheses/s.\n\n{}",
+         more); {:.0} hypotheses/s.\n\n{}\nRecall at (2 m, 2°) by the number of query instances:\n\n{}",
         out_dir.display(),
         summary.queries,
         summary.median_seconds_per_query,
         summary.median_setup_seconds,
         summary.hypotheses_per_second,
-        metrics::markdown(&summary.rows)
+        metrics::markdown(&summary.rows),
+        metrics::bucket_markdown(&summary.instance_buckets)
     );
     util::write_bytes_atomic(&out_dir.join("summary.md"), md.as_bytes())?;
     Ok(())

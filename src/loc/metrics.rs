@@ -47,6 +47,65 @@ pub fn row(method: &str, group: &str, errors: &[(f64, f64)]) -> Row {
     }
 }
 
+/// Query-instance-count buckets of [`bucket_rows`]: inclusive lower bounds (the last is open).
+pub const INSTANCE_BUCKETS: [u32; 6] = [0, 1, 2, 4, 8, 16];
+
+/// Recall per bucket of query instance counts, for one method: where silhouettes stop being enough.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BucketRow {
+    pub method: String,
+    /// The bucket's instance counts, e.g. `2–3` or `16+`.
+    pub instances: String,
+    pub queries: usize,
+    /// Recall (percent) at (2 m, 2°); NaN (null) for an empty bucket.
+    pub recall_2m_2deg_pct: f64,
+}
+
+/// The label of the bucket starting at `INSTANCE_BUCKETS[i]`.
+fn bucket_label(i: usize) -> String {
+    let lo = INSTANCE_BUCKETS[i];
+    match INSTANCE_BUCKETS.get(i + 1) {
+        None => format!("{lo}+"),
+        Some(&next) if next == lo + 1 => format!("{lo}"),
+        Some(&next) => format!("{lo}–{}", next - 1),
+    }
+}
+
+/// One row per bucket of [`INSTANCE_BUCKETS`] from (query instances, translation m, rotation °):
+/// every query falls in exactly one bucket, so the rows' counts add up to `errors.len()`.
+pub fn bucket_rows(method: &str, errors: &[(usize, f64, f64)]) -> Vec<BucketRow> {
+    (0..INSTANCE_BUCKETS.len())
+        .map(|i| {
+            let lo = INSTANCE_BUCKETS[i] as usize;
+            let hi = INSTANCE_BUCKETS.get(i + 1).map_or(usize::MAX, |&h| h as usize);
+            let inside: Vec<&(usize, f64, f64)> = errors.iter().filter(|e| e.0 >= lo && e.0 < hi).collect();
+            let ok = inside.iter().filter(|e| e.1 < THRESHOLDS[0].0 && e.2 < THRESHOLDS[0].1).count();
+            BucketRow {
+                method: method.to_string(),
+                instances: bucket_label(i),
+                queries: inside.len(),
+                recall_2m_2deg_pct: if inside.is_empty() {
+                    f64::NAN
+                } else {
+                    100.0 * ok as f64 / inside.len() as f64
+                },
+            }
+        })
+        .collect()
+}
+
+/// The bucket rows as Markdown (empty buckets left out).
+pub fn bucket_markdown(rows: &[BucketRow]) -> String {
+    let mut s = String::from("| method | query instances | queries | 2m-2° |\n|---|---|---|---|\n");
+    for r in rows.iter().filter(|r| r.queries > 0) {
+        s.push_str(&format!(
+            "| {} | {} | {} | {:.1} |\n",
+            r.method, r.instances, r.queries, r.recall_2m_2deg_pct
+        ));
+    }
+    s
+}
+
 /// The table as Markdown, in the paper's layout.
 pub fn markdown(rows: &[Row]) -> String {
     let mut s = String::from(
@@ -81,6 +140,20 @@ mod tests {
         assert_eq!(r.recall_pct, [25.0, 75.0, 100.0]);
         assert_eq!(r.median_translation_m, 1.5);
         assert_eq!(r.median_rotation_deg, 1.75);
+    }
+
+    #[test]
+    fn buckets_partition_the_queries() {
+        let e = [(1, 0.1, 0.1), (2, 3.0, 0.1), (3, 0.1, 0.1), (9, 0.1, 0.1), (40, 0.1, 0.1), (0, 9.0, 9.0)];
+        let rows = bucket_rows("x", &e);
+        let labels: Vec<&str> = rows.iter().map(|r| r.instances.as_str()).collect();
+        assert_eq!(labels, ["0", "1", "2–3", "4–7", "8–15", "16+"]);
+        assert_eq!(rows.iter().map(|r| r.queries).sum::<usize>(), e.len());
+        assert_eq!(rows.iter().map(|r| r.queries).collect::<Vec<_>>(), [1, 1, 2, 0, 1, 1]);
+        // 2–3: (2, 3 m) misses, (3, 0.1 m) hits.
+        assert_eq!(rows[2].recall_2m_2deg_pct, 50.0);
+        assert!(rows[3].recall_2m_2deg_pct.is_nan());
+        assert!(!bucket_markdown(&rows).contains("| 4–7 |"));
     }
 
     #[test]

@@ -2,10 +2,13 @@
 //!
 //! - [`cost`]: best-match Dice with confidence or area weighting, the semantic IoU baseline;
 //! - [`search`]: coarse grid + particle filter over x, y, z, yaw;
+//! - [`map`]: the map (another prepared area) and its seeded perturbations (LoD1, heights, footprints,
+//!   drops, merges, offset);
 //! - [`metrics`]: errors, recall at (2 m, 2°)/(3 m, 3°)/(5 m, 5°), medians, the summary table.
 
 pub mod cost;
 pub mod eval;
+pub mod map;
 pub mod metrics;
 pub mod oracle;
 pub mod query;

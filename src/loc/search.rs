@@ -80,6 +80,26 @@ pub struct FineParams {
     /// After the particle filter, a deterministic local pattern search (not in the paper; off with
     /// `--no-polish`): see [`polish`].
     pub polish: bool,
+    /// How the kept poses are grouped into beams.
+    pub beams_mode: BeamMode,
+}
+
+/// How the particle filter's kept poses are grouped.
+///
+/// The paper ranks all candidates together every iteration ([`BeamMode::Joint`]): its best coarse
+/// cells are usually grid neighbours of one another, and the pool collapses into the basin that scores
+/// best at the coarse resolution in the first iterations. Where another basin scores better at the
+/// fine resolution (the ground truth's, issue 15), that basin is never visited again.
+/// [`BeamMode::Basins`] keeps distinct basins apart until the fine resolution can judge them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum BeamMode {
+    /// The paper: `beams × keep_per_beam` poses ranked jointly across beams.
+    Joint,
+    /// The best `count` coarse cells that are not grid neighbours of a better one (distinct basins)
+    /// each seed a beam of `keep_per_beam` poses, refined separately at the coarse resolution; at the
+    /// switch to the fine resolution the `survivors` beams whose best pose scores highest there go on.
+    Basins { count: u32, survivors: u32 },
 }
 
 impl Default for FineParams {
@@ -95,6 +115,7 @@ impl Default for FineParams {
             gamma: 0.3,
             lowres_iterations: None,
             polish: true,
+            beams_mode: BeamMode::Basins { count: 4, survivors: 2 },
         }
     }
 }
@@ -112,9 +133,15 @@ impl FineParams {
             .min(n)
     }
 
-    /// Candidates per iteration (kept + perturbed, all beams).
+    /// Candidates per iteration (kept + perturbed, all beams) in the paper's joint mode.
     pub fn candidates_per_iteration(&self) -> u32 {
         self.beams * self.keep_per_beam * (1 + self.perturbations)
+    }
+
+    /// The paper's particle filter: 40 iterations of 2 jointly ranked beams × (2 kept + 2 × 12
+    /// perturbations), σ = 1.5 m, ±2°, γ = 0.3, no polish.
+    pub fn paper() -> Self {
+        FineParams { beams_mode: BeamMode::Joint, polish: false, ..FineParams::default() }
     }
 }
 
@@ -216,84 +243,224 @@ pub fn search<E: Evaluate>(
     let (coarse, fine) = (&opts.coarse, &opts.fine);
     let select = matches!(opts.stages, Stages::CoarseAndFine | Stages::CoarseOnly);
     let refine = matches!(opts.stages, Stages::CoarseAndFine | Stages::FineOnly);
-    let mut scored_count = 0u64;
-    let keep = (fine.beams * fine.keep_per_beam).max(1) as usize;
+    let mut counter = Counted { scored: 0 };
     // Coarse stage.
-    let mut pool: Vec<(Hypothesis, f64)> = if select {
+    let ranked: Vec<(Hypothesis, f64)> = if select {
         let grid = coarse_grid(&prior, coarse);
-        let s = coarse_eval.evaluate(&grid)?;
-        scored_count += grid.len() as u64;
+        let s = counter.run(coarse_eval, &grid)?;
         rank(grid.into_iter().zip(s).collect())
     } else {
-        let s = coarse_eval.evaluate(&[prior])?;
-        scored_count += 1;
+        let s = counter.run(coarse_eval, &[prior])?;
         vec![(prior, s[0])]
     };
-    let (coarse_best, coarse_score) = pool[0];
+    let (coarse_best, coarse_score) = ranked[0];
     if !refine {
         return Ok(SearchResult {
             best: coarse_best,
             best_score: coarse_score,
             coarse_best,
             coarse_score,
-            hypotheses_scored: scored_count,
+            hypotheses_scored: counter.scored,
         });
     }
-    pool.truncate(keep);
-    while pool.len() < keep {
-        pool.push(pool[0]);
-    }
-    // Fine stage.
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let unit = Normal::new(0.0, 1.0).expect("σ = 1 is valid");
-    let n_iter = fine.iterations.max(1);
-    let lowres = fine.lowres_iterations();
-    // Scores in `pool` come from the coarse evaluator until they are re-scored at the fine one.
-    let mut pool_is_fine = false;
-    for i in 0..n_iter {
-        if i >= lowres && !pool_is_fine {
-            let hyps: Vec<Hypothesis> = pool.iter().map(|p| p.0).collect();
-            let s = eval.evaluate(&hyps)?;
-            scored_count += hyps.len() as u64;
-            pool = rank(hyps.into_iter().zip(s).collect());
-            pool_is_fine = true;
+    let (mut best, mut best_score) = match fine.beams_mode {
+        BeamMode::Joint => {
+            let keep = (fine.beams * fine.keep_per_beam).max(1) as usize;
+            let mut pool = ranked;
+            pool.truncate(keep);
+            while pool.len() < keep {
+                pool.push(pool[0]);
+            }
+            let pool = particle_filter(&mut counter, coarse_eval, eval, fine, pool, keep, None, &mut rng)?;
+            pool[0]
         }
-        let s = fine.gamma.max((n_iter - i) as f64 / n_iter as f64);
-        let mut fresh: Vec<Hypothesis> = Vec::new();
-        for &(h, _) in &pool {
-            for _ in 0..fine.perturbations {
-                fresh.push(Hypothesis {
-                    centre_m: DVec3::new(
-                        h.centre_m[0] + fine.sigma_m * s * unit.sample(&mut rng),
-                        h.centre_m[1] + fine.sigma_m * s * unit.sample(&mut rng),
-                        h.centre_m[2] + fine.sigma_m * s * unit.sample(&mut rng),
-                    ),
-                    yaw_deg: h.yaw_deg + rng.gen_range(-1.0..=1.0) * fine.yaw_deg * s,
-                });
+        BeamMode::Basins { count, survivors } => {
+            let keep = fine.keep_per_beam.max(1) as usize;
+            let seeds = distinct_basins(&ranked, coarse, count.max(1) as usize);
+            let n_iter = fine.iterations.max(1);
+            let lowres = fine.lowres_iterations();
+            // Each basin refined on its own at the coarse resolution, from its own cell plus the grid
+            // neighbours that follow it in the ranking.
+            let mut beams: Vec<Vec<(Hypothesis, f64)>> = Vec::with_capacity(seeds.len());
+            for seed_cell in &seeds {
+                let mut pool: Vec<(Hypothesis, f64)> = ranked
+                    .iter()
+                    .filter(|(h, _)| neighbours(h, seed_cell, coarse))
+                    .take(keep)
+                    .copied()
+                    .collect();
+                while pool.len() < keep {
+                    pool.push(pool[0]);
+                }
+                let end = if seeds.len() > 1 { Some(lowres) } else { None };
+                beams.push(particle_filter(
+                    &mut counter,
+                    coarse_eval,
+                    eval,
+                    fine,
+                    pool,
+                    keep,
+                    end,
+                    &mut rng,
+                )?);
+            }
+            // The fine resolution judges the basins: each beam's poses re-scored there, the best
+            // `survivors` beams go on.
+            if seeds.len() > 1 {
+                let mut judged: Vec<(Vec<(Hypothesis, f64)>, f64)> = Vec::with_capacity(beams.len());
+                for pool in beams {
+                    let hyps: Vec<Hypothesis> = pool.iter().map(|p| p.0).collect();
+                    let s = counter.run(eval, &hyps)?;
+                    let pool = rank(hyps.into_iter().zip(s).collect());
+                    let top = pool[0].1;
+                    judged.push((pool, top));
+                }
+                judged.sort_by(|a, b| b.1.total_cmp(&a.1));
+                judged.truncate(survivors.max(1) as usize);
+                let mut finals = Vec::with_capacity(judged.len());
+                for (pool, _) in judged {
+                    let pool =
+                        continue_filter(&mut counter, eval, fine, pool, keep, lowres, n_iter, &mut rng)?;
+                    finals.push(pool[0]);
+                }
+                rank(finals)[0]
+            } else {
+                beams[0][0]
             }
         }
-        let scores = if pool_is_fine { eval.evaluate(&fresh)? } else { coarse_eval.evaluate(&fresh)? };
-        scored_count += fresh.len() as u64;
-        let mut all = pool.clone();
-        all.extend(fresh.into_iter().zip(scores));
-        // Re-rank across beams; the best `keep` seed the next iteration (beam b gets ranks
-        // b·keep_per_beam … (b+1)·keep_per_beam − 1).
-        pool = rank(all);
-        pool.truncate(keep);
-    }
-    if !pool_is_fine {
-        let hyps: Vec<Hypothesis> = pool.iter().map(|p| p.0).collect();
-        let s = eval.evaluate(&hyps)?;
-        scored_count += hyps.len() as u64;
-        pool = rank(hyps.into_iter().zip(s).collect());
-    }
-    let (mut best, mut best_score) = pool[0];
+    };
     if fine.polish {
         let (b, sc, n) = polish(eval, best, best_score, pivot_m)?;
         (best, best_score) = (b, sc);
-        scored_count += n;
+        counter.scored += n;
     }
-    Ok(SearchResult { best, best_score, coarse_best, coarse_score, hypotheses_scored: scored_count })
+    Ok(SearchResult { best, best_score, coarse_best, coarse_score, hypotheses_scored: counter.scored })
+}
+
+/// Counts the hypotheses scored.
+struct Counted {
+    scored: u64,
+}
+
+impl Counted {
+    fn run<E: Evaluate>(&mut self, eval: &mut E, hyps: &[Hypothesis]) -> Result<Vec<f64>, E::Error> {
+        self.scored += hyps.len() as u64;
+        eval.evaluate(hyps)
+    }
+}
+
+/// Whether `a` and `b` are the same cell or grid neighbours of the coarse grid `p` (at most one step
+/// apart in every searched dimension).
+fn neighbours(a: &Hypothesis, b: &Hypothesis, p: &CoarseParams) -> bool {
+    let within = |d: f64, step: f64| d.abs() <= step.max(0.0) * 1.01 + 1e-9;
+    within(a.centre_m[0] - b.centre_m[0], p.xy_step_m)
+        && within(a.centre_m[1] - b.centre_m[1], p.xy_step_m)
+        && within(a.centre_m[2] - b.centre_m[2], p.z_step_m)
+        && within(a.yaw_deg - b.yaw_deg, p.yaw_step_deg)
+}
+
+/// The best `count` cells of `ranked` (best first) that are no grid neighbour of a better kept cell:
+/// one seed per distinct basin of the coarse score (greedy non-maximum suppression).
+pub fn distinct_basins(ranked: &[(Hypothesis, f64)], p: &CoarseParams, count: usize) -> Vec<Hypothesis> {
+    let mut kept: Vec<Hypothesis> = Vec::with_capacity(count);
+    for (h, _) in ranked {
+        if kept.len() >= count {
+            break;
+        }
+        if !kept.iter().any(|k| neighbours(h, k, p)) {
+            kept.push(*h);
+        }
+    }
+    kept
+}
+
+/// The particle filter (the paper's) from `pool` (scored by `coarse_eval`), switching to `eval` after
+/// [`FineParams::lowres_iterations`]. `end = Some(i)` stops before iteration `i` (the pool is then
+/// scored by `coarse_eval` if `i` is at most the switch); `None` runs every iteration and returns the
+/// pool scored by `eval`. The pool comes back ranked best first.
+#[allow(clippy::too_many_arguments)]
+fn particle_filter<E: Evaluate>(
+    counter: &mut Counted,
+    coarse_eval: &mut E,
+    eval: &mut E,
+    fine: &FineParams,
+    pool: Vec<(Hypothesis, f64)>,
+    keep: usize,
+    end: Option<u32>,
+    rng: &mut ChaCha8Rng,
+) -> Result<Vec<(Hypothesis, f64)>, E::Error> {
+    let n_iter = fine.iterations.max(1);
+    let lowres = fine.lowres_iterations();
+    let stop = end.map_or(n_iter, |e| e.min(n_iter));
+    let low_end = lowres.min(stop);
+    // Scores in `pool` come from the coarse evaluator until they are re-scored at the fine one.
+    let mut pool = pool;
+    for i in 0..low_end {
+        pool = iterate(counter, coarse_eval, fine, pool, keep, i, rng)?;
+    }
+    if stop > low_end || end.is_none() {
+        let hyps: Vec<Hypothesis> = pool.iter().map(|p| p.0).collect();
+        let s = counter.run(eval, &hyps)?;
+        pool = rank(hyps.into_iter().zip(s).collect());
+        pool = continue_filter(counter, eval, fine, pool, keep, low_end, stop, rng)?;
+    }
+    Ok(pool)
+}
+
+/// Iterations `from..to` of the particle filter, all scored by `eval` (`pool` already scored by it).
+#[allow(clippy::too_many_arguments)]
+fn continue_filter<E: Evaluate>(
+    counter: &mut Counted,
+    eval: &mut E,
+    fine: &FineParams,
+    mut pool: Vec<(Hypothesis, f64)>,
+    keep: usize,
+    from: u32,
+    to: u32,
+    rng: &mut ChaCha8Rng,
+) -> Result<Vec<(Hypothesis, f64)>, E::Error> {
+    for i in from..to {
+        pool = iterate(counter, eval, fine, pool, keep, i, rng)?;
+    }
+    Ok(pool)
+}
+
+/// One particle-filter iteration: `perturbations` draws around every pose of `pool` at the decayed
+/// scale s = max(γ, (n − i)/n), scored by `eval`; the best `keep` of old and new go on.
+fn iterate<E: Evaluate>(
+    counter: &mut Counted,
+    eval: &mut E,
+    fine: &FineParams,
+    pool: Vec<(Hypothesis, f64)>,
+    keep: usize,
+    i: u32,
+    rng: &mut ChaCha8Rng,
+) -> Result<Vec<(Hypothesis, f64)>, E::Error> {
+    let unit = Normal::new(0.0, 1.0).expect("σ = 1 is valid");
+    let n_iter = fine.iterations.max(1);
+    let s = fine.gamma.max((n_iter - i.min(n_iter)) as f64 / n_iter as f64);
+    let mut fresh: Vec<Hypothesis> = Vec::with_capacity(pool.len() * fine.perturbations as usize);
+    for &(h, _) in &pool {
+        for _ in 0..fine.perturbations {
+            fresh.push(Hypothesis {
+                centre_m: DVec3::new(
+                    h.centre_m[0] + fine.sigma_m * s * unit.sample(rng),
+                    h.centre_m[1] + fine.sigma_m * s * unit.sample(rng),
+                    h.centre_m[2] + fine.sigma_m * s * unit.sample(rng),
+                ),
+                yaw_deg: h.yaw_deg + rng.gen_range(-1.0..=1.0) * fine.yaw_deg * s,
+            });
+        }
+    }
+    let scores = counter.run(eval, &fresh)?;
+    let mut all = pool;
+    all.extend(fresh.into_iter().zip(scores));
+    // Re-rank (across beams in the joint mode: beam b gets ranks b·keep_per_beam …); the best `keep`
+    // seed the next iteration.
+    let mut all = rank(all);
+    all.truncate(keep);
+    Ok(all)
 }
 
 /// The local moves of [`polish`] around `h` at a step of `step_m` metres / `step_deg` degrees: ±x,
@@ -331,9 +498,109 @@ fn moves(h: &Hypothesis, step_m: f64, step_deg: f64, pivot_m: Option<DVec3>) -> 
     out
 }
 
+/// Evaluations of the Nelder–Mead stage of [`polish`].
+pub const SIMPLEX_EVALUATIONS: u32 = 120;
+/// Initial simplex of [`simplex`]: the step in metres (x, y, z) and degrees (yaw).
+pub const SIMPLEX_STEP: (f64, f64) = (1.0, 0.2);
+
+/// Nelder–Mead over (x, y, z, yaw) from `start` (maximising the score), at most `max_evals`
+/// evaluations. The cost's valleys after the particle filter are narrow and diagonal (the camera
+/// moved along its optical axis while yaw and sideways motion trade off, issue 15), where moves along
+/// fixed directions stall; a simplex adapts its shape to them. Coordinates are scaled by
+/// [`SIMPLEX_STEP`] so that 1 m and 0.2° weigh the same. Returns the best, its score, evaluations.
+///
+/// # Errors
+/// Whatever the evaluator returns.
+pub fn simplex<E: Evaluate>(
+    eval: &mut E,
+    start: Hypothesis,
+    start_score: f64,
+    max_evals: u32,
+) -> Result<(Hypothesis, f64, u64), E::Error> {
+    let (sm, sd) = SIMPLEX_STEP;
+    let to_h = |v: [f64; 4]| Hypothesis {
+        centre_m: DVec3::new(v[0] * sm, v[1] * sm, v[2] * sm),
+        yaw_deg: v[3] * sd,
+    };
+    let x0 = [start.centre_m[0] / sm, start.centre_m[1] / sm, start.centre_m[2] / sm, start.yaw_deg / sd];
+    let mut pts: Vec<([f64; 4], f64)> = vec![(x0, start_score)];
+    let verts: Vec<[f64; 4]> = (0..4)
+        .map(|k| {
+            let mut v = x0;
+            v[k] += 1.0;
+            v
+        })
+        .collect();
+    let s = eval.evaluate(&verts.iter().map(|v| to_h(*v)).collect::<Vec<_>>())?;
+    let mut n = verts.len() as u64;
+    pts.extend(verts.into_iter().zip(s));
+    let lerp =
+        |a: [f64; 4], b: [f64; 4], t: f64| -> [f64; 4] { std::array::from_fn(|k| a[k] + t * (b[k] - a[k])) };
+    while n < max_evals as u64 {
+        // Best first (stable: ties keep the earlier vertex).
+        pts.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let worst = pts[4];
+        let centroid: [f64; 4] = std::array::from_fn(|k| pts[..4].iter().map(|p| p.0[k]).sum::<f64>() / 4.0);
+        let mut one = |v: [f64; 4], n: &mut u64| -> Result<f64, E::Error> {
+            *n += 1;
+            Ok(eval.evaluate(&[to_h(v)])?[0])
+        };
+        // Reflection through the centroid of the others.
+        let xr = lerp(centroid, worst.0, -1.0);
+        let fr = one(xr, &mut n)?;
+        if fr > pts[0].1 {
+            let xe = lerp(centroid, worst.0, -2.0);
+            let fe = one(xe, &mut n)?;
+            pts[4] = if fe > fr { (xe, fe) } else { (xr, fr) };
+        } else if fr > pts[3].1 {
+            pts[4] = (xr, fr);
+        } else {
+            // Contraction (outside if the reflection beat the worst, else inside).
+            let xc = if fr > worst.1 { lerp(centroid, xr, 0.5) } else { lerp(centroid, worst.0, 0.5) };
+            let fc = one(xc, &mut n)?;
+            if fc > fr.max(worst.1) {
+                pts[4] = (xc, fc);
+            } else {
+                // Shrink towards the best.
+                let best = pts[0].0;
+                let shrunk: Vec<[f64; 4]> = pts[1..].iter().map(|p| lerp(best, p.0, 0.5)).collect();
+                let s = eval.evaluate(&shrunk.iter().map(|v| to_h(*v)).collect::<Vec<_>>())?;
+                n += shrunk.len() as u64;
+                for (i, (v, f)) in shrunk.into_iter().zip(s).enumerate() {
+                    pts[i + 1] = (v, f);
+                }
+            }
+        }
+        // Collapsed below a centimetre / 0.002°: done.
+        let spread = pts[1..]
+            .iter()
+            .map(|p| (0..4).map(|k| (p.0[k] - pts[0].0[k]).abs()).fold(0.0, f64::max))
+            .fold(0.0, f64::max);
+        if spread < 0.01 {
+            break;
+        }
+    }
+    pts.sort_by(|a, b| b.1.total_cmp(&a.1));
+    if pts[0].1 > start_score {
+        Ok((to_h(pts[0].0), pts[0].1, n))
+    } else {
+        Ok((start, start_score, n))
+    }
+}
+
+/// First step of [`polish`]: metres and degrees.
+pub const POLISH_START_STEP: (f64, f64) = (1.0, 0.2);
+/// Step halvings of [`polish`] (the last level moves by 1/32 of the first step).
+pub const POLISH_LEVELS: u32 = 6;
+/// Improving moves allowed per level of [`polish`].
+pub const POLISH_MOVES_PER_LEVEL: u32 = 10;
+
 /// Deterministic local refinement after the particle filter: evaluate the [`moves`] around the best
-/// pose, take the best improving one, and halve the step when none improves (0.5 m / 0.1° down to
-/// 1/16 of that, at most 8 moves per level). Returns the best, its score and the hypotheses scored.
+/// pose and take the best improving one, then follow it (Hooke–Jeeves pattern moves: the same
+/// displacement ×2, ×4, ×8 scored together, the best improving one taken), so a long valley of the
+/// cost — typically along the optical axis with yaw and sideways motion — is travelled in a few
+/// steps. The step halves when no move improves ([`POLISH_START_STEP`], [`POLISH_LEVELS`],
+/// [`POLISH_MOVES_PER_LEVEL`]). Returns the best, its score and the hypotheses scored.
 ///
 /// # Errors
 /// Whatever the evaluator returns.
@@ -343,23 +610,52 @@ pub fn polish<E: Evaluate>(
     mut best_score: f64,
     pivot_m: Option<DVec3>,
 ) -> Result<(Hypothesis, f64, u64), E::Error> {
-    let mut scored = 0u64;
-    let (mut step_m, mut step_deg) = (0.5, 0.1);
-    for _level in 0..5 {
-        for _ in 0..8 {
+    let (b, sc, mut scored) = simplex(eval, best, best_score, SIMPLEX_EVALUATIONS)?;
+    (best, best_score) = (b, sc);
+    let (mut step_m, mut step_deg) = POLISH_START_STEP;
+    // Index of the strictly best score above `floor` (ties keep the current pose: deterministic, no
+    // drifting on plateaus).
+    let best_above = |s: &[f64], floor: f64| {
+        s.iter().enumerate().fold(
+            None,
+            |acc: Option<(usize, f64)>, (i, &v)| {
+                if v > acc.map_or(floor, |a| a.1) {
+                    Some((i, v))
+                } else {
+                    acc
+                }
+            },
+        )
+    };
+    for _level in 0..POLISH_LEVELS {
+        for _ in 0..POLISH_MOVES_PER_LEVEL {
             let cand = moves(&best, step_m, step_deg, pivot_m);
             let s = eval.evaluate(&cand)?;
             scored += cand.len() as u64;
-            // Strictly better only (ties keep the current pose: deterministic, no drifting on plateaus).
-            let (i, &v) =
-                s.iter()
-                    .enumerate()
-                    .fold((usize::MAX, &best_score), |acc, (i, v)| if *v > *acc.1 { (i, v) } else { acc });
-            if i == usize::MAX {
-                break;
-            }
+            let Some((i, v)) = best_above(&s, best_score) else { break };
+            let from = best;
             best = cand[i];
             best_score = v;
+            // Pattern moves along the improving displacement.
+            let (d, dyaw) = (best.centre_m - from.centre_m, best.yaw_deg - from.yaw_deg);
+            loop {
+                let pattern: Vec<Hypothesis> = [1.0, 3.0, 7.0]
+                    .iter()
+                    .map(|k| Hypothesis {
+                        centre_m: best.centre_m + d * *k,
+                        yaw_deg: best.yaw_deg + dyaw * k,
+                    })
+                    .collect();
+                let s = eval.evaluate(&pattern)?;
+                scored += pattern.len() as u64;
+                match best_above(&s, best_score) {
+                    Some((j, v)) => {
+                        best = pattern[j];
+                        best_score = v;
+                    }
+                    None => break,
+                }
+            }
         }
         step_m *= 0.5;
         step_deg *= 0.5;
@@ -474,6 +770,64 @@ mod tests {
         assert_eq!(FineParams { iterations: 10, ..d.clone() }.lowres_iterations(), 7);
         assert_eq!(FineParams { lowres_iterations: Some(50), ..d.clone() }.lowres_iterations(), 40);
         assert_eq!(FineParams { lowres_iterations: Some(0), ..d }.lowres_iterations(), 0);
+    }
+
+    /// Two basins: a wide one that wins at the coarse resolution and a narrow one, the true optimum,
+    /// that wins at the fine resolution (issue 15: the ground truth scored better than the estimate).
+    struct TwoBasins {
+        fine: bool,
+    }
+
+    impl Evaluate for TwoBasins {
+        type Error = std::convert::Infallible;
+        fn evaluate(&mut self, hyps: &[Hypothesis]) -> Result<Vec<f64>, Self::Error> {
+            let bump = |h: &Hypothesis, x: f64, width_m: f64| {
+                let d2 =
+                    (h.centre_m[0] - x).powi(2) + h.centre_m[1].powi(2) + (h.centre_m[2] - 200.0).powi(2);
+                (-d2 / (2.0 * width_m * width_m) - h.yaw_deg * h.yaw_deg / 20.0).exp()
+            };
+            let true_height = if self.fine { 1.0 } else { 0.8 };
+            Ok(hyps
+                .iter()
+                .map(|h| (0.9 * bump(h, 10.0, 8.0)).max(true_height * bump(h, -10.0, 2.0)))
+                .collect())
+        }
+    }
+
+    #[test]
+    fn distinct_basins_find_the_optimum_the_joint_beams_miss() {
+        let prior = Hypothesis { centre_m: DVec3::new(0.0, 0.0, 200.0), yaw_deg: 0.0 };
+        let run = |fine: FineParams| {
+            let opts = SearchOptions { fine, ..Default::default() };
+            search(&mut TwoBasins { fine: false }, &mut TwoBasins { fine: true }, prior, &opts, 3, None)
+                .unwrap()
+        };
+        // The paper's joint beams collapse into the basin that wins at the coarse resolution.
+        let joint = run(FineParams::paper());
+        assert!((joint.best.centre_m[0] - 10.0).abs() < 2.0, "{:?}", joint.best);
+        assert!(joint.best_score < 0.95);
+        // Distinct basins keep the narrow one until the fine resolution judges it.
+        let basins = run(FineParams::default());
+        assert!((basins.best.centre_m[0] + 10.0).abs() < 0.5, "{:?}", basins.best);
+        assert!(basins.best_score > 0.95, "{}", basins.best_score);
+    }
+
+    #[test]
+    fn basins_are_no_grid_neighbours_of_a_better_cell() {
+        let prior = Hypothesis { centre_m: DVec3::new(0.0, 0.0, 200.0), yaw_deg: 0.0 };
+        let p = CoarseParams::default();
+        let grid = coarse_grid(&prior, &p);
+        let scores = TwoBasins { fine: false }.evaluate(&grid).unwrap();
+        let ranked = rank(grid.into_iter().zip(scores).collect());
+        let seeds = distinct_basins(&ranked, &p, 4);
+        assert_eq!(seeds.len(), 4);
+        assert_eq!(seeds[0].centre_m[0], 10.0);
+        assert!(seeds.iter().any(|h| h.centre_m[0] == -10.0 && h.yaw_deg == 0.0), "{seeds:?}");
+        for (i, a) in seeds.iter().enumerate() {
+            for b in &seeds[..i] {
+                assert!(!neighbours(a, b, &p), "{a:?} next to {b:?}");
+            }
+        }
     }
 
     #[test]

@@ -47,6 +47,8 @@ fn check_common(out: &SampleOutput, cfg: &SamplingConfig, height_range_m: [f64; 
             c[2]
         );
         assert!(r.geo.roll_deg.abs() < 1e-6, "{}: roll {}", r.name, r.geo.roll_deg);
+        let seen = r.visible_buildings.expect("sample records the buildings in view");
+        assert!(seen >= cfg.min_visible_buildings, "{}: {seen} buildings in view", r.name);
     }
     assert_eq!(out.poses.len(), out.priors.len());
     assert_eq!(out.stats.accepted as usize, out.poses.len());
@@ -54,6 +56,31 @@ fn check_common(out: &SampleOutput, cfg: &SamplingConfig, height_range_m: [f64; 
 
 mod grid {
     use super::*;
+
+    #[test]
+    fn views_with_too_few_buildings_are_counted_and_refused() {
+        // No view of the box city can show 10 000 buildings: every candidate that passes the other
+        // checks is refused as seeing too few, and the error says which setting to lower.
+        let cfg = SamplingConfig { min_visible_buildings: 10_000, ..SamplingConfig::default() };
+        let scene = cs::city();
+        let e =
+            sample_area(&scene, &cs::with_strategy("cam2", Trajectory::Grid), &cfg, Some(3), 1, &NoProgress)
+                .expect_err("no view qualifies");
+        let msg = e.to_string();
+        assert!(msg.contains("min_visible_buildings (now 10000)"), "{msg}");
+        // With the default, the same run succeeds and counts what it refused.
+        let out = run("cam2", Trajectory::Grid, &SamplingConfig::default(), Some(3), 1);
+        assert_eq!(
+            out.stats.candidates,
+            out.stats.accepted
+                + out.stats.rejected_outside
+                + out.stats.rejected_clearance
+                + out.stats.rejected_visibility
+                + out.stats.rejected_few_buildings,
+            "{:?}",
+            out.stats
+        );
+    }
 
     #[test]
     fn lattice_heights_view_angles() {

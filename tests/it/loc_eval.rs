@@ -37,7 +37,15 @@ fn estimates(rows: &[Value]) -> Vec<(String, Vec<f64>)> {
 
 #[test]
 fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
-    let dir = scratch_with_scenes(&[("demo-test", repo_scene("demo-test"))]);
+    let copy = repo_scene("demo-test").replace("name = \"demo-test\"", "name = \"demo-test-copy\"");
+    let moved = repo_scene("demo-test")
+        .replace("name = \"demo-test\"", "name = \"demo-test-moved\"")
+        .replace("easting_m = -3400.0", "easting_m = -3000.0");
+    let dir = scratch_with_scenes(&[
+        ("demo-test", repo_scene("demo-test")),
+        ("demo-test-copy", copy),
+        ("demo-test-moved", moved),
+    ]);
     let cwd = dir.path();
     ok(cwd, &["prepare", "--area", "demo-test"]);
     ok(cwd, &["sample", "--area", "demo-test", "--camera", "cam2", "--count", QUERIES]);
@@ -80,6 +88,12 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
     assert_schema("loc_summary.schema.json", &summary);
     let rows = summary["rows"].as_array().unwrap();
     assert_eq!(rows[0]["method"], "prior");
+    // Every query in exactly one instance-count bucket.
+    let buckets = summary["instance_buckets"].as_array().unwrap();
+    assert_eq!(buckets.iter().map(|b| b["queries"].as_u64().unwrap()).sum::<u64>(), 3, "{buckets:?}");
+    assert_eq!(summary["map"]["area"], "demo-test");
+    assert!(summary["map"]["perturbation"].is_null());
+    assert_eq!(summary["search"]["fine"]["beams_mode"]["kind"], "basins");
     assert_eq!(rows[1]["recall_pct"][0].as_f64().unwrap(), 100.0, "{}", rows[1]);
     assert!(std::fs::read_to_string(out.join("summary.md")).unwrap().contains("| prior |"));
     // est_poses: NAME qw qx qy qz tx ty tz, unit quaternions.
@@ -227,4 +241,47 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
     let e = stderr(&out);
     assert!(e.contains("other.json") && e.contains("none of its image ids"), "{e}");
     assert!(!cam.join("loc/bad").exists(), "nothing written on error");
+
+    // 5. Map ≠ query: another area in another ENU frame is refused, naming both; the same district
+    //    prepared under another name (same frame) is accepted, coarsened to LoD1, and recorded.
+    ok(cwd, &["prepare", "--area", "demo-test-moved"]);
+    let out = insgen(
+        cwd,
+        &["eval-loc", "--area", "demo-test", "--camera", "cam2", "--oracle", "--map-area", "demo-test-moved"],
+    );
+    assert!(!out.status.success());
+    let e = stderr(&out);
+    assert!(
+        e.contains("another ENU frame") && e.contains("demo-test-moved") && e.contains("[origin]"),
+        "{e}"
+    );
+    ok(cwd, &["prepare", "--area", "demo-test-copy"]);
+    ok(
+        cwd,
+        &[
+            "eval-loc",
+            "--area",
+            "demo-test",
+            "--camera",
+            "cam2",
+            "--oracle",
+            "--map-area",
+            "demo-test-copy",
+            "--map-lod1",
+            "--map-offset",
+            "0.5,-0.5,0",
+            "--limit",
+            "1",
+            "--overlays",
+            "0",
+            "--tag",
+            "lod1",
+        ],
+    );
+    let summary: Value =
+        serde_json::from_slice(&std::fs::read(cam.join("loc/lod1/summary.json")).unwrap()).unwrap();
+    assert_schema("loc_summary.schema.json", &summary);
+    assert_eq!(summary["map"]["area"], "demo-test-copy");
+    assert_eq!(summary["map"]["perturbation"]["lod1"], true);
+    assert_eq!(summary["map"]["perturbation"]["offset_enu_m"], serde_json::json!([0.5, -0.5, 0.0]));
 }
