@@ -38,13 +38,15 @@ fn demo_dataset_lists_only_rgb_photos() {
     for split in ["train", "val", "test"] {
         let path = dir.path().join(format!("runs/coco/instances_{split}.json"));
         let coco: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+        // File names are relative to `info.image_root`, itself relative to the COCO file's folder.
+        let root = path.parent().unwrap().join(coco["info"]["image_root"].as_str().expect("info.image_root"));
         for im in coco["images"].as_array().unwrap() {
             let name = im["file_name"].as_str().unwrap();
             assert!(
                 name.contains("/rgb/") && !name.contains("/masks/"),
                 "{split}: {name} is not an RGB frame"
             );
-            let file = dir.path().join(name);
+            let file = root.join(name);
             assert!(file.is_file(), "{split}: {} does not exist", file.display());
             let (w, h, _) = read_rgb_png(&file);
             assert_eq!(
