@@ -766,7 +766,8 @@ pub fn export(plan: &ExportPlan, progress: &dyn Progress) -> Result<(Export, Vec
         written.push(path);
     }
     // The manifest and the card last: they describe the files above.
-    let manifest = super::manifest::DatasetManifest::new(plan, &ex.datasets, &files);
+    let rgb_render = super::manifest::rgb_render_settings(&plan.workdir, &ex.datasets);
+    let manifest = super::manifest::DatasetManifest::new(plan, &ex.datasets, &files, rgb_render);
     manifest.write(&plan.out_dir)?;
     written.push(plan.out_dir.join(super::manifest::MANIFEST_FILE));
     let refs: Vec<(Split, &Dataset)> = ex.datasets.iter().map(|(s, d)| (*s, d)).collect();

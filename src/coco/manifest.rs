@@ -83,6 +83,46 @@ pub struct CameraEntry {
     /// Frame size, pixels.
     pub width_px: u32,
     pub height_px: u32,
+    /// How its RGB frames were rendered: each distinct setting of their `rgb/<frame>.render.json`
+    /// (engine, device, samples, denoiser, bounces, Blender version — the look), with how many frames
+    /// used it. Empty for a label-only export or frames rendered before the metadata existed.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub rgb_render: Vec<RenderSettings>,
+}
+
+/// One RGB render setting of a camera and the frames rendered with it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RenderSettings {
+    pub frames: u64,
+    /// The frame metadata without what differs per frame (`frame`, `fingerprint`).
+    pub settings: serde_json::Value,
+}
+
+/// Reads the render metadata next to each image's RGB frame (`<frame>.render.json`, written by
+/// `render-rgb`) and groups it per (area, camera) into distinct settings. Unreadable or absent
+/// metadata is skipped: the manifest records what is known.
+pub fn rgb_render_settings(
+    workdir: &Path,
+    datasets: &[(Split, Dataset)],
+) -> BTreeMap<(String, String), Vec<RenderSettings>> {
+    let mut out: BTreeMap<(String, String), BTreeMap<String, (u64, serde_json::Value)>> = BTreeMap::new();
+    for (_, ds) in datasets {
+        for im in &ds.images {
+            let meta = workdir.join(&im.file_name).with_extension("render.json");
+            let Ok(bytes) = std::fs::read(&meta) else { continue };
+            let Ok(serde_json::Value::Object(mut m)) = serde_json::from_slice(&bytes) else { continue };
+            m.remove("frame");
+            m.remove("fingerprint");
+            let v = serde_json::Value::Object(m);
+            let e = out.entry((im.area_name.clone(), im.camera.clone())).or_default();
+            e.entry(v.to_string()).or_insert((0, v)).0 += 1;
+        }
+    }
+    out.into_iter()
+        .map(|(k, m)| {
+            (k, m.into_values().map(|(frames, settings)| RenderSettings { frames, settings }).collect())
+        })
+        .collect()
 }
 
 /// The export's options.
@@ -97,7 +137,13 @@ pub struct ExportSettings {
 impl DatasetManifest {
     /// The manifest of the datasets just written: `files` are (split, file name in the dataset
     /// directory, SHA-256).
-    pub fn new(plan: &ExportPlan, datasets: &[(Split, Dataset)], files: &[(Split, String, String)]) -> Self {
+    /// `rgb_render` comes from [`rgb_render_settings`].
+    pub fn new(
+        plan: &ExportPlan,
+        datasets: &[(Split, Dataset)],
+        files: &[(Split, String, String)],
+        mut rgb_render: BTreeMap<(String, String), Vec<RenderSettings>>,
+    ) -> Self {
         let mut areas: BTreeMap<String, AreaEntry> = BTreeMap::new();
         let mut cameras: BTreeMap<(String, String), CameraEntry> = BTreeMap::new();
         for (split, ds) in datasets {
@@ -125,6 +171,9 @@ impl DatasetManifest {
                         annotations: 0,
                         width_px: im.width,
                         height_px: im.height,
+                        rgb_render: rgb_render
+                            .remove(&(im.area_name.clone(), im.camera.clone()))
+                            .unwrap_or_default(),
                     });
                 c.images += 1;
                 c.annotations += anns_per_image.get(&im.id).copied().unwrap_or(0);

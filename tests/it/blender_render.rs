@@ -742,9 +742,10 @@ fn cli_renders_rgb_and_checks_alignment_against_masks() {
     assert!(e.contains("alignment below target") && e.contains("report.md"), "{e}");
     // RGB through the CLI: the second shard of two gets frame 1 only.
     run(&parse(&["--shard", "1/2", "--samples", "2", "--no-denoise"]), &global).unwrap();
-    let rgb: Vec<String> = std::fs::read_dir(cam_dir.join("rgb"))
+    let mut rgb: Vec<String> = std::fs::read_dir(cam_dir.join("rgb"))
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
-    assert_eq!(rgb, vec!["tilt45.png".to_string()]);
+    rgb.sort();
+    assert_eq!(rgb, ["tilt45.png", "tilt45.render.json"], "the frame and its render metadata");
 }

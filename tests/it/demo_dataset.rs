@@ -67,4 +67,21 @@ fn demo_dataset_lists_only_rgb_photos() {
     // 3 districts × 2 poses, all labelled (the demo city is dense) and all rendered.
     assert_eq!(images, 6, "expected every labelled frame as a photo");
     assert!(Path::new(&dir.path().join("runs/coco/contact_sheet.png")).is_file(), "no contact sheet");
+    // The manifest records how the photos were rendered (the look), per camera.
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("runs/coco/dataset.json")).unwrap()).unwrap();
+    crate::util::assert_schema("dataset.schema.json", &manifest);
+    let mut recorded = 0;
+    for area in manifest["areas"].as_array().unwrap() {
+        for cam in area["cameras"].as_array().unwrap() {
+            let settings = cam["rgb_render"].as_array().expect("rgb_render for a camera with photos");
+            assert_eq!(settings.len(), 1, "one render setting per camera: {settings:?}");
+            assert_eq!(settings[0]["frames"], cam["images"]);
+            let s = &settings[0]["settings"];
+            assert_eq!((s["engine"].as_str(), s["device"].as_str()), (Some("cycles"), Some("CPU")), "{s}");
+            assert!(s["samples"].as_u64().unwrap() >= 1 && s.get("frame").is_none(), "{s}");
+            recorded += settings[0]["frames"].as_u64().unwrap();
+        }
+    }
+    assert_eq!(recorded, 6);
 }
