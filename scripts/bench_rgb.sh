@@ -55,7 +55,7 @@ ig -q prepare --area demo
 ig -q sample --area demo --camera cam2 --count 6
 bench_case demo-procedural demo
 
-if [ -f ../shared/data/jp_tokyo_shibuya_plateau_3dtiles/tileset.json ] || [ -f /work/shared/data/jp_tokyo_shibuya_plateau_3dtiles/tileset.json ]; then
+if [ -f ../shared/data/jp_tokyo_shibuya_plateau_3dtiles/tileset.json ]; then
   ig -q prepare --area tokyo
   ig -q sample --area tokyo --camera cam2 --count 6
   bench_case shibuya-procedural tokyo

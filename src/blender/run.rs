@@ -154,7 +154,7 @@ pub struct RenderSummary {
 }
 
 /// Suffix of the per-frame metadata written next to each RGB frame (`rgb/<frame>.render.json`).
-pub const META_SUFFIX: &str = "render.json";
+pub const META_SUFFIX: &str = crate::label::stage::RGB_META_SUFFIX;
 
 /// What one Blender process reported about itself.
 #[derive(Debug, Clone)]

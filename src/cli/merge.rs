@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 
 /// Merges the work directories of shards (e.g. node-local scratch of a job array) into --workdir.
 ///
@@ -24,9 +24,6 @@ pub struct Args {
 
 pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     let printer = global.printer();
-    if args.sources.iter().any(|s| s == &global.workdir) {
-        bail!("{} is both a source and the destination (--workdir)", global.workdir.display());
-    }
     let report = crate::util::merge::merge_workdirs(&args.sources, &global.workdir)
         .with_context(|| format!("merging into {}", global.workdir.display()))?;
     printer.summary(format!(

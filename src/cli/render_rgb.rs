@@ -226,7 +226,7 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<Plan> {
     let (mode, out_dir) = if args.check_alignment {
         (Mode::Ids, camera_dir.join("alignment"))
     } else {
-        (Mode::Rgb, camera_dir.join("rgb"))
+        (Mode::Rgb, camera_dir.join(crate::label::stage::RGB_DIR))
     };
     let defaults = source.default_rgb_settings();
     let render = RenderPlan {

@@ -238,7 +238,7 @@ fn discover(workdir: &Path) -> Result<(Vec<AreaInput>, u64), CocoError> {
                     missing += 1;
                     continue;
                 }
-                let rgb = cam_dir.join("rgb").join(format!("{}.png", pose.name));
+                let rgb = cam_dir.join(crate::label::stage::RGB_DIR).join(format!("{}.png", pose.name));
                 frames.push(FrameInput { pose, mask, instances, rgb });
             }
             cameras.push(CameraInput { name: cam_name, frames });

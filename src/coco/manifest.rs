@@ -108,7 +108,7 @@ pub fn rgb_render_settings(
     let mut out: BTreeMap<(String, String), BTreeMap<String, (u64, serde_json::Value)>> = BTreeMap::new();
     for (_, ds) in datasets {
         for im in &ds.images {
-            let meta = workdir.join(&im.file_name).with_extension("render.json");
+            let meta = workdir.join(&im.file_name).with_extension(crate::label::stage::RGB_META_SUFFIX);
             let Ok(bytes) = std::fs::read(&meta) else { continue };
             let Ok(serde_json::Value::Object(mut m)) = serde_json::from_slice(&bytes) else { continue };
             m.remove("frame");

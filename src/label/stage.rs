@@ -52,6 +52,8 @@ pub const POSES_FILE: &str = "poses.jsonl";
 pub const MASKS_DIR: &str = "masks";
 /// Where the RGB stage writes frames (preview backdrops).
 pub const RGB_DIR: &str = "rgb";
+/// Suffix of the metadata the RGB stage writes beside each frame (`rgb/<frame>.render.json`).
+pub const RGB_META_SUFFIX: &str = "render.json";
 
 /// Frames per contact sheet (4 columns × 3 rows) and the width of one tile.
 const SHEET_COLUMNS: u32 = 4;
