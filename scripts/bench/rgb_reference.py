@@ -1,13 +1,15 @@
 """Converged reference crops for the RGB quality bench (scripts/bench_rgb.sh).
 
 Run with the bpy interpreter:
-    .venv-blender/bin/python scripts/bench/rgb_reference.py JOB.json OUT_DIR MODE SAMPLES CROP_W CROP_H
+    .venv-blender/bin/python scripts/bench/rgb_reference.py JOB.json OUT_DIR MODE SAMPLES CROP_W CROP_H [FRAMES]
 
 JOB.json is a job insgen wrote (render-rgb keeps it under <camera>/blender/). The scene is built exactly as
-scripts/blender/render_rgb.py builds it (same functions), then every frame is rendered with SAMPLES
-samples per pixel and the richest light transport insgen ever used (4 bounces, 2 diffuse, 2 glossy),
-without denoiser (MODE "reference") or with the settings render-rgb used before issue 14 (MODE "old":
-OpenImageDenoise at HIGH quality with the ACCURATE prefilter), restricted to the centred CROP_W x CROP_H pixel window of the frame
+scripts/blender/render_rgb.py builds it (same functions), then the first FRAMES frames (default all) are
+rendered with SAMPLES samples per pixel and without denoiser (MODE "reference": the converged image of the
+job's look; a path-traced look gets the richest light transport insgen ever used, 4 bounces, 2 diffuse,
+2 glossy, while the direct-lighting look has nothing to bounce and keeps the job's) or with the settings
+render-rgb used before issue 14 (MODE "old", path-traced jobs only: 4 bounces, OpenImageDenoise at HIGH
+quality with the ACCURATE prefilter), restricted to the centred CROP_W x CROP_H pixel window of the frame
 (Cycles' render border: each pixel's samples do not depend on the border, so the crop equals the same
 window of a full render). Writes OUT_DIR/<frame>.png (8-bit sRGB, the crop) and prints one line per
 frame: "REF <frame> <wall seconds> <cpu seconds>".
@@ -24,11 +26,14 @@ import render_rgb as R  # noqa: E402
 def main(argv):
     job_path, out_dir, mode = argv[1], argv[2], argv[3]
     samples, crop_w, crop_h = int(argv[4]), int(argv[5]), int(argv[6])
+    limit = int(argv[7]) if len(argv) > 7 else None
     if mode not in ("reference", "old"):
         raise SystemExit(f"MODE must be reference or old, not {mode!r}")
     import bpy
 
     job = R.load_job(job_path)
+    if mode == "old" and job["lighting"] != "path":
+        raise SystemExit(f"{job_path}: MODE old needs a path-traced job (render-rgb --lighting path)")
     scene = R.reset_scene(bpy)
     R.configure_render(bpy, scene, job)
     placed = R.import_models(bpy, job)
@@ -43,14 +48,15 @@ def main(argv):
         c.denoising_input_passes = "RGB_ALBEDO_NORMAL"
         c.denoising_prefilter = "ACCURATE"
         c.denoising_quality = "HIGH"
-    c.max_bounces = 4
-    c.diffuse_bounces = 2
-    c.glossy_bounces = 2
-    c.transmission_bounces = 2
-    c.transparent_max_bounces = 4
+    if job["lighting"] == "path":
+        c.max_bounces = 4
+        c.diffuse_bounces = 2
+        c.glossy_bounces = 2
+        c.transmission_bounces = 2
+        c.transparent_max_bounces = 4
     os.makedirs(out_dir, exist_ok=True)
     r = scene.render
-    for frame in job["frames"]:
+    for frame in job["frames"][:limit]:
         R.apply_camera(scene, cam, frame)
         R.set_visibility(placed, frame)
         w, h = r.resolution_x, r.resolution_y

@@ -14,7 +14,10 @@ this script is generated: every value comes from the job. The script
    model, so each imported model is parented to an empty whose matrix is ENU_from_glTF @ inverse(Y2Z);
 3. builds the look: in "rgb" mode procedural facade/roof materials varied per building (LoD models), the
    models' own materials shown as emission (photogrammetry), a textured ground plane, a sky texture and a
-   sun; in "ids" mode one flat emission material whose red channel is the building ID (exact in float32);
+   sun, lit as the job's `lighting` says ("direct": Lambertian surfaces, a point-like sun, the sky as a
+   non-sampled ambient and glass-reflection emission, no bounces, so nothing but anti-aliasing is noisy;
+   "path": Principled BSDFs, the sky as an environment light, bounces); in "ids" mode one flat emission
+   material whose red channel is the building ID (exact in float32);
 4. renders every frame with the camera given in Blender terms (lens, sensor, shift, pixel aspect, world
    matrix), writes the images to the temporary paths given in the job, and prints one protocol line per
    frame on stdout.
@@ -37,7 +40,7 @@ import traceback
 
 PROTOCOL_PREFIX = "INSGEN "
 JOB_FORMAT = "insgen-blender-job"
-JOB_VERSION = 2
+JOB_VERSION = 3
 # Name of the per-face building-ID attribute the script derives from _FEATURE_ID_0 (face domain, so no
 # interpolation can perturb the value: every pixel of a face reads the exact float).
 FACE_ID_ATTRIBUTE = "insgen_building_id"
@@ -385,7 +388,7 @@ ROOF_COLORS = [
 GLASS_COLORS = [(0.05, 0.08, 0.12), (0.08, 0.10, 0.10), (0.10, 0.14, 0.20), (0.04, 0.05, 0.06)]
 
 
-def building_material(bpy, look):
+def building_material(bpy, look, lighting):
     """One shared material; per-building variety comes from the face attribute holding the building ID.
 
     Facades: a palette colour, a brick or plaster texture, and a window grid laid out in facade
@@ -397,8 +400,6 @@ def building_material(bpy, look):
     ground_m = float(look["ground_enu_m"])
     mat, nt = new_material(bpy, "insgen_building")
     out = node(nt, "ShaderNodeOutputMaterial")
-    bsdf = node(nt, "ShaderNodeBsdfPrincipled")
-    nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
 
     attr = node(nt, "ShaderNodeAttribute", attribute_type="GEOMETRY", attribute_name=FACE_ID_ATTRIBUTE)
     bid = attr.outputs["Fac"]
@@ -494,6 +495,11 @@ def building_material(bpy, look):
 
     color = mix_color(nt, window, wall_color, glass)
     color = mix_color(nt, roof, color, roof_color)
+    if lighting == "direct":
+        direct_surface(nt, out, color, look, mat, glass=window)
+        return mat
+    bsdf = node(nt, "ShaderNodeBsdfPrincipled")
+    nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
     nt.links.new(color, bsdf.inputs["Base Color"])
     rough = mix_float(nt, window, 0.85, 0.06)
     rough = mix_float(nt, roof, rough, 0.9)
@@ -503,12 +509,48 @@ def building_material(bpy, look):
     return mat
 
 
-def ground_material(bpy, look):
+# Direct lighting: the sky's contribution as constant colours (linear RGB per unit of sky strength). The
+# ambient is what an overcast-free sky adds to every surface (bluish); the reflection is the sky seen in
+# glass at grazing angles.
+AMBIENT_PER_SKY = (0.5, 0.62, 0.8)
+REFLECTION_PER_SKY = (1.2, 1.5, 2.0)
+
+
+def direct_surface(nt, out, color, look, mat, glass=None):
+    """Lambertian surface lit by the sun, plus sky ambient (and a Fresnel sky reflection where `glass` is
+    1) as emission that Cycles never samples as a light: no stochastic term but anti-aliasing."""
+    sky = float(look.get("sky_strength", 0.25))
+    diffuse = node(nt, "ShaderNodeBsdfDiffuse")
+    nt.links.new(color, diffuse.inputs["Color"])
+    ambient = node(nt, "ShaderNodeMix", data_type="RGBA", blend_type="MULTIPLY", clamp_factor=True)
+    socket(ambient.inputs, "Factor_Float").default_value = 1.0
+    nt.links.new(color, socket(ambient.inputs, "A_Color"))
+    socket(ambient.inputs, "B_Color").default_value = (*(sky * c for c in AMBIENT_PER_SKY), 1.0)
+    glow = socket(ambient.outputs, "Result_Color")
+    if glass is not None:
+        fresnel = node(nt, "ShaderNodeLayerWeight")
+        fresnel.inputs["Blend"].default_value = 1.0 - 1.0 / 1.5  # IOR 1.5
+        weight = math_node(nt, "MULTIPLY", fresnel.outputs["Fresnel"], glass)
+        add = node(nt, "ShaderNodeMix", data_type="RGBA", blend_type="ADD", clamp_factor=True)
+        nt.links.new(weight, socket(add.inputs, "Factor_Float"))
+        nt.links.new(glow, socket(add.inputs, "A_Color"))
+        socket(add.inputs, "B_Color").default_value = (*(sky * c for c in REFLECTION_PER_SKY), 1.0)
+        glow = socket(add.outputs, "Result_Color")
+    emission = node(nt, "ShaderNodeEmission")
+    emission.inputs["Strength"].default_value = 1.0
+    nt.links.new(glow, emission.inputs["Color"])
+    both = node(nt, "ShaderNodeAddShader")
+    nt.links.new(diffuse.outputs["BSDF"], both.inputs[0])
+    nt.links.new(emission.outputs["Emission"], both.inputs[1])
+    nt.links.new(both.outputs["Shader"], out.inputs["Surface"])
+    # The emission stands for sky light already integrated: never a light source to sample.
+    mat.cycles.emission_sampling = "NONE"
+
+
+def ground_material(bpy, look, lighting):
     """Asphalt and grass patches from low-frequency noise, with fine grain, in world coordinates."""
     mat, nt = new_material(bpy, "insgen_ground")
     out = node(nt, "ShaderNodeOutputMaterial")
-    bsdf = node(nt, "ShaderNodeBsdfPrincipled")
-    nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
     geo = node(nt, "ShaderNodeNewGeometry")
     big = node(nt, "ShaderNodeTexNoise", noise_dimensions="4D")
     big.inputs["Scale"].default_value = 0.004
@@ -523,6 +565,11 @@ def ground_material(bpy, look):
     asphalt = mix_color(nt, fine.outputs["Fac"], (0.05, 0.05, 0.05, 1.0), (0.16, 0.16, 0.15, 1.0))
     green = mix_color(nt, fine.outputs["Fac"], (0.03, 0.08, 0.02, 1.0), (0.10, 0.18, 0.05, 1.0))
     color = mix_color(nt, grass, asphalt, green)
+    if lighting == "direct":
+        direct_surface(nt, out, color, look, mat)
+        return mat
+    bsdf = node(nt, "ShaderNodeBsdfPrincipled")
+    nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
     nt.links.new(color, bsdf.inputs["Base Color"])
     bsdf.inputs["Roughness"].default_value = 0.95
     return mat
@@ -557,6 +604,8 @@ def emission_from_base_color(bpy, mat):
     else:
         em.inputs["Color"].default_value = base.default_value
     nt.links.new(em.outputs["Emission"], outputs[0].inputs["Surface"])
+    # Texture-as-emission is not a light source: nothing to sample, no light tree to build per tile.
+    mat.cycles.emission_sampling = "NONE"
 
 
 def assign_material(meshes, mat):
@@ -591,7 +640,7 @@ def sun_direction(look):
     return (math.sin(az) * math.cos(el), math.cos(az) * math.cos(el), math.sin(el))
 
 
-def add_sky_and_sun(bpy, scene, look):
+def add_sky_and_sun(bpy, scene, look, lighting):
     from mathutils import Vector
 
     world = bpy.data.worlds.new("insgen_world")
@@ -625,7 +674,14 @@ def add_sky_and_sun(bpy, scene, look):
 
     light = bpy.data.lights.new("insgen_sun", type="SUN")
     light.energy = float(look.get("sun_strength", 4.0))
-    light.angle = math.radians(0.53)
+    # Direct lighting takes a point-like sun (hard shadows, one exact shadow ray); path tracing the real
+    # disc (0.53 deg).
+    light.angle = 0.0 if lighting == "direct" else math.radians(0.53)
+    if lighting == "direct":
+        # The sky is seen by the camera but lights nothing: its light is the materials' ambient term.
+        vis = world.cycles_visibility
+        vis.diffuse = vis.glossy = vis.transmission = vis.scatter = False
+        world.cycles.sampling_method = "NONE"
     light.color = (1.0, 0.96, 0.9)
     sun = bpy.data.objects.new("insgen_sun", light)
     scene.collection.objects.link(sun)
@@ -660,7 +716,8 @@ def build_look(bpy, scene, job, placed):
         # Workbench shows the models' colour attribute (the scene's flat per-building colour).
         scene.world = bpy.data.worlds.new("insgen_world")
         return
-    bmat = building_material(bpy, look)
+    lighting = job["lighting"]
+    bmat = building_material(bpy, look, lighting)
     for _root, meshes, model in placed:
         if model["kind"] == "lod":
             assign_material(meshes, bmat)
@@ -670,8 +727,8 @@ def build_look(bpy, scene, job, placed):
                     if slot.material is not None:
                         emission_from_base_color(bpy, slot.material)
     if look.get("ground_plane", True):
-        add_ground(bpy, scene, look, ground_material(bpy, look), look.get("ground_half_extent_m", 20000.0))
-    add_sky_and_sun(bpy, scene, look)
+        add_ground(bpy, scene, look, ground_material(bpy, look, lighting), look.get("ground_half_extent_m", 20000.0))
+    add_sky_and_sun(bpy, scene, look, lighting)
 
 
 # --------------------------------------------------------------------------------------------- frames

@@ -23,8 +23,8 @@ use crate::camera::Intrinsics;
 /// Value of the `format` field.
 pub const JOB_FORMAT: &str = "insgen-blender-job";
 /// Version of the job layout; the script refuses other versions (2: `device`, `max_bounces`,
-/// `denoise_quality`).
-pub const JOB_VERSION: u32 = 2;
+/// `denoise_quality`; 3: `lighting`).
+pub const JOB_VERSION: u32 = 3;
 
 /// What the frames show.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -94,6 +94,29 @@ pub enum DenoiseQuality {
     Fast,
     Balanced,
     High,
+}
+
+/// The light transport of the procedural look (RGB mode, LoD models).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Lighting {
+    /// Direct sun light with a hard shadow, plus a constant sky ambient and a Fresnel sky reflection on
+    /// glass, both as non-sampled emission; Lambertian surfaces, no bounces. Every term but
+    /// anti-aliasing is noise-free, so one sample and a fast denoiser suffice.
+    #[default]
+    Direct,
+    /// Path tracing: the sky as an environment light, a soft sun, Principled BSDFs with glossy glass,
+    /// `max_bounces` bounces; noisy, needs samples and the denoiser.
+    Path,
+}
+
+impl Lighting {
+    pub fn name(self) -> &'static str {
+        match self {
+            Lighting::Direct => "direct",
+            Lighting::Path => "path",
+        }
+    }
 }
 
 /// How a model is shaded in RGB mode.
@@ -182,6 +205,8 @@ pub struct Job {
     /// Total light bounces of RGB renders (0 = direct light only; diffuse and glossy bounces are capped
     /// by it too).
     pub max_bounces: u32,
+    /// Light transport of the procedural look (photogrammetry is always shown unlit).
+    pub lighting: Lighting,
     /// Cycles compute device.
     pub device: Device,
     /// Render threads; 0 = all cores.
@@ -335,6 +360,7 @@ mod tests {
             denoise: false,
             denoise_quality: DenoiseQuality::Fast,
             max_bounces: 2,
+            lighting: Lighting::Direct,
             device: Device::Cpu,
             threads: 0,
             report_bounds: false,

@@ -15,7 +15,7 @@ use rand::{Rng, SeedableRng};
 use super::camera::{blender_matrix_world, cam_to_world_enu, BlenderCamera};
 use super::error::{BlenderError, JobIssue, OutputError};
 use super::job::{
-    check_writable, DenoiseQuality, Device, Engine, Job, JobFrame, JobModel, Look, Mode, ModelKind,
+    check_writable, DenoiseQuality, Device, Engine, Job, JobFrame, JobModel, Lighting, Look, Mode, ModelKind,
     JOB_FORMAT, JOB_VERSION,
 };
 use super::process::{run_job, Event, Launcher};
@@ -51,26 +51,49 @@ pub struct RgbSettings {
     pub denoise_quality: DenoiseQuality,
     /// Total light bounces (0 = direct light only).
     pub max_bounces: u32,
+    pub lighting: Lighting,
 }
 
-/// Default settings for the procedural look of the LoD model, chosen by measurement on a cam2
-/// 1920×1080 frame of the demo and of Shibuya on 2 CPU cores (bench/rgb_quality.md, reproduced by
-/// scripts/bench_rgb.sh): of the candidates measured, the cheapest that reached 35 dB PSNR against a
-/// converged reference on the demo (35.6 dB; Shibuya reached 32.9 dB). About 43–57 CPU seconds per frame.
-pub const PROCEDURAL_DEFAULTS: RgbSettings =
-    RgbSettings { samples: 2, denoise: true, denoise_quality: DenoiseQuality::Balanced, max_bounces: 2 };
+/// Default settings for the procedural look of the LoD model, chosen by measurement on cam2 1920×1080
+/// frames of the demo and of Shibuya on 2 CPU cores (bench/rgb_quality.md, reproduced by
+/// scripts/bench_rgb.sh): direct lighting leaves anti-aliasing as the only noise, which one sample and
+/// the fast denoiser (albedo and normal guides) remove to ≥ 35 dB PSNR against the converged look.
+pub const PROCEDURAL_DEFAULTS: RgbSettings = RgbSettings {
+    samples: 1,
+    denoise: true,
+    denoise_quality: DenoiseQuality::Fast,
+    max_bounces: 0,
+    lighting: Lighting::Direct,
+};
+
+/// Defaults of the path-traced procedural look (`--lighting path`): sky light and two bounces are noisy,
+/// so two samples and the balanced denoiser (≈ 35 dB on the demo, bench/rgb_quality.md).
+pub const PATH_TRACED_DEFAULTS: RgbSettings = RgbSettings {
+    samples: 2,
+    denoise: true,
+    denoise_quality: DenoiseQuality::Balanced,
+    max_bounces: 2,
+    lighting: Lighting::Path,
+};
 
 /// Default settings for photogrammetry tilesets: their textures are shown unlit (emission), so light
 /// bounces and the denoiser buy nothing; the samples only anti-alias edges and texture detail.
-pub const UNLIT_DEFAULTS: RgbSettings =
-    RgbSettings { samples: 4, denoise: false, denoise_quality: DenoiseQuality::Fast, max_bounces: 0 };
+pub const UNLIT_DEFAULTS: RgbSettings = RgbSettings {
+    samples: 4,
+    denoise: false,
+    denoise_quality: DenoiseQuality::Fast,
+    max_bounces: 0,
+    lighting: Lighting::Direct,
+};
 
 impl SceneSource {
-    /// The measured default RGB settings for this kind of scene.
-    pub fn default_rgb_settings(&self) -> RgbSettings {
-        match self {
-            SceneSource::Lod { .. } => PROCEDURAL_DEFAULTS,
-            SceneSource::Tileset { .. } => UNLIT_DEFAULTS,
+    /// The measured default RGB settings for this kind of scene (`lighting` chooses between the
+    /// procedural looks; tilesets are always unlit).
+    pub fn default_rgb_settings(&self, lighting: Lighting) -> RgbSettings {
+        match (self, lighting) {
+            (SceneSource::Lod { .. }, Lighting::Direct) => PROCEDURAL_DEFAULTS,
+            (SceneSource::Lod { .. }, Lighting::Path) => PATH_TRACED_DEFAULTS,
+            (SceneSource::Tileset { .. }, _) => UNLIT_DEFAULTS,
         }
     }
 }
@@ -98,6 +121,8 @@ pub struct RenderPlan {
     pub denoise_quality: DenoiseQuality,
     /// Light bounces of RGB renders (0 = direct light only).
     pub max_bounces: u32,
+    /// Light transport of the procedural look.
+    pub lighting: Lighting,
     /// Cycles compute device (`auto` picks the best one Blender reports).
     pub device: Device,
     /// Render threads (0 = all cores).
@@ -179,6 +204,7 @@ pub struct FrameMeta {
     pub denoise: bool,
     pub denoise_quality: DenoiseQuality,
     pub max_bounces: u32,
+    pub lighting: Lighting,
     /// Blender's version string.
     pub blender: Option<String>,
     /// SHA-256 of the frame's camera and settings (the resume fingerprint).
@@ -197,6 +223,7 @@ impl FrameMeta {
             denoise: plan.denoise,
             denoise_quality: plan.denoise_quality,
             max_bounces: plan.max_bounces,
+            lighting: plan.lighting,
             blender: info.and_then(|i| i.blender.clone()),
             fingerprint: frame_fingerprint(plan, f),
         }
@@ -365,7 +392,7 @@ pub fn frame_fingerprint(plan: &RenderPlan, f: &FrameRequest) -> String {
         }
     };
     let text = format!(
-        "{:?} {:?} {:?} {:?} {} {} {} {:?} {} {} {} {} {} {source}",
+        "{:?} {:?} {:?} {:?} {} {} {} {:?} {} {:?} {} {} {} {} {source}",
         f.intrinsics,
         f.pose,
         plan.mode,
@@ -375,6 +402,7 @@ pub fn frame_fingerprint(plan: &RenderPlan, f: &FrameRequest) -> String {
         plan.denoise,
         plan.denoise_quality,
         plan.max_bounces,
+        plan.lighting,
         plan.exr,
         plan.look_seed,
         plan.ground_enu_m,
@@ -590,6 +618,7 @@ fn run_batch(
         denoise: plan.denoise,
         denoise_quality: plan.denoise_quality,
         max_bounces: plan.max_bounces,
+        lighting: plan.lighting,
         device: plan.device,
         threads: plan.threads,
         report_bounds: plan.report_bounds,
@@ -692,6 +721,7 @@ mod tests {
             denoise: false,
             denoise_quality: DenoiseQuality::Fast,
             max_bounces: 2,
+            lighting: Lighting::Direct,
             device: Device::Cpu,
             threads: 0,
             exr: true,

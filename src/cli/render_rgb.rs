@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 
 use crate::blender::align::{building_ious, pixel_agreement, summarise, FrameAlignment};
-use crate::blender::job::{DenoiseQuality, Device};
+use crate::blender::job::{DenoiseQuality, Device, Lighting};
 use crate::blender::run::{frame_outputs, OutputKind};
 use crate::blender::tileset::SelectOptions;
 use crate::blender::{render_frames, Engine, FrameRequest, Launcher, Mode, RenderPlan, SceneSource};
@@ -57,6 +57,25 @@ pub enum DenoiseQualityArg {
     High,
 }
 
+/// Light transport of the procedural look (`--lighting`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum LightingArg {
+    /// Sun with hard shadows, sky ambient and glass reflections as emission: noise-free but for
+    /// anti-aliasing, so 1 sample + fast denoiser (the default).
+    Direct,
+    /// Path tracing with sky light and bounces: softer, costlier (2 samples + balanced denoiser).
+    Path,
+}
+
+impl From<LightingArg> for Lighting {
+    fn from(l: LightingArg) -> Lighting {
+        match l {
+            LightingArg::Direct => Lighting::Direct,
+            LightingArg::Path => Lighting::Path,
+        }
+    }
+}
+
 impl From<DenoiseQualityArg> for DenoiseQuality {
     fn from(q: DenoiseQualityArg) -> DenoiseQuality {
         match q {
@@ -100,13 +119,16 @@ pub struct Args {
     /// Kubernetes Indexed Job (JOB_COMPLETION_INDEX) and N as given.
     #[arg(long, value_name = "i/N|auto|auto/N")]
     pub shard: Option<ShardSpec>,
-    /// Cycles samples per pixel [default: 2 for the procedural look, 4 for a tileset].
+    /// Cycles samples per pixel [default: 1 procedural direct, 2 procedural path, 4 tileset].
     ///
-    /// The defaults were chosen by measurement (bench/rgb_quality.md): with the denoiser, 2 samples
-    /// of the procedural look reach 35.6 dB PSNR against a converged reference on the demo (32.9 dB on
-    /// Shibuya); unlit photogrammetry needs samples only for anti-aliasing.
+    /// The defaults were chosen by measurement (bench/rgb_quality.md): each reaches ≥ 35 dB PSNR
+    /// against the converged render of its look; unlit photogrammetry needs samples only for
+    /// anti-aliasing.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub samples: Option<u32>,
+    /// Light transport of the procedural look (ignored for tilesets, which are shown unlit).
+    #[arg(long, value_enum, value_name = "MODEL", default_value_t = LightingArg::Direct)]
+    pub lighting: LightingArg,
     /// Cycles device: auto picks the best GPU Blender reports (OptiX, CUDA, HIP, oneAPI), else the CPU.
     #[arg(long, value_enum, value_name = "DEVICE", default_value_t = DeviceArg::Cpu)]
     pub device: DeviceArg,
@@ -146,10 +168,10 @@ pub struct Args {
     /// Denoise RGB renders (the default for the procedural look).
     #[arg(long, hide_short_help = true, overrides_with = "no_denoise")]
     pub denoise: bool,
-    /// OpenImageDenoise quality [default: balanced procedural].
+    /// OpenImageDenoise quality [default: fast direct, balanced path].
     #[arg(long, value_enum, value_name = "Q", hide_short_help = true)]
     pub denoise_quality: Option<DenoiseQualityArg>,
-    /// Light bounces (0 = direct light only) [default: 2 procedural, 0 tileset].
+    /// Light bounces (0 = direct light only) [default: 0 direct and tileset, 2 path].
     #[arg(long, value_name = "N", hide_short_help = true)]
     pub max_bounces: Option<u32>,
     /// Minimum union in pixels for a building to enter the alignment statistics.
@@ -228,7 +250,7 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<Plan> {
     } else {
         (Mode::Rgb, camera_dir.join(crate::label::stage::RGB_DIR))
     };
-    let defaults = source.default_rgb_settings();
+    let defaults = source.default_rgb_settings(args.lighting.into());
     let render = RenderPlan {
         launcher,
         mode,
@@ -246,6 +268,7 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<Plan> {
         },
         denoise_quality: args.denoise_quality.map(Into::into).unwrap_or(defaults.denoise_quality),
         max_bounces: args.max_bounces.unwrap_or(defaults.max_bounces),
+        lighting: defaults.lighting,
         device: args.device.into(),
         threads: args.threads,
         exr: args.exr,
@@ -273,7 +296,11 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     let printer = global.printer();
     let r = &plan.render;
     printer.status(format!(
-        "render-rgb: {} samples, denoise {}, {} bounce(s), device {}",
+        "render-rgb: {} lighting, {} samples, denoise {}, {} bounce(s), device {}",
+        match r.source {
+            SceneSource::Lod { .. } => r.lighting.name(),
+            SceneSource::Tileset { .. } => "unlit",
+        },
         r.samples,
         if r.denoise { format!("on ({:?})", r.denoise_quality).to_lowercase() } else { "off".into() },
         r.max_bounces,
@@ -283,11 +310,19 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     let n = summary.rendered.len().max(1) as f64;
     let mean = summary.rendered.iter().map(|t| t.seconds).sum::<f64>() / n;
     let mean_cpu = summary.rendered.iter().map(|t| t.cpu_seconds).sum::<f64>() / n;
+    // The median leaves out each Blender process's first frame (scene sync, BVH, textures) once there
+    // are a few frames: what a long run costs per frame.
+    let median = |f: fn(&crate::blender::run::FrameTiming) -> f64| {
+        let mut v: Vec<f64> = summary.rendered.iter().map(f).collect();
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(0.0)
+    };
+    let (median_s, median_cpu) = (median(|t| t.seconds), median(|t| t.cpu_seconds));
     let mut devices = summary.devices.clone();
     devices.dedup();
     printer.status(format!(
-        "render-rgb: {} frame(s) rendered ({mean:.2} s/frame, {mean_cpu:.2} CPU s/frame in Blender), {} already \
-         done, {} Blender process(es) on {}",
+        "render-rgb: {} frame(s) rendered ({mean:.2} s/frame, {mean_cpu:.2} CPU s/frame in Blender; median \
+         {median_s:.2} s, {median_cpu:.2} CPU s), {} already done, {} Blender process(es) on {}",
         summary.rendered.len(),
         summary.skipped.len(),
         summary.setup_seconds.len(),

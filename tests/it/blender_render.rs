@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 use blender_support::*;
 use glam::{DMat4, DVec3};
 use insgen::blender::align::{building_ious, summarise, FrameAlignment};
-use insgen::blender::job::Device;
+use insgen::blender::job::{Device, Lighting};
 use insgen::blender::run::frame_outputs;
 use insgen::blender::tileset::SelectOptions;
 use insgen::blender::{render_frames, Engine, FrameRequest, Launcher, Mode, RenderPlan, SceneSource};
@@ -39,6 +39,7 @@ fn plan(python: &Path, dir: &Path, mode: Mode, source: SceneSource) -> RenderPla
         denoise: false,
         denoise_quality: insgen::blender::job::DenoiseQuality::Fast,
         max_bounces: 2,
+        lighting: insgen::blender::job::Lighting::Direct,
         device: insgen::blender::job::Device::Cpu,
         // Two render threads: the test machine is shared.
         threads: 2,
@@ -284,14 +285,23 @@ fn device_is_chosen_logged_and_recorded() {
         intrinsics: Intrinsics::from_hfov(32, 24, 50.0),
         pose: Pose::from_ypr_deg(0.0, 0.0, 0.0, [0.0, 0.0, 120.0]),
     };
+    let meta_schema: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas/rgb_render.schema.json")).unwrap(),
+    )
+    .unwrap();
+    let meta_schema = jsonschema::validator_for(&meta_schema).unwrap();
     for (device, word) in [(Device::Cpu, "cpu"), (Device::Auto, "auto")] {
         let mut p = plan(&py, dir.path(), Mode::Rgb, SceneSource::Lod { glb: glb.clone() });
         p.device = device;
         p.force = true;
         let s = render_frames(&p, std::slice::from_ref(&frame), &NoProgress).unwrap();
-        let meta: insgen::blender::run::FrameMeta =
-            serde_json::from_slice(&std::fs::read(p.out_dir.join("d.render.json")).unwrap()).unwrap();
+        let bytes = std::fs::read(p.out_dir.join("d.render.json")).unwrap();
+        let json: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
+        let errors: Vec<String> = meta_schema.iter_errors(&json).map(|e| e.to_string()).collect();
+        assert!(errors.is_empty(), "d.render.json against schemas/rgb_render.schema.json: {errors:?}");
+        let meta: insgen::blender::run::FrameMeta = serde_json::from_slice(&bytes).unwrap();
         assert_eq!(meta.device_requested, word);
+        assert_eq!(meta.lighting, insgen::blender::job::Lighting::Direct);
         assert_eq!(s.devices, vec![meta.device.clone()]);
         if device == Device::Cpu || std::env::var_os("INSGEN_TEST_HAS_GPU").is_none() {
             assert_eq!(meta.device, "CPU", "{word}");
@@ -748,4 +758,45 @@ fn cli_renders_rgb_and_checks_alignment_against_masks() {
         .collect();
     rgb.sort();
     assert_eq!(rgb, ["tilt45.png", "tilt45.render.json"], "the frame and its render metadata");
+}
+
+/// PSNR (dB, 8-bit RGB, peak 255) between two PNGs of the same size.
+fn psnr_db(a: &Path, b: &Path) -> f64 {
+    let a = insgen::coco::raster::read_png_rgb(a).unwrap();
+    let b = insgen::coco::raster::read_png_rgb(b).unwrap();
+    assert_eq!((a.width, a.height), (b.width, b.height));
+    let n = a.data.len() as f64;
+    let mse = a.data.iter().zip(&b.data).map(|(&x, &y)| (x as f64 - y as f64).powi(2)).sum::<f64>() / n;
+    10.0 * (255.0f64 * 255.0 / mse.max(1e-12)).log10()
+}
+
+/// The direct-lighting look has no stochastic term but anti-aliasing: two 1-sample renders with
+/// different seeds agree far better than two path-traced ones, whose sky light and bounces are noise.
+/// And the two looks are different images (the switch reaches the script).
+#[test]
+fn direct_lighting_is_noise_free_but_for_anti_aliasing() {
+    let Some(py) = blender_python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let glb = write_scene_glb(dir.path(), &box_city());
+    let frame = FrameRequest {
+        name: "f".into(),
+        intrinsics: Intrinsics::from_hfov(160, 120, 60.0),
+        pose: Pose::from_ypr_deg(30.0, 50.0, 0.0, [-40.0, -60.0, 90.0]),
+    };
+    let mut png = std::collections::BTreeMap::new();
+    for lighting in [Lighting::Direct, Lighting::Path] {
+        for seed in [1u32, 2] {
+            let run = dir.path().join(format!("{}-{seed}", lighting.name()));
+            let mut p = plan(&py, &run, Mode::Rgb, SceneSource::Lod { glb: glb.clone() });
+            (p.samples, p.seed, p.lighting, p.max_bounces) = (1, seed, lighting, 2);
+            render_frames(&p, std::slice::from_ref(&frame), &NoProgress).unwrap();
+            png.insert((lighting.name(), seed), p.out_dir.join("f.png"));
+        }
+    }
+    let direct = psnr_db(&png[&("direct", 1)], &png[&("direct", 2)]);
+    let path = psnr_db(&png[&("path", 1)], &png[&("path", 2)]);
+    let looks = psnr_db(&png[&("direct", 1)], &png[&("path", 1)]);
+    eprintln!("seed-to-seed PSNR: direct {direct:.1} dB, path {path:.1} dB; direct vs path {looks:.1} dB");
+    assert!(direct > path + 8.0, "direct {direct:.1} dB vs path {path:.1} dB");
+    assert!(looks < direct - 3.0, "the looks differ: {looks:.1} dB vs {direct:.1} dB between direct seeds");
 }

@@ -39,6 +39,7 @@ fn plan(python: &Path, dir: &Path, mode: Mode, source: SceneSource) -> RenderPla
         denoise: false,
         denoise_quality: insgen::blender::job::DenoiseQuality::Fast,
         max_bounces: 2,
+        lighting: insgen::blender::job::Lighting::Direct,
         device: insgen::blender::job::Device::Cpu,
         threads: 2,
         exr: false,
