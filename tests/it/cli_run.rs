@@ -162,3 +162,94 @@ fn slurm_array_shards_merge_into_what_one_process_writes() {
         assert!(a == b, "{name} differs between one process and the merged shards");
     }
 }
+
+/// Processes (other than this test) whose command line mentions `needle`.
+fn processes_mentioning(needle: &str) -> Vec<String> {
+    let me = std::process::id().to_string();
+    let mut found = Vec::new();
+    for e in std::fs::read_dir("/proc").into_iter().flatten().flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if !name.bytes().all(|b| b.is_ascii_digit()) || name == me {
+            continue;
+        }
+        if let Ok(cmd) = std::fs::read(e.path().join("cmdline")) {
+            let cmd = String::from_utf8_lossy(&cmd).replace('\0', " ");
+            if cmd.contains(needle) {
+                found.push(format!("{name}: {cmd}"));
+            }
+        }
+    }
+    found
+}
+
+/// A real SIGINT to `render-rgb` (to insgen alone, as `kill -INT` from a batch system would; a terminal's
+/// Ctrl-C also reaches Blender, which process.rs handles the same way): the frame in progress finishes or
+/// is dropped, Blender is stopped, the exit status is 130, no temporary or half-written file is left, and a
+/// rerun renders only the rest.
+#[test]
+fn ctrl_c_stops_render_rgb_with_130_and_a_rerun_completes() {
+    let Some(py) = crate::blender_support::blender_python() else { return };
+    let n = 8;
+    let dir = demo_with_poses(n);
+    let rgb_dir = dir.path().join("runs/demo/small/rgb");
+    let pngs = || -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(&rgb_dir)
+            .map(|r| r.filter_map(|e| e.ok()).map(|e| e.file_name().to_string_lossy().into_owned()).collect())
+            .unwrap_or_default();
+        v.sort();
+        v
+    };
+    let args = |extra: &[&str]| -> Vec<String> {
+        let mut a: Vec<String> =
+            ["render-rgb", "--area", "demo", "--camera", "small", "--samples", "1", "--no-denoise"]
+                .iter()
+                .map(|s| s.to_string())
+                .collect();
+        a.extend(["--blender-python".to_string(), py.display().to_string()]);
+        a.extend(extra.iter().map(|s| s.to_string()));
+        a
+    };
+    let mut child = Command::new(env!("CARGO_BIN_EXE_insgen"))
+        .args(args(&["--no-progress"]))
+        .current_dir(dir.path())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("insgen starts");
+    let started = Instant::now();
+    while !pngs().iter().any(|n| n.ends_with(".png") && !n.starts_with(".insgen-tmp-")) {
+        assert!(started.elapsed() < Duration::from_secs(300), "no RGB frame within 5 minutes");
+        if let Some(status) = child.try_wait().unwrap() {
+            panic!("render-rgb ended before it was interrupted: {status}");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let pid = child.id().to_string();
+    assert!(Command::new("kill").args(["-INT", &pid]).status().unwrap().success());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "stderr: {err}");
+    assert!(err.contains("interrupted (Ctrl-C)"), "{err}");
+    let scratch = dir.path().display().to_string();
+    let left = processes_mentioning(&scratch);
+    assert!(left.is_empty(), "Blender outlived render-rgb: {left:?}");
+    let after = pngs();
+    assert!(after.iter().all(|n| !n.starts_with(".insgen-tmp-")), "temporary files left: {after:?}");
+    let done: Vec<&String> = after.iter().filter(|n| n.ends_with(".png")).collect();
+    assert!(
+        !done.is_empty() && done.len() < n as usize,
+        "the stop came too late to test anything: {after:?}"
+    );
+    for png in &done {
+        // Every finished frame decodes and has its render metadata.
+        insgen::coco::raster::read_png_rgb(&rgb_dir.join(png)).expect("complete PNG");
+        let meta = rgb_dir.join(png.replace(".png", ".render.json"));
+        assert!(meta.is_file(), "{} without its metadata", png);
+    }
+    // The rerun renders the rest only.
+    let o = crate::util::insgen(dir.path(), &args(&[]).iter().map(String::as_str).collect::<Vec<_>>());
+    let err = crate::util::stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains(&format!("{} already done", done.len())), "{err}");
+    assert_eq!(pngs().iter().filter(|n| n.ends_with(".png")).count(), n as usize);
+}
