@@ -139,9 +139,9 @@ pub struct Args {
     /// Skip the local pattern search after the particle filter.
     #[arg(long)]
     pub no_polish: bool,
-    /// The paper's search exactly: its coarse grid and particle filter (40 iterations, 2 beams × (2
-    /// kept + 2 × 12 perturbations) ranked jointly across beams), no distinct basins, no polish.
-    /// Other search flags given with it still apply.
+    /// The paper's search exactly: its coarse grid, rendered at 320 px, and particle filter (40
+    /// iterations, 2 beams × (2 kept + 2 × 12 perturbations) ranked jointly across beams), no
+    /// distinct basins, no polish. Other search flags given with it still apply.
     #[arg(long)]
     pub paper: bool,
     /// Distinct coarse basins (best coarse cells that are no grid neighbour of a better one) refined
