@@ -10,7 +10,7 @@ use crate::loc::eval::{self, EvalOptions, QueryPoses};
 use crate::loc::map::{MapPerturbation, MapSummary};
 use crate::loc::oracle::Degradation;
 use crate::loc::query::{load_predictions, QuerySource};
-use crate::loc::search::{BeamMode, CoarseParams, FineParams, SearchOptions, Stages};
+use crate::loc::search::{BeamMode, CoarseParams, FineParams, Prune, SearchOptions, Stages};
 use crate::scene::PreparedScene;
 
 /// `--weighting`: how per-instance Dice scores are combined ([`Weighting`]).
@@ -139,9 +139,9 @@ pub struct Args {
     /// Skip the local pattern search after the particle filter.
     #[arg(long)]
     pub no_polish: bool,
-    /// The paper's search exactly: its coarse grid and particle filter (40 iterations, 2 beams × (2
-    /// kept + 2 × 12 perturbations) ranked jointly across beams), no distinct basins, no polish.
-    /// Other search flags given with it still apply.
+    /// The paper's search exactly: its coarse grid, rendered at 320 px, and particle filter (40
+    /// iterations, 2 beams × (2 kept + 2 × 12 perturbations) ranked jointly across beams), no
+    /// distinct basins, no polish. Other search flags given with it still apply.
     #[arg(long)]
     pub paper: bool,
     /// Distinct coarse basins (best coarse cells that are no grid neighbour of a better one) refined
@@ -149,15 +149,19 @@ pub struct Args {
     /// go on. 1 keeps only the best cell's basin [default: 4; --paper: the paper's joint beams].
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub basins: Option<u32>,
-    /// Basins refined on at the render width [default: 2].
+    /// Basins refined on at the render width [default: 1].
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub survivors: Option<u32>,
+    /// Judge the basins at the render width after AFTER coarse-width iterations as well and go on
+    /// with the best KEEP, or `off` [default: 5/2; --paper: off].
+    #[arg(long, value_name = "AFTER/KEEP|off", value_parser = parse_prune)]
+    pub prune: Option<Option<Prune>>,
     /// Width of the fine-stage renders in pixels.
     #[arg(long, value_name = "PX", default_value_t = 640)]
     pub render_width: u32,
-    /// Width of the coarse-stage renders in pixels.
-    #[arg(long, value_name = "PX", default_value_t = 320)]
-    pub coarse_width: u32,
+    /// Width of the coarse-stage renders in pixels [default: 160; --paper: 320].
+    #[arg(long, value_name = "PX")]
+    pub coarse_width: Option<u32>,
     /// Render every coarse yaw directly instead of warping it out of one wide render per grid
     /// position (a rotation about the camera centre is a homography; the warp differs only at
     /// silhouette edges, by resampling).
@@ -172,11 +176,11 @@ pub struct Args {
     /// Coarse grid in yaw: ±RANGE degrees in steps of STEP [default: 7.5/2.5].
     #[arg(long, value_name = "RANGE/STEP", value_parser = parse_range_step)]
     pub coarse_yaw: Option<(f64, f64)>,
-    /// Particle-filter iterations.
-    #[arg(long, value_name = "N", default_value_t = 40)]
-    pub iterations: u32,
+    /// Particle-filter iterations [default: 20; --paper: 40].
+    #[arg(long, value_name = "N")]
+    pub iterations: Option<u32>,
     /// Particle-filter iterations scored at the coarse width before switching to the render width
-    /// [default: those before the perturbation decay reaches its floor γ: 28 of 40].
+    /// [default: those before the perturbation decay reaches its floor γ: 14 of 20, 28 of 40].
     #[arg(long, value_name = "N")]
     pub lowres_iterations: Option<u32>,
     #[arg(long, value_name = "SEED", default_value_t = 0)]
@@ -229,6 +233,21 @@ fn parse_range_step(s: &str) -> Result<(f64, f64), String> {
         return Err(format!("{s:?}: RANGE must be ≥ 0 and STEP > 0"));
     }
     Ok((r, st))
+}
+
+/// Parses `AFTER/KEEP` (an early judgement of the basins) or `off`.
+fn parse_prune(s: &str) -> Result<Option<Prune>, String> {
+    if s.trim() == "off" {
+        return Ok(None);
+    }
+    let (a, k) = s.split_once('/').ok_or_else(|| format!("{s:?}: expected AFTER/KEEP (e.g. 5/2) or off"))?;
+    let after_iterations: u32 =
+        a.trim().parse().map_err(|_| format!("{s:?}: AFTER {a:?} is not an iteration count"))?;
+    let keep: u32 = k.trim().parse().map_err(|_| format!("{s:?}: KEEP {k:?} is not a count"))?;
+    if keep == 0 {
+        return Err(format!("{s:?}: KEEP must be at least 1"));
+    }
+    Ok(Some(Prune { after_iterations, keep }))
 }
 
 /// Parses `E,N,U` metres.
@@ -386,17 +405,23 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
             },
             fine: {
                 let base = if args.paper { FineParams::paper() } else { FineParams::default() };
-                let beams_mode = match (base.beams_mode, args.basins, args.survivors) {
-                    (BeamMode::Basins { count, survivors }, b, s) => {
-                        BeamMode::Basins { count: b.unwrap_or(count), survivors: s.unwrap_or(survivors) }
-                    }
-                    (BeamMode::Joint, None, None) => BeamMode::Joint,
-                    (BeamMode::Joint, b, s) => {
-                        BeamMode::Basins { count: b.unwrap_or(4), survivors: s.unwrap_or(2) }
-                    }
+                let beams_mode = match (base.beams_mode, args.basins, args.survivors, args.prune) {
+                    (BeamMode::Basins { count, survivors, prune }, b, s, p) => BeamMode::Basins {
+                        count: b.unwrap_or(count),
+                        survivors: s.unwrap_or(survivors),
+                        prune: p.unwrap_or(prune),
+                    },
+                    (BeamMode::Joint, None, None, None) => BeamMode::Joint,
+                    // --paper with basin flags: the paper's filter, beams as asked (no early judgement
+                    // unless asked).
+                    (BeamMode::Joint, b, s, p) => BeamMode::Basins {
+                        count: b.unwrap_or(4),
+                        survivors: s.unwrap_or(1),
+                        prune: p.flatten(),
+                    },
                 };
                 FineParams {
-                    iterations: args.iterations,
+                    iterations: args.iterations.unwrap_or(base.iterations),
                     lowres_iterations: args.lowres_iterations,
                     polish: base.polish && !args.no_polish,
                     beams_mode,
@@ -413,7 +438,7 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         },
         seed: args.seed,
         render_width_px: args.render_width,
-        coarse_width_px: args.coarse_width,
+        coarse_width_px: args.coarse_width.unwrap_or(if args.paper { 320 } else { 160 }),
         yaw_fan: !args.no_yaw_fan,
         limit: args.limit,
         overlays: args.overlays,

@@ -107,6 +107,9 @@ pub struct QueryResult {
     pub setup_seconds: f64,
     pub query_instances: usize,
     pub buildings_considered: usize,
+    /// Hypotheses and seconds per stage of the search.
+    #[serde(default)]
+    pub stages: search::StageCosts,
 }
 
 /// The run's summary.
@@ -532,6 +535,7 @@ impl<'q> QuerySetup<'q> {
                 coarse_best: self.prior,
                 coarse_score: 0.0,
                 hypotheses_scored: 0,
+                stages: Default::default(),
             }
         } else {
             match search::search(
@@ -568,6 +572,7 @@ impl<'q> QuerySetup<'q> {
             setup_seconds: self.setup_seconds,
             query_instances: qf.instances.len(),
             buildings_considered: self.buildings,
+            stages: r.stages,
         };
         Localized { result, estimate: est }
     }

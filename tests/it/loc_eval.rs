@@ -83,6 +83,13 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
         // The search never scores below what it started from: its best is at least the cost at the
         // ground truth minus the sampling gap.
         assert!(r["best_cost"].as_f64().unwrap() > 0.9, "{r}");
+        // The stages account for every hypothesis scored, and the coarse grid and both widths ran.
+        let stages = r["stages"].as_object().unwrap();
+        let per_stage: Vec<u64> = stages.values().map(|s| s["hypotheses"].as_u64().unwrap()).collect();
+        assert_eq!(per_stage.iter().sum::<u64>(), r["hypotheses"].as_u64().unwrap(), "{r}");
+        for s in ["coarse", "filter_coarse_width", "filter_render_width", "polish"] {
+            assert!(stages[s]["hypotheses"].as_u64().unwrap() > 0, "{s}: {r}");
+        }
     }
     let summary: Value = serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
     assert_schema("loc_summary.schema.json", &summary);
