@@ -580,7 +580,7 @@ pub fn combine_parts(parts: &BTreeMap<Shard, PathBuf>, out_dir: &Path) -> Result
                 String::new()
             };
             let lines: Vec<&str> = text.lines().collect();
-            if per_query == 0 || lines.len() % per_query != 0 {
+            if per_query == 0 || !lines.len().is_multiple_of(per_query) {
                 return Err(EvalError::Input {
                     path,
                     what: format!("{} lines, not {per_query} per query", lines.len()),
