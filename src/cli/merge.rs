@@ -1,5 +1,7 @@
-//! `insgen merge SOURCE...`: merges work directories of shards into `--workdir` (see
-//! [`crate::util::merge`]).
+//! `insgen merge [SOURCE...]`: merges work directories of shards into `--workdir` (see
+//! [`crate::util::merge`]) and combines the reports shards wrote in parts: COCO exports
+//! ([`crate::coco::parts`]) and localization results ([`crate::loc::eval::combine_parts`]). Every
+//! combined file is checked against what the destination holds before anything is written.
 
 use std::path::PathBuf;
 

@@ -165,7 +165,10 @@ pub fn plan_merge(sources: &[PathBuf], dest: &Path) -> Result<MergePlan, MergeEr
         Ok(())
     };
     if dest.is_dir() {
-        let (_, found) = list_files(dest, &mut MergeReport::default())?;
+        // Sources may live inside the destination (a job array's shards under <workdir>/.shards/):
+        // their parts are a source's, found below, not the destination's.
+        let inside: Vec<PathBuf> = sources.iter().filter_map(|s| fs::canonicalize(s).ok()).collect();
+        let (_, found) = list_files_except(dest, &inside, &mut MergeReport::default())?;
         add_parts(dest, found)?;
     }
     for src in sources {
@@ -230,6 +233,15 @@ fn same_tree(a: &Path, b: &Path) -> Result<bool, MergeError> {
 /// file by file); temporaries of killed runs are counted and left.
 type Listing = (Vec<PathBuf>, Vec<(PathBuf, Shard)>);
 fn list_files(root: &Path, report: &mut MergeReport) -> Result<Listing, MergeError> {
+    list_files_except(root, &[], report)
+}
+
+/// As [`list_files`], leaving out the directories `except` (canonical paths) and what they hold.
+fn list_files_except(
+    root: &Path,
+    except: &[PathBuf],
+    report: &mut MergeReport,
+) -> Result<Listing, MergeError> {
     let mut out = Vec::new();
     let mut parts = Vec::new();
     let mut stack = vec![PathBuf::new()];
@@ -243,6 +255,9 @@ fn list_files(root: &Path, report: &mut MergeReport) -> Result<Listing, MergeErr
             if entry.file_name().to_string_lossy().starts_with(".insgen-tmp-") {
                 report.temporaries_skipped += 1;
             } else if kind.is_dir() {
+                if !except.is_empty() && fs::canonicalize(entry.path()).is_ok_and(|c| except.contains(&c)) {
+                    continue;
+                }
                 match part_shard(root, &child) {
                     Some(shard) => parts.push((child, shard)),
                     None => stack.push(child),
@@ -388,6 +403,13 @@ mod tests {
         let r = plan.apply().unwrap();
         assert_eq!(r.copied, 1);
         assert!(!out.join("coco").exists(), "parts are not copied");
+        // Sources inside the destination (a job array's <workdir>/.shards/…) count once, as sources.
+        let inner = out.join(".shards/s1");
+        put(&inner, "coco/parts/1-of-2/part.json", b"{}");
+        let plan = plan_merge(&[a.clone(), inner.clone()], &out).unwrap();
+        assert_eq!(plan.parts[0].report, Path::new("coco"));
+        assert_eq!(plan.parts[0].parts.len(), 2, "{:?}", plan.parts);
+        assert!(plan.parts.iter().all(|p| !p.report.starts_with(".shards")), "{:?}", plan.parts);
         // The same shard's part with other bytes is a conflict.
         put(&b, "coco/parts/0-of-2/part.json", b"{\"other\": 1}");
         let e = plan_merge(&[a, b], &out).unwrap_err();
