@@ -3,8 +3,10 @@
 #
 #   prep  (1 task)         prepare + sample every area                       → <workdir>
 #   masks (array of N)     render-masks --shard auto/N, in node-local scratch → <workdir>/.shards/masks-<i>
+#                          (label-only: also export-coco --shard auto/N, a COCO part per task)
 #   rgb   (array of N)     render-rgb   --shard auto/N (with --rgb; GPU)      → <workdir>/.shards/rgb-<i>
-#   merge (1 task)         insgen merge of all shards, then export-coco       → <workdir>/coco
+#   merge (1 task)         insgen merge of all shards (combining the COCO parts), or with --rgb a
+#                          merge then one export-coco                          → <workdir>/coco
 #
 # Each job starts when the ones before it succeeded (afterok). Every task logs to
 # <logs>/<job>-<jobid>_<task>.log. Tasks are resumable (finished frames are skipped) and a task marks
@@ -39,7 +41,7 @@ while [ $# -gt 0 ]; do
         --resources) resources="$2"; shift 2 ;;
         --rgb-resources) rgb_resources="$2"; shift 2 ;;
         --dry-run) dry=1; shift ;;
-        -h|--help) sed -n '2,24p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,23p' "$0"; exit 0 ;;
         *) echo "submit.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
     esac
 done

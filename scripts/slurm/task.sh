@@ -45,6 +45,12 @@ case "$stage" in
                     --shard "auto/$TASKS"
             fi
         done
+        if [ "$stage" = masks ] && [ "$RGB" != 1 ]; then
+            # A label-only dataset: this task also exports its frames, as a COCO part
+            # (coco/parts/<i>-of-<TASKS>/) that the merge combines. With RGB, the export waits for
+            # the RGB frames and runs once in the merge job.
+            run "$INSGEN" --workdir "$work" --no-progress export-coco --label-only --shard "auto/$TASKS"
+        fi
         # Publish the shard whole: copy, then rename into place, then mark it done.
         mkdir -p "$shards"
         rm -rf "$final.partial"
@@ -65,11 +71,11 @@ case "$stage" in
                 shards+=("$d")
             done
         done
+        # Label-only: the masks tasks exported COCO parts, which the merge combines into coco/ (ids
+        # renumbered, statistics recomputed). With RGB: one export over the merged frames.
         run "$INSGEN" --workdir "$WORKDIR" merge "${shards[@]}"
         if [ "$RGB" = 1 ]; then
             run "$INSGEN" --workdir "$WORKDIR" --no-progress export-coco
-        else
-            run "$INSGEN" --workdir "$WORKDIR" --no-progress export-coco --label-only
         fi
         ;;
     *)

@@ -67,6 +67,7 @@ impl From<CostArg> for CostKind {
 insgen eval-loc --area demo-test --camera cam2 --oracle --cost instance --cost semantic\n  \
 insgen eval-loc --area demo-test --camera cam2 --oracle --erode 2 --drop 0.1 --merge 0.1\n  \
 insgen eval-loc --area demo-test --camera cam2 --predictions model/segm_results.json\n  \
+insgen eval-loc --area demo-test --camera cam2 --oracle --shard auto/8   # a part, for insgen merge\n  \
 insgen eval-loc --area tokyo --camera uav --oracle --masks uav/masks --query-list uav/queries.txt \\\n      \
 --gt-poses uav/gt.txt --prior-poses uav/prior.txt --out uav/loc")]
 #[command(group(clap::ArgGroup::new("source").required(true).args(["oracle", "predictions"])))]
@@ -222,6 +223,14 @@ pub struct Args {
     /// Output sub-directory under loc/ (default: derived from the options).
     #[arg(long, value_name = "NAME")]
     pub tag: Option<String>,
+    /// Localize only this shard's queries (I/N, or auto from a Slurm/Kubernetes job array).
+    ///
+    /// The queries at positions ≡ I (mod N) of the list (after --limit). The shard writes its
+    /// results.jsonl and est_poses_*.txt to <out>/parts/I-of-N/ (and its overlays among the first
+    /// --overlays queries to <out>/overlays/); `insgen merge` puts the parts back in query order and
+    /// recomputes the summary from all results.
+    #[arg(long, value_name = "I/N|auto")]
+    pub shard: Option<crate::util::ShardSpec>,
 }
 
 /// Parses `RANGE/STEP` (both ≥ 0, STEP > 0 unless RANGE = 0).
@@ -443,18 +452,29 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         limit: args.limit,
         overlays: args.overlays,
         map,
+        shard: super::resolve_shard(args.shard)?,
     };
     let printer = global.printer();
     let summary = eval::evaluate(&scene, &opts, &printer.progress())
         .with_context(|| format!("evaluating localization on {}/{}", args.area, args.camera))?;
     printer.summary(crate::loc::metrics::markdown(&summary.rows));
+    let shard = opts.shard;
     printer.summary(format!(
-        "{} queries, median {:.2} s/query (+{:.2} s setup), {:.0} hypotheses/s → {}",
+        "{}{} queries, median {:.2} s/query (+{:.2} s setup), {:.0} hypotheses/s → {}",
+        if shard.is_whole() {
+            String::new()
+        } else {
+            format!("shard {shard} (a part for `insgen merge`; the table is this shard's): ")
+        },
         summary.queries,
         summary.median_seconds_per_query,
         summary.median_setup_seconds,
         summary.hypotheses_per_second,
-        out_dir.display()
+        if shard.is_whole() {
+            out_dir.display().to_string()
+        } else {
+            out_dir.join(crate::util::shard::PARTS_DIR).join(shard.part_dir_name()).display().to_string()
+        }
     ));
     Ok(())
 }

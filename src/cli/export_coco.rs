@@ -4,9 +4,10 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use crate::coco::export::{export, ExportPlan};
+use crate::coco::export::{build, export, ExportPlan};
 use crate::coco::format::{AnnotationUnit, Filters, TruncatedPolicy};
 use crate::coco::stats::{self, ReportOptions};
+use crate::util::ShardSpec;
 
 /// What to do with instances that touch the image border.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
@@ -44,7 +45,8 @@ impl From<TruncatedArg> for TruncatedPolicy {
 #[derive(Debug, Clone, clap::Args)]
 #[command(after_long_help = "Examples:\n  insgen export-coco\n  \
 insgen export-coco --holdout shibuya --min-area 64 --truncated flag\n  \
-insgen --workdir runs export-coco --out runs/coco-buildings --per-building")]
+insgen --workdir runs export-coco --out runs/coco-buildings --per-building\n  \
+insgen --workdir /scratch/task3 export-coco --label-only --shard auto/8   # a part, for insgen merge")]
 pub struct Args {
     /// Output directory [default: <workdir>/coco].
     #[arg(long, value_name = "DIR")]
@@ -85,6 +87,13 @@ pub struct Args {
     /// Frames on the contact sheet (0 = none).
     #[arg(long, value_name = "N", default_value_t = 12, hide_short_help = true)]
     pub contact_sheet: usize,
+    /// Export only this shard's frames (I/N, or auto from a Slurm/Kubernetes job array), as a part.
+    ///
+    /// Per camera, the frames whose line in poses.jsonl is ≡ I (mod N) — the frames `render-masks
+    /// --shard I/N` renders. The part goes to <out>/parts/I-of-N/; `insgen merge` combines the N parts
+    /// into the export one process writes (same ids, same bytes) and computes the statistics then.
+    #[arg(long, value_name = "I/N|auto")]
+    pub shard: Option<ShardSpec>,
 }
 
 fn parse_fraction(s: &str) -> Result<f64, String> {
@@ -112,17 +121,70 @@ impl Args {
                 truncated: self.truncated.into(),
                 keep_empty_images: !self.drop_empty_images,
             },
+            shard: crate::util::Shard::default(),
         }
+    }
+
+    /// The statistics report asked for (`None`: --no-stats).
+    pub fn report(&self) -> Option<ReportOptions> {
+        (!self.no_stats).then_some(ReportOptions { contact_sheet_images: self.contact_sheet })
     }
 }
 
 /// Runs `export-coco`.
 pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
-    let plan = args.plan(global);
+    let mut plan = args.plan(global);
+    plan.shard = super::resolve_shard(args.shard)?;
     let printer = global.printer();
     let progress = printer.progress();
-    let (ex, mut written) = export(&plan, &progress)
+    if !plan.shard.is_whole() {
+        let ex = build(&plan, "..", &progress)
+            .with_context(|| format!("exporting COCO from {}", plan.workdir.display()))?;
+        log_export(&plan, &ex);
+        let written = crate::coco::parts::write_part(&plan, &ex, args.report())
+            .with_context(|| format!("writing shard {} of the export", plan.shard))?;
+        for f in &written {
+            log::info!("wrote {}", f.display());
+        }
+        printer.summary(format!(
+            "shard {} of the export → {}; combine the parts with `insgen merge`",
+            plan.shard,
+            crate::coco::parts::part_dir(&plan.out_dir, plan.shard).display()
+        ));
+        return Ok(());
+    }
+    let (ex, written) = export(&plan, &progress)
         .with_context(|| format!("exporting COCO from {}", plan.workdir.display()))?;
+    log_export(&plan, &ex);
+    write_reports(&plan, &ex, args.report(), written)
+}
+
+/// Writes the statistics report of `ex` (unless `report` is None) next to its COCO files, and logs
+/// every file written (`written`: those written already).
+///
+/// # Errors
+/// I/O and PNG errors naming the file.
+pub(crate) fn write_reports(
+    plan: &ExportPlan,
+    ex: &crate::coco::export::Export,
+    report: Option<ReportOptions>,
+    mut written: Vec<PathBuf>,
+) -> anyhow::Result<()> {
+    if let Some(opts) = report {
+        let refs: Vec<_> = ex.datasets.iter().map(|(s, d)| (*s, d)).collect();
+        let st = stats::compute(&refs);
+        let files = stats::write_report(&st, &refs, &plan.out_dir, &plan.workdir, opts)
+            .with_context(|| format!("writing the statistics report in {}", plan.out_dir.display()))?;
+        written.extend(files);
+    }
+    for f in &written {
+        log::info!("wrote {}", f.display());
+    }
+    Ok(())
+}
+
+/// Logs what the export left out and how many images and annotations each split got.
+pub(crate) fn log_export(plan: &ExportPlan, ex: &crate::coco::export::Export) {
     if ex.frames_without_masks > 0 {
         log::warn!(
             "{} frame(s) in poses.jsonl have no ID map or instance file yet and were skipped; run \
@@ -163,23 +225,6 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     for (split, ds) in &ex.datasets {
         log::info!("{split}: {} images, {} annotations", ds.images.len(), ds.annotations.len());
     }
-    if !args.no_stats {
-        let refs: Vec<_> = ex.datasets.iter().map(|(s, d)| (*s, d)).collect();
-        let st = stats::compute(&refs);
-        let files = stats::write_report(
-            &st,
-            &refs,
-            &plan.out_dir,
-            &plan.workdir,
-            ReportOptions { contact_sheet_images: args.contact_sheet },
-        )
-        .with_context(|| format!("writing the statistics report in {}", plan.out_dir.display()))?;
-        written.extend(files);
-    }
-    for f in &written {
-        log::info!("wrote {}", f.display());
-    }
-    Ok(())
 }
 
 #[cfg(test)]

@@ -3,7 +3,13 @@
 //! Reads `<workdir>/<area>/scene/` (written by `insgen prepare`) and the optional `[sampling]` table of
 //! `<scenes>/<area>.toml`; writes `<workdir>/<area>/<camera>/` (poses.jsonl, priors.jsonl,
 //! colmap/{cameras,images,points3D}.txt, camera.json, sampling.json, flight_plan.png). The flags become a
-//! [`Plan`] (paths resolved, camera looked up, settings validated) before any work starts.
+//! [`Plan`] per area (paths resolved, camera looked up, settings validated) before any work starts.
+//!
+//! Sharding (`--shard i/N`) splits the list of `--area`s, not the poses of one area: an area's sampler
+//! is one random stream of candidates, accepted or rejected in turn and joined into sequences, so the
+//! pose at index k depends on every candidate before it and no shard could produce its indices without
+//! running the others' first. Each area's files depend only on that area, the camera and the seed, so
+//! the shards of a list of areas write exactly what one process writes for the whole list.
 
 use std::path::{Path, PathBuf};
 
@@ -21,12 +27,13 @@ use crate::util::Progress;
 /// colmap/{cameras,images,points3D}.txt, camera.json, sampling.json and flight_plan.png.
 #[derive(Debug, Clone, clap::Args)]
 #[command(after_long_help = "Examples:\n  insgen sample --area demo --camera cam2\n  \
+insgen sample --area demo --area demo-val --area demo-test --camera cam2 --shard auto/3\n  \
 insgen sample --area demo --camera cam1 --count 300 --seed 7\n  \
 insgen sample --area demo --camera scenes/cameras/example.toml --strategy regular")]
 pub struct Args {
-    /// Area to sample (a prepared scene under <workdir>/<area>/scene).
-    #[arg(long, value_name = "NAME")]
-    pub area: String,
+    /// Area to sample (a prepared scene under <workdir>/<area>/scene); repeat for several.
+    #[arg(long = "area", value_name = "NAME", required = true)]
+    pub areas: Vec<String>,
     /// Camera: a preset (cam1, cam2, cam3) or a camera TOML file.
     ///
     /// cam1: 1600×1200, 45° hFOV (irregular flights); cam2: 1920×1080, 25° (grid); cam3: as cam2
@@ -42,6 +49,12 @@ pub struct Args {
     /// Strategy: grid, regular or irregular [default: the camera's].
     #[arg(long, value_name = "STRATEGY", value_parser = parse_strategy)]
     pub strategy: Option<Trajectory>,
+    /// Sample only this shard of the --area list (I/N, or auto from a Slurm/Kubernetes job array).
+    ///
+    /// The areas at positions ≡ I (mod N) of the list as given. Each area is sampled whole, as by
+    /// one process: its poses depend on its own random stream only.
+    #[arg(long, value_name = "I/N|auto")]
+    pub shard: Option<crate::util::ShardSpec>,
 }
 
 fn parse_strategy(s: &str) -> Result<Trajectory, crate::camera::record::UnknownTrajectory> {
@@ -66,18 +79,16 @@ pub struct Plan {
 }
 
 impl Plan {
-    /// Resolves and checks the flags.
+    /// Resolves and checks the flags for `area` (one of `args.areas`).
     ///
     /// # Errors
     /// An unknown area (listing the prepared areas and scene files), an unknown camera (listing the
     /// presets), an invalid camera file or `[sampling]` table.
-    pub fn new(args: &Args, global: &super::Global) -> anyhow::Result<Plan> {
-        let area = args.area.trim();
+    pub fn for_area(area: &str, args: &Args, global: &super::Global) -> anyhow::Result<Plan> {
+        let given = area;
+        let area = area.trim();
         if area.is_empty() || area.contains(['/', '\\']) || area == "." || area == ".." {
-            anyhow::bail!(
-                "--area {:?}: expected an area name (as in <scenes>/<area>.toml), not a path",
-                args.area
-            );
+            anyhow::bail!("--area {given:?}: expected an area name (as in <scenes>/<area>.toml), not a path");
         }
         let scene_dir = global.workdir.join(area).join("scene");
         let manifest = scene_dir.join(crate::scene::artifact::MANIFEST_FILE);
@@ -166,13 +177,42 @@ pub fn execute(plan: &Plan, scene: &PreparedScene, progress: &dyn Progress) -> a
     Ok(out)
 }
 
+/// The plans of `shard`'s areas (positions ≡ i mod N of `args.areas`), all checked before any runs.
+///
+/// # Errors
+/// An area given twice; the errors of [`Plan::for_area`].
+pub fn plans(args: &Args, global: &super::Global, shard: crate::util::Shard) -> anyhow::Result<Vec<Plan>> {
+    let mut seen = std::collections::BTreeSet::new();
+    if let Some(twice) = args.areas.iter().find(|a| !seen.insert(a.trim())) {
+        anyhow::bail!("--area {twice:?} is given twice");
+    }
+    args.areas
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| shard.contains(*i))
+        .map(|(_, area)| Plan::for_area(area, args, global))
+        .collect()
+}
+
 /// Runs `insgen sample`.
 pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
-    let plan = Plan::new(args, global)?;
+    let shard = super::resolve_shard(args.shard)?;
+    let plans = plans(args, global, shard)?;
+    if plans.is_empty() {
+        log::warn!("shard {shard} of {} area(s) holds none: nothing to sample", args.areas.len());
+    }
+    for plan in &plans {
+        run_plan(plan, global)?;
+    }
+    Ok(())
+}
+
+/// Samples one area and prints its summary.
+fn run_plan(plan: &Plan, global: &super::Global) -> anyhow::Result<()> {
     let scene = PreparedScene::load(&plan.scene_dir)
         .with_context(|| format!("loading the prepared scene of area {}", plan.area))?;
     let printer = global.printer();
-    let out = execute(&plan, &scene, &printer.progress())?;
+    let out = execute(plan, &scene, &printer.progress())?;
     let s = &out.stats;
     printer.summary(format!(
         "{}: {} {} poses in {} sequences ({} candidates) → {}; prior median error {:.1} m / {:.2}°",
@@ -203,8 +243,15 @@ mod tests {
     fn flags_parse() {
         let t = T::try_parse_from(["x", "--area", "demo", "--camera", "cam1", "--count", "5", "--seed", "9"])
             .unwrap();
-        assert_eq!((t.args.area.as_str(), t.args.camera.as_str()), ("demo", "cam1"));
-        assert_eq!((t.args.count, t.args.seed, t.args.strategy), (Some(5), 9, None));
+        assert_eq!((t.args.areas.as_slice(), t.args.camera.as_str()), (&["demo".to_string()][..], "cam1"));
+        assert_eq!((t.args.count, t.args.seed, t.args.strategy, t.args.shard), (Some(5), 9, None, None));
+        let t = T::try_parse_from(["x", "--area", "a", "--area", "b", "--camera", "cam2", "--shard", "1/2"])
+            .unwrap();
+        assert_eq!(t.args.areas, ["a", "b"]);
+        assert_eq!(
+            t.args.shard,
+            Some(crate::util::ShardSpec::Fixed(crate::util::Shard { index: 1, count: 2 }))
+        );
         let t =
             T::try_parse_from(["x", "--area", "a", "--camera", "c.toml", "--strategy", "regular"]).unwrap();
         assert_eq!(t.args.strategy, Some(Trajectory::Regular));

@@ -83,6 +83,9 @@ pub enum CocoError {
         /// The other failures, each with its cause chain.
         others: Vec<String>,
     },
+    /// The parts shards wrote of an export do not make one export (missing or foreign parts).
+    #[error("{}: {reason}", dir.display())]
+    Parts { dir: PathBuf, reason: String },
     /// A filter needs data the instance files do not have.
     #[error("{}: {reason}", path.display())]
     MissingData { path: PathBuf, reason: String },

@@ -25,7 +25,7 @@ use rayon::prelude::*;
 use crate::camera::PoseRecord;
 use crate::label::{label_components, Connectivity, FrameInstances, Labelling};
 use crate::scene::{BuildingId, BuildingRecord, IdMap, Manifest};
-use crate::util::{FileError, Progress};
+use crate::util::{FileError, Progress, Shard};
 
 use super::error::chain_string;
 use super::format::{
@@ -90,10 +90,14 @@ pub struct ExportPlan {
     /// List every labelled frame, rendered or not (`info.images_missing`); by default only frames whose
     /// RGB image exists and decodes at the frame's size are images.
     pub label_only: bool,
+    /// The frames to export: per camera, those whose line in `poses.jsonl` is in this shard (as
+    /// `render-masks` splits them). A shard other than the whole list writes a part
+    /// ([`super::parts`]) that `insgen merge` combines with the others.
+    pub shard: Shard,
 }
 
 /// Counts of what the filters removed.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct DropCounts {
     /// Annotations below `--min-area`.
     pub small: u64,
@@ -106,7 +110,7 @@ pub struct DropCounts {
 }
 
 impl DropCounts {
-    fn add(&mut self, o: &DropCounts) {
+    pub(crate) fn add(&mut self, o: &DropCounts) {
         self.small += o.small;
         self.low_visibility += o.low_visibility;
         self.truncated += o.truncated;
@@ -128,7 +132,7 @@ pub struct Export {
 }
 
 /// Labelled frames of one camera left out for want of an RGB frame.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct MissingRgb {
     pub area: String,
     pub camera: String,
@@ -182,8 +186,9 @@ fn list_dirs(dir: &Path) -> Result<Vec<(String, PathBuf)>, CocoError> {
     Ok(out)
 }
 
-/// Finds the prepared areas, their cameras and rendered frames under `workdir`.
-fn discover(workdir: &Path) -> Result<(Vec<AreaInput>, u64), CocoError> {
+/// Finds the prepared areas, their cameras and rendered frames under `workdir` (of each camera, the
+/// frames of `shard`, by line of `poses.jsonl`).
+fn discover(workdir: &Path, shard: Shard) -> Result<(Vec<AreaInput>, u64), CocoError> {
     let mut areas = Vec::new();
     let mut missing = 0u64;
     for (name, dir) in list_dirs(workdir)? {
@@ -214,13 +219,18 @@ fn discover(workdir: &Path) -> Result<(Vec<AreaInput>, u64), CocoError> {
                 continue;
             }
             let mut poses = crate::camera::record::read_jsonl(&poses_path)?;
-            poses.sort_by(|a, b| a.name.cmp(&b.name));
-            if let Some(w) = poses.windows(2).find(|w| w[0].name == w[1].name) {
+            let mut names: Vec<&str> = poses.iter().map(|p| p.name.as_str()).collect();
+            names.sort_unstable();
+            if let Some(w) = names.windows(2).find(|w| w[0] == w[1]) {
                 return Err(CocoError::Layout {
                     path: poses_path,
-                    reason: format!("frame name \"{}\" appears more than once", w[0].name),
+                    reason: format!("frame name \"{}\" appears more than once", w[0]),
                 });
             }
+            // The shard by line, as render-masks takes its frames; then by name, the export's order.
+            poses =
+                poses.into_iter().enumerate().filter(|(i, _)| shard.contains(*i)).map(|(_, p)| p).collect();
+            poses.sort_by(|a, b| a.name.cmp(&b.name));
             let mut frames = Vec::new();
             for pose in poses {
                 if pose.area != name {
@@ -564,7 +574,7 @@ fn image_record(
 
 /// `image_root` for files in `out_dir`: the relative path from `out_dir` to `workdir` when the output
 /// lies inside the workdir (`..` by default), else the workdir's absolute path.
-fn image_root(workdir: &Path, out_dir: &Path) -> String {
+pub(crate) fn image_root(workdir: &Path, out_dir: &Path) -> String {
     let (Ok(wd), Ok(out)) = (workdir.canonicalize(), out_dir.canonicalize()) else {
         return workdir.display().to_string();
     };
@@ -588,7 +598,7 @@ fn image_root(workdir: &Path, out_dir: &Path) -> String {
 /// [`CocoError::UnknownHoldout`]; [`CocoError::Frames`] when frames fail (ID map and instance file
 /// disagree, unreadable files, …), listing every failing frame.
 pub fn build(plan: &ExportPlan, image_root: &str, progress: &dyn Progress) -> Result<Export, CocoError> {
-    let (mut areas, frames_without_masks) = discover(&plan.workdir)?;
+    let (mut areas, frames_without_masks) = discover(&plan.workdir, plan.shard)?;
     if areas.is_empty() {
         return Err(CocoError::Layout {
             path: plan.workdir.clone(),
@@ -744,14 +754,29 @@ pub fn build(plan: &ExportPlan, image_root: &str, progress: &dyn Progress) -> Re
     Ok(Export { datasets, frames_without_masks, frames_without_rgb, dropped })
 }
 
-/// Builds the datasets and writes `instances_{train,val,test}.json` into `plan.out_dir` (atomically,
-/// compact JSON with a trailing newline). Returns the export and the files written.
+/// Builds the datasets and writes `instances_{train,val,test}.json`, `dataset.json` and `README.md`
+/// into `plan.out_dir` (atomically, compact JSON with a trailing newline) — or, for a shard of the
+/// frames, its part ([`super::parts::write_part`], asking the combined export for the default
+/// statistics report). Returns the export and the files written.
 ///
 /// # Errors
 /// As [`build`], plus I/O errors naming the file.
 pub fn export(plan: &ExportPlan, progress: &dyn Progress) -> Result<(Export, Vec<PathBuf>), CocoError> {
     // Build first, so that a failing export leaves no empty output directory behind.
-    let mut ex = build(plan, "..", progress)?;
+    let ex = build(plan, "..", progress)?;
+    if !plan.shard.is_whole() {
+        let written = super::parts::write_part(plan, &ex, Some(super::stats::ReportOptions::default()))?;
+        return Ok((ex, written));
+    }
+    write_export(plan, ex)
+}
+
+/// Writes built datasets as [`export`] does: the COCO files with `info.image_root` set for
+/// `plan.out_dir`, then the manifest and the card that describe them.
+///
+/// # Errors
+/// I/O errors naming the file.
+pub fn write_export(plan: &ExportPlan, mut ex: Export) -> Result<(Export, Vec<PathBuf>), CocoError> {
     crate::util::create_dir_all(&plan.out_dir)?;
     let root = image_root(&plan.workdir, &plan.out_dir);
     for (_, ds) in &mut ex.datasets {

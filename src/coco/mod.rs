@@ -16,6 +16,8 @@
 //! - [`results`]: reading and validating COCO results (predictions);
 //! - [`polygon`]: outer-boundary polygons for `--polygons`;
 //! - [`raster`]: a tiny raster for figures (ID maps are [`crate::scene::IdMap`]);
+//! - [`parts`]: the part a shard of the frames writes (`export-coco --shard`), and the parts combined
+//!   into the export one process writes (`insgen merge`);
 //! - [`frames`]: an existing export read back, each image's masks checked against its ID map;
 //! - [`panoptic`]: `export-panoptic`, COCO panoptic PNGs and JSON from an export;
 //! - [`yolo`]: `export-yolo`, Ultralytics YOLO segmentation labels and `data.yaml` from an export.
@@ -27,6 +29,7 @@ pub mod format;
 pub mod frames;
 pub mod manifest;
 pub mod panoptic;
+pub mod parts;
 pub mod polygon;
 pub mod raster;
 pub mod results;

@@ -12,6 +12,11 @@
 //! (2 m, 2°), (3 m, 3°), (5 m, 5°), median errors; the prior's own row first; per trajectory group),
 //! and `overlays/<frame>.png` for the first queries (query outlines over the renders at the prior, the
 //! estimate and the ground truth).
+//!
+//! A shard `i/N` of the queries (positions ≡ i mod N in the query list, after `limit`) writes its
+//! `results.jsonl` and `est_poses_<cost>.txt` to `<out>/parts/<i>-of-<N>/` with a `part.json`
+//! ([`PartInfo`]), and the overlays of its queries among the first ones to `<out>/overlays/`;
+//! [`combine_parts`] puts the parts' lines back in query order and recomputes the summary from them.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -31,7 +36,8 @@ use crate::camera::{Intrinsics, Pose, PoseRecord, Trajectory};
 use crate::render::cpu::{self as raster, CpuScene, Frame};
 use crate::render::warp::RotationFan;
 use crate::scene::{BuildingId, BuildingRecord, PreparedScene, SceneMesh};
-use crate::util::{self, Progress};
+use crate::util::shard::{PARTS_DIR, PART_MARKER};
+use crate::util::{self, Progress, Shard};
 use glam::DVec3;
 
 /// Errors of the eval-loc stage.
@@ -48,6 +54,15 @@ pub enum EvalError {
     /// Stopped by Ctrl-C between queries; nothing was written.
     #[error(transparent)]
     Interrupted(#[from] util::interrupt::Interrupted),
+    /// The parts shards wrote of an evaluation do not make one evaluation.
+    #[error("{}: {what}", dir.display())]
+    Parts { dir: PathBuf, what: String },
+    #[error("{}: the parts do not interleave", dir.display())]
+    Interleave {
+        dir: PathBuf,
+        #[source]
+        source: util::ShardError,
+    },
 }
 
 /// Options of an evaluation run.
@@ -76,6 +91,9 @@ pub struct EvalOptions {
     pub overlays: usize,
     /// The map the scene given to [`evaluate`] is (its area and perturbation), for the summary.
     pub map: MapSummary,
+    /// The queries to localize: positions ≡ i (mod N) of the list (after `limit`). A shard other
+    /// than the whole list writes a part for [`combine_parts`] instead of the summary.
+    pub shard: Shard,
 }
 
 /// One line of `results.jsonl`.
@@ -402,15 +420,19 @@ pub fn evaluate(
     opts: &EvalOptions,
     progress: &dyn Progress,
 ) -> Result<Summary, EvalError> {
-    let queries = load_selected_queries(opts)?;
+    let all = load_selected_queries(opts)?;
+    let total = all.len();
+    // Positions in the whole list: they decide the shard and the overlays.
+    let queries: Vec<(usize, &QueryPose)> =
+        all.iter().enumerate().filter(|(p, _)| opts.shard.contains(*p)).collect();
     let mut runs: Vec<Localized> = Vec::new();
     progress.start((queries.len() * opts.costs.len()) as u64, "queries");
-    for (qi, q) in queries.iter().enumerate() {
+    for &(position, q) in &queries {
         util::interrupt::check()?;
         let setup = QuerySetup::new(scene, opts, q)?;
         for &kind in &opts.costs {
             let run = setup.localize(opts, kind);
-            if qi < opts.overlays && kind == opts.costs[0] {
+            if position < opts.overlays && kind == opts.costs[0] {
                 write_overlay(
                     &opts.out_dir,
                     &q.name,
@@ -426,9 +448,176 @@ pub fn evaluate(
         }
     }
     progress.finish();
-    let summary = summarise(&queries, &runs, opts);
-    write_outputs(&opts.out_dir, &runs, &summary)?;
+    let results: Vec<QueryResult> = runs.iter().map(|r| r.result.clone()).collect();
+    let summary = summarise(&results, &opts.costs, opts.weighting, &opts.search, &opts.map);
+    let (jsonl, est) = output_texts(&opts.out_dir, &runs)?;
+    if opts.shard.is_whole() {
+        write_outputs(
+            &opts.out_dir,
+            &Outputs { results_jsonl: jsonl, est_poses: est, summary: summary.clone() },
+        )?;
+    } else {
+        let dir = opts.out_dir.join(PARTS_DIR).join(opts.shard.part_dir_name());
+        util::write_bytes_atomic(&dir.join(RESULTS_FILE), jsonl.as_bytes())?;
+        for (name, text) in &est {
+            util::write_bytes_atomic(&dir.join(name), text.as_bytes())?;
+        }
+        let info = PartInfo {
+            kind: PART_KIND.into(),
+            version: PART_VERSION,
+            shard: opts.shard.to_string(),
+            queries: total,
+            costs: opts.costs.clone(),
+            weighting: opts.weighting,
+            search: opts.search.clone(),
+            map: opts.map.clone(),
+        };
+        // The marker last: a part with a marker is complete.
+        util::write_json_atomic(&dir.join(PART_MARKER), &info)?;
+    }
     Ok(summary)
+}
+
+/// `results.jsonl`.
+pub const RESULTS_FILE: &str = "results.jsonl";
+/// `kind` of an eval-loc part's `part.json`.
+pub const PART_KIND: &str = "eval-loc";
+/// Version of [`PartInfo`].
+pub const PART_VERSION: u32 = 1;
+
+/// The `part.json` of a shard's part of an evaluation: what the parts of one run share.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct PartInfo {
+    /// Always [`PART_KIND`].
+    pub kind: String,
+    /// Always [`PART_VERSION`].
+    pub version: u32,
+    /// `i/N`.
+    pub shard: String,
+    /// Queries of the whole run (all shards).
+    pub queries: usize,
+    pub costs: Vec<CostKind>,
+    pub weighting: Weighting,
+    pub search: SearchOptions,
+    pub map: MapSummary,
+}
+
+/// The files of an evaluation, ready to write.
+#[derive(Debug, Clone)]
+pub struct Outputs {
+    /// `results.jsonl`.
+    pub results_jsonl: String,
+    /// `est_poses_<cost>.txt` by file name.
+    pub est_poses: BTreeMap<String, String>,
+    pub summary: Summary,
+}
+
+/// Combines the parts of one evaluation (`parts`: each shard's part directory) into the outputs one
+/// process writes to `out_dir`: the result and pose lines back in query order, and the summary
+/// recomputed from the combined results.
+///
+/// # Errors
+/// [`EvalError::Parts`] when a shard is missing or the parts are of different runs (query count,
+/// costs, weighting, search or map differ); [`EvalError::Interleave`] when a part does not hold its
+/// share of the queries; I/O and JSON errors naming the file.
+pub fn combine_parts(parts: &BTreeMap<Shard, PathBuf>, out_dir: &Path) -> Result<Outputs, EvalError> {
+    let parts_dir = out_dir.join(PARTS_DIR);
+    let fail = |what: String| EvalError::Parts { dir: parts_dir.clone(), what };
+    let mut infos = Vec::new();
+    for (&shard, dir) in parts {
+        let path = dir.join(PART_MARKER);
+        let info: PartInfo = serde_json::from_slice(&util::read_file(&path)?)
+            .map_err(|e| EvalError::Input { path: path.clone(), what: e.to_string() })?;
+        if info.kind != PART_KIND || info.version != PART_VERSION || info.shard != shard.to_string() {
+            return Err(EvalError::Parts {
+                dir: dir.clone(),
+                what: format!(
+                    "{PART_MARKER} is a {:?} part (version {}) of shard {}, expected a {PART_KIND:?} part \
+                     (version {PART_VERSION}) of shard {shard}",
+                    info.kind, info.version, info.shard
+                ),
+            });
+        }
+        infos.push((shard, info, dir));
+    }
+    let Some((first_shard, first, _)) = infos.first() else { return Err(fail("no parts".into())) };
+    let count = first_shard.count;
+    let same_run = |a: &PartInfo, b: &PartInfo| {
+        let key = |p: &PartInfo| {
+            serde_json::to_string(&(p.queries, &p.costs, p.weighting, &p.search, &p.map)).unwrap_or_default()
+        };
+        key(a) == key(b)
+    };
+    for (shard, info, dir) in &infos {
+        if shard.count != count || !same_run(info, first) {
+            return Err(fail(format!(
+                "{} is not a part of the same run as shard {first_shard} (shard count, queries, costs, \
+                 weighting, search or map differ); merge the parts of one run",
+                dir.display()
+            )));
+        }
+    }
+    let missing: Vec<String> = (0..count)
+        .map(|index| Shard { index, count })
+        .filter(|s| !parts.contains_key(s))
+        .map(|s| s.to_string())
+        .collect();
+    if !missing.is_empty() {
+        return Err(fail(format!(
+            "shard(s) {} of the evaluation are missing; run `insgen eval-loc … --shard I/{count}` for them",
+            missing.join(", ")
+        )));
+    }
+    let costs = &first.costs;
+    let total = first.queries;
+    // Per part: its lines grouped per query (one line per cost, or per occurrence of a cost); a
+    // part without queries has no pose files.
+    let grouped = |file: &str, per_query: usize| -> Result<String, EvalError> {
+        let mut per_part: Vec<Vec<String>> = Vec::new();
+        for (_, _, dir) in &infos {
+            let path = dir.join(file);
+            let text = if path.exists() {
+                String::from_utf8(util::read_file(&path)?)
+                    .map_err(|e| EvalError::Input { path: path.clone(), what: e.to_string() })?
+            } else {
+                String::new()
+            };
+            let lines: Vec<&str> = text.lines().collect();
+            if per_query == 0 || !lines.len().is_multiple_of(per_query) {
+                return Err(EvalError::Input {
+                    path,
+                    what: format!("{} lines, not {per_query} per query", lines.len()),
+                });
+            }
+            per_part.push(
+                lines.chunks(per_query).map(|c| c.iter().map(|l| format!("{l}\n")).collect()).collect(),
+            );
+        }
+        let all = util::shard::interleave(per_part, total)
+            .map_err(|source| EvalError::Interleave { dir: parts_dir.clone(), source })?;
+        Ok(all.concat())
+    };
+    let results_jsonl = grouped(RESULTS_FILE, costs.len())?;
+    let mut est_poses = BTreeMap::new();
+    for kind in costs {
+        let name = est_poses_file(*kind);
+        if !est_poses.contains_key(&name) {
+            let per_query = costs.iter().filter(|c| *c == kind).count();
+            est_poses.insert(name.clone(), grouped(&name, per_query)?);
+        }
+    }
+    let results: Vec<QueryResult> = results_jsonl
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            serde_json::from_str(l).map_err(|e| EvalError::Input {
+                path: out_dir.join(RESULTS_FILE),
+                what: format!("combined line {}: {e}", i + 1),
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    let summary = summarise(&results, costs, first.weighting, &first.search, &first.map);
+    Ok(Outputs { results_jsonl, est_poses, summary })
 }
 
 /// One query localized with one cost: its result line and the estimated pose.
@@ -585,9 +774,18 @@ fn recall_2m_2deg(runs: &[Localized], kind: CostKind) -> f64 {
     ok as f64 / done.len().max(1) as f64
 }
 
-/// The tables (the prior first, then each cost; per group and overall) and the timings.
-fn summarise(queries: &[QueryPose], runs: &[Localized], opts: &EvalOptions) -> Summary {
-    let results: Vec<&QueryResult> = runs.iter().map(|r| &r.result).collect();
+/// The tables (the prior first, then each cost; per group and overall) and the timings, from the
+/// results alone (in query order, one line per cost of `costs` per query), so that the summary of
+/// combined parts is computed exactly as one process computes it.
+pub fn summarise(
+    results: &[QueryResult],
+    costs: &[CostKind],
+    weighting: Weighting,
+    search: &SearchOptions,
+    map: &MapSummary,
+) -> Summary {
+    // A query's lines share its name, group, prior and setup: its first line stands for it.
+    let queries: Vec<&QueryResult> = results.chunks(costs.len().max(1)).map(|c| &c[0]).collect();
     let mut rows = Vec::new();
     let groups: Vec<&str> = {
         let mut g: Vec<&str> = queries.iter().map(|q| q.group.as_str()).collect();
@@ -608,17 +806,17 @@ fn summarise(queries: &[QueryPose], runs: &[Localized], opts: &EvalOptions) -> S
     };
     let prior_errors: Vec<(f64, f64, &str)> = queries
         .iter()
-        .map(|q| (q.gt.translation_error_m(&q.prior), q.gt.rotation_error_deg(&q.prior), q.group.as_str()))
+        .map(|q| (q.prior_translation_error_m, q.prior_rotation_error_deg, q.group.as_str()))
         .collect();
     push_rows("prior", &prior_errors);
-    for &kind in &opts.costs {
+    for &kind in costs {
         let errs: Vec<(f64, f64, &str)> = results
             .iter()
             .filter(|r| r.cost == kind)
             .map(|r| (r.translation_error_m, r.rotation_error_deg, r.group.as_str()))
             .collect();
         let name = match kind {
-            CostKind::Instance => format!("instance ({:?})", opts.weighting).to_lowercase(),
+            CostKind::Instance => format!("instance ({weighting:?})").to_lowercase(),
             CostKind::Semantic => "semantic IoU (LoD-Loc v2)".to_string(),
             CostKind::Merged => "merged instances".to_string(),
         };
@@ -632,11 +830,7 @@ fn summarise(queries: &[QueryPose], runs: &[Localized], opts: &EvalOptions) -> S
     }
     let secs: Vec<f64> = results.iter().map(|r| r.seconds).collect();
     // One setup per query, shared by its costs.
-    let mut setup: BTreeMap<&str, f64> = BTreeMap::new();
-    for r in &results {
-        setup.insert(r.name.as_str(), r.setup_seconds);
-    }
-    let setup_times: Vec<f64> = queries.iter().filter_map(|q| setup.get(q.name.as_str()).copied()).collect();
+    let setup_times: Vec<f64> = queries.iter().map(|q| q.setup_seconds).collect();
     let total_hyp: u64 = results.iter().map(|r| r.hypotheses).sum();
     let total_s: f64 = secs.iter().sum();
     Summary {
@@ -646,16 +840,21 @@ fn summarise(queries: &[QueryPose], runs: &[Localized], opts: &EvalOptions) -> S
         median_setup_seconds: metrics::median_or_nan(&setup_times),
         hypotheses_per_second: if total_s > 0.0 { total_hyp as f64 / total_s } else { 0.0 },
         instance_buckets,
-        search: opts.search.clone(),
-        map: opts.map.clone(),
+        search: search.clone(),
+        map: map.clone(),
     }
 }
 
-/// Writes `results.jsonl`, `est_poses_<cost>.txt` (LoD-Loc's `NAME QW QX QY QZ TX TY TZ`),
-/// `summary.json` and `summary.md` into `out_dir`, each atomically.
-fn write_outputs(out_dir: &Path, runs: &[Localized], summary: &Summary) -> Result<(), EvalError> {
+/// The file name of the estimated poses of cost `kind`: `est_poses_<cost>.txt`.
+pub fn est_poses_file(kind: CostKind) -> String {
+    format!("est_poses_{}.txt", format!("{kind:?}").to_lowercase())
+}
+
+/// The text of `results.jsonl` and of each `est_poses_<cost>.txt` (LoD-Loc's `NAME QW QX QY QZ TX TY
+/// TZ`, by file name) for `runs`.
+fn output_texts(out_dir: &Path, runs: &[Localized]) -> Result<(String, BTreeMap<String, String>), EvalError> {
     let mut jsonl = String::new();
-    let mut est_lines: BTreeMap<CostKind, String> = BTreeMap::new();
+    let mut est_lines: BTreeMap<String, String> = BTreeMap::new();
     for Localized { result: r, estimate } in runs {
         jsonl.push_str(
             &serde_json::to_string(r)
@@ -663,16 +862,25 @@ fn write_outputs(out_dir: &Path, runs: &[Localized], summary: &Summary) -> Resul
         );
         jsonl.push('\n');
         let (q, t) = (estimate.colmap_qvec(), estimate.t_cam_from_world());
-        est_lines.entry(r.cost).or_default().push_str(&format!(
+        est_lines.entry(est_poses_file(r.cost)).or_default().push_str(&format!(
             "{} {} {} {} {} {} {} {}\n",
             r.name, q[0], q[1], q[2], q[3], t[0], t[1], t[2]
         ));
     }
-    util::write_bytes_atomic(&out_dir.join("results.jsonl"), jsonl.as_bytes())?;
-    for (kind, text) in &est_lines {
-        let name = format!("est_poses_{}.txt", format!("{kind:?}").to_lowercase());
+    Ok((jsonl, est_lines))
+}
+
+/// Writes `results.jsonl`, `est_poses_<cost>.txt`, `summary.json` and `summary.md` into `out_dir`,
+/// each atomically.
+///
+/// # Errors
+/// I/O errors naming the file.
+pub fn write_outputs(out_dir: &Path, outputs: &Outputs) -> Result<(), EvalError> {
+    util::write_bytes_atomic(&out_dir.join(RESULTS_FILE), outputs.results_jsonl.as_bytes())?;
+    for (name, text) in &outputs.est_poses {
         util::write_bytes_atomic(&out_dir.join(name), text.as_bytes())?;
     }
+    let summary = &outputs.summary;
     util::write_json_atomic(&out_dir.join("summary.json"), summary)?;
     let md = format!(
         "# Localization on {}\n\n{} queries; median {:.2} s per query (search; the query's setup takes {:.2} s \

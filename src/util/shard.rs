@@ -11,7 +11,7 @@
 use std::str::FromStr;
 
 /// `--shard i/N`: the items whose position in their list is ≡ `index` (mod `count`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct Shard {
     /// This shard, 0-based, below `count`.
     pub index: u32,
@@ -46,7 +46,18 @@ pub enum ShardError {
     CountUnknown,
     #[error("{source} (from {scheduler})")]
     FromScheduler { scheduler: Scheduler, source: Box<ShardError> },
+    #[error("shard {index}/{count} holds {found} item(s); of {total} it should hold {expected}")]
+    PartLength { index: u32, count: u32, total: usize, expected: usize, found: usize },
+    #[error("{found} part(s) for {count} shards; every shard 0..{count} must be given once")]
+    PartCount { count: u32, found: usize },
 }
+
+/// The directory, inside a report's output directory, that holds the parts shards write of it:
+/// `<out>/parts/<i>-of-<N>/` (see [`Shard::part_dir_name`]).
+pub const PARTS_DIR: &str = "parts";
+/// The file that makes a directory `parts/<i>-of-<N>/` a shard's part of a report (its `kind` says
+/// which report); `insgen merge` combines such parts instead of copying them.
+pub const PART_MARKER: &str = "part.json";
 
 /// Where a shard taken from the environment came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -120,6 +131,36 @@ impl Shard {
         position % self.count as usize == self.index as usize
     }
 
+    /// Whether this is the whole list (one shard).
+    pub fn is_whole(&self) -> bool {
+        self.count == 1
+    }
+
+    /// How many of `total` items this shard holds.
+    pub fn len_of(&self, total: usize) -> usize {
+        let (i, n) = (self.index as usize, self.count as usize);
+        if total > i {
+            (total - i).div_ceil(n)
+        } else {
+            0
+        }
+    }
+
+    /// `<i>-of-<N>`: the name of this shard's part directory under [`PARTS_DIR`].
+    pub fn part_dir_name(&self) -> String {
+        format!("{}-of-{}", self.index, self.count)
+    }
+
+    /// The shard a part directory name (`<i>-of-<N>`) stands for.
+    pub fn from_part_dir_name(name: &str) -> Option<Shard> {
+        let (i, n) = name.split_once("-of-")?;
+        let all_digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
+        if !all_digits(i) || !all_digits(n) {
+            return None;
+        }
+        format!("{i}/{n}").parse().ok()
+    }
+
     /// The shard of this task of a job array, read with `env`.
     ///
     /// Without `count` (Slurm only): index `(ID − MIN) / STEP` of `COUNT` tasks (or
@@ -178,6 +219,42 @@ impl Shard {
         }
         Err(ShardError::NoScheduler)
     }
+}
+
+/// The one list back from its shards' lists: `parts[k]` holds, in order, the items of shard `k/N`
+/// (N = `parts.len()`) of a list of `total`, and the item at position p comes from shard p mod N at
+/// p div N. Groups of lines (a query's lines, one per cost) interleave as items.
+///
+/// # Errors
+/// [`ShardError::PartLength`] when a part does not hold its share of `total`; [`ShardError::PartCount`]
+/// when there are no parts.
+pub fn interleave<T>(parts: Vec<Vec<T>>, total: usize) -> Result<Vec<T>, ShardError> {
+    let count = u32::try_from(parts.len())
+        .map_err(|_| ShardError::PartCount { count: u32::MAX, found: parts.len() })?;
+    if count == 0 {
+        return Err(ShardError::PartCount { count, found: 0 });
+    }
+    for (k, p) in parts.iter().enumerate() {
+        let shard = Shard { index: k as u32, count };
+        let expected = shard.len_of(total);
+        if p.len() != expected {
+            return Err(ShardError::PartLength {
+                index: shard.index,
+                count,
+                total,
+                expected,
+                found: p.len(),
+            });
+        }
+    }
+    let mut iters: Vec<std::vec::IntoIter<T>> = parts.into_iter().map(Vec::into_iter).collect();
+    let n = iters.len();
+    let mut out = Vec::with_capacity(total);
+    for p in 0..total {
+        // Each part's length was checked above: part p mod N holds an item for every such p.
+        out.push(iters[p % n].next().expect("part lengths checked"));
+    }
+    Ok(out)
 }
 
 impl FromStr for Shard {
@@ -282,6 +359,30 @@ mod tests {
             "1/2".parse::<ShardSpec>().unwrap().resolve(env(&k8s)).unwrap(),
             (Shard { index: 1, count: 2 }, None)
         );
+    }
+
+    #[test]
+    fn lengths_part_names_and_interleaving_invert_the_split() {
+        let total = 11;
+        for count in 1..=5u32 {
+            let parts: Vec<Vec<usize>> = (0..count)
+                .map(|index| (0..total).filter(|&p| Shard { index, count }.contains(p)).collect())
+                .collect();
+            for (k, p) in parts.iter().enumerate() {
+                assert_eq!(Shard { index: k as u32, count }.len_of(total), p.len());
+            }
+            assert_eq!(interleave(parts, total).unwrap(), (0..total).collect::<Vec<_>>());
+        }
+        assert_eq!(Shard { index: 4, count: 6 }.len_of(3), 0);
+        let s = Shard { index: 2, count: 7 };
+        assert_eq!(s.part_dir_name(), "2-of-7");
+        assert_eq!(Shard::from_part_dir_name("2-of-7"), Some(s));
+        for bad in ["7-of-7", "a-of-2", "1of2", "-1-of-2", "1-of-", "1-of-2x"] {
+            assert_eq!(Shard::from_part_dir_name(bad), None, "{bad}");
+        }
+        let e = interleave(vec![vec![0, 2], vec![1]], 4).unwrap_err();
+        assert_eq!(e, ShardError::PartLength { index: 1, count: 2, total: 4, expected: 2, found: 1 });
+        assert!(matches!(interleave(Vec::<Vec<u8>>::new(), 0), Err(ShardError::PartCount { .. })));
     }
 
     #[test]

@@ -356,7 +356,19 @@ mod cli {
     }
 
     fn args(area: &str, camera: &str) -> Args {
-        Args { area: area.into(), camera: camera.into(), count: Some(12), seed: 3, strategy: None }
+        Args {
+            areas: vec![area.into()],
+            camera: camera.into(),
+            count: Some(12),
+            seed: 3,
+            strategy: None,
+            shard: None,
+        }
+    }
+
+    /// The plan of the one area of `a`.
+    fn plan_of(a: &Args, g: &Global) -> anyhow::Result<Plan> {
+        Plan::for_area(&a.areas[0], a, g)
     }
 
     #[test]
@@ -368,7 +380,7 @@ mod cli {
         std::fs::create_dir_all(&scenes).unwrap();
         std::fs::write(scenes.join("delft.toml"), "").unwrap();
         std::fs::write(scenes.join("tokyo.toml"), "").unwrap();
-        let e = Plan::new(&args("delft", "cam2"), &global(&work, &scenes)).unwrap_err();
+        let e = plan_of(&args("delft", "cam2"), &global(&work, &scenes)).unwrap_err();
         let msg = format!("{e:#}");
         assert!(msg.starts_with("unknown area \"delft\": no prepared scene at"), "{msg}");
         assert!(
@@ -386,7 +398,7 @@ mod cli {
         std::fs::create_dir_all(work.join("boxcity/scene")).unwrap();
         std::fs::write(work.join("boxcity/scene/manifest.json"), "{}").unwrap();
         std::fs::create_dir_all(&scenes).unwrap();
-        let e = Plan::new(&args("boxcity", "cam9"), &global(&work, &scenes)).unwrap_err();
+        let e = plan_of(&args("boxcity", "cam9"), &global(&work, &scenes)).unwrap_err();
         assert!(format!("{e:#}").contains("expected one of the presets cam1, cam2, cam3"), "{e:#}");
 
         std::fs::write(
@@ -396,7 +408,7 @@ mod cli {
         .unwrap();
         let mut a = args("boxcity", "cam2");
         a.strategy = Some(Trajectory::Regular);
-        let plan = Plan::new(&a, &global(&work, &scenes)).unwrap();
+        let plan = plan_of(&a, &global(&work, &scenes)).unwrap();
         assert_eq!(plan.config.regular.line_spacing_m, 120.0);
         assert_eq!(plan.camera.strategy, Trajectory::Regular);
         assert_eq!(plan.out_dir, work.join("boxcity/cam2"));
@@ -417,7 +429,7 @@ mod cli {
 
         std::fs::write(scenes.join("boxcity.toml"), "[sampling.grid]\nheight_range_m = [300.0, 100.0]\n")
             .unwrap();
-        let e = Plan::new(&args("boxcity", "cam2"), &global(&work, &scenes)).unwrap_err();
+        let e = plan_of(&args("boxcity", "cam2"), &global(&work, &scenes)).unwrap_err();
         assert!(
             format!("{e:#}")
                 .contains("boxcity.toml:\n  - grid.height_range_m = [300, 100]: impossible height range"),

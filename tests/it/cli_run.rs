@@ -253,3 +253,243 @@ fn ctrl_c_stops_render_rgb_with_130_and_a_rerun_completes() {
     assert!(err.contains(&format!("{} already done", done.len())), "{err}");
     assert_eq!(pngs().iter().filter(|n| n.ends_with(".png")).count(), n as usize);
 }
+
+/// Search settings small enough for a test (a few hundred hypotheses per query at 160 px): the
+/// merge is checked, not the localizer.
+const FAST_EVAL: &[&str] = &[
+    "eval-loc",
+    "--area",
+    "demo",
+    "--camera",
+    "small",
+    "--oracle",
+    "--render-width",
+    "160",
+    "--coarse-width",
+    "80",
+    "--iterations",
+    "3",
+    "--coarse-xy",
+    "5/5",
+    "--coarse-z",
+    "0/0",
+    "--coarse-yaw",
+    "2.5/2.5",
+    "--overlays",
+    "3",
+];
+
+/// The keys of an eval-loc line or summary that are wall-clock times: they differ between any two
+/// runs, sharded or not.
+const TIMINGS: &[&str] = &[
+    "seconds",
+    "setup_seconds",
+    "median_seconds_per_query",
+    "median_setup_seconds",
+    "hypotheses_per_second",
+];
+
+fn without_timings(mut v: serde_json::Value) -> serde_json::Value {
+    if let Some(m) = v.as_object_mut() {
+        for k in TIMINGS {
+            m.remove(*k);
+        }
+    }
+    v
+}
+
+fn json_lines(path: &Path) -> Vec<serde_json::Value> {
+    std::fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())))
+        .unwrap()
+}
+
+/// Issue 19: `export-coco --shard` and `eval-loc --shard` write parts that `insgen merge` combines into
+/// the files one process writes — the COCO files, statistics and figures byte for byte; the
+/// localization results and poses in query order, equal but for the wall-clock times, with the summary
+/// recomputed from the combined results.
+#[test]
+fn sharded_export_and_eval_merge_into_what_one_process_writes() {
+    let dir = demo_with_poses(7);
+    let cwd = dir.path();
+    for shard in ["task0", "task1"] {
+        let ok = Command::new("cp").args(["-r", "runs", shard]).current_dir(cwd).status().unwrap();
+        assert!(ok.success());
+    }
+    let run = |args: &[&str]| {
+        let o = crate::util::insgen(cwd, args);
+        assert!(o.status.success(), "{args:?}: {}", crate::util::stderr(&o));
+        o
+    };
+    // One process.
+    run(&["render-masks", "--area", "demo", "--camera", "small", "--preview", "0"]);
+    run(&["export-coco", "--label-only"]);
+    run(FAST_EVAL);
+    // Two shards, each in its own work directory; eval-loc as task 1 of a Kubernetes Indexed Job.
+    for (k, workdir) in [(0, "task0"), (1, "task1")] {
+        let shard = format!("{k}/2");
+        run(&["--workdir", workdir, "render-masks", "--area", "demo", "--camera", "small", "--preview", "0"]
+            .iter()
+            .copied()
+            .chain(["--shard", &shard])
+            .collect::<Vec<_>>());
+        run(&["--workdir", workdir, "export-coco", "--label-only", "--shard", &shard]);
+        let o = Command::new(env!("CARGO_BIN_EXE_insgen"))
+            .args(["--workdir", workdir])
+            .args(FAST_EVAL)
+            .args(["--shard", "auto/2"])
+            .env("JOB_COMPLETION_INDEX", k.to_string())
+            .env("RUST_LOG", "info")
+            .current_dir(cwd)
+            .output()
+            .unwrap();
+        let err = crate::util::stderr(&o);
+        assert!(o.status.success(), "{err}");
+        assert!(err.contains(&format!("shard {k}/2 (from the Kubernetes Indexed Job)")), "{err}");
+    }
+    let loc = Path::new("demo/small/loc/oracle");
+    // Shard 0 of 7 queries holds 4 of them, shard 1 the other 3.
+    assert_eq!(json_lines(&cwd.join("task0").join(loc).join("parts/0-of-2/results.jsonl")).len(), 4);
+    assert_eq!(json_lines(&cwd.join("task1").join(loc).join("parts/1-of-2/results.jsonl")).len(), 3);
+    assert!(!cwd.join("task0/coco/instances_train.json").exists(), "a shard writes a part, not the export");
+
+    // A part missing: refused, nothing written.
+    let o = crate::util::insgen(cwd, &["merge", "--workdir", "lonely", "task0"]);
+    let err = crate::util::stderr(&o);
+    assert!(!o.status.success() && err.contains("shard(s) 1/2 of the export are missing"), "{err}");
+    assert!(!cwd.join("lonely").exists(), "a refused merge writes nothing");
+
+    run(&["merge", "--workdir", "merged", "task0", "task1"]);
+    let (single, merged) = (cwd.join("runs"), cwd.join("merged"));
+    assert!(!merged.join("coco/parts").exists() && !merged.join(loc).join("parts").exists());
+    // COCO: the files, the statistics and the figures byte for byte.
+    let coco = crate::util::tree(&single.join("coco"));
+    for (name, bytes) in &coco {
+        let n = name.to_string_lossy();
+        if n == "dataset.json" || n == "README.md" {
+            continue; // they quote the command log, which differs (see below)
+        }
+        assert!(
+            std::fs::read(merged.join("coco").join(name)).ok().as_ref() == Some(bytes),
+            "coco/{n} differs between one process and the merged shards"
+        );
+    }
+    assert!(coco.contains_key(Path::new("instances_train.json")) && coco.contains_key(Path::new("stats.md")));
+    // The manifest equals but for the command log (the shards' commands, not the single run's).
+    let manifest = |root: &Path| {
+        let mut m = json(&root.join("coco/dataset.json"));
+        m.as_object_mut().unwrap().remove("commands");
+        m
+    };
+    assert_eq!(manifest(&single), manifest(&merged));
+    // eval-loc: the poses and overlays byte for byte; results and summary but for the times.
+    let (a, b) = (crate::util::tree(&single.join(loc)), crate::util::tree(&merged.join(loc)));
+    assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
+    for (name, bytes) in &a {
+        let n = name.to_string_lossy();
+        if n.starts_with("est_poses_") || n.starts_with("overlays/") {
+            assert!(b[name] == *bytes, "{n} differs between one process and the merged shards");
+        }
+    }
+    assert_eq!(a.keys().filter(|k| k.starts_with("overlays")).count(), 3);
+    let strip = |v: Vec<serde_json::Value>| v.into_iter().map(without_timings).collect::<Vec<_>>();
+    let merged_results = json_lines(&merged.join(loc).join("results.jsonl"));
+    assert_eq!(merged_results.len(), 7);
+    assert_eq!(strip(json_lines(&single.join(loc).join("results.jsonl"))), strip(merged_results.clone()));
+    let summary = json(&merged.join(loc).join("summary.json"));
+    assert_eq!(
+        without_timings(json(&single.join(loc).join("summary.json"))),
+        without_timings(summary.clone())
+    );
+    // The summary's times are those of the combined results (recomputed, not taken from a part).
+    let secs: Vec<f64> = merged_results.iter().map(|r| r["seconds"].as_f64().unwrap()).collect();
+    assert_eq!(
+        summary["median_seconds_per_query"].as_f64(),
+        Some(insgen::loc::metrics::median_or_nan(&secs))
+    );
+    let table = |root: &Path| {
+        let md = std::fs::read_to_string(root.join(loc).join("summary.md")).unwrap();
+        // Line 1 names the directory, line 3 gives the times.
+        md.lines()
+            .enumerate()
+            .filter(|(i, _)| *i != 0 && *i != 2)
+            .map(|(_, l)| l.to_string())
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(table(&single), table(&merged));
+
+    // Parts of another run are refused before anything is written: an evaluation already in the
+    // destination that the parts do not combine into…
+    let results = merged.join(loc).join("results.jsonl");
+    let other_run = std::fs::read_to_string(&results).unwrap().replacen("\"seconds\":", "\"seconds\":1", 1);
+    std::fs::write(&results, &other_run).unwrap();
+    // The command log records every command, the refused merge too; everything else stays.
+    let outputs = |root: &Path| {
+        let mut t = crate::util::tree(root);
+        t.remove(Path::new("commands.jsonl"));
+        t
+    };
+    let before = outputs(&merged);
+    let o = crate::util::insgen(cwd, &["merge", "--workdir", "merged", "task0", "task1"]);
+    let err = crate::util::stderr(&o);
+    assert!(!o.status.success() && err.contains("conflict with existing ones"), "{err}");
+    assert!(err.contains("results.jsonl"), "{err}");
+    assert!(outputs(&merged) == before, "a refused merge changes nothing");
+    // …and a COCO part exported with other options.
+    run(&["--workdir", "task1", "export-coco", "--label-only", "--per-building", "--shard", "1/2"]);
+    let o = crate::util::insgen(cwd, &["merge", "--workdir", "other", "task0", "task1"]);
+    let err = crate::util::stderr(&o);
+    assert!(!o.status.success() && err.contains("was exported with other options than shard 0/2"), "{err}");
+    assert!(!cwd.join("other").exists(), "a refused merge writes nothing");
+}
+
+/// Issue 19: `sample --shard` splits the list of areas; the shards' work directories merge into what
+/// one process writes for all the areas.
+#[test]
+fn sharded_sample_of_several_areas_merges_into_what_one_process_writes() {
+    let dir = scratch_with_scenes(&[("demo", repo_scene("demo")), ("demo-val", repo_scene("demo-val"))]);
+    let cwd = dir.path();
+    let run = |args: &[&str]| {
+        let o = crate::util::insgen(cwd, args);
+        assert!(o.status.success(), "{args:?}: {}", crate::util::stderr(&o));
+        o
+    };
+    run(&["prepare", "--area", "demo", "--area", "demo-val"]);
+    for shard in ["task0", "task1"] {
+        let ok = Command::new("cp").args(["-r", "runs", shard]).current_dir(cwd).status().unwrap();
+        assert!(ok.success());
+    }
+    let sample = ["sample", "--area", "demo", "--area", "demo-val", "--camera", "cam2", "--count", "5"];
+    run(&sample);
+    for (k, workdir) in [(0, "task0"), (1, "task1")] {
+        let shard = format!("{k}/2");
+        let args: Vec<&str> =
+            ["--workdir", workdir].iter().chain(&sample).copied().chain(["--shard", &shard]).collect();
+        run(&args);
+    }
+    // Each shard sampled its area only.
+    assert!(cwd.join("task0/demo/cam2/poses.jsonl").is_file() && !cwd.join("task0/demo-val/cam2").exists());
+    assert!(cwd.join("task1/demo-val/cam2/poses.jsonl").is_file() && !cwd.join("task1/demo/cam2").exists());
+    run(&["merge", "--workdir", "merged", "task0", "task1"]);
+    for area in ["demo", "demo-val"] {
+        let single = crate::util::tree(&cwd.join("runs").join(area));
+        let merged = crate::util::tree(&cwd.join("merged").join(area));
+        assert_eq!(single.keys().collect::<Vec<_>>(), merged.keys().collect::<Vec<_>>());
+        for (k, v) in &single {
+            assert!(merged[k] == *v, "{area}/{} differs after the merge", k.display());
+        }
+    }
+    let e = crate::util::insgen(cwd, &["sample", "--area", "demo", "--area", "demo", "--camera", "cam2"]);
+    assert!(
+        crate::util::stderr(&e).contains("--area \"demo\" is given twice"),
+        "{}",
+        crate::util::stderr(&e)
+    );
+}

@@ -272,6 +272,7 @@ pub(crate) fn plan(wd: &Path, out: &str) -> ExportPlan {
         polygons: false,
         filters: Filters::default(),
         label_only: false,
+        shard: insgen::util::Shard::default(),
     }
 }
 

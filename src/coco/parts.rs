@@ -1,0 +1,289 @@
+//! COCO exports in parts: what `export-coco --shard i/N` writes, and how `insgen merge` combines the
+//! parts into the export one process writes.
+//!
+//! A shard exports the frames whose line in each camera's `poses.jsonl` is in the shard (the frames
+//! `render-masks --shard i/N` rendered), into `<out>/parts/<i>-of-<N>/`: `instances_<split>.json`
+//! (valid COCO files on their own, ids numbered within the part) and [`PART_MARKER`] (this module's
+//! [`PartInfo`]: the shard, the export's options, the counters). No report is written there: the
+//! statistics, the manifest and the card describe the whole dataset and are recomputed from it.
+//!
+//! [`combine`] reads the N parts of one export, checks that they are the parts of one run (every shard
+//! once, same options, same `info` and licences), puts the images back in the export's order (area,
+//! camera, frame, by name) and numbers images and annotations from 1 in that order, as
+//! [`super::export::build`] does — so the combined files are byte for byte those of one process.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use super::export::{read_json, DropCounts, Export, ExportPlan, MissingRgb, Split};
+use super::format::{AnnotationUnit, Dataset, Filters};
+use super::stats::ReportOptions;
+use super::CocoError;
+use crate::util::shard::{PARTS_DIR, PART_MARKER};
+use crate::util::Shard;
+
+/// `kind` of a COCO part's [`PART_MARKER`].
+pub const PART_KIND: &str = "coco";
+/// Version of [`PartInfo`].
+pub const PART_VERSION: u32 = 1;
+
+/// The [`PART_MARKER`] of a COCO part: the shard, the options of the export, and its counters.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PartInfo {
+    /// Always [`PART_KIND`].
+    pub kind: String,
+    /// Always [`PART_VERSION`].
+    pub version: u32,
+    /// `i/N`.
+    pub shard: String,
+    pub options: PartOptions,
+    /// Frames of this shard listed in `poses.jsonl` without an ID map or instance file.
+    pub frames_without_masks: u64,
+    pub dropped: DropCounts,
+    pub frames_without_rgb: Vec<MissingRgb>,
+}
+
+/// The options of a sharded export; the parts of one export agree on them.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PartOptions {
+    pub annotation_unit: AnnotationUnit,
+    pub polygons: bool,
+    pub filters: Filters,
+    pub holdout: Vec<String>,
+    pub label_only: bool,
+    /// The statistics report the combined export gets (`None`: `--no-stats`).
+    pub report: Option<PartReport>,
+}
+
+/// The statistics report's options.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PartReport {
+    /// Frames on the contact sheet (0 = none).
+    pub contact_sheet_images: usize,
+}
+
+/// The directory shard `shard`'s part of an export to `out_dir` goes to: `<out_dir>/parts/<i>-of-<N>`.
+pub fn part_dir(out_dir: &Path, shard: Shard) -> PathBuf {
+    out_dir.join(PARTS_DIR).join(shard.part_dir_name())
+}
+
+/// Writes `ex`, the export of `plan.shard`'s frames, as that shard's part under `plan.out_dir`: its
+/// COCO files, then the marker (last, so that a part with a marker is complete). `report` is the
+/// statistics report the combined export should get. Returns the files written.
+///
+/// # Errors
+/// I/O errors naming the file.
+pub fn write_part(
+    plan: &ExportPlan,
+    ex: &Export,
+    report: Option<ReportOptions>,
+) -> Result<Vec<PathBuf>, CocoError> {
+    let dir = part_dir(&plan.out_dir, plan.shard);
+    crate::util::create_dir_all(&dir)?;
+    let root = super::export::image_root(&plan.workdir, &dir);
+    let mut written = Vec::new();
+    for (split, ds) in &ex.datasets {
+        let mut ds = ds.clone();
+        ds.info.image_root = root.clone();
+        let path = dir.join(split.file_name());
+        super::export::write_dataset(&path, &ds)?;
+        written.push(path);
+    }
+    let info = PartInfo {
+        kind: PART_KIND.into(),
+        version: PART_VERSION,
+        shard: plan.shard.to_string(),
+        options: PartOptions {
+            annotation_unit: plan.unit,
+            polygons: plan.polygons,
+            filters: plan.filters,
+            holdout: plan.holdout.clone(),
+            label_only: plan.label_only,
+            report: report.map(|r| PartReport { contact_sheet_images: r.contact_sheet_images }),
+        },
+        frames_without_masks: ex.frames_without_masks,
+        dropped: ex.dropped,
+        frames_without_rgb: ex.frames_without_rgb.clone(),
+    };
+    let marker = dir.join(PART_MARKER);
+    crate::util::write_json_atomic(&marker, &info)?;
+    written.push(marker);
+    Ok(written)
+}
+
+/// What [`combine`] makes of the parts: the plan one process would have run on the merged work
+/// directory, its statistics options, and the export it builds.
+#[derive(Debug, Clone)]
+pub struct Combined {
+    pub plan: ExportPlan,
+    pub report: Option<ReportOptions>,
+    pub export: Export,
+}
+
+/// Combines the parts of one export (`parts`: each shard's part directory) into the export of all
+/// frames, for `out_dir` in the merged work directory `workdir`.
+///
+/// # Errors
+/// [`CocoError::Parts`] when a shard is missing, the parts disagree on the shard count or the options,
+/// or their datasets describe different areas; JSON and I/O errors naming the file.
+pub fn combine(
+    parts: &BTreeMap<Shard, PathBuf>,
+    workdir: &Path,
+    out_dir: &Path,
+) -> Result<Combined, CocoError> {
+    let fail = |reason: String| CocoError::Parts { dir: out_dir.join(PARTS_DIR), reason };
+    let infos: Vec<(Shard, PartInfo, &PathBuf)> = parts
+        .iter()
+        .map(|(&shard, dir)| {
+            let path = dir.join(PART_MARKER);
+            let info: PartInfo = read_json(&path)?;
+            if info.kind != PART_KIND || info.version != PART_VERSION {
+                return Err(CocoError::Parts {
+                    dir: dir.clone(),
+                    reason: format!(
+                        "{PART_MARKER} is a {:?} part of version {}, expected {PART_KIND:?} version {PART_VERSION}",
+                        info.kind, info.version
+                    ),
+                });
+            }
+            if info.shard != shard.to_string() {
+                return Err(CocoError::Parts {
+                    dir: dir.clone(),
+                    reason: format!("{PART_MARKER} says shard {}, the directory {shard}", info.shard),
+                });
+            }
+            Ok((shard, info, dir))
+        })
+        .collect::<Result<_, _>>()?;
+    let Some((first_shard, first, first_dir)) = infos.first() else {
+        return Err(fail("no parts".into()));
+    };
+    let count = first_shard.count;
+    let missing: Vec<String> = (0..count)
+        .map(|index| Shard { index, count })
+        .filter(|s| !parts.contains_key(s))
+        .map(|s| s.to_string())
+        .collect();
+    if let Some((other, _, dir)) = infos.iter().find(|(s, _, _)| s.count != count) {
+        return Err(fail(format!(
+            "parts of {count} shards ({}) and of {} ({}) are mixed; merge the parts of one run",
+            first_dir.display(),
+            other.count,
+            dir.display()
+        )));
+    }
+    if !missing.is_empty() {
+        return Err(fail(format!(
+            "shard(s) {} of the export are missing; run `insgen export-coco --shard I/{count}` for them \
+             and give their work directories to the merge",
+            missing.join(", ")
+        )));
+    }
+    if let Some((s, info, _)) = infos.iter().find(|(_, i, _)| i.options != first.options) {
+        return Err(fail(format!(
+            "shard {s} was exported with other options than shard {first_shard} ({:?} vs {:?})",
+            info.options, first.options
+        )));
+    }
+
+    // Per split: the parts' datasets, checked to describe the same areas.
+    let mut datasets: Vec<(Split, Dataset)> = Vec::new();
+    for split in Split::ALL {
+        let mut combined: Option<Dataset> = None;
+        // (area, camera, frame) → the image and its annotations.
+        let mut images = BTreeMap::new();
+        for (shard, _, dir) in &infos {
+            let path = dir.join(split.file_name());
+            let mut ds: Dataset = read_json(&path)?;
+            let mut anns: BTreeMap<u64, Vec<super::Annotation>> = BTreeMap::new();
+            for a in std::mem::take(&mut ds.annotations) {
+                anns.entry(a.image_id).or_default().push(a);
+            }
+            for im in std::mem::take(&mut ds.images) {
+                let a = anns.remove(&im.id).unwrap_or_default();
+                let key = (im.area_name.clone(), im.camera.clone(), im.frame.clone());
+                if images.insert(key, (im, a)).is_some() {
+                    return Err(CocoError::Parts {
+                        dir: path.clone(),
+                        reason: format!("shard {shard} exports a frame another shard exports too"),
+                    });
+                }
+            }
+            if let Some(orphan) = anns.keys().next() {
+                return Err(CocoError::Parts {
+                    dir: path.clone(),
+                    reason: format!("annotations refer to image {orphan}, which the file does not hold"),
+                });
+            }
+            match &combined {
+                None => combined = Some(ds),
+                Some(c) => {
+                    let mut info = ds.info.clone();
+                    info.image_root.clone_from(&c.info.image_root);
+                    if info != c.info || ds.licenses != c.licenses || ds.categories != c.categories {
+                        return Err(CocoError::Parts {
+                            dir: path.clone(),
+                            reason: format!(
+                                "its info, licences or categories differ from shard {first_shard}'s: the \
+                                 shards exported different work directories"
+                            ),
+                        });
+                    }
+                }
+            }
+        }
+        // Every split has a part file in every part, and there is at least one part.
+        let mut ds = combined.ok_or_else(|| fail("no parts".into()))?;
+        for ((_, _, _), (mut im, anns)) in images {
+            im.id = ds.images.len() as u64 + 1;
+            for mut a in anns {
+                a.id = ds.annotations.len() as u64 + 1;
+                a.image_id = im.id;
+                ds.annotations.push(a);
+            }
+            ds.images.push(im);
+        }
+        datasets.push((split, ds));
+    }
+
+    let mut dropped = DropCounts::default();
+    let mut frames_without_masks = 0;
+    let mut missing_rgb: BTreeMap<(String, String), MissingRgb> = BTreeMap::new();
+    for (_, info, _) in &infos {
+        dropped.add(&info.dropped);
+        frames_without_masks += info.frames_without_masks;
+        for m in &info.frames_without_rgb {
+            let e = missing_rgb.entry((m.area.clone(), m.camera.clone())).or_insert_with(|| MissingRgb {
+                area: m.area.clone(),
+                camera: m.camera.clone(),
+                frames: 0,
+                broken: Vec::new(),
+            });
+            e.frames += m.frames;
+            e.broken.extend(m.broken.iter().take(5 - e.broken.len().min(5)).cloned());
+        }
+    }
+    let o = &first.options;
+    let plan = ExportPlan {
+        workdir: workdir.to_path_buf(),
+        out_dir: out_dir.to_path_buf(),
+        holdout: o.holdout.clone(),
+        unit: o.annotation_unit,
+        polygons: o.polygons,
+        filters: o.filters,
+        label_only: o.label_only,
+        shard: Shard::default(),
+    };
+    Ok(Combined {
+        plan,
+        report: o.report.map(|r| ReportOptions { contact_sheet_images: r.contact_sheet_images }),
+        export: Export {
+            datasets,
+            frames_without_masks,
+            frames_without_rgb: missing_rgb.into_values().collect(),
+            dropped,
+        },
+    })
+}
