@@ -60,6 +60,9 @@ pub struct EvalOptions {
     /// Costs to evaluate (each gives a row of the table).
     pub costs: Vec<CostKind>,
     pub weighting: Weighting,
+    /// Weight w of the semantic IoU in the instance cost, (1 − w)·instance + w·semantic, in [0, 1]
+    /// ([`super::cost::Scorer::blended_cost`]; 0 = the paper's).
+    pub semantic_weight: f64,
     /// Oracle masks (degraded) or predictions.
     pub source: QuerySource,
     /// The search's stages and parameters.
@@ -201,6 +204,8 @@ pub struct CpuEvaluator<'a> {
     pub query: &'a Query,
     pub kind: CostKind,
     pub weighting: Weighting,
+    /// Weight of the semantic IoU in [`CostKind::Instance`] (see [`EvalOptions::semantic_weight`]).
+    pub semantic_weight: f64,
     pub k_max: u32,
     /// Runs of at least [`MIN_FAN`] consecutive hypotheses at one centre (the coarse grid's yaws) are
     /// rendered once, wide, and warped per yaw ([`RotationFan`]).
@@ -219,7 +224,7 @@ impl CpuEvaluator<'_> {
     }
 
     fn score(&self, scorer: &mut Scorer, ids: &[u32]) -> f64 {
-        scorer.cost(self.kind, self.query, ids, self.k_max, self.weighting)
+        scorer.cost(self.kind, self.query, ids, self.k_max, self.weighting, self.semantic_weight)
     }
 
     /// Scores one run of hypotheses sharing a centre: through a rotation fan when it is long enough and
@@ -522,6 +527,7 @@ impl<'q> QuerySetup<'q> {
             query,
             kind,
             weighting: opts.weighting,
+            semantic_weight: opts.semantic_weight,
             k_max: self.buildings as u32,
             yaw_fan,
         };
@@ -618,6 +624,9 @@ fn summarise(queries: &[QueryPose], runs: &[Localized], opts: &EvalOptions) -> S
             .map(|r| (r.translation_error_m, r.rotation_error_deg, r.group.as_str()))
             .collect();
         let name = match kind {
+            CostKind::Instance if opts.semantic_weight > 0.0 => {
+                format!("instance ({:?}) + {} semantic", opts.weighting, opts.semantic_weight).to_lowercase()
+            }
             CostKind::Instance => format!("instance ({:?})", opts.weighting).to_lowercase(),
             CostKind::Semantic => "semantic IoU (LoD-Loc v2)".to_string(),
             CostKind::Merged => "merged instances".to_string(),
