@@ -215,6 +215,8 @@ fn bench_area(
                     query: &q,
                     kind: CostKind::Instance,
                     weighting: Weighting::Conf,
+                    // The paper's pure instance cost: this bench times the raster, not the blend.
+                    semantic_weight: 0.0,
                     k_max: kept.len() as u32,
                     // Distinct centres, as in the particle filter: one render per hypothesis.
                     yaw_fan: false,

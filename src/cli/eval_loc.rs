@@ -3,7 +3,7 @@
 use anyhow::Context;
 
 use super::Global;
-use crate::loc::cost::{CostKind, Weighting};
+use crate::loc::cost::{CostKind, Weighting, DEFAULT_SEMANTIC_WEIGHT};
 use std::path::PathBuf;
 
 use crate::loc::eval::{self, EvalOptions, QueryPoses};
@@ -110,6 +110,11 @@ pub struct Args {
     /// Instance weighting: by box area (the paper's main tables) or by confidence score.
     #[arg(long, value_enum, default_value_t = WeightingArg::Area)]
     pub weighting: WeightingArg,
+    /// Weight W of the semantic IoU blended into the instance cost, (1 − W)·instance + W·semantic, so
+    /// that a map coarser than the query (LoD1 blocks hiding more of the buildings behind) does not move
+    /// the optimum; 0 is the paper's pure instance cost [default: 0.5; --paper: 0].
+    #[arg(long, value_name = "W", value_parser = parse_unit_fraction)]
+    pub semantic_weight: Option<f64>,
     /// Erode the oracle masks by K pixels (at the masks' own resolution).
     #[arg(long, value_name = "K", default_value_t = 0, conflicts_with = "dilate")]
     pub erode: u32,
@@ -245,6 +250,22 @@ fn parse_range_step(s: &str) -> Result<(f64, f64), String> {
 }
 
 /// Parses `AFTER/KEEP` (an early judgement of the basins) or `off`.
+/// The semantic IoU's weight in the instance cost: as given, else 0 with `--paper` (the paper's pure
+/// instance cost), else [`DEFAULT_SEMANTIC_WEIGHT`].
+fn semantic_weight(args: &Args) -> f64 {
+    args.semantic_weight.unwrap_or(if args.paper { 0.0 } else { DEFAULT_SEMANTIC_WEIGHT })
+}
+
+/// `--semantic-weight`: a number in [0, 1].
+fn parse_unit_fraction(s: &str) -> Result<f64, String> {
+    let w: f64 = s.trim().parse().map_err(|_| format!("expected a number in [0, 1], got {s:?}"))?;
+    if (0.0..=1.0).contains(&w) {
+        Ok(w)
+    } else {
+        Err(format!("expected a number in [0, 1], got {w}"))
+    }
+}
+
 fn parse_prune(s: &str) -> Result<Option<Prune>, String> {
     if s.trim() == "off" {
         return Ok(None);
@@ -402,6 +423,7 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         out_dir: out_dir.clone(),
         costs: args.costs.iter().map(|&c| c.into()).collect(),
         weighting: args.weighting.into(),
+        semantic_weight: semantic_weight(args),
         source,
         search: SearchOptions {
             coarse: {
@@ -477,4 +499,48 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         }
     ));
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Debug, Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: Args,
+    }
+
+    fn parse(extra: &[&str]) -> Result<Args, clap::Error> {
+        let mut argv = vec!["eval-loc", "--area", "denhaag", "--camera", "cam2", "--oracle"];
+        argv.extend_from_slice(extra);
+        Cli::try_parse_from(argv).map(|c| c.args)
+    }
+
+    mod semantic_weight {
+        use super::*;
+
+        #[test]
+        fn default_blends_and_paper_is_pure_instance() {
+            assert_eq!(semantic_weight(&parse(&[]).unwrap()), DEFAULT_SEMANTIC_WEIGHT);
+            assert_eq!(semantic_weight(&parse(&["--paper"]).unwrap()), 0.0);
+        }
+
+        #[test]
+        fn given_value_wins_over_paper() {
+            let a = parse(&["--paper", "--semantic-weight", "0.25"]).unwrap();
+            assert_eq!(semantic_weight(&a), 0.25);
+            assert_eq!(semantic_weight(&parse(&["--semantic-weight", "0"]).unwrap()), 0.0);
+        }
+
+        #[test]
+        fn outside_unit_interval_is_rejected() {
+            for bad in ["1.5", "-0.1", "half"] {
+                let flag = format!("--semantic-weight={bad}");
+                let e = parse(&[&flag]).unwrap_err().to_string();
+                assert!(e.contains("expected a number in [0, 1]"), "{bad}: {e}");
+            }
+        }
+    }
 }

@@ -75,6 +75,9 @@ pub struct EvalOptions {
     /// Costs to evaluate (each gives a row of the table).
     pub costs: Vec<CostKind>,
     pub weighting: Weighting,
+    /// Weight w of the semantic IoU in the instance cost, (1 − w)·instance + w·semantic, in [0, 1]
+    /// ([`super::cost::Scorer::blended_cost`]; 0 = the paper's).
+    pub semantic_weight: f64,
     /// Oracle masks (degraded) or predictions.
     pub source: QuerySource,
     /// The search's stages and parameters.
@@ -219,6 +222,8 @@ pub struct CpuEvaluator<'a> {
     pub query: &'a Query,
     pub kind: CostKind,
     pub weighting: Weighting,
+    /// Weight of the semantic IoU in [`CostKind::Instance`] (see [`EvalOptions::semantic_weight`]).
+    pub semantic_weight: f64,
     pub k_max: u32,
     /// Runs of at least [`MIN_FAN`] consecutive hypotheses at one centre (the coarse grid's yaws) are
     /// rendered once, wide, and warped per yaw ([`RotationFan`]).
@@ -237,7 +242,7 @@ impl CpuEvaluator<'_> {
     }
 
     fn score(&self, scorer: &mut Scorer, ids: &[u32]) -> f64 {
-        scorer.cost(self.kind, self.query, ids, self.k_max, self.weighting)
+        scorer.cost(self.kind, self.query, ids, self.k_max, self.weighting, self.semantic_weight)
     }
 
     /// Scores one run of hypotheses sharing a centre: through a rotation fan when it is long enough and
@@ -449,7 +454,8 @@ pub fn evaluate(
     }
     progress.finish();
     let results: Vec<QueryResult> = runs.iter().map(|r| r.result.clone()).collect();
-    let summary = summarise(&results, &opts.costs, opts.weighting, &opts.search, &opts.map);
+    let summary =
+        summarise(&results, &opts.costs, opts.weighting, opts.semantic_weight, &opts.search, &opts.map);
     let (jsonl, est) = output_texts(&opts.out_dir, &runs)?;
     if opts.shard.is_whole() {
         write_outputs(
@@ -469,6 +475,7 @@ pub fn evaluate(
             queries: total,
             costs: opts.costs.clone(),
             weighting: opts.weighting,
+            semantic_weight: opts.semantic_weight,
             search: opts.search.clone(),
             map: opts.map.clone(),
         };
@@ -498,6 +505,8 @@ pub struct PartInfo {
     pub queries: usize,
     pub costs: Vec<CostKind>,
     pub weighting: Weighting,
+    /// Weight of the semantic IoU in the instance cost.
+    pub semantic_weight: f64,
     pub search: SearchOptions,
     pub map: MapSummary,
 }
@@ -544,7 +553,8 @@ pub fn combine_parts(parts: &BTreeMap<Shard, PathBuf>, out_dir: &Path) -> Result
     let count = first_shard.count;
     let same_run = |a: &PartInfo, b: &PartInfo| {
         let key = |p: &PartInfo| {
-            serde_json::to_string(&(p.queries, &p.costs, p.weighting, &p.search, &p.map)).unwrap_or_default()
+            serde_json::to_string(&(p.queries, &p.costs, p.weighting, p.semantic_weight, &p.search, &p.map))
+                .unwrap_or_default()
         };
         key(a) == key(b)
     };
@@ -552,7 +562,7 @@ pub fn combine_parts(parts: &BTreeMap<Shard, PathBuf>, out_dir: &Path) -> Result
         if shard.count != count || !same_run(info, first) {
             return Err(fail(format!(
                 "{} is not a part of the same run as shard {first_shard} (shard count, queries, costs, \
-                 weighting, search or map differ); merge the parts of one run",
+                 weighting, semantic weight, search or map differ); merge the parts of one run",
                 dir.display()
             )));
         }
@@ -616,7 +626,8 @@ pub fn combine_parts(parts: &BTreeMap<Shard, PathBuf>, out_dir: &Path) -> Result
             })
         })
         .collect::<Result<_, _>>()?;
-    let summary = summarise(&results, costs, first.weighting, &first.search, &first.map);
+    let summary =
+        summarise(&results, costs, first.weighting, first.semantic_weight, &first.search, &first.map);
     Ok(Outputs { results_jsonl, est_poses, summary })
 }
 
@@ -711,6 +722,7 @@ impl<'q> QuerySetup<'q> {
             query,
             kind,
             weighting: opts.weighting,
+            semantic_weight: opts.semantic_weight,
             k_max: self.buildings as u32,
             yaw_fan,
         };
@@ -781,6 +793,7 @@ pub fn summarise(
     results: &[QueryResult],
     costs: &[CostKind],
     weighting: Weighting,
+    semantic_weight: f64,
     search: &SearchOptions,
     map: &MapSummary,
 ) -> Summary {
@@ -816,6 +829,9 @@ pub fn summarise(
             .map(|r| (r.translation_error_m, r.rotation_error_deg, r.group.as_str()))
             .collect();
         let name = match kind {
+            CostKind::Instance if semantic_weight > 0.0 => {
+                format!("instance ({weighting:?}) + {semantic_weight} semantic").to_lowercase()
+            }
             CostKind::Instance => format!("instance ({weighting:?})").to_lowercase(),
             CostKind::Semantic => "semantic IoU (LoD-Loc v2)".to_string(),
             CostKind::Merged => "merged instances".to_string(),

@@ -1,6 +1,7 @@
 //! The instance-silhouette localizer (InsLoD-Loc) and its evaluation.
 //!
-//! - [`cost`]: best-match Dice with confidence or area weighting, the semantic IoU baseline;
+//! - [`cost`]: best-match Dice with confidence or area weighting, blended with the semantic IoU by
+//!   default, the semantic IoU baseline;
 //! - [`search`]: coarse grid + particle filter over x, y, z, yaw;
 //! - [`map`]: the map (another prepared area) and its seeded perturbations (LoD1, heights, footprints,
 //!   drops, merges, offset);
