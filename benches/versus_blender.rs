@@ -104,6 +104,7 @@ fn blender_ids(
         denoise: false,
         denoise_quality: insgen::blender::job::DenoiseQuality::Fast,
         max_bounces: 2,
+        lighting: insgen::blender::job::Lighting::Direct,
         device: insgen::blender::job::Device::Cpu,
         threads: 0,
         exr: false,
