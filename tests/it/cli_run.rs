@@ -294,6 +294,14 @@ fn without_timings(mut v: serde_json::Value) -> serde_json::Value {
         for k in TIMINGS {
             m.remove(*k);
         }
+        // Each search stage's wall-clock seconds (its hypothesis count stays).
+        if let Some(stages) = m.get_mut("stages").and_then(|s| s.as_object_mut()) {
+            for stage in stages.values_mut() {
+                if let Some(st) = stage.as_object_mut() {
+                    st.remove("seconds");
+                }
+            }
+        }
     }
     v
 }
