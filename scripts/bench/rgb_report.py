@@ -65,7 +65,7 @@ def main(argv):
       "frames); *mean* includes the first frame's scene sync and BVH build. Settings:\n")
     w("- **new defaults** — procedural: `--lighting direct` (Lambertian surfaces, a point-like sun with one "
       "exact shadow ray, the sky as non-sampled ambient and glass-reflection emission, no bounces), 1 spp, "
-      "OIDN `FAST` with albedo+normal guides; unlit tileset: 4 spp, no denoiser, 0 bounces.")
+      "OIDN `FAST` with albedo+normal guides; unlit tileset: 3 spp, no denoiser, 0 bounces.")
     w("- **`--lighting path`** — the path-traced look (sky light, soft sun, Principled BSDFs): 2 spp, OIDN "
       "`BALANCED`, 2 bounces; the defaults of the previous round.")
     w("- **old `--samples 16`** — what `insgen demo` used before issue 14 (path-traced, OIDN `HIGH`/`ACCURATE`, "

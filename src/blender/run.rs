@@ -77,9 +77,11 @@ pub const PATH_TRACED_DEFAULTS: RgbSettings = RgbSettings {
 };
 
 /// Default settings for photogrammetry tilesets: their textures are shown unlit (emission), so light
-/// bounces and the denoiser buy nothing; the samples only anti-alias edges and texture detail.
+/// bounces and the denoiser buy nothing; the samples only anti-alias edges and texture detail. 3 is
+/// the fewest that keep ≥ 35 dB with a margin (36.6–39.0 dB at 2.7 s per frame; 2 samples: 35.2 dB;
+/// bench/rgb_quality.md).
 pub const UNLIT_DEFAULTS: RgbSettings = RgbSettings {
-    samples: 4,
+    samples: 3,
     denoise: false,
     denoise_quality: DenoiseQuality::Fast,
     max_bounces: 0,

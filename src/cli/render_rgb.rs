@@ -119,7 +119,7 @@ pub struct Args {
     /// Kubernetes Indexed Job (JOB_COMPLETION_INDEX) and N as given.
     #[arg(long, value_name = "i/N|auto|auto/N")]
     pub shard: Option<ShardSpec>,
-    /// Cycles samples per pixel [default: 1 procedural direct, 2 procedural path, 4 tileset].
+    /// Cycles samples per pixel [default: 1 procedural direct, 2 procedural path, 3 tileset].
     ///
     /// The defaults were chosen by measurement (bench/rgb_quality.md): each reaches ≥ 35 dB PSNR
     /// against the converged render of its look; unlit photogrammetry needs samples only for
