@@ -6,7 +6,7 @@
 #
 #   scripts/loc_issue15.sh OLD_INSGEN [WORKDIR]
 #
-# OLD_INSGEN: a release build of the commit before the change (f363ef9: `git worktree add /tmp/old f363ef9`
+# OLD_INSGEN: a release build of the commit before the change (f363ef9: `git worktree add ../insgen-old f363ef9`
 # and `cargo build --release` there). WORKDIR (default runs-issue15) holds the prepared areas.
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -375,9 +375,10 @@ pub fn search<E: Evaluate>(
                 let mut judged: Vec<Judged> = Vec::new();
                 for (at, kept) in judgements {
                     for pool in &mut beams {
-                        *pool = coarse_iterations(
+                        *pool = filter_iterations(
                             &mut counter,
                             coarse_eval,
+                            Stage::FilterCoarseWidth,
                             fine,
                             std::mem::take(pool),
                             keep,
@@ -395,8 +396,17 @@ pub fn search<E: Evaluate>(
                 }
                 let mut finals = Vec::with_capacity(judged.len());
                 for (_, pool) in judged {
-                    let pool =
-                        continue_filter(&mut counter, eval, fine, pool, keep, lowres, n_iter, &mut rng)?;
+                    let pool = filter_iterations(
+                        &mut counter,
+                        eval,
+                        Stage::FilterRenderWidth,
+                        fine,
+                        pool,
+                        keep,
+                        lowres,
+                        n_iter,
+                        &mut rng,
+                    )?;
                     finals.push(pool[0]);
                 }
                 rank(finals)[0]
@@ -419,11 +429,13 @@ pub fn search<E: Evaluate>(
     })
 }
 
-/// Iterations `from..to` of the particle filter scored by `coarse_eval` (`pool` scored by it too).
+/// Iterations `from..to` of the particle filter, all scored by `eval` at `stage`'s width (`pool`
+/// already scored by it).
 #[allow(clippy::too_many_arguments)]
-fn coarse_iterations<E: Evaluate>(
+fn filter_iterations<E: Evaluate>(
     counter: &mut Counted,
-    coarse_eval: &mut E,
+    eval: &mut E,
+    stage: Stage,
     fine: &FineParams,
     mut pool: Vec<(Hypothesis, f64)>,
     keep: usize,
@@ -432,7 +444,7 @@ fn coarse_iterations<E: Evaluate>(
     rng: &mut ChaCha8Rng,
 ) -> Result<Vec<(Hypothesis, f64)>, E::Error> {
     for i in from..to {
-        pool = iterate(counter, coarse_eval, Stage::FilterCoarseWidth, fine, pool, keep, i, rng)?;
+        pool = iterate(counter, eval, stage, fine, pool, keep, i, rng)?;
     }
     Ok(pool)
 }
@@ -533,29 +545,12 @@ fn particle_filter<E: Evaluate>(
     let n_iter = fine.iterations.max(1);
     let lowres = fine.lowres_iterations();
     // Scores in `pool` come from the coarse evaluator until they are re-scored at the fine one.
-    let pool = coarse_iterations(counter, coarse_eval, fine, pool, keep, 0, lowres, rng)?;
+    let pool =
+        filter_iterations(counter, coarse_eval, Stage::FilterCoarseWidth, fine, pool, keep, 0, lowres, rng)?;
     let hyps: Vec<Hypothesis> = pool.iter().map(|p| p.0).collect();
     let s = counter.run(eval, &hyps, Stage::FilterRenderWidth)?;
     let pool = rank(hyps.into_iter().zip(s).collect());
-    continue_filter(counter, eval, fine, pool, keep, lowres, n_iter, rng)
-}
-
-/// Iterations `from..to` of the particle filter, all scored by `eval` (`pool` already scored by it).
-#[allow(clippy::too_many_arguments)]
-fn continue_filter<E: Evaluate>(
-    counter: &mut Counted,
-    eval: &mut E,
-    fine: &FineParams,
-    mut pool: Vec<(Hypothesis, f64)>,
-    keep: usize,
-    from: u32,
-    to: u32,
-    rng: &mut ChaCha8Rng,
-) -> Result<Vec<(Hypothesis, f64)>, E::Error> {
-    for i in from..to {
-        pool = iterate(counter, eval, Stage::FilterRenderWidth, fine, pool, keep, i, rng)?;
-    }
-    Ok(pool)
+    filter_iterations(counter, eval, Stage::FilterRenderWidth, fine, pool, keep, lowres, n_iter, rng)
 }
 
 /// One particle-filter iteration: `perturbations` draws around every pose of `pool` at the decayed
