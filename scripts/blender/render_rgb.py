@@ -141,6 +141,9 @@ def configure_render(bpy, scene, job):
             c.transmission_bounces = min(bounces, 2)
             c.transparent_max_bounces = 4
             c.sample_clamp_indirect = 10.0
+            if job.get("lighting") == "direct":
+                # One sun and no sampled emitters: a light tree has nothing to choose between.
+                c.use_light_tree = False
             if job.get("denoise"):
                 # OpenImageDenoise guided by albedo and normal passes; its quality and the prefilter of
                 # the guides set the cost (HIGH + ACCURATE, Blender's defaults, cost ~4x FAST + FAST on
@@ -394,29 +397,50 @@ def building_material(bpy, look, lighting):
     Facades: a palette colour, a brick or plaster texture, and a window grid laid out in facade
     coordinates (horizontal distance along the wall, height above ground) with per-building floor height,
     window spacing and window-to-wall ratio; curtain-wall buildings are mostly glass. Roofs (faces whose
-    normal points up) get a roof palette with noise.
+    normal points up) get a roof palette with noise and rooftop clutter.
+
+    Walls and roofs are two shaders joined by a Mix Shader whose factor is exactly 0 or 1: Cycles' SVM
+    skips the nodes that feed only the branch with weight 0, so a pixel pays for the textures of its own
+    surface kind only. Texture detail stops near the pixel footprint of a UAV view (~0.1 m at 500 m for
+    the cam2 lens): finer octaves are aliasing that costs time and that the denoiser must remove again.
     """
     seed = int(look["seed"])
-    ground_m = float(look["ground_enu_m"])
     mat, nt = new_material(bpy, "insgen_building")
     out = node(nt, "ShaderNodeOutputMaterial")
 
     attr = node(nt, "ShaderNodeAttribute", attribute_type="GEOMETRY", attribute_name=FACE_ID_ATTRIBUTE)
     bid = attr.outputs["Fac"]
-    r_color = per_building_random(nt, bid, seed, 1)
-    r_style = per_building_random(nt, bid, seed, 2)
-    r_floor = per_building_random(nt, bid, seed, 3)
-    r_space = per_building_random(nt, bid, seed, 4)
-    r_ratio = per_building_random(nt, bid, seed, 5)
-    r_roof = per_building_random(nt, bid, seed, 6)
-    r_glass = per_building_random(nt, bid, seed, 7)
-    r_bright = per_building_random(nt, bid, seed, 8)
-
     geo = node(nt, "ShaderNodeNewGeometry")
     pos = node(nt, "ShaderNodeSeparateXYZ")
     nt.links.new(geo.outputs["Position"], pos.inputs["Vector"])
     nrm = node(nt, "ShaderNodeSeparateXYZ")
     nt.links.new(geo.outputs["True Normal"], nrm.inputs["Vector"])
+    nz = nrm.outputs["Z"]
+    roof = math_node(nt, "GREATER_THAN", nz, 0.7)
+
+    wall = facade_shader(nt, look, lighting, bid, seed, geo, pos, nrm)
+    top = roof_shader(nt, look, lighting, bid, seed, geo, pos)
+    mix = node(nt, "ShaderNodeMixShader")
+    nt.links.new(roof, mix.inputs["Fac"])
+    nt.links.new(wall, mix.inputs[1])
+    nt.links.new(top, mix.inputs[2])
+    nt.links.new(mix.outputs["Shader"], out.inputs["Surface"])
+    if lighting == "direct":
+        # The emission stands for sky light already integrated: never a light source to sample.
+        mat.cycles.emission_sampling = "NONE"
+    return mat
+
+
+def facade_shader(nt, look, lighting, bid, seed, geo, pos, nrm):
+    """Walls (and every face that is not a roof): palette, brick or plaster, and the window grid."""
+    ground_m = float(look["ground_enu_m"])
+    r_color = per_building_random(nt, bid, seed, 1)
+    r_style = per_building_random(nt, bid, seed, 2)
+    r_floor = per_building_random(nt, bid, seed, 3)
+    r_space = per_building_random(nt, bid, seed, 4)
+    r_ratio = per_building_random(nt, bid, seed, 5)
+    r_glass = per_building_random(nt, bid, seed, 7)
+    r_bright = per_building_random(nt, bid, seed, 8)
 
     # Horizontal facade coordinate: position projected on the wall's horizontal tangent (-ny, nx).
     t = math_node(nt, "ADD", math_node(nt, "MULTIPLY", pos.outputs["X"], math_node(nt, "MULTIPLY", nrm.outputs["Y"], -1.0)),
@@ -436,12 +460,10 @@ def building_material(bpy, look, lighting):
     dv = math_node(nt, "ABSOLUTE", math_node(nt, "SUBTRACT", v, 0.55))
     in_u = math_node(nt, "LESS_THAN", du, half)
     in_v = math_node(nt, "LESS_THAN", dv, math_node(nt, "MULTIPLY", half, 0.8))
-    # No windows on the ground floor's lowest metre, nor on roofs.
+    # No windows on the ground floor's lowest metre, nor on sloped or downward faces.
     above = math_node(nt, "GREATER_THAN", height, 1.0)
-    nz = nrm.outputs["Z"]
-    roof = math_node(nt, "GREATER_THAN", nz, 0.7)
-    wall = math_node(nt, "LESS_THAN", math_node(nt, "ABSOLUTE", nz), 0.3)
-    window = math_node(nt, "MULTIPLY", math_node(nt, "MULTIPLY", in_u, in_v), math_node(nt, "MULTIPLY", above, wall))
+    upright = math_node(nt, "LESS_THAN", math_node(nt, "ABSOLUTE", nrm.outputs["Z"]), 0.3)
+    window = math_node(nt, "MULTIPLY", math_node(nt, "MULTIPLY", in_u, in_v), math_node(nt, "MULTIPLY", above, upright))
 
     # Wall colour: palette pick, brightness jitter, brick texture for the "brick" style, plaster noise.
     base = palette(nt, r_color, FACADE_COLORS)
@@ -458,10 +480,11 @@ def building_material(bpy, look, lighting):
     brick.inputs["Mortar"].default_value = (0.6, 0.58, 0.55, 1.0)
     is_brick = math_node(nt, "LESS_THAN", r_style, 0.3)
     wall_color = mix_color(nt, is_brick, base, brick.outputs["Color"])
-    noise = node(nt, "ShaderNodeTexNoise")
+    # Plaster grime in facade coordinates (2D: walls are planes), features down to ~0.16 m.
+    noise = node(nt, "ShaderNodeTexNoise", noise_dimensions="2D")
     noise.inputs["Scale"].default_value = 0.8
-    noise.inputs["Detail"].default_value = 6.0
-    nt.links.new(geo.outputs["Position"], noise.inputs["Vector"])
+    noise.inputs["Detail"].default_value = 3.0
+    nt.links.new(uvw.outputs["Vector"], noise.inputs["Vector"])
     grime = math_node(nt, "ADD", math_node(nt, "MULTIPLY", noise.outputs["Fac"], 0.5), 0.75)
     shade = math_node(nt, "MULTIPLY", grime, bright)
     wall_scaled = node(nt, "ShaderNodeMix", data_type="RGBA", blend_type="MULTIPLY", clamp_factor=True)
@@ -474,39 +497,48 @@ def building_material(bpy, look, lighting):
     wall_color = socket(wall_scaled.outputs, "Result_Color")
 
     glass = palette(nt, r_glass, GLASS_COLORS)
-    # Roofs: a palette colour with stains, and rooftop clutter (plant rooms, vents, solar panels) as
-    # Voronoi cells of ~6 m, a per-building share of which is lighter or darker than the membrane.
+    color = mix_color(nt, window, wall_color, glass)
+    if lighting == "direct":
+        return direct_shader(nt, color, look, glass=window)
+    return principled_shader(nt, color, mix_float(nt, window, 0.85, 0.06), mix_float(nt, window, 0.3, 1.0))
+
+
+def roof_shader(nt, look, lighting, bid, seed, geo, pos):
+    """Roofs: a palette colour with stains, and rooftop clutter (plant rooms, vents, solar panels) as
+    Voronoi cells of ~6 m, a per-building share of which is lighter or darker than the membrane."""
+    r_roof = per_building_random(nt, bid, seed, 6)
     roof_base = palette(nt, r_roof, ROOF_COLORS)
-    roof_noise = node(nt, "ShaderNodeTexNoise")
+    # Roofs are (nearly) horizontal: 2D textures of plan position, features down to ~0.4 m.
+    plan = node(nt, "ShaderNodeCombineXYZ")
+    nt.links.new(pos.outputs["X"], plan.inputs["X"])
+    nt.links.new(pos.outputs["Y"], plan.inputs["Y"])
+    roof_noise = node(nt, "ShaderNodeTexNoise", noise_dimensions="2D")
     roof_noise.inputs["Scale"].default_value = 0.15
-    roof_noise.inputs["Detail"].default_value = 6.0
-    nt.links.new(geo.outputs["Position"], roof_noise.inputs["Vector"])
+    roof_noise.inputs["Detail"].default_value = 4.0
+    nt.links.new(plan.outputs["Vector"], roof_noise.inputs["Vector"])
     stained = mix_color(nt, math_node(nt, "MULTIPLY", roof_noise.outputs["Fac"], 0.5), roof_base,
                         (0.04, 0.04, 0.04, 1.0))
-    cells = node(nt, "ShaderNodeTexVoronoi", feature="F1", distance="CHEBYCHEV")
+    cells = node(nt, "ShaderNodeTexVoronoi", voronoi_dimensions="2D", feature="F1", distance="CHEBYCHEV")
     cells.inputs["Scale"].default_value = 0.16
-    nt.links.new(geo.outputs["Position"], cells.inputs["Vector"])
+    nt.links.new(plan.outputs["Vector"], cells.inputs["Vector"])
     cell_rand = node(nt, "ShaderNodeSeparateColor")
     nt.links.new(cells.outputs["Color"], cell_rand.inputs["Color"])
     clutter = math_node(nt, "MULTIPLY", math_node(nt, "LESS_THAN", cell_rand.outputs["Red"], 0.18),
                         math_node(nt, "LESS_THAN", cells.outputs["Distance"], 0.28))
     clutter_color = mix_color(nt, cell_rand.outputs["Green"], (0.45, 0.45, 0.44, 1.0), (0.03, 0.04, 0.07, 1.0))
-    roof_color = mix_color(nt, clutter, stained, clutter_color)
-
-    color = mix_color(nt, window, wall_color, glass)
-    color = mix_color(nt, roof, color, roof_color)
+    color = mix_color(nt, clutter, stained, clutter_color)
     if lighting == "direct":
-        direct_surface(nt, out, color, look, mat, glass=window)
-        return mat
+        return direct_shader(nt, color, look)
+    return principled_shader(nt, color, 0.9, 0.3)
+
+
+def principled_shader(nt, color, roughness, specular):
+    """The path-traced look's surface: a Principled BSDF (numbers or sockets for the parameters)."""
     bsdf = node(nt, "ShaderNodeBsdfPrincipled")
-    nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
-    nt.links.new(color, bsdf.inputs["Base Color"])
-    rough = mix_float(nt, window, 0.85, 0.06)
-    rough = mix_float(nt, roof, rough, 0.9)
-    nt.links.new(rough, bsdf.inputs["Roughness"])
-    spec = mix_float(nt, window, 0.3, 1.0)
-    nt.links.new(spec, bsdf.inputs["Specular IOR Level"])
-    return mat
+    link_or_set(nt, bsdf.inputs["Base Color"], color)
+    link_or_set(nt, bsdf.inputs["Roughness"], roughness)
+    link_or_set(nt, bsdf.inputs["Specular IOR Level"], specular)
+    return bsdf.outputs["BSDF"]
 
 
 # Direct lighting: the sky's contribution as constant colours (linear RGB per unit of sky strength). The
@@ -516,9 +548,10 @@ AMBIENT_PER_SKY = (0.5, 0.62, 0.8)
 REFLECTION_PER_SKY = (1.2, 1.5, 2.0)
 
 
-def direct_surface(nt, out, color, look, mat, glass=None):
+def direct_shader(nt, color, look, glass=None):
     """Lambertian surface lit by the sun, plus sky ambient (and a Fresnel sky reflection where `glass` is
-    1) as emission that Cycles never samples as a light: no stochastic term but anti-aliasing."""
+    1) as emission; the material must set `emission_sampling = "NONE"` so that Cycles never samples it
+    as a light: no stochastic term but anti-aliasing."""
     sky = float(look.get("sky_strength", 0.25))
     diffuse = node(nt, "ShaderNodeBsdfDiffuse")
     nt.links.new(color, diffuse.inputs["Color"])
@@ -542,36 +575,38 @@ def direct_surface(nt, out, color, look, mat, glass=None):
     both = node(nt, "ShaderNodeAddShader")
     nt.links.new(diffuse.outputs["BSDF"], both.inputs[0])
     nt.links.new(emission.outputs["Emission"], both.inputs[1])
-    nt.links.new(both.outputs["Shader"], out.inputs["Surface"])
-    # The emission stands for sky light already integrated: never a light source to sample.
-    mat.cycles.emission_sampling = "NONE"
+    return both.outputs["Shader"]
 
 
 def ground_material(bpy, look, lighting):
-    """Asphalt and grass patches from low-frequency noise, with fine grain, in world coordinates."""
+    """Asphalt and grass patches from low-frequency noise, with fine grain, in plan coordinates (2D noise:
+    the ground is a plane; the grain stops at ~0.2 m, the pixel footprint of a UAV view)."""
     mat, nt = new_material(bpy, "insgen_ground")
     out = node(nt, "ShaderNodeOutputMaterial")
     geo = node(nt, "ShaderNodeNewGeometry")
-    big = node(nt, "ShaderNodeTexNoise", noise_dimensions="4D")
+    # The seed moves the patch pattern: an offset in plan, far beyond any area's extent.
+    seed = int(look["seed"]) % 1000
+    offset = node(nt, "ShaderNodeVectorMath", operation="ADD")
+    nt.links.new(geo.outputs["Position"], offset.inputs[0])
+    offset.inputs[1].default_value = (1000.0 * seed, -700.0 * seed, 0.0)
+    big = node(nt, "ShaderNodeTexNoise", noise_dimensions="2D")
     big.inputs["Scale"].default_value = 0.004
     big.inputs["Detail"].default_value = 3.0
-    big.inputs["W"].default_value = float(int(look["seed"]) % 1000)
-    nt.links.new(geo.outputs["Position"], big.inputs["Vector"])
+    nt.links.new(offset.outputs["Vector"], big.inputs["Vector"])
     grass = math_node(nt, "GREATER_THAN", big.outputs["Fac"], 0.56)
-    fine = node(nt, "ShaderNodeTexNoise")
+    fine = node(nt, "ShaderNodeTexNoise", noise_dimensions="2D")
     fine.inputs["Scale"].default_value = 0.6
-    fine.inputs["Detail"].default_value = 8.0
+    fine.inputs["Detail"].default_value = 3.0
     nt.links.new(geo.outputs["Position"], fine.inputs["Vector"])
     asphalt = mix_color(nt, fine.outputs["Fac"], (0.05, 0.05, 0.05, 1.0), (0.16, 0.16, 0.15, 1.0))
     green = mix_color(nt, fine.outputs["Fac"], (0.03, 0.08, 0.02, 1.0), (0.10, 0.18, 0.05, 1.0))
     color = mix_color(nt, grass, asphalt, green)
     if lighting == "direct":
-        direct_surface(nt, out, color, look, mat)
-        return mat
-    bsdf = node(nt, "ShaderNodeBsdfPrincipled")
-    nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
-    nt.links.new(color, bsdf.inputs["Base Color"])
-    bsdf.inputs["Roughness"].default_value = 0.95
+        shader = direct_shader(nt, color, look)
+        mat.cycles.emission_sampling = "NONE"
+    else:
+        shader = principled_shader(nt, color, 0.95, 0.5)
+    nt.links.new(shader, out.inputs["Surface"])
     return mat
 
 
