@@ -185,6 +185,22 @@ pub struct JobFrame {
     pub exr: Option<PathBuf>,
 }
 
+/// The sampling, denoising and bounce settings of RGB renders: one record, carried by the render plan,
+/// the job file and each frame's metadata (flattened into the latter two, as their JSON fields).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RgbSettings {
+    /// Cycles samples per pixel.
+    pub samples: u32,
+    /// Denoise RGB renders (OpenImageDenoise with albedo and normal guides).
+    pub denoise: bool,
+    /// Denoiser quality when `denoise` is set.
+    pub denoise_quality: DenoiseQuality,
+    /// Total light bounces (0 = direct light only; diffuse and glossy bounces are capped by it too).
+    pub max_bounces: u32,
+    /// Light transport of the procedural look (photogrammetry is always shown unlit).
+    pub lighting: Lighting,
+}
+
 /// A complete job for one Blender process.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Job {
@@ -194,19 +210,11 @@ pub struct Job {
     pub version: u32,
     pub mode: Mode,
     pub engine: Engine,
-    /// Cycles samples per pixel in RGB mode (ID renders always take 1).
-    pub samples: u32,
+    /// Samples, denoiser, bounces and lighting of RGB renders (ID renders always take 1 sample).
+    #[serde(flatten)]
+    pub rgb: RgbSettings,
     /// Cycles sampling seed.
     pub seed: u32,
-    /// Denoise RGB renders (OpenImageDenoise with albedo and normal guides).
-    pub denoise: bool,
-    /// Denoiser quality when `denoise` is set.
-    pub denoise_quality: DenoiseQuality,
-    /// Total light bounces of RGB renders (0 = direct light only; diffuse and glossy bounces are capped
-    /// by it too).
-    pub max_bounces: u32,
-    /// Light transport of the procedural look (photogrammetry is always shown unlit).
-    pub lighting: Lighting,
     /// Cycles compute device.
     pub device: Device,
     /// Render threads; 0 = all cores.
@@ -242,7 +250,7 @@ impl Job {
         if self.version != JOB_VERSION {
             issue("version".into(), format!("is {}, expected {JOB_VERSION}", self.version));
         }
-        if self.mode == Mode::Rgb && self.samples == 0 {
+        if self.mode == Mode::Rgb && self.rgb.samples == 0 {
             issue("samples".into(), "must be at least 1".into());
         }
         if self.mode == Mode::Ids && self.engine != Engine::Cycles {
@@ -355,12 +363,14 @@ mod tests {
             version: JOB_VERSION,
             mode: Mode::Rgb,
             engine: Engine::Cycles,
-            samples: 4,
+            rgb: RgbSettings {
+                samples: 4,
+                denoise: false,
+                denoise_quality: DenoiseQuality::Fast,
+                max_bounces: 2,
+                lighting: Lighting::Direct,
+            },
             seed: 7,
-            denoise: false,
-            denoise_quality: DenoiseQuality::Fast,
-            max_bounces: 2,
-            lighting: Lighting::Direct,
             device: Device::Cpu,
             threads: 0,
             report_bounds: false,

@@ -16,7 +16,7 @@ use super::camera::{blender_matrix_world, cam_to_world_enu, BlenderCamera};
 use super::error::{BlenderError, JobIssue, OutputError};
 use super::job::{
     check_writable, DenoiseQuality, Device, Engine, Job, JobFrame, JobModel, Lighting, Look, Mode, ModelKind,
-    JOB_FORMAT, JOB_VERSION,
+    RgbSettings, JOB_FORMAT, JOB_VERSION,
 };
 use super::process::{run_job, Event, Launcher};
 use super::tileset::{prepare_tile, select_tiles, SelectOptions, ENU_FROM_SCENE_GLTF};
@@ -40,18 +40,6 @@ pub enum SceneSource {
     Lod { glb: PathBuf },
     /// A photogrammetry tileset, placed with the area's ENU frame; tiles chosen per frame.
     Tileset { tileset: PathBuf, enu: EnuFrame, select: SelectOptions },
-}
-
-/// The sampling, denoising and bounce settings of RGB renders.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct RgbSettings {
-    /// Cycles samples per pixel.
-    pub samples: u32,
-    pub denoise: bool,
-    pub denoise_quality: DenoiseQuality,
-    /// Total light bounces (0 = direct light only).
-    pub max_bounces: u32,
-    pub lighting: Lighting,
 }
 
 /// Default settings for the procedural look of the LoD model, chosen by measurement on cam2 1920×1080
@@ -114,17 +102,10 @@ pub struct RenderPlan {
     pub launcher: Launcher,
     pub mode: Mode,
     pub engine: Engine,
-    /// Cycles samples per pixel (RGB mode).
-    pub samples: u32,
+    /// Samples, denoiser, bounces and lighting (RGB mode).
+    pub rgb: RgbSettings,
     /// Cycles sampling seed.
     pub seed: u32,
-    pub denoise: bool,
-    /// Denoiser quality (when `denoise`).
-    pub denoise_quality: DenoiseQuality,
-    /// Light bounces of RGB renders (0 = direct light only).
-    pub max_bounces: u32,
-    /// Light transport of the procedural look.
-    pub lighting: Lighting,
     /// Cycles compute device (`auto` picks the best one Blender reports).
     pub device: Device,
     /// Render threads (0 = all cores).
@@ -201,12 +182,9 @@ pub struct FrameMeta {
     pub device: String,
     /// The device asked for (`auto`, `cpu`, …).
     pub device_requested: String,
-    pub samples: u32,
+    #[serde(flatten)]
+    pub settings: RgbSettings,
     pub seed: u32,
-    pub denoise: bool,
-    pub denoise_quality: DenoiseQuality,
-    pub max_bounces: u32,
-    pub lighting: Lighting,
     /// Blender's version string.
     pub blender: Option<String>,
     /// SHA-256 of the frame's camera and settings (the resume fingerprint).
@@ -220,12 +198,8 @@ impl FrameMeta {
             engine: plan.engine.name().into(),
             device: info.map(|i| i.device.clone()).unwrap_or_else(|| "unknown".into()),
             device_requested: plan.device.name().into(),
-            samples: plan.samples,
+            settings: plan.rgb,
             seed: plan.seed,
-            denoise: plan.denoise,
-            denoise_quality: plan.denoise_quality,
-            max_bounces: plan.max_bounces,
-            lighting: plan.lighting,
             blender: info.and_then(|i| i.blender.clone()),
             fingerprint: frame_fingerprint(plan, f),
         }
@@ -399,12 +373,12 @@ pub fn frame_fingerprint(plan: &RenderPlan, f: &FrameRequest) -> String {
         f.pose,
         plan.mode,
         plan.engine,
-        plan.samples,
+        plan.rgb.samples,
         plan.seed,
-        plan.denoise,
-        plan.denoise_quality,
-        plan.max_bounces,
-        plan.lighting,
+        plan.rgb.denoise,
+        plan.rgb.denoise_quality,
+        plan.rgb.max_bounces,
+        plan.rgb.lighting,
         plan.exr,
         plan.look_seed,
         plan.ground_enu_m,
@@ -615,12 +589,8 @@ fn run_batch(
         version: JOB_VERSION,
         mode: plan.mode,
         engine: plan.engine,
-        samples: plan.samples,
+        rgb: plan.rgb,
         seed: plan.seed,
-        denoise: plan.denoise,
-        denoise_quality: plan.denoise_quality,
-        max_bounces: plan.max_bounces,
-        lighting: plan.lighting,
         device: plan.device,
         threads: plan.threads,
         report_bounds: plan.report_bounds,
@@ -718,12 +688,14 @@ mod tests {
             launcher: Launcher::Python { interpreter: "/nonexistent/python".into() },
             mode: Mode::Rgb,
             engine: Engine::Cycles,
-            samples: 4,
+            rgb: RgbSettings {
+                samples: 4,
+                denoise: false,
+                denoise_quality: DenoiseQuality::Fast,
+                max_bounces: 2,
+                lighting: Lighting::Direct,
+            },
             seed: 0,
-            denoise: false,
-            denoise_quality: DenoiseQuality::Fast,
-            max_bounces: 2,
-            lighting: Lighting::Direct,
             device: Device::Cpu,
             threads: 0,
             exr: true,

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 
 use crate::blender::align::{building_ious, pixel_agreement, summarise, FrameAlignment};
-use crate::blender::job::{DenoiseQuality, Device, Lighting};
+use crate::blender::job::{DenoiseQuality, Device, Lighting, RgbSettings};
 use crate::blender::run::{frame_outputs, OutputKind};
 use crate::blender::tileset::SelectOptions;
 use crate::blender::{render_frames, Engine, FrameRequest, Launcher, Mode, RenderPlan, SceneSource};
@@ -259,16 +259,18 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<Plan> {
             EngineArg::Workbench if args.check_alignment => Engine::Cycles,
             EngineArg::Workbench => Engine::Workbench,
         },
-        samples: args.samples.unwrap_or(defaults.samples),
-        seed: args.seed,
-        denoise: match (args.denoise, args.no_denoise) {
-            (true, _) => true,
-            (_, true) => false,
-            _ => defaults.denoise,
+        rgb: RgbSettings {
+            samples: args.samples.unwrap_or(defaults.samples),
+            denoise: match (args.denoise, args.no_denoise) {
+                (true, _) => true,
+                (_, true) => false,
+                _ => defaults.denoise,
+            },
+            denoise_quality: args.denoise_quality.map(Into::into).unwrap_or(defaults.denoise_quality),
+            max_bounces: args.max_bounces.unwrap_or(defaults.max_bounces),
+            lighting: defaults.lighting,
         },
-        denoise_quality: args.denoise_quality.map(Into::into).unwrap_or(defaults.denoise_quality),
-        max_bounces: args.max_bounces.unwrap_or(defaults.max_bounces),
-        lighting: defaults.lighting,
+        seed: args.seed,
         device: args.device.into(),
         threads: args.threads,
         exr: args.exr,
@@ -294,17 +296,17 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
         return Ok(());
     }
     let printer = global.printer();
-    let r = &plan.render;
+    let r = &plan.render.rgb;
     printer.status(format!(
         "render-rgb: {} lighting, {} samples, denoise {}, {} bounce(s), device {}",
-        match r.source {
+        match plan.render.source {
             SceneSource::Lod { .. } => r.lighting.name(),
             SceneSource::Tileset { .. } => "unlit",
         },
         r.samples,
         if r.denoise { format!("on ({:?})", r.denoise_quality).to_lowercase() } else { "off".into() },
         r.max_bounces,
-        r.device.name()
+        plan.render.device.name()
     ));
     let summary = render_frames(&plan.render, &plan.frames, &printer.progress())?;
     let n = summary.rendered.len().max(1) as f64;

@@ -34,12 +34,14 @@ fn plan(python: &Path, dir: &Path, mode: Mode, source: SceneSource) -> RenderPla
         launcher: Launcher::Python { interpreter: python.to_path_buf() },
         mode,
         engine: Engine::Cycles,
-        samples: 4,
+        rgb: insgen::blender::job::RgbSettings {
+            samples: 4,
+            denoise: false,
+            denoise_quality: insgen::blender::job::DenoiseQuality::Fast,
+            max_bounces: 2,
+            lighting: insgen::blender::job::Lighting::Direct,
+        },
         seed: 1,
-        denoise: false,
-        denoise_quality: insgen::blender::job::DenoiseQuality::Fast,
-        max_bounces: 2,
-        lighting: insgen::blender::job::Lighting::Direct,
         device: insgen::blender::job::Device::Cpu,
         // Two render threads: the test machine is shared.
         threads: 2,
@@ -301,14 +303,14 @@ fn device_is_chosen_logged_and_recorded() {
         assert!(errors.is_empty(), "d.render.json against schemas/rgb_render.schema.json: {errors:?}");
         let meta: insgen::blender::run::FrameMeta = serde_json::from_slice(&bytes).unwrap();
         assert_eq!(meta.device_requested, word);
-        assert_eq!(meta.lighting, insgen::blender::job::Lighting::Direct);
+        assert_eq!(meta.settings.lighting, insgen::blender::job::Lighting::Direct);
         assert_eq!(s.devices, vec![meta.device.clone()]);
         if device == Device::Cpu || std::env::var_os("INSGEN_TEST_HAS_GPU").is_none() {
             assert_eq!(meta.device, "CPU", "{word}");
         } else {
             assert!(!meta.device.is_empty());
         }
-        assert_eq!((meta.samples, meta.engine.as_str()), (4, "cycles"));
+        assert_eq!((meta.settings.samples, meta.engine.as_str()), (4, "cycles"));
     }
 }
 
@@ -565,8 +567,8 @@ fn bench_cam2_full_resolution() {
     }
     let glb = write_scene_glb(dir, &boxes);
     let mut p = plan(&py, dir, Mode::Rgb, SceneSource::Lod { glb });
-    p.samples = samples;
-    p.denoise = std::env::var("INSGEN_BENCH_DENOISE").map(|v| v == "1").unwrap_or(false);
+    p.rgb.samples = samples;
+    p.rgb.denoise = std::env::var("INSGEN_BENCH_DENOISE").map(|v| v == "1").unwrap_or(false);
     p.threads = 0;
     p.force = true;
     // INSGEN_BENCH_RES=WxH renders the same camera at another resolution (for quick looks).
@@ -591,7 +593,7 @@ fn bench_cam2_full_resolution() {
     for t in &s.rendered {
         eprintln!(
             "bench cam2 {}x{} cycles cpu {samples} spp denoise={}: {} {:.1} s wall, {:.1} s cpu",
-            k.width_px, k.height_px, p.denoise, t.name, t.seconds, t.cpu_seconds
+            k.width_px, k.height_px, p.rgb.denoise, t.name, t.seconds, t.cpu_seconds
         );
     }
     eprintln!("scene set-up {:?} s; outputs in {}", s.setup_seconds, p.out_dir.display());
@@ -788,7 +790,7 @@ fn direct_lighting_is_noise_free_but_for_anti_aliasing() {
         for seed in [1u32, 2] {
             let run = dir.path().join(format!("{}-{seed}", lighting.name()));
             let mut p = plan(&py, &run, Mode::Rgb, SceneSource::Lod { glb: glb.clone() });
-            (p.samples, p.seed, p.lighting, p.max_bounces) = (1, seed, lighting, 2);
+            (p.rgb.samples, p.seed, p.rgb.lighting, p.rgb.max_bounces) = (1, seed, lighting, 2);
             render_frames(&p, std::slice::from_ref(&frame), &NoProgress).unwrap();
             png.insert((lighting.name(), seed), p.out_dir.join("f.png"));
         }
