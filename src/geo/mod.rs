@@ -14,9 +14,12 @@ pub mod ellipsoid;
 pub mod enu;
 pub mod error;
 pub mod geoid;
+mod geotiff;
 mod pj;
 
-pub use crs::{proj_version, AxisConvention, Crs, CrsAxis, CrsKind, CrsTransform, HeightKind};
+pub use crs::{
+    proj_version, AxisConvention, Crs, CrsAxis, CrsKind, CrsTransform, HeightKind, VerticalChoice,
+};
 pub use ellipsoid::{ecef_to_geodetic, geodetic_to_ecef, Geodetic};
 pub use enu::EnuFrame;
 pub use error::{CrsError, GeoError, ProjError};
