@@ -28,6 +28,14 @@
 //! feet is scaled; a 2D projected CRS's heights are taken to be in its horizontal unit); only for
 //! geocentric input does the height come out of the conversion.
 //!
+//! National geoids: [`Crs::transform_with_heights`] instead hands a compound CRS to PROJ whole
+//! (→ EPSG:4979), so PROJ applies the vertical transformation its database names — e.g. GSIGEO2011
+//! (`jp_gsi_gsigeo2011.tif`) for JGD2011 height, NLGEO2018 (`nl_nsgi_nlgeo2018.tif`) for NAP —
+//! when that grid is installed in its search path (`projsync --file NAME`, or a `PROJ_DATA`
+//! directory). Without the grid PROJ falls back to a "ballpark" step (h = H);
+//! [`CrsTransform::vertical_choice_at`] says which happened, which grids were opened and which were
+//! wanted, so the caller can fall back to EGM96 instead (the scene stage's `[geoid] model = "proj"`).
+//!
 //! # Axis order
 //! [`AxisConvention::Authority`] means the EPSG axis order (GML: EPSG:6697 and EPSG:4326 are latitude,
 //! longitude; the Japanese plane rectangular CRSs EPSG:6669–6687 are X = northing, Y = easting);

@@ -2,7 +2,10 @@
 //! instance every building and write the scene artifact (see [`super::artifact`]).
 //!
 //! The chain per vertex, all f64: source CRS → WGS84 latitude/longitude (PROJ) → + geoid undulation for
-//! orthometric heights → ECEF (EPSG:4978) → ENU at the area origin. 3D Tiles are already ECEF.
+//! orthometric heights → ECEF (EPSG:4978) → ENU at the area origin. 3D Tiles are already ECEF. With
+//! `[geoid] model = "proj"`, a compound CRS goes to WGS84 3D through PROJ instead, heights included,
+//! when PROJ has a real vertical transformation (its national geoid grid is installed); otherwise the
+//! EGM96 chain above, with one warning naming the grid PROJ wanted.
 //!
 //! Defaults when the scene file is silent:
 //! - origin: centre of the buildings' latitude/longitude bounds, at the median building base height;
