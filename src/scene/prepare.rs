@@ -130,8 +130,8 @@ impl GeoidSlot<'_> {
             format!("PROJ knows no geoid grid for {}", crs.id())
         } else {
             format!(
-                "PROJ's geoid grid for {} is not installed ({}; install with `projsync --file {}` or put it in \
-                 a PROJ_DATA directory)",
+                "PROJ's best operation for {} needs grids that are not installed ({}; install with `projsync \
+                 --file {}` or put them in a PROJ_DATA directory)",
                 crs.id(),
                 missing.join(", "),
                 missing[0]
