@@ -101,7 +101,12 @@ fn prepared(mesh: SceneMesh, buildings: Vec<BuildingRecord>, enu: &EnuFrame) -> 
             ecef_from_enu: enu.ecef_from_enu(),
             area_polygon_enu_m: vec![],
             ground_enu_m: 0.0,
-            geoid: GeoidUsed { model: "none".into(), grid: None, undulation_at_origin_m: 0.0 },
+            geoid: GeoidUsed {
+                model: "none".into(),
+                grid: None,
+                undulation_at_origin_m: 0.0,
+                ..Default::default()
+            },
             sources: vec![],
             buildings: n,
             triangles: t,

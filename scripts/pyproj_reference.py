@@ -8,7 +8,9 @@ request  = {
   "n_points": 100,               # per CRS
   "codes": [4326, 6697, ...],    # EPSG codes
   "extra_data_dirs": ["/usr/share/proj"],  # appended to pyproj's data dirs (same grids as insgen's PROJ)
-  "geoid": {"grid": "/usr/share/proj/egm96_15.gtx", "points": [[lat, lon], ...]}   # optional
+  "geoid": {"grid": "/usr/share/proj/egm96_15.gtx", "points": [[lat, lon], ...]},  # optional
+  "geoids": [{"grid": "/tmp/x/synthetic.tif", "points": [[lat, lon], ...]}, ...],  # optional, several
+  "compound": {"code": 6697, "points": [[lon_or_e, lat_or_n, H], ...]}   # optional: PROJ's own heights
 }
 answer   = {
   "pyproj_version": "3.7.2", "proj_version": "9.5.1",
@@ -24,7 +26,12 @@ answer   = {
         "ecef_m": [X, Y, Z]       # pyproj: (lat, lon, h) through EPSG:4979 -> EPSG:4978
      }, ...]
   }, ...],
-  "geoid": {"undulation_m": [...]}   # PROJ vgridshift +multiplier=1 at the given points
+  "geoid": {"undulation_m": [...]},  # PROJ vgridshift +multiplier=1 at the given points
+  "geoids": [{"undulation_m": [...]}, ...],   # the same, per grid
+  "compound": {"operation": "...", "grids": ["jp_gsi_gsigeo2011.tif"],
+               "points": [{"lat_deg", "lon_deg", "h_m", "ecef_m": [X, Y, Z]}, ...]}
+               # Transformer.from_crs(code, EPSG:4979, always_xy=True): PROJ's own vertical
+               # transformation (a geoid grid when installed in the data directories), then 4979 -> 4978
 }
 
 How points are made: latitude/longitude uniformly inside the CRS's area of use (inset by 2 % of its
@@ -146,6 +153,24 @@ def geoid_entry(req):
     return dict(undulation_m=out, description=t.description)
 
 
+def compound_entry(req):
+    t = Transformer.from_crs(req["code"], 4979, always_xy=True)
+    to_ecef = Transformer.from_crs(4979, 4978, always_xy=True)
+    points = []
+    for x, y, h in req["points"]:
+        lon, lat, hh = t.transform(x, y, h)
+        ex, ey, ez = to_ecef.transform(lon, lat, hh)
+        points.append(dict(lat_deg=lat, lon_deg=lon, h_m=hh, ecef_m=[ex, ey, ez]))
+    try:
+        op = t.get_last_used_operation()
+    except Exception:  # a single operation: PROJ keeps no "last used" one
+        op = t
+    # The grids the operation's PROJ pipeline opens (+grids=… of vgridshift/hgridshift steps).
+    grids = [g for step in op.definition.split() if step.startswith("grids=") for g in step[6:].split(",")]
+    description = op.description
+    return dict(operation=description, grids=grids, points=points)
+
+
 def main():
     req = json.load(sys.stdin)
     pyproj.network.set_network_enabled(False)
@@ -157,6 +182,9 @@ def main():
                crs=[crs_entry(c, seed, n) for c in req.get("codes", [])])
     if req.get("geoid"):
         out["geoid"] = geoid_entry(req["geoid"])
+    out["geoids"] = [geoid_entry(g) for g in req.get("geoids", [])]
+    if req.get("compound"):
+        out["compound"] = compound_entry(req["compound"])
     json.dump(out, sys.stdout)
 
 

@@ -28,6 +28,14 @@
 //! feet is scaled; a 2D projected CRS's heights are taken to be in its horizontal unit); only for
 //! geocentric input does the height come out of the conversion.
 //!
+//! National geoids: [`Crs::transform_with_heights`] instead hands a compound CRS to PROJ whole
+//! (→ EPSG:4979), so PROJ applies the vertical transformation its database names — e.g. GSIGEO2011
+//! (`jp_gsi_gsigeo2011.tif`) for JGD2011 height, NLGEO2018 (`nl_nsgi_nlgeo2018.tif`) for NAP —
+//! when that grid is installed in its search path (`projsync --file NAME`, or a `PROJ_DATA`
+//! directory). Without the grid PROJ falls back to a "ballpark" step (h = H);
+//! [`CrsTransform::vertical_choice_at`] says which happened, which grids were opened and which were
+//! wanted, so the caller can fall back to EGM96 instead (the scene stage's `[geoid] model = "proj"`).
+//!
 //! # Axis order
 //! [`AxisConvention::Authority`] means the EPSG axis order (GML: EPSG:6697 and EPSG:4326 are latitude,
 //! longitude; the Japanese plane rectangular CRSs EPSG:6669–6687 are X = northing, Y = easting);
@@ -206,6 +214,19 @@ impl Crs {
     /// [`GeoError::UnknownCrs`] when PROJ finds no operation to WGS84.
     pub fn transform(&self) -> Result<CrsTransform, GeoError> {
         CrsTransform::new(self.clone())
+    }
+
+    /// Builds a converter that lets PROJ handle the heights too: the compound CRS (horizontal +
+    /// vertical) to WGS 84 3D (EPSG:4979), with PROJ's own choice of vertical transformation — a
+    /// national geoid grid (`jp_gsi_gsigeo2011.tif`, `nl_nsgi_nlgeo2018.tif`, …) when it is installed
+    /// in PROJ's search path, else PROJ's "ballpark" step that leaves the height unchanged (see
+    /// [`CrsTransform::vertical_choice_at`] to tell which). Its [`to_geodetic`](CrsTransform::to_geodetic)
+    /// returns **ellipsoidal** heights.
+    ///
+    /// # Errors
+    /// [`GeoError::UnknownCrs`] when the CRS has no vertical part or PROJ finds no operation.
+    pub fn transform_with_heights(&self) -> Result<CrsTransform, GeoError> {
+        CrsTransform::new_3d(self.clone())
     }
 }
 
@@ -438,7 +459,28 @@ enum Engine {
     /// PROJ from the horizontal CRS to EPSG:4326. `authority` takes the CRS's authority order and
     /// returns (lat, lon); `east_north` takes easting/longitude first and returns (lon, lat).
     Horizontal { authority: Obj, east_north: Obj },
+    /// PROJ from a compound CRS to EPSG:4979, heights included: `authority` returns (lat, lon, h),
+    /// `east_north` (lon, lat, h). `src`/`dst` are kept to list the candidate operations.
+    Compound3D { authority: Obj, east_north: Obj, src: Obj, dst: Obj },
 }
+
+/// What PROJ did with the heights of a compound CRS at one point ([`CrsTransform::vertical_choice_at`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct VerticalChoice {
+    /// PROJ's description of the operation it used there.
+    pub operation: String,
+    /// Whether the vertical step is PROJ's "ballpark" one (no geoid model: h = H), which it takes when
+    /// no real transformation can run (typically: the geoid grid is not installed).
+    pub ballpark: bool,
+    /// The grids the operation used, as files PROJ opened (full paths).
+    pub grids: Vec<String>,
+    /// With `ballpark`: the grids of PROJ's best-ranked operation that are not installed, by the name
+    /// PROJ's database gives them (`jp_gsi_gsigeo2011.tif`); install one with `projsync --file NAME`.
+    pub missing_grids: Vec<String>,
+}
+
+/// The marker PROJ puts in the name of a vertical step that applies no geoid model (PROJ 7–9).
+const BALLPARK_VERTICAL: &str = "ballpark vertical transformation";
 
 /// A ready converter from one CRS to WGS84 geodetic.
 ///
@@ -480,6 +522,75 @@ impl CrsTransform {
             }
         };
         Ok(CrsTransform { crs, engine, ctx })
+    }
+
+    fn new_3d(crs: Crs) -> Result<CrsTransform, GeoError> {
+        let err = |e: CrsError| GeoError::UnknownCrs { name: crs.given.clone(), source: Box::new(e) };
+        let ctx = Context::new().map_err(|e| err(e.into()))?;
+        let src = match (crs.epsg, crs.vertical_epsg) {
+            (_, None) => {
+                return Err(err(CrsError::CompoundVertical { name: crs.name.clone() }));
+            }
+            (Some(code), Some(_)) => ctx.crs_from_database("EPSG", code),
+            (None, Some(v)) => ctx.create(&format!("EPSG:{}+{v}", crs.horizontal_epsg)),
+        }
+        .map_err(|e| err(e.into()))?;
+        let dst = ctx.crs_from_database("EPSG", 4979).map_err(|e| err(e.into()))?;
+        let authority = ctx.crs_to_crs(&src, &dst).map_err(|e| err(e.into()))?;
+        let east_north = ctx.normalize_for_visualization(&authority).map_err(|e| err(e.into()))?;
+        Ok(CrsTransform { crs, engine: Engine::Compound3D { authority, east_north, src, dst }, ctx })
+    }
+
+    /// For a converter made by [`Crs::transform_with_heights`]: the operation PROJ uses at `p`, whether
+    /// its vertical step is a real one (a geoid grid) or PROJ's ballpark (h = H), the grids it opened,
+    /// and — for the ballpark — the not-installed grids of the operation PROJ would rank first.
+    /// `None` for other converters.
+    ///
+    /// # Errors
+    /// As [`to_geodetic`](Self::to_geodetic).
+    pub fn vertical_choice_at(
+        &self,
+        p: [f64; 3],
+        axes: AxisConvention,
+    ) -> Result<Option<VerticalChoice>, GeoError> {
+        let Engine::Compound3D { authority, east_north, src, dst } = &self.engine else {
+            return Ok(None);
+        };
+        self.to_geodetic(p, axes)?;
+        let op = match axes {
+            AxisConvention::Authority => authority,
+            AxisConvention::EastNorth => east_north,
+        };
+        let used = self.ctx.last_used_operation_obj(op);
+        let used_ref = used.as_ref().unwrap_or(op);
+        let operation = used_ref.description();
+        let ballpark = operation.contains(BALLPARK_VERTICAL);
+        let grids: Vec<String> = self
+            .ctx
+            .grids_used(used_ref)
+            .into_iter()
+            .filter(|g| g.available)
+            .map(|g| if g.full_name.is_empty() { g.short_name } else { g.full_name })
+            .collect();
+        let missing_grids = if ballpark {
+            // PROJ's ranking with availability ignored: the first operation that cannot run here is
+            // the one a user would get by installing its grids.
+            let ops = self.ctx.operations_ignoring_grids(src, dst);
+            ops.iter()
+                .find(|o| !self.ctx.is_instantiable(o))
+                .map(|o| {
+                    self.ctx
+                        .grids_used(o)
+                        .into_iter()
+                        .filter(|g| !g.available)
+                        .map(|g| g.short_name)
+                        .collect()
+                })
+                .unwrap_or_default()
+        } else {
+            Vec::new()
+        };
+        Ok(Some(VerticalChoice { operation, ballpark, grids, missing_grids }))
     }
 
     fn transform_error(&self, point: [f64; 3], why: impl Into<String>) -> GeoError {
@@ -563,6 +674,26 @@ impl CrsTransform {
                     out[i] = Geodetic::new(lat, lon, pts[i][2] * self.crs.height_unit_m);
                 }
             }
+            Engine::Compound3D { authority, east_north, .. } => {
+                let op = match axes {
+                    AxisConvention::Authority => authority,
+                    AxisConvention::EastNorth => east_north,
+                };
+                let mut x: Vec<f64> = pts.iter().map(|p| p[0]).collect();
+                let mut y: Vec<f64> = pts.iter().map(|p| p[1]).collect();
+                let mut z: Vec<f64> = pts.iter().map(|p| p[2]).collect();
+                self.ctx
+                    .trans(op, false, &mut x, &mut y, &mut z)
+                    .map_err(|(i, why)| self.transform_error(pts[i], why))?;
+                for i in 0..n {
+                    let (lat, lon) = match axes {
+                        // EPSG:4979 authority order is latitude, longitude, height.
+                        AxisConvention::Authority => (x[i], y[i]),
+                        AxisConvention::EastNorth => (y[i], x[i]),
+                    };
+                    out[i] = Geodetic::new(lat, lon, z[i]);
+                }
+            }
         }
         Ok(())
     }
@@ -594,6 +725,16 @@ impl CrsTransform {
                 self.ctx.trans(op, true, &mut x, &mut y, &mut []).map_err(inv_err)?;
                 Ok([x[0], y[0], g.h_m / self.crs.height_unit_m])
             }
+            Engine::Compound3D { authority, east_north, .. } => {
+                // g.h_m is ellipsoidal here; PROJ returns the height in the vertical CRS.
+                let (op, mut x, mut y) = match axes {
+                    AxisConvention::Authority => (authority, [g.lat_deg], [g.lon_deg]),
+                    AxisConvention::EastNorth => (east_north, [g.lon_deg], [g.lat_deg]),
+                };
+                let mut z = [g.h_m];
+                self.ctx.trans(op, true, &mut x, &mut y, &mut z).map_err(inv_err)?;
+                Ok([x[0], y[0], z[0]])
+            }
         }
     }
 
@@ -607,7 +748,8 @@ impl CrsTransform {
         Ok(match &self.engine {
             Engine::Wgs84Ecef => "WGS 84 geocentric to geographic (closed form, insgen)".to_string(),
             Engine::Geocentric { op } => self.ctx.last_used_operation(op),
-            Engine::Horizontal { authority, east_north } => match axes {
+            Engine::Horizontal { authority, east_north }
+            | Engine::Compound3D { authority, east_north, .. } => match axes {
                 AxisConvention::Authority => self.ctx.last_used_operation(authority),
                 AxisConvention::EastNorth => self.ctx.last_used_operation(east_north),
             },
@@ -936,6 +1078,37 @@ mod tests {
             let t = Crs::from_epsg(28992).unwrap().transform().unwrap();
             let op = t.operation_for([85_000.0, 446_000.0, 0.0], AxisConvention::EastNorth).unwrap();
             assert!(op.contains("Amersfoort"), "{op}");
+        }
+
+        #[test]
+        fn compound_heights_through_proj_without_the_grid_are_ballpark_and_name_it() {
+            // Skipped where the real GSIGEO2011 grid is installed (PROJ would then use it).
+            let installed = proj_search_paths()
+                .iter()
+                .any(|d| std::path::Path::new(d).join("jp_gsi_gsigeo2011.tif").is_file());
+            let t = Crs::from_epsg(6697).unwrap().transform_with_heights().unwrap();
+            let p = [139.7016, 35.658, 40.0];
+            let c = t.vertical_choice_at(p, AxisConvention::EastNorth).unwrap().expect("compound converter");
+            if installed {
+                assert!(!c.ballpark, "{c:?}");
+                return;
+            }
+            assert!(c.ballpark, "{c:?}");
+            assert_eq!(c.missing_grids, ["jp_gsi_gsigeo2011.tif"], "{c:?}");
+            // The ballpark step leaves H as h; the horizontal part is a null transformation.
+            close(t.to_geodetic(p, AxisConvention::EastNorth).unwrap(), 35.658, 139.7016, 40.0, 1e-9);
+            let a = t.to_geodetic([35.658, 139.7016, 40.0], AxisConvention::Authority).unwrap();
+            close(a, 35.658, 139.7016, 40.0, 1e-9);
+            // The same for the compound spelled as two codes; the inverse returns H.
+            let two = Crs::parse("urn:ogc:def:crs,crs:EPSG::6668,crs:EPSG::6695").unwrap();
+            let t2 = two.transform_with_heights().unwrap();
+            let back =
+                t2.from_geodetic(Geodetic::new(35.658, 139.7016, 40.0), AxisConvention::EastNorth).unwrap();
+            assert!((back[2] - 40.0).abs() < 1e-6 && (back[0] - 139.7016).abs() < 1e-9, "{back:?}");
+            // Other converters report no choice; 2D CRSs have no heights for PROJ to convert.
+            let h = Crs::from_epsg(6677).unwrap().transform().unwrap();
+            assert_eq!(h.vertical_choice_at([0.0, 0.0, 0.0], AxisConvention::Authority).unwrap(), None);
+            assert!(Crs::from_epsg(6677).unwrap().transform_with_heights().is_err());
         }
 
         #[test]

@@ -1,8 +1,11 @@
 //! Geoid undulation N for orthometric → ellipsoidal heights: h = H + N.
 //!
 //! Takes a WGS84 latitude/longitude and hands on N in metres, from one of: nothing (heights already
-//! ellipsoidal), a per-area constant, or a PROJ `.gtx` grid such as EGM96 15' (`egm96_15.gtx`, Debian
-//! package `proj-data`), interpolated exactly as PROJ's `vgridshift` does.
+//! ellipsoidal), a per-area constant, or a vertical grid PROJ can use — a `.gtx` grid such as EGM96
+//! 15' (`egm96_15.gtx`, Debian package `proj-data`) or a GeoTIFF grid of PROJ-data / the PROJ CDN
+//! (`jp_gsi_gsigeo2011.tif`, `nl_nsgi_nlgeo2018.tif`, …) — interpolated exactly as PROJ's `vgridshift`
+//! does. (Letting PROJ itself pick a national geoid for a compound CRS is the other way, see
+//! [`Crs::transform_with_heights`](super::Crs::transform_with_heights).)
 //!
 //! # GTX format
 //! A 40-byte big-endian header — south latitude, west longitude, latitude step, longitude step (f64,
@@ -10,6 +13,18 @@
 //! big-endian f32 values in metres, row by row from south to north, each row from west to east. Values
 //! of −88.8888 (and anything beyond ±1000 m) mean "no data". A grid whose columns span 360° wraps around
 //! in longitude (EGM96 15': 721 × 1440 nodes from −90° to 90° and −180° to 179.75°).
+//!
+//! # GeoTIFF format (as PROJ's `grids.cpp` reads it)
+//! The first IFD (a full-resolution image, `NewSubfileType` 0) is the grid; further full-resolution
+//! IFDs would be PROJ subgrids and are refused, reduced-resolution ones (overviews) are ignored.
+//! Samples are float32 or float64, stripped or tiled, uncompressed or Deflate/LZW (with or without a
+//! predictor), chunky or planar. The band used is the one whose `GDAL_METADATA` DESCRIPTION is
+//! `geoid_undulation` or `vertical_offset`, else band 0; its `scale`/`offset` items are applied.
+//! Georeferencing: `ModelTransformation` (no rotation) or `ModelPixelScale` + `ModelTiepoint`, in
+//! degrees (`GTModelTypeGeoKey` must be geographic). `GTRasterTypeGeoKey` = PixelIsArea puts the nodes at
+//! pixel centres (half a pixel in from the tiepoint); PixelIsPoint — and, as in PROJ, a file without
+//! the key — puts them on the tiepoint grid. Rows run north to south unless the latitude scale is
+//! negative. Nodes equal to `GDAL_NODATA`, or NaN, are "no data".
 //!
 //! # Interpolation
 //! As PROJ 9 `read_vgrid_value` (src/grids.cpp): bilinear in the cell containing the point; at the
@@ -25,6 +40,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use super::geotiff::is_tiff;
 use super::GeoError;
 
 /// The geoid model used for an area.
@@ -34,7 +50,7 @@ pub enum Geoid {
     None,
     /// A constant undulation N in metres (h = H + N).
     Constant(f64),
-    /// A gridded geoid model (EGM96 15' or another `.gtx` grid).
+    /// A gridded geoid model (EGM96 15', or another `.gtx` or GeoTIFF grid).
     Grid(GeoidGrid),
 }
 
@@ -100,10 +116,20 @@ impl Geoid {
     }
 }
 
-/// A geoid grid loaded from a PROJ `.gtx` file (values kept in memory; clones share them).
+/// How a grid marks nodes without data; each format has its own rule in PROJ.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum NoData {
+    /// GTX: −88.8888, or anything beyond ±1000 m.
+    Gtx,
+    /// GeoTIFF: the `GDAL_NODATA` value if any, and NaN.
+    Tiff(Option<f32>),
+}
+
+/// A geoid grid loaded from a PROJ `.gtx` or GeoTIFF file (values kept in memory; clones share them).
 #[derive(Clone)]
 pub struct GeoidGrid {
     path: PathBuf,
+    nodata: NoData,
     /// Latitude of the southern row of nodes, degrees.
     south_deg: f64,
     /// Longitude of the western column of nodes, degrees (in [−180, 180)).
@@ -135,6 +161,7 @@ impl std::fmt::Debug for GeoidGrid {
 impl PartialEq for GeoidGrid {
     fn eq(&self, o: &Self) -> bool {
         self.path == o.path
+            && self.nodata == o.nodata
             && (self.south_deg, self.west_deg, self.dlat_deg, self.dlon_deg)
                 == (o.south_deg, o.west_deg, o.dlat_deg, o.dlon_deg)
             && (self.rows, self.cols) == (o.rows, o.cols)
@@ -160,6 +187,29 @@ fn be_i32(b: &[u8], at: usize) -> i32 {
 }
 
 impl GeoidGrid {
+    /// Loads a vertical grid as PROJ would: a file named `*.gtx` is a GTX grid, anything else must be
+    /// a (Big)TIFF (formats in the module doc).
+    ///
+    /// # Errors
+    /// [`GeoError::File`] if the file cannot be read; [`GeoError::Geoid`] naming the file and the
+    /// problem if it is neither, or malformed, or a kind of TIFF that cannot be read as a geoid grid.
+    pub fn load(path: &Path) -> Result<GeoidGrid, GeoError> {
+        let is_gtx = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gtx"));
+        let bytes = crate::util::read_file(path)?;
+        if is_gtx {
+            Self::from_gtx_bytes(path, &bytes)
+        } else if is_tiff(&bytes) {
+            Self::from_tiff_bytes(path, &bytes)
+        } else {
+            Err(GeoError::Geoid {
+                path: path.display().to_string(),
+                why: "neither a GTX grid (named *.gtx) nor a GeoTIFF (no TIFF signature): PROJ vertical \
+                      grids are .gtx or .tif files"
+                    .into(),
+            })
+        }
+    }
+
     /// Loads a `.gtx` grid (format in the module doc).
     ///
     /// # Errors
@@ -221,6 +271,7 @@ impl GeoidGrid {
             .collect();
         Ok(GeoidGrid {
             path: path.to_path_buf(),
+            nodata: NoData::Gtx,
             south_deg,
             west_deg,
             dlat_deg,
@@ -228,6 +279,28 @@ impl GeoidGrid {
             rows,
             cols,
             values_m,
+        })
+    }
+
+    /// Parses the bytes of a GeoTIFF vertical grid (rules in the module doc); `path` is recorded and
+    /// used in error messages.
+    ///
+    /// # Errors
+    /// [`GeoError::Geoid`] naming the file and what is wrong: not a TIFF, no georeferencing, a
+    /// projected CRS, integer samples, several full-resolution grids, no geoid band, …
+    pub fn from_tiff_bytes(path: &Path, bytes: &[u8]) -> Result<GeoidGrid, GeoError> {
+        let g = super::geotiff::read(bytes)
+            .map_err(|why| GeoError::Geoid { path: path.display().to_string(), why })?;
+        Ok(GeoidGrid {
+            path: path.to_path_buf(),
+            nodata: NoData::Tiff(g.nodata),
+            south_deg: g.south_deg,
+            west_deg: g.west_deg,
+            dlat_deg: g.dlat_deg,
+            dlon_deg: g.dlon_deg,
+            rows: g.rows,
+            cols: g.cols,
+            values_m: g.values_m.into(),
         })
     }
 
@@ -319,8 +392,12 @@ impl GeoidGrid {
             (self.node(ix, iy2), fy - fx * fy),
             (self.node(ix2, iy2), fx * fy),
         ];
-        // PROJ's nodata test (|v| > 1000 m or the GTX marker); a NaN node also counts as nodata here.
-        let valid = |v: f32| (-1000.0..=1000.0).contains(&v) && v != GTX_NODATA;
+        // PROJ's nodata tests: GTX: |v| > 1000 m or the GTX marker (a NaN node counts as nodata too);
+        // GeoTIFF: the GDAL_NODATA value or NaN.
+        let valid = |v: f32| match self.nodata {
+            NoData::Gtx => (-1000.0..=1000.0).contains(&v) && v != GTX_NODATA,
+            NoData::Tiff(nd) => !v.is_nan() && Some(v) != nd,
+        };
         let n_valid = corners.iter().filter(|(v, _)| valid(*v)).count();
         match n_valid {
             0 => Err(bad(format!("no geoid data around ({lat_deg}°, {lon_deg}°)"))),

@@ -235,9 +235,8 @@ impl Context {
         self.wrap(ptr, |reason| ProjError::Normalize { operation: op.name(), reason })
     }
 
-    /// Creates an object from a PROJ string or WKT/PROJJSON definition (tests compare with raw PROJ
-    /// pipelines).
-    #[cfg(test)]
+    /// Creates an object from a PROJ string, a user CRS string (`EPSG:6668+6695`) or a WKT/PROJJSON
+    /// definition.
     pub(crate) fn create(&self, definition: &str) -> Result<Obj, ProjError> {
         self.clear_error();
         let def = CString::new(definition)
@@ -305,6 +304,97 @@ impl Context {
         }
     }
 
+    /// The operation `op` used for its most recent transformed point (for an operation with several
+    /// candidates, the one PROJ picked); `None` when PROJ keeps none (a single operation).
+    pub(crate) fn last_used_operation_obj(&self, op: &Obj) -> Option<Obj> {
+        // SAFETY: live op; the result is a new object (or null) that we own.
+        let used = unsafe { sys::proj_trans_get_last_used_operation(op.ptr) };
+        (!used.is_null()).then_some(Obj { ptr: used })
+    }
+
+    /// The grids a coordinate operation (single or concatenated) needs, with whether PROJ found them.
+    pub(crate) fn grids_used(&self, op: &Obj) -> Vec<GridUsed> {
+        // SAFETY: live context and object.
+        let n = unsafe { sys::proj_coordoperation_get_grid_used_count(self.ptr, op.ptr) };
+        let mut out = Vec::new();
+        for i in 0..n.max(0) {
+            let (mut short, mut full, mut package, mut url) =
+                (ptr::null(), ptr::null(), ptr::null(), ptr::null());
+            let (mut direct, mut open, mut available) = (0, 0, 0);
+            // SAFETY: live context and object, index in range; out-pointers to locals; the strings are
+            // owned by the operation and copied right away.
+            let ok = unsafe {
+                sys::proj_coordoperation_get_grid_used(
+                    self.ptr,
+                    op.ptr,
+                    i,
+                    &mut short,
+                    &mut full,
+                    &mut package,
+                    &mut url,
+                    &mut direct,
+                    &mut open,
+                    &mut available,
+                )
+            };
+            if ok == 0 {
+                continue;
+            }
+            // SAFETY: strings from PROJ as described above.
+            unsafe {
+                out.push(GridUsed {
+                    short_name: c_str(short).unwrap_or_default(),
+                    full_name: c_str(full).unwrap_or_default(),
+                    available: available != 0,
+                });
+            }
+        }
+        out
+    }
+
+    /// Every candidate operation from `src` to `dst` whose area of use meets the CRSs', best first, as
+    /// PROJ ranks them with grid availability *ignored* — so operations whose grids are not installed
+    /// are listed too (that is how to learn which grid PROJ would have wanted).
+    pub(crate) fn operations_ignoring_grids(&self, src: &Obj, dst: &Obj) -> Vec<Obj> {
+        // SAFETY: live context; the factory context and list are destroyed below; each listed object
+        // taken with proj_list_get is a new object that we own.
+        unsafe {
+            let factory = sys::proj_create_operation_factory_context(self.ptr, ptr::null());
+            if factory.is_null() {
+                return Vec::new();
+            }
+            sys::proj_operation_factory_context_set_grid_availability_use(
+                self.ptr,
+                factory,
+                sys::PROJ_GRID_AVAILABILITY_USE_PROJ_GRID_AVAILABILITY_IGNORED,
+            );
+            sys::proj_operation_factory_context_set_spatial_criterion(
+                self.ptr,
+                factory,
+                sys::PROJ_SPATIAL_CRITERION_PROJ_SPATIAL_CRITERION_PARTIAL_INTERSECTION,
+            );
+            let list = sys::proj_create_operations(self.ptr, src.ptr, dst.ptr, factory);
+            let mut out = Vec::new();
+            if !list.is_null() {
+                for i in 0..sys::proj_list_get_count(list) {
+                    let o = sys::proj_list_get(self.ptr, list, i);
+                    if !o.is_null() {
+                        out.push(Obj { ptr: o });
+                    }
+                }
+                sys::proj_list_destroy(list);
+            }
+            sys::proj_operation_factory_context_destroy(factory);
+            out
+        }
+    }
+
+    /// Whether PROJ can run the operation here (all its grids are installed).
+    pub(crate) fn is_instantiable(&self, op: &Obj) -> bool {
+        // SAFETY: live context and object.
+        unsafe { sys::proj_coordoperation_is_instantiable(self.ptr, op.ptr) != 0 }
+    }
+
     /// The description of the operation `op` used for its most recent transformed point (for an
     /// operation with several candidates, the one PROJ picked).
     pub(crate) fn last_used_operation(&self, op: &Obj) -> String {
@@ -337,6 +427,17 @@ pub(crate) struct AxisInfo {
     /// Metres (or radians) per unit of this axis.
     pub unit_factor: f64,
     pub unit: String,
+}
+
+/// A grid a coordinate operation needs (`proj_coordoperation_get_grid_used`).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct GridUsed {
+    /// The name PROJ's database gives (`jp_gsi_gsigeo2011.tif`).
+    pub short_name: String,
+    /// The file PROJ found in its search path (empty when not installed).
+    pub full_name: String,
+    /// Whether the grid is installed where PROJ looks.
+    pub available: bool,
 }
 
 /// One PROJ object (CRS or coordinate operation). Must be dropped before its [`Context`].

@@ -69,6 +69,9 @@ pub struct SourceBuilding {
 
 /// Attribute names of a building's ground height in the wild: `TerrainHeight` (Dutch municipal
 /// models), `h_maaiveld`/`b3_h_maaiveld` (BAG/3DBAG), `groundHeight`, `ground_height`.
+///
+/// PLATEAU has none: i-UR (`uro:`) 2.0/3.0 `BuildingDetailAttribute/buildingHeight` and `eaveHeight`
+/// are heights measured *from* the ground surface, not its elevation, and PLATEAU geometry is absolute.
 pub const GROUND_ATTRIBUTES: &[&str] =
     &["TerrainHeight", "h_maaiveld", "b3_h_maaiveld", "groundHeight", "ground_height"];
 

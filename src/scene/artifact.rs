@@ -77,15 +77,28 @@ pub struct SourceEntry {
 }
 
 /// The geoid used to turn orthometric heights into ellipsoidal ones.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct GeoidUsed {
-    /// "none" (heights already ellipsoidal), "egm96" (the EGM96 15' grid), or "constant".
+    /// "none" (heights already ellipsoidal), "egm96" (the EGM96 15' grid), "grid" (another `.gtx` or
+    /// GeoTIFF grid given as `[geoid] grid`), "constant", or "proj" (PROJ converted the compound CRS's
+    /// heights itself, with the grid in `proj_grids`).
     pub model: String,
-    /// The grid file read, for grid models.
+    /// The grid file read: the one insgen interpolated, or for "proj" the first grid PROJ opened.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub grid: Option<String>,
-    /// Undulation at the origin (the constant for "constant"), metres.
+    /// Undulation at the origin (the constant for "constant"; h − H as PROJ converts the origin for
+    /// "proj"), metres.
     pub undulation_at_origin_m: f64,
+    /// "proj": PROJ's description of the coordinate operation it used (at the first vertex).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub proj_operation: Option<String>,
+    /// "proj": every grid file that operation opened (the geoid, and any horizontal grid).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub proj_grids: Vec<String>,
+    /// `[geoid] model = "proj"` that fell back: the grids PROJ would have used but could not find
+    /// (PROJ's database names, e.g. `jp_gsi_gsigeo2011.tif`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub missing_grids: Vec<String>,
 }
 
 /// `manifest.json` of a prepared scene.

@@ -16,8 +16,9 @@
 //! ground_attribute = "TerrainHeight"  # with above_ground: the ground-height attribute (or ground_height_m = 2.5)
 //!
 //! [geoid]                        # orthometric → ellipsoidal heights, for sources with orthometric heights
-//! model = "egm96"                # egm96 (default) | constant | none
+//! model = "egm96"                # egm96 (default) | proj | constant | none
 //! undulation_m = 36.7            # with model = "constant"
+//! grid = "geoid/gsigeo2011.tif"  # optional: a .gtx or GeoTIFF grid instead of EGM96 (proj: its fallback)
 //!
 //! [origin]                       # optional; default: centre of the buildings, at the lowest ground
 //! lat_deg = 35.658
@@ -135,7 +136,8 @@ pub struct GeoidConfig {
     pub model: GeoidModel,
     #[serde(default)]
     pub undulation_m: Option<f64>,
-    /// Path of a .gtx grid to use instead of the EGM96 grid found in PROJ's data directory.
+    /// Path of a vertical grid PROJ can read (`.gtx` or GeoTIFF `.tif`) to use instead of the EGM96
+    /// grid found in PROJ's data directory (with `model = "proj"`: the fallback where PROJ has none).
     #[serde(default)]
     pub grid: Option<PathBuf>,
 }
@@ -150,12 +152,20 @@ fn default_geoid_model() -> GeoidModel {
     GeoidModel::Egm96
 }
 
+/// `[geoid] model`: how orthometric heights become ellipsoidal.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum GeoidModel {
+    /// h = H + N with N from EGM96 15' (or from `grid`).
     Egm96,
+    /// h = H + `undulation_m`.
     Constant,
+    /// h = H (heights are already ellipsoidal).
     None,
+    /// PROJ converts compound CRSs (EPSG:6697, EPSG:7415, …) to WGS 84 3D itself, with the national
+    /// geoid grid its database names, when that grid is installed in PROJ's search path; otherwise,
+    /// and for CRSs without a vertical part, as `egm96` with one warning.
+    Proj,
 }
 
 /// An explicit area origin (WGS84, ellipsoidal height).
@@ -353,6 +363,23 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("bbox_deg"), "{e}");
+    }
+
+    #[test]
+    fn geoid_models_parse() {
+        for (m, want) in
+            [("egm96", GeoidModel::Egm96), ("proj", GeoidModel::Proj), ("none", GeoidModel::None)]
+        {
+            let c = parse(&format!("name = \"x\"\n[[sources]]\npath = \"a\"\n[geoid]\nmodel = \"{m}\"\n"))
+                .unwrap();
+            assert_eq!(c.geoid.model, want);
+        }
+        let c =
+            parse("name = \"x\"\n[[sources]]\npath = \"a\"\n[geoid]\nmodel = \"proj\"\ngrid = \"g.tif\"\n")
+                .unwrap();
+        assert_eq!(c.geoid.grid.as_deref(), Some(Path::new("g.tif")));
+        let e = parse("name = \"x\"\n[[sources]]\npath = \"a\"\n[geoid]\nmodel = \"gsigeo\"\n").unwrap_err();
+        assert!(crate::util::error_chain(&e).contains("proj"), "{}", crate::util::error_chain(&e));
     }
 
     #[test]

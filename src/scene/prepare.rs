@@ -2,7 +2,10 @@
 //! instance every building and write the scene artifact (see [`super::artifact`]).
 //!
 //! The chain per vertex, all f64: source CRS → WGS84 latitude/longitude (PROJ) → + geoid undulation for
-//! orthometric heights → ECEF (EPSG:4978) → ENU at the area origin. 3D Tiles are already ECEF.
+//! orthometric heights → ECEF (EPSG:4978) → ENU at the area origin. 3D Tiles are already ECEF. With
+//! `[geoid] model = "proj"`, a compound CRS goes to WGS84 3D through PROJ instead, heights included,
+//! when PROJ has a real vertical transformation (its national geoid grid is installed); otherwise the
+//! EGM96 chain above, with one warning naming the grid PROJ wanted.
 //!
 //! Defaults when the scene file is silent:
 //! - origin: centre of the buildings' latitude/longitude bounds, at the median building base height;
@@ -52,11 +55,25 @@ pub struct PrepareReport {
     pub seconds: f64,
 }
 
-/// Lazily built geoid (only sources with orthometric heights need it).
+/// Lazily built geoid (only sources with orthometric heights need it), and what `[geoid] model =
+/// "proj"` found.
 struct GeoidSlot<'a> {
     cfg: &'a SceneConfig,
     scene_file: &'a Path,
     geoid: Option<Geoid>,
+    /// The first source whose heights PROJ converted with a real vertical transformation.
+    proj: Option<ProjHeights>,
+    /// Grids PROJ wanted for a compound CRS but did not find (model = "proj" fell back).
+    missing_grids: Vec<String>,
+    /// Whether the one fallback warning has been printed.
+    warned: bool,
+}
+
+/// A source converted by PROJ heights included (`[geoid] model = "proj"`).
+struct ProjHeights {
+    tf: geo::CrsTransform,
+    axes: AxisConvention,
+    choice: geo::VerticalChoice,
 }
 
 impl GeoidSlot<'_> {
@@ -65,7 +82,8 @@ impl GeoidSlot<'_> {
             let g = match self.cfg.geoid.model {
                 GeoidModel::None => Geoid::None,
                 GeoidModel::Constant => Geoid::Constant(self.cfg.geoid.undulation_m.unwrap_or(0.0)),
-                GeoidModel::Egm96 => {
+                // "proj" falls back to the same grid as "egm96" where PROJ has no geoid of its own.
+                GeoidModel::Egm96 | GeoidModel::Proj => {
                     let path = match &self.cfg.geoid.grid {
                         Some(p) => self.scene_file.parent().unwrap_or(Path::new(".")).join(p),
                         None => Geoid::find_egm96().ok_or_else(|| SceneError::Georef {
@@ -78,7 +96,7 @@ impl GeoidSlot<'_> {
                             source: None,
                         })?,
                     };
-                    Geoid::Grid(geo::geoid::GeoidGrid::load_gtx(&path).map_err(|e| SceneError::Georef {
+                    Geoid::Grid(geo::geoid::GeoidGrid::load(&path).map_err(|e| SceneError::Georef {
                         path: self.scene_file.into(),
                         what: "loading the geoid grid".into(),
                         source: Some(e),
@@ -89,6 +107,50 @@ impl GeoidSlot<'_> {
         }
         Ok(self.geoid.as_ref().expect("set just above"))
     }
+
+    /// The one warning of a `model = "proj"` scene whose heights PROJ could not convert itself.
+    fn warn_fallback(&mut self, crs: &Crs, missing: &[String]) -> Result<(), SceneError> {
+        let custom_grid = self.cfg.geoid.grid.is_some();
+        let fallback = match self.get()? {
+            Geoid::Grid(g) if custom_grid => format!("the grid {}", g.path().display()),
+            _ => "EGM96".to_string(),
+        };
+        for m in missing {
+            if !self.missing_grids.contains(m) {
+                self.missing_grids.push(m.clone());
+            }
+        }
+        if self.warned {
+            return Ok(());
+        }
+        self.warned = true;
+        let why = if crs.vertical_epsg.is_none() {
+            format!("{} has no vertical CRS, so PROJ cannot choose a geoid", crs.id())
+        } else if missing.is_empty() {
+            format!("PROJ knows no geoid grid for {}", crs.id())
+        } else {
+            format!(
+                "PROJ's best operation for {} needs grids that are not installed ({}; install with `projsync \
+                 --file {}` or put them in a PROJ_DATA directory)",
+                crs.id(),
+                missing.join(", "),
+                missing[0]
+            )
+        };
+        log::warn!(
+            "[geoid] model = \"proj\": {why}; using {fallback} instead — national geoids differ from EGM96 by \
+             decimetres to a metre"
+        );
+        Ok(())
+    }
+}
+
+/// The first vertex of the first building with one (where PROJ's choice of operation is probed).
+fn first_vertex(model: &SourceModel) -> Option<[f64; 3]> {
+    model.buildings.iter().find_map(|b| match &b.geometry {
+        Geometry::Mesh(m) => m.positions.first().copied(),
+        Geometry::Polygons(p) => p.iter().find_map(|poly| poly.exterior.first().copied()),
+    })
 }
 
 fn read_one(
@@ -155,6 +217,7 @@ fn georeference(
     let georef_err =
         |what: String, e: Option<geo::GeoError>| SceneError::Georef { path: path.clone(), what, source: e };
 
+    #[allow(clippy::large_enum_variant)] // one per source, never copied
     enum Conv {
         Ecef,
         Crs { tf: geo::CrsTransform, axes: AxisConvention, orthometric: bool },
@@ -186,20 +249,74 @@ fn georeference(
                 }
             };
             let crs = Crs::parse(&name).map_err(|e| georef_err(format!("CRS {name:?}"), Some(e)))?;
-            let tf = crs.transform().map_err(|e| georef_err(format!("CRS {name:?}"), Some(e)))?;
             let orthometric = crs.heights() == HeightKind::Orthometric;
-            let g = if orthometric { geoid.get()?.name() } else { "none" };
             let axes_s = match axes {
                 AxisConvention::Authority => "authority axis order",
                 AxisConvention::EastNorth => "east/north axis order",
             };
-            let chain = format!(
-                "{} ({axes_s}, {} heights) → WGS84 lat/lon (PROJ){} → EPSG:4978 → ENU",
-                crs.describe(),
-                if orthometric { "orthometric" } else { "ellipsoidal" },
-                if orthometric { format!(" + geoid {g}") } else { String::new() }
-            );
-            (Conv::Crs { tf, axes: *axes, orthometric }, chain)
+            // [geoid] model = "proj": PROJ converts compound CRSs heights included when it has a real
+            // vertical transformation (a national geoid grid) for them.
+            let mut by_proj = None;
+            if orthometric && geoid.cfg.geoid.model == GeoidModel::Proj {
+                let mut missing = Vec::new();
+                if crs.vertical_epsg.is_some() {
+                    let tf3 = crs
+                        .transform_with_heights()
+                        .map_err(|e| georef_err(format!("CRS {name:?}"), Some(e)))?;
+                    let probe = first_vertex(&model).map(|p| {
+                        let lift = model.buildings.first().map_or(0.0, |b| {
+                            if src.heights == Some(Heights::AboveGround) {
+                                ground_height_m(src, b)
+                            } else {
+                                0.0
+                            }
+                        });
+                        [p[0], p[1], p[2] + lift]
+                    });
+                    if let Some(probe) = probe {
+                        let choice = tf3
+                            .vertical_choice_at(probe, *axes)
+                            .map_err(|e| georef_err(format!("CRS {name:?}"), Some(e)))?
+                            .expect("a converter made by transform_with_heights reports its choice");
+                        if choice.ballpark {
+                            missing = choice.missing_grids;
+                        } else {
+                            by_proj = Some((tf3, choice));
+                        }
+                    }
+                }
+                if by_proj.is_none() {
+                    geoid.warn_fallback(&crs, &missing)?;
+                }
+            }
+            match by_proj {
+                Some((tf3, choice)) => {
+                    let chain = format!(
+                        "{} ({axes_s}, orthometric heights) → WGS84 3D (PROJ: {}) → EPSG:4978 → ENU",
+                        crs.describe(),
+                        choice.operation
+                    );
+                    log::info!("{}: heights through PROJ: {}", path.display(), choice.operation);
+                    if geoid.proj.is_none() {
+                        let tf_origin = crs
+                            .transform_with_heights()
+                            .map_err(|e| georef_err(format!("CRS {name:?}"), Some(e)))?;
+                        geoid.proj = Some(ProjHeights { tf: tf_origin, axes: *axes, choice });
+                    }
+                    (Conv::Crs { tf: tf3, axes: *axes, orthometric: false }, chain)
+                }
+                None => {
+                    let tf = crs.transform().map_err(|e| georef_err(format!("CRS {name:?}"), Some(e)))?;
+                    let g = if orthometric { geoid.get()?.name() } else { "none" };
+                    let chain = format!(
+                        "{} ({axes_s}, {} heights) → WGS84 lat/lon (PROJ){} → EPSG:4978 → ENU",
+                        crs.describe(),
+                        if orthometric { "orthometric" } else { "ellipsoidal" },
+                        if orthometric { format!(" + geoid {g}") } else { String::new() }
+                    );
+                    (Conv::Crs { tf, axes: *axes, orthometric }, chain)
+                }
+            }
         }
     };
     let geoid_ref: Option<Geoid> = match &conv {
@@ -466,6 +583,10 @@ struct Sources {
     degenerate_faces: u64,
     /// The geoid, when a source needed one (orthometric heights).
     geoid: Option<Geoid>,
+    /// `[geoid] model = "proj"`: the first source PROJ converted heights included.
+    proj: Option<ProjHeights>,
+    /// `[geoid] model = "proj"`: grids PROJ wanted but did not find.
+    missing_grids: Vec<String>,
 }
 
 /// Reads and geo-references the sources of `cfg` in order; at least one building.
@@ -474,8 +595,16 @@ fn read_sources(
     cfg: &SceneConfig,
     progress: &dyn Progress,
 ) -> Result<Sources, SceneError> {
-    let mut geoid = GeoidSlot { cfg, scene_file, geoid: None };
-    let mut out = Sources { buildings: Vec::new(), entries: Vec::new(), degenerate_faces: 0, geoid: None };
+    let mut geoid =
+        GeoidSlot { cfg, scene_file, geoid: None, proj: None, missing_grids: Vec::new(), warned: false };
+    let mut out = Sources {
+        buildings: Vec::new(),
+        entries: Vec::new(),
+        degenerate_faces: 0,
+        geoid: None,
+        proj: None,
+        missing_grids: Vec::new(),
+    };
     for src in &cfg.sources {
         let (model, fmt) = read_one(scene_file, cfg, src)?;
         let label = match &src.path {
@@ -513,6 +642,8 @@ fn read_sources(
         });
     }
     out.geoid = geoid.geoid;
+    out.proj = geoid.proj;
+    out.missing_grids = geoid.missing_grids;
     Ok(out)
 }
 
@@ -654,26 +785,45 @@ fn mesh_and_table(merged: BTreeMap<String, Merged>, enu: &EnuFrame) -> (SceneMes
 }
 
 /// What the manifest records of the geoid used.
-fn geoid_used(geoid: Option<&Geoid>, origin: Geodetic) -> GeoidUsed {
-    match geoid {
-        None | Some(Geoid::None) => {
-            GeoidUsed { model: "none".into(), grid: None, undulation_at_origin_m: 0.0 }
+fn geoid_used(sources: &Sources, origin: Geodetic) -> GeoidUsed {
+    let mut used = match (&sources.proj, sources.geoid.as_ref()) {
+        (Some(p), _) => {
+            // N at the origin as PROJ applies it: h − H, H from the inverse conversion of the origin.
+            let undulation_at_origin_m =
+                p.tf.from_geodetic(origin, p.axes)
+                    .map(|src| origin.h_m - src[2] * p.tf.crs.height_unit_m)
+                    .unwrap_or(f64::NAN);
+            GeoidUsed {
+                model: "proj".into(),
+                grid: p.choice.grids.first().cloned(),
+                undulation_at_origin_m,
+                ..GeoidUsed::default()
+            }
         }
-        Some(g @ Geoid::Constant(n)) => {
-            GeoidUsed { model: g.name().into(), grid: None, undulation_at_origin_m: *n }
+        (None, None | Some(Geoid::None)) => GeoidUsed { model: "none".into(), ..GeoidUsed::default() },
+        (None, Some(g @ Geoid::Constant(n))) => {
+            GeoidUsed { model: g.name().into(), undulation_at_origin_m: *n, ..GeoidUsed::default() }
         }
-        Some(g @ Geoid::Grid(grid)) => GeoidUsed {
+        (None, Some(g @ Geoid::Grid(grid))) => GeoidUsed {
             model: g.name().into(),
             grid: Some(grid.path().display().to_string()),
             undulation_at_origin_m: g.undulation_m(origin.lat_deg, origin.lon_deg),
+            ..GeoidUsed::default()
         },
+    };
+    if let Some(p) = &sources.proj {
+        used.proj_operation = Some(p.choice.operation.clone());
+        used.proj_grids = p.choice.grids.clone();
     }
+    used.missing_grids = sources.missing_grids.clone();
+    used
 }
 
 /// Instances the sources: the area origin and ENU frame, the area filter, one ID per source ID, the
 /// mesh, the building table and the manifest.
 fn instance(cfg: &SceneConfig, sources: Sources) -> Result<PreparedScene, SceneError> {
     let origin = area_origin(cfg, &sources.buildings);
+    let geoid = geoid_used(&sources, origin);
     let enu = EnuFrame::new(origin);
     let area_polygon = area_polygon_enu(cfg, &enu);
     let (merged, outside) = merge_by_source_id(sources.buildings, &enu, area_polygon.as_deref());
@@ -708,7 +858,7 @@ fn instance(cfg: &SceneConfig, sources: Sources) -> Result<PreparedScene, SceneE
         ecef_from_enu: enu.ecef_from_enu(),
         area_polygon_enu_m,
         ground_enu_m,
-        geoid: geoid_used(sources.geoid.as_ref(), origin),
+        geoid,
         sources: sources.entries,
         buildings: records.len() as u64,
         triangles: mesh.triangle_count() as u64,

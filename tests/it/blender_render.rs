@@ -680,7 +680,12 @@ fn cli_renders_rgb_and_checks_alignment_against_masks() {
         ecef_from_enu: enu.ecef_from_enu(),
         area_polygon_enu_m: vec![[-100.0, -100.0], [100.0, -100.0], [100.0, 100.0], [-100.0, 100.0]],
         ground_enu_m: 0.0,
-        geoid: GeoidUsed { model: "none".into(), grid: None, undulation_at_origin_m: 0.0 },
+        geoid: GeoidUsed {
+            model: "none".into(),
+            grid: None,
+            undulation_at_origin_m: 0.0,
+            ..Default::default()
+        },
         sources: vec![],
         buildings: boxes.len() as u64,
         triangles: 12 * boxes.len() as u64,

@@ -100,7 +100,12 @@ pub fn city_with(polygon: Vec<[f64; 2]>, with_mesh: bool) -> PreparedScene {
         ecef_from_enu: enu.ecef_from_enu(),
         area_polygon_enu_m: polygon,
         ground_enu_m: GROUND_M,
-        geoid: GeoidUsed { model: "none".into(), grid: None, undulation_at_origin_m: 0.0 },
+        geoid: GeoidUsed {
+            model: "none".into(),
+            grid: None,
+            undulation_at_origin_m: 0.0,
+            ..Default::default()
+        },
         sources: Vec::new(),
         buildings: buildings.len() as u64,
         triangles: mesh.triangle_count() as u64,

@@ -63,6 +63,13 @@ struct GeoidRef {
 }
 
 fn run_reference(py: &Path, request: &serde_json::Value) -> Answer {
+    serde_json::from_value(run_reference_json(py, request))
+        .unwrap_or_else(|e| panic!("reference output is not the expected JSON: {e}"))
+}
+
+/// Runs `scripts/pyproj_reference.py` on one request; its answer as JSON (other modules use the
+/// `geoids` and `compound` parts).
+pub fn run_reference_json(py: &Path, request: &serde_json::Value) -> serde_json::Value {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/pyproj_reference.py");
     let mut child = Command::new(py)
         .arg(&script)

@@ -21,6 +21,7 @@ mod coco_rle;
 mod demo_dataset;
 mod exports;
 mod fuzz;
+mod geo_geoid_grids;
 mod geo_pyproj;
 mod loc_eval;
 mod lod_citygml;

@@ -56,7 +56,12 @@ fn scene() -> PreparedScene {
             ecef_from_enu: enu.ecef_from_enu(),
             area_polygon_enu_m: vec![[-100.0, -100.0], [100.0, -100.0], [100.0, 100.0], [-100.0, 100.0]],
             ground_enu_m: 0.0,
-            geoid: GeoidUsed { model: "none".into(), grid: None, undulation_at_origin_m: 0.0 },
+            geoid: GeoidUsed {
+                model: "none".into(),
+                grid: None,
+                undulation_at_origin_m: 0.0,
+                ..Default::default()
+            },
             sources: vec![],
             buildings: 4,
             triangles: 48,
