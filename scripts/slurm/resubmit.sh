@@ -26,15 +26,22 @@ missing() { # stage → comma-separated indices without a .done mark
 deps=()
 stages=(masks)
 [ "$RGB" = 1 ] && stages+=(rgb)
+[ -n "${LOC:-}" ] && stages+=(loc)
+masks_job=""
 for stage in "${stages[@]}"; do
     todo="$(missing "$stage")"
     [ -n "$todo" ] || continue
     extra=()
     # shellcheck disable=SC2206
     [ "$stage" = rgb ] && extra=($RGB_RESOURCES)
+    # shellcheck disable=SC2206
+    [ "$stage" = loc ] && extra=($LOC_RESOURCES)
+    # eval-loc tasks read the masks shards: after the resubmitted masks tasks, if any.
+    [ "$stage" = loc ] && [ -n "$masks_job" ] && extra+=(--dependency "afterok:$masks_job")
     job=$(sbatch "${common[@]}" --job-name "insgen-$stage" --array "$todo" "${extra[@]}" \
         --output "$logs/%x-%A_%a.log" "$here/task.sh" "$config" "$stage")
     echo "resubmitted $stage tasks $todo as job $job"
+    [ "$stage" = masks ] && masks_job="$job"
     deps+=("$job")
 done
 dep=()

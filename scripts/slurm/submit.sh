@@ -5,8 +5,11 @@
 #   masks (array of N)     render-masks --shard auto/N, in node-local scratch → <workdir>/.shards/masks-<i>
 #                          (label-only: also export-coco --shard auto/N, a COCO part per task)
 #   rgb   (array of N)     render-rgb   --shard auto/N (with --rgb; GPU)      → <workdir>/.shards/rgb-<i>
-#   merge (1 task)         insgen merge of all shards (combining the COCO parts), or with --rgb a
-#                          merge then one export-coco                          → <workdir>/coco
+#   loc   (array of N)     eval-loc --shard auto/N (with --eval-loc), after masks: task i localizes
+#                          the queries of masks shard i                     → <workdir>/.shards/loc-<i>
+#   merge (1 task)         insgen merge of all shards (combining the COCO parts and the eval-loc
+#                          parts), or with --rgb a merge then one export-coco  → <workdir>/coco,
+#                                                          <workdir>/<area>/<camera>/loc/<tag>
 #
 # Each job starts when the ones before it succeeded (afterok). Every task logs to
 # <logs>/<job>-<jobid>_<task>.log. Tasks are resumable (finished frames are skipped) and a task marks
@@ -17,14 +20,24 @@
 # --rgb-resources (the RGB array). What the stages use, measured on the demo: masks are CPU only
 # (wgpu on lavapipe, or a GPU when the node has Vulkan), ~1 GB per task at 1920×1080; RGB is Blender
 # Cycles, 2–4 GB per task, and wants one GPU (--rgb-resources "--gres gpu:1"); prep and merge are light.
+# eval-loc (--eval-loc oracle, or --eval-loc PREDICTIONS.json for a model's COCO results) is CPU work
+# that uses every core it gets (rayon; its renders go through wgpu like the masks), with memory of
+# the order of the masks task's (the scene plus a few query-sized images per core): give it cores
+# with --loc-resources "--cpus-per-task 8" (not measured on a cluster; the search costs roughly
+# hypotheses × render time, see README "Localization"). --loc-tag names loc/<tag> (default: the
+# tag eval-loc derives from its options); --loc-args passes further eval-loc options (e.g. "--cost
+# instance --limit 20", or "--coco /path/instances_test.json", which --eval-loc PREDICTIONS needs
+# as the COCO file the predictions refer to).
 #
 # Usage: scripts/slurm/submit.sh --areas "demo demo-val" [--camera cam2] [--count 72] [--tasks 8]
 #          [--rgb] [--workdir runs] [--scenes scenes] [--insgen BIN] [--scratch DIR] [--logs DIR]
-#          [--partition P] [--resources "--mem 4G"] [--rgb-resources "--gres gpu:1 --mem 8G"] [--dry-run]
+#          [--partition P] [--resources "--mem 4G"] [--rgb-resources "--gres gpu:1 --mem 8G"]
+#          [--eval-loc oracle|PREDICTIONS] [--loc-tag TAG] [--loc-args "ARGS"] [--loc-resources "ARGS"]
+#          [--dry-run]
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 areas="" camera="cam2" count=72 tasks=8 rgb=0 workdir="runs" scenes="scenes" insgen="" scratch="" logs=""
-partition="" resources="" rgb_resources="" dry=0
+partition="" resources="" rgb_resources="" dry=0 loc="" loc_tag="" loc_args="" loc_resources=""
 while [ $# -gt 0 ]; do
     case "$1" in
         --areas) areas="$2"; shift 2 ;;
@@ -40,8 +53,12 @@ while [ $# -gt 0 ]; do
         --partition) partition="$2"; shift 2 ;;
         --resources) resources="$2"; shift 2 ;;
         --rgb-resources) rgb_resources="$2"; shift 2 ;;
+        --eval-loc) loc="$2"; shift 2 ;;
+        --loc-tag) loc_tag="$2"; shift 2 ;;
+        --loc-args) loc_args="$2"; shift 2 ;;
+        --loc-resources) loc_resources="$2"; shift 2 ;;
         --dry-run) dry=1; shift ;;
-        -h|--help) sed -n '2,23p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,38p' "$0"; exit 0 ;;
         *) echo "submit.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -50,6 +67,10 @@ done
 if [ -z "$insgen" ]; then
     insgen="$(command -v insgen || true)"
     [ -n "$insgen" ] || insgen="$(cd "$here/../.." && pwd)/target/release/insgen"
+fi
+if [ -n "$loc" ] && [ "$loc" != oracle ]; then
+    [ -f "$loc" ] || { echo "submit.sh: --eval-loc takes oracle or a predictions file; no file $loc" >&2; exit 2; }
+    loc="$(cd "$(dirname "$loc")" && pwd)/$(basename "$loc")"
 fi
 [ -x "$insgen" ] || { echo "submit.sh: no insgen binary at $insgen (cargo build --release, or --insgen BIN)" >&2; exit 2; }
 mkdir -p "$workdir"
@@ -65,6 +86,7 @@ config="$workdir/slurm/config.env"
     printf 'INSGEN=%q\nWORKDIR=%q\nSCENES=%q\nAREAS=%q\nCAMERA=%q\nCOUNT=%q\nTASKS=%q\nRGB=%q\nSCRATCH=%q\n' \
         "$insgen" "$workdir" "$scenes" "$areas" "$camera" "$count" "$tasks" "$rgb" "$scratch"
     printf 'PARTITION=%q\nRESOURCES=%q\nRGB_RESOURCES=%q\n' "$partition" "$resources" "$rgb_resources"
+    printf 'LOC=%q\nLOC_TAG=%q\nLOC_ARGS=%q\nLOC_RESOURCES=%q\n' "$loc" "$loc_tag" "$loc_args" "$loc_resources"
 } > "$config.tmp" && mv "$config.tmp" "$config"
 
 common=(--parsable --kill-on-invalid-dep=yes --cpus-per-task 2)
@@ -94,8 +116,17 @@ if [ "$rgb" = 1 ]; then
         --output "$logs/%x-%A_%a.log" -- "$config" rgb)
     after="$masks:$rgbjob"
 fi
+if [ -n "$loc" ]; then
+    # Task i reads the masks of masks task i (the same positions of poses.jsonl), so each waits for its
+    # own masks task only (aftercorr); the merge waits for all.
+    # shellcheck disable=SC2206
+    extra=($loc_resources)
+    locjob=$(submit loc --dependency "aftercorr:$masks" --array "0-$last" "${extra[@]}" \
+        --output "$logs/%x-%A_%a.log" -- "$config" loc)
+    after="$after:$locjob"
+fi
 merge=$(submit merge --dependency "afterok:$after" --output "$logs/%x-%j.log" \
     -- "$config" merge)
-printf 'PREP_JOB=%s\nMASKS_JOB=%s\nRGB_JOB=%s\nMERGE_JOB=%s\n' "$prep" "$masks" "${rgbjob:-}" "$merge" \
-    > "$workdir/slurm/jobs.env"
-echo "submitted: prep $prep, masks $masks${rgbjob:+, rgb $rgbjob}, merge $merge (logs in $logs)"
+printf 'PREP_JOB=%s\nMASKS_JOB=%s\nRGB_JOB=%s\nLOC_JOB=%s\nMERGE_JOB=%s\n' "$prep" "$masks" "${rgbjob:-}" \
+    "${locjob:-}" "$merge" > "$workdir/slurm/jobs.env"
+echo "submitted: prep $prep, masks $masks${rgbjob:+, rgb $rgbjob}${locjob:+, loc $locjob}, merge $merge (logs in $logs)"

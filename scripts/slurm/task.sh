@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# One task of an insgen Slurm submission (see submit.sh): task.sh CONFIG prep|masks|rgb|merge.
+# One task of an insgen Slurm submission (see submit.sh): task.sh CONFIG prep|masks|rgb|loc|merge.
 # Array tasks render their shard (--shard auto/TASKS: the array index is the shard) in a work
 # directory of their own — node-local scratch when --scratch or $TMPDIR is set — and copy it to
 # <workdir>/.shards/<stage>-<index> when done, marking it done with <stage>-<index>.done beside it.
@@ -61,10 +61,50 @@ case "$stage" in
         rm -rf "$work"
         log "shard $index of $TASKS done → $final"
         ;;
+    loc)
+        # eval-loc on the queries of masks shard i (positions ≡ i mod TASKS of poses.jsonl), reading
+        # that shard's published masks; writes the part loc/<tag>/parts/<i>-of-<TASKS>/.
+        index="${SLURM_ARRAY_TASK_ID:?task.sh loc runs as an array task}"
+        shards="$WORKDIR/.shards"
+        final="$shards/loc-$index"
+        if [ -e "$final.done" ]; then
+            log "shard $index already done ($final)"
+            exit 0
+        fi
+        [ -e "$shards/masks-$index.done" ] || { log "masks shard $index is not done"; exit 1; }
+        base="${SCRATCH:-${TMPDIR:-/tmp}}"
+        work="$base/insgen-loc-${SLURM_ARRAY_JOB_ID:-0}-$index"
+        mkdir -p "$work"
+        camera_name="$(basename "$CAMERA" .toml)"
+        source_args=(--predictions "$LOC")
+        tag_args=()
+        [ -n "$LOC_TAG" ] && tag_args=(--tag "$LOC_TAG")
+        # shellcheck disable=SC2206
+        extra=($LOC_ARGS)
+        for area in $AREAS; do
+            mkdir -p "$work/$area/$camera_name"
+            cp -r "$WORKDIR/$area/scene" "$work/$area/"
+            find "$WORKDIR/$area/$camera_name" -maxdepth 1 -type f -exec cp {} "$work/$area/$camera_name/" \;
+            [ "$LOC" = oracle ] && source_args=(--oracle --masks "$shards/masks-$index/$area/$camera_name/masks")
+            run "$INSGEN" --workdir "$work" --no-progress eval-loc --area "$area" --camera "$camera_name" \
+                "${source_args[@]}" "${tag_args[@]}" "${extra[@]}" --shard "auto/$TASKS"
+            # Publish the evaluation only: the scene and poses are the prep job's.
+            rm -rf "${work:?}/$area/scene"
+        done
+        mkdir -p "$shards"
+        rm -rf "$final.partial"
+        cp -r "$work" "$final.partial"
+        rm -rf "$final"
+        mv "$final.partial" "$final"
+        touch "$final.done"
+        rm -rf "$work"
+        log "shard $index of $TASKS done → $final"
+        ;;
     merge)
         shards=()
-        for stage_name in masks rgb; do
+        for stage_name in masks rgb loc; do
             [ "$stage_name" = rgb ] && [ "$RGB" != 1 ] && continue
+            [ "$stage_name" = loc ] && [ -z "${LOC:-}" ] && continue
             for ((i = 0; i < TASKS; i++)); do
                 d="$WORKDIR/.shards/$stage_name-$i"
                 [ -e "$d.done" ] || { log "shard $stage_name-$i is not done; resubmit with scripts/slurm/resubmit.sh"; exit 1; }
@@ -79,7 +119,7 @@ case "$stage" in
         fi
         ;;
     *)
-        echo "task.sh: unknown stage $stage (prep, masks, rgb or merge)" >&2
+        echo "task.sh: unknown stage $stage (prep, masks, rgb, loc or merge)" >&2
         exit 2
         ;;
 esac

@@ -255,6 +255,34 @@ impl Tail {
     }
 }
 
+/// Makes the child get SIGKILL when insgen dies, however it dies. Without it a SIGKILLed `render-rgb`
+/// (a batch system's hard limit, the OOM killer) leaves Blender rendering on, writing its temporary
+/// frames after the rerun has cleaned up or into the frames the rerun renders.
+///
+/// The death signal follows the thread that spawned the child; `run_job` waits for the child on that
+/// thread, so the thread outlives it.
+#[cfg(target_os = "linux")]
+fn die_with_parent(cmd: &mut Command) {
+    use std::os::unix::process::CommandExt;
+    let parent = std::process::id() as libc::pid_t;
+    // SAFETY: between fork and exec only async-signal-safe calls (prctl, getppid, _exit) run.
+    unsafe {
+        cmd.pre_exec(move || {
+            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL as libc::c_ulong) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            // insgen died between fork and prctl: the signal will not come.
+            if libc::getppid() != parent {
+                libc::_exit(1);
+            }
+            Ok(())
+        });
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn die_with_parent(_cmd: &mut Command) {}
+
 fn kill(child: &mut Child) {
     // The child may already have exited; either way it must not outlive the error.
     let _ = child.kill();
@@ -278,6 +306,7 @@ pub fn run_job(
     let mut cmd = launcher.command(script, job);
     cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped());
     cmd.env("PYTHONUNBUFFERED", "1").env("PYTHONDONTWRITEBYTECODE", "1");
+    die_with_parent(&mut cmd);
     let shown = display_command(&cmd);
     log::debug!("running {shown}");
     let mut child = cmd.spawn().map_err(|source| BlenderError::Spawn {

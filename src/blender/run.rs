@@ -31,7 +31,7 @@ pub const RENDER_SCRIPT: &str = include_str!("../../scripts/blender/render_rgb.p
 /// File name of the script copy in the work directory.
 pub const SCRIPT_FILE: &str = "render_rgb.py";
 /// Prefix of temporary output files.
-pub const TMP_PREFIX: &str = ".insgen-tmp-";
+pub use crate::util::TMP_PREFIX;
 
 /// Where the geometry comes from.
 #[derive(Debug, Clone)]
@@ -339,19 +339,20 @@ fn finalize_output(o: &Output, k: &Intrinsics) -> Result<(), OutputError> {
         }
         Decoded::Exr { width, height, planes } => {
             let dir = o.path.parent().unwrap_or(Path::new("."));
-            let tmp = tempfile::Builder::new()
-                .prefix(TMP_PREFIX)
-                .suffix(".exr")
-                .tempfile_in(dir)
-                .map_err(OutputError::TempFile)?
-                .into_temp_path();
+            // Locked while open (see `locked_tempfile_in`): a concurrent rerun's cleanup leaves it.
+            let tmp = crate::util::locked_tempfile_in(dir).map_err(OutputError::TempFile)?;
             let w = width as usize;
-            exr::prelude::write_rgb_file(&tmp, w, height as usize, |x, y| {
+            exr::prelude::write_rgb_file(tmp.path(), w, height as usize, |x, y| {
                 let i = y * w + x;
                 (planes[0][i], planes[1][i], planes[2][i])
             })
             .map_err(OutputError::EncodeExr)?;
-            tmp.persist(&o.path).map_err(OutputError::Rename)?;
+            tmp.persist(&o.path).map_err(|e| {
+                OutputError::Rename(tempfile::PathPersistError {
+                    error: e.error,
+                    path: e.file.into_temp_path(),
+                })
+            })?;
         }
     }
     std::fs::remove_file(&o.tmp).map_err(OutputError::RemoveTmp)
@@ -513,6 +514,15 @@ pub fn render_frames(
         crate::util::create_dir_all(dir)?;
         check_writable(dir).map_err(|source| BlenderError::NotWritable { dir: dir.clone(), source })?;
     }
+    // Temporary files of a killed run: ours (this call's frames) go; Blender's outputs of frames that
+    // are not ours may belong to another shard rendering into the same directory right now.
+    let ours: std::collections::BTreeSet<String> = frames
+        .iter()
+        .flat_map(|f| frame_outputs(&plan, &f.name))
+        .filter_map(|o| o.tmp.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .collect();
+    let blender_output = |n: &str| n.strip_prefix(TMP_PREFIX).is_some_and(|rest| rest.contains('.'));
+    crate::util::remove_stale_temps(&plan.out_dir, false, &|n| blender_output(n) && !ours.contains(n))?;
     let mut summary = RenderSummary::default();
     let mut todo = Vec::new();
     for f in frames {

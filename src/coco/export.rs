@@ -762,6 +762,10 @@ pub fn build(plan: &ExportPlan, image_root: &str, progress: &dyn Progress) -> Re
 /// # Errors
 /// As [`build`], plus I/O errors naming the file.
 pub fn export(plan: &ExportPlan, progress: &dyn Progress) -> Result<(Export, Vec<PathBuf>), CocoError> {
+    // What a killed export left in the output directory and its parts (a live shard's temporary
+    // files are locked and stay). Not deeper: `--out` may be any directory.
+    crate::util::remove_stale_temps(&plan.out_dir, false, &|_| false)?;
+    crate::util::remove_stale_temps(&plan.out_dir.join(crate::util::shard::PARTS_DIR), true, &|_| false)?;
     // Build first, so that a failing export leaves no empty output directory behind.
     let ex = build(plan, "..", progress)?;
     if !plan.shard.is_whole() {

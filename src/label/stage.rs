@@ -353,6 +353,8 @@ pub fn render_masks(
         log::info!("{skipped} frames already rendered (use --force to redo them)");
     }
     crate::util::create_dir_all(&plan.masks_dir())?;
+    // A killed run's temporary files (a live shard's are locked and stay).
+    crate::util::remove_stale_temps(&plan.masks_dir(), false, &|_| false)?;
     let views: Vec<View> = todo
         .iter()
         .map(|&i| View { intrinsics: records[i].view.intrinsics, pose: records[i].pose() })

@@ -28,6 +28,7 @@ use serde::{Deserialize, Serialize};
 use super::cost::{CostKind, Query, Scorer, Weighting};
 use super::map::MapSummary;
 use super::metrics::{self, Row};
+use super::oracle::Degradation;
 use super::query::{QueryError, QuerySource};
 use super::search::{self, Evaluate, Hypothesis, SearchOptions, SearchResult};
 use crate::camera::colmap::{self, ColmapCamera};
@@ -478,6 +479,19 @@ pub fn evaluate(
             semantic_weight: opts.semantic_weight,
             search: opts.search.clone(),
             map: opts.map.clone(),
+            seed: opts.seed,
+            source: match &opts.source {
+                QuerySource::Oracle { degradation, .. } => {
+                    PartSource::Oracle { degradation: degradation.clone() }
+                }
+                QuerySource::Predictions(p) => {
+                    PartSource::Predictions { sha256: util::sha256_file(&p.path)?, min_score: p.min_score }
+                }
+            },
+            render_width_px: opts.render_width_px,
+            coarse_width_px: opts.coarse_width_px,
+            yaw_fan: opts.yaw_fan,
+            limit: opts.limit,
         };
         // The marker last: a part with a marker is complete.
         util::write_json_atomic(&dir.join(PART_MARKER), &info)?;
@@ -489,10 +503,13 @@ pub fn evaluate(
 pub const RESULTS_FILE: &str = "results.jsonl";
 /// `kind` of an eval-loc part's `part.json`.
 pub const PART_KIND: &str = "eval-loc";
-/// Version of [`PartInfo`].
-pub const PART_VERSION: u32 = 1;
+/// Version of [`PartInfo`] (2: the seed, the query source, the render widths, the yaw fan and the
+/// limit joined the run's identity).
+pub const PART_VERSION: u32 = 2;
 
-/// The `part.json` of a shard's part of an evaluation: what the parts of one run share.
+/// The `part.json` of a shard's part of an evaluation: what the parts of one run share. Everything but
+/// `kind`, `version` and `shard` must be equal in the parts of one run (schema:
+/// `schemas/part.schema.json`).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct PartInfo {
     /// Always [`PART_KIND`].
@@ -509,6 +526,61 @@ pub struct PartInfo {
     pub semantic_weight: f64,
     pub search: SearchOptions,
     pub map: MapSummary,
+    /// `--seed`: drives the oracle's degradations (and the map's perturbation unless `--map-seed`).
+    pub seed: u64,
+    /// Where the queries' instances came from.
+    pub source: PartSource,
+    /// `--render-width`, pixels.
+    pub render_width_px: u32,
+    /// `--coarse-width`, pixels.
+    pub coarse_width_px: u32,
+    /// The coarse stage reads yaws out of one wide view (`--no-yaw-fan` turns it off).
+    pub yaw_fan: bool,
+    /// `--limit`: queries taken from the list before sharding.
+    pub limit: Option<usize>,
+}
+
+/// Where a run's query instances came from, as its parts record it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum PartSource {
+    /// `--oracle`: the ground-truth masks with these degradations (the masks directory is not recorded:
+    /// shards on different machines read it from different places).
+    Oracle { degradation: Degradation },
+    /// `--predictions`: the results file, by content, and `--min-score`.
+    Predictions { sha256: String, min_score: f64 },
+}
+
+/// The options two parts of an evaluation differ in, as `name: a vs b` (JSON paths into
+/// [`PartInfo`], e.g. `seed: 1 vs 2`, `map.perturbation.height_sigma_m: 0.0 vs 2.0`); empty for
+/// parts of one run.
+pub fn part_differences(a: &PartInfo, b: &PartInfo) -> Vec<String> {
+    fn diff(path: &str, a: &serde_json::Value, b: &serde_json::Value, out: &mut Vec<String>) {
+        use serde_json::Value;
+        match (a, b) {
+            (Value::Object(x), Value::Object(y)) => {
+                let keys: std::collections::BTreeSet<&String> = x.keys().chain(y.keys()).collect();
+                for k in keys {
+                    let sub = if path.is_empty() { k.clone() } else { format!("{path}.{k}") };
+                    diff(&sub, x.get(k).unwrap_or(&Value::Null), y.get(k).unwrap_or(&Value::Null), out);
+                }
+            }
+            _ if a != b => out.push(format!("{path}: {a} vs {b}")),
+            _ => {}
+        }
+    }
+    let identity = |p: &PartInfo| {
+        let mut v = serde_json::to_value(p).unwrap_or_default();
+        if let Some(m) = v.as_object_mut() {
+            for k in ["kind", "version", "shard"] {
+                m.remove(k);
+            }
+        }
+        v
+    };
+    let mut out = Vec::new();
+    diff("", &identity(a), &identity(b), &mut out);
+    out
 }
 
 /// The files of an evaluation, ready to write.
@@ -551,19 +623,23 @@ pub fn combine_parts(parts: &BTreeMap<Shard, PathBuf>, out_dir: &Path) -> Result
     }
     let Some((first_shard, first, _)) = infos.first() else { return Err(fail("no parts".into())) };
     let count = first_shard.count;
-    let same_run = |a: &PartInfo, b: &PartInfo| {
-        let key = |p: &PartInfo| {
-            serde_json::to_string(&(p.queries, &p.costs, p.weighting, p.semantic_weight, &p.search, &p.map))
-                .unwrap_or_default()
-        };
-        key(a) == key(b)
-    };
+    let first_dir = infos[0].2;
     for (shard, info, dir) in &infos {
-        if shard.count != count || !same_run(info, first) {
+        if shard.count != count {
             return Err(fail(format!(
-                "{} is not a part of the same run as shard {first_shard} (shard count, queries, costs, \
-                 weighting, semantic weight, search or map differ); merge the parts of one run",
-                dir.display()
+                "{} is shard {shard} and {} shard {first_shard}: parts of one run have one shard count",
+                dir.display(),
+                first_dir.display()
+            )));
+        }
+        let differences = part_differences(first, info);
+        if !differences.is_empty() {
+            return Err(fail(format!(
+                "{} (shard {shard}) and {} (shard {first_shard}) are parts of different runs: they differ \
+                 in {} (values of shard {first_shard} vs shard {shard}); merge the parts of one run",
+                dir.display(),
+                first_dir.display(),
+                differences.join(", ")
             )));
         }
     }

@@ -64,10 +64,8 @@ where
         _ => PathBuf::from("."),
     };
     create_dir_all(&dir)?;
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".insgen-tmp-")
-        .tempfile_in(&dir)
-        .map_err(|e| FileError::new("creating a temporary file for", path, e))?;
+    let mut tmp =
+        locked_tempfile_in(&dir).map_err(|e| FileError::new("creating a temporary file for", path, e))?;
     {
         let mut w = io::BufWriter::new(tmp.as_file_mut());
         fill(&mut w)?;
@@ -84,6 +82,136 @@ where
     }
     tmp.persist(path).map_err(|e| FileError::new("renaming into place", path, e.error))?;
     Ok(())
+}
+
+/// Prefix of every temporary file insgen writes next to its outputs (`.insgen-tmp-*`).
+pub const TMP_PREFIX: &str = ".insgen-tmp-";
+
+/// A new temporary file `<dir>/.insgen-tmp-XXXXXX`, exclusively locked (`flock`) for as long as it is
+/// open (on Unix; elsewhere unlocked, and a concurrent cleanup could remove it), so that [`remove_stale_temps`] in another process can tell it from the leftover of a killed
+/// run: the kernel drops the lock when its process dies, SIGKILL included.
+///
+/// # Errors
+/// I/O errors creating or locking the file.
+pub fn locked_tempfile_in(dir: &Path) -> io::Result<tempfile::NamedTempFile> {
+    // A cleaner may take the file for stale between its creation and our lock, and unlink it; the
+    // locked inode then has no link left, and we start again with a new name.
+    for _ in 0..8 {
+        let tmp = tempfile::Builder::new().prefix(TMP_PREFIX).tempfile_in(dir)?;
+        flock_exclusive(tmp.as_file(), true)?;
+        if linked(tmp.as_file())? {
+            return Ok(tmp);
+        }
+    }
+    Err(io::Error::other(format!(
+        "temporary files in {} keep disappearing (another process removing them?)",
+        dir.display()
+    )))
+}
+
+/// Takes an exclusive `flock` on `f` (waiting for it if `wait`); `Ok(false)`: another process holds
+/// it. (`File::lock` would do, but needs Rust 1.89; our MSRV is 1.88.)
+#[cfg(unix)]
+fn flock_exclusive(f: &fs::File, wait: bool) -> io::Result<bool> {
+    use std::os::unix::io::AsRawFd;
+    let op = libc::LOCK_EX | if wait { 0 } else { libc::LOCK_NB };
+    loop {
+        // SAFETY: flock on a descriptor `f` owns and keeps open for the call.
+        if unsafe { libc::flock(f.as_raw_fd(), op) } == 0 {
+            return Ok(true);
+        }
+        let e = io::Error::last_os_error();
+        match e.raw_os_error() {
+            Some(libc::EWOULDBLOCK) => return Ok(false),
+            Some(libc::EINTR) => continue,
+            _ => return Err(e),
+        }
+    }
+}
+
+#[cfg(not(unix))]
+fn flock_exclusive(_f: &fs::File, _wait: bool) -> io::Result<bool> {
+    Ok(true)
+}
+
+#[cfg(unix)]
+fn linked(f: &fs::File) -> io::Result<bool> {
+    use std::os::unix::fs::MetadataExt;
+    Ok(f.metadata()?.nlink() > 0)
+}
+
+#[cfg(not(unix))]
+fn linked(_f: &fs::File) -> io::Result<bool> {
+    Ok(true)
+}
+
+/// Removes the temporary files (`.insgen-tmp-*`) that killed runs left in `dir` and, if `recursive`,
+/// below it; returns how many. A file still locked by a live writer ([`locked_tempfile_in`]) is left
+/// alone, and so is any whose name `keep` accepts (another shard's Blender output, which Blender writes
+/// without a lock). Stages call this on their output directories before they start, so that a rerun
+/// after SIGKILL leaves exactly the files of an uninterrupted run.
+///
+/// # Errors
+/// Listing `dir` (a missing `dir` is no error) or removing a stale file, naming the path.
+pub fn remove_stale_temps(
+    dir: &Path,
+    recursive: bool,
+    keep: &dyn Fn(&str) -> bool,
+) -> Result<usize, FileError> {
+    let entries = match fs::read_dir(dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(0),
+        Err(e) => return Err(FileError::new("listing", dir, e)),
+    };
+    let mut removed = 0;
+    for entry in entries {
+        let entry = entry.map_err(|e| FileError::new("listing", dir, e))?;
+        let path = entry.path();
+        let Ok(kind) = entry.file_type() else { continue };
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if kind.is_dir() {
+            if recursive {
+                removed += remove_stale_temps(&path, true, keep)?;
+            }
+            continue;
+        }
+        if !kind.is_file() || !name.starts_with(TMP_PREFIX) || keep(&name) {
+            continue;
+        }
+        let Ok(f) = fs::File::open(&path) else { continue }; // gone meanwhile
+        match flock_exclusive(&f, false) {
+            Ok(true) => {}
+            Ok(false) => continue, // a live writer
+            Err(e) => return Err(FileError::new("locking", &path, e)),
+        }
+        // The name may have been renamed into place, or reused, since we opened it.
+        if !same_file(&f, &path) {
+            continue;
+        }
+        match fs::remove_file(&path) {
+            Ok(()) => {
+                log::info!("removed {} (left by an interrupted run)", path.display());
+                removed += 1;
+            }
+            Err(e) if e.kind() == io::ErrorKind::NotFound => {}
+            Err(e) => return Err(FileError::new("removing the stale temporary file", &path, e)),
+        }
+    }
+    Ok(removed)
+}
+
+#[cfg(unix)]
+fn same_file(f: &fs::File, path: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (f.metadata(), fs::symlink_metadata(path)) {
+        (Ok(a), Ok(b)) => a.dev() == b.dev() && a.ino() == b.ino(),
+        _ => false,
+    }
+}
+
+#[cfg(not(unix))]
+fn same_file(_f: &fs::File, path: &Path) -> bool {
+    path.exists()
 }
 
 /// Writes `bytes` to `path` atomically (see [`write_atomic`]).
@@ -158,6 +286,36 @@ mod tests {
         assert!(r.is_err());
         assert!(!path.exists());
         assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 0, "temporary file left behind");
+    }
+
+    #[test]
+    fn stale_temps_go_and_live_ones_stay() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        fs::create_dir(d.join("sub")).unwrap();
+        // Left by killed runs: no lock held.
+        fs::write(d.join(".insgen-tmp-abc123"), b"half").unwrap();
+        fs::write(d.join("sub/.insgen-tmp-def456"), b"half").unwrap();
+        fs::write(d.join(".insgen-tmp-f1.png"), b"blender").unwrap();
+        fs::write(d.join(".insgen-tmp-f2.png"), b"another shard's").unwrap();
+        fs::write(d.join("f0.png"), b"done").unwrap();
+        // Being written by a live process (this one).
+        let live = locked_tempfile_in(d).unwrap();
+        let keep = |n: &str| n == ".insgen-tmp-f2.png";
+        assert_eq!(remove_stale_temps(d, false, &keep).unwrap(), 2);
+        assert!(d.join("sub/.insgen-tmp-def456").exists(), "not recursive");
+        assert_eq!(remove_stale_temps(d, true, &keep).unwrap(), 1);
+        let mut left: Vec<String> =
+            fs::read_dir(d).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+        left.sort();
+        let live_name = live.path().file_name().unwrap().to_string_lossy().into_owned();
+        let mut want = vec![".insgen-tmp-f2.png".to_string(), "f0.png".into(), "sub".into(), live_name];
+        want.sort();
+        assert_eq!(left, want);
+        // Once its writer is gone, the live one is stale too.
+        drop(live);
+        assert_eq!(remove_stale_temps(d, true, &|_| false).unwrap(), 1);
+        assert_eq!(remove_stale_temps(&d.join("missing"), true, &|_| false).unwrap(), 0);
     }
 
     #[test]

@@ -367,6 +367,15 @@ fn sharded_export_and_eval_merge_into_what_one_process_writes() {
     assert_eq!(json_lines(&cwd.join("task0").join(loc).join("parts/0-of-2/results.jsonl")).len(), 4);
     assert_eq!(json_lines(&cwd.join("task1").join(loc).join("parts/1-of-2/results.jsonl")).len(), 3);
     assert!(!cwd.join("task0/coco/instances_train.json").exists(), "a shard writes a part, not the export");
+    // The parts' markers follow schemas/part.schema.json.
+    for marker in [
+        cwd.join("task0/coco/parts/0-of-2/part.json"),
+        cwd.join("task1/coco/parts/1-of-2/part.json"),
+        cwd.join("task0").join(loc).join("parts/0-of-2/part.json"),
+        cwd.join("task1").join(loc).join("parts/1-of-2/part.json"),
+    ] {
+        crate::util::assert_schema("part.schema.json", &json(&marker));
+    }
 
     // A part missing: refused, nothing written.
     let o = crate::util::insgen(cwd, &["merge", "--workdir", "lonely", "task0"]);
@@ -450,6 +459,32 @@ fn sharded_export_and_eval_merge_into_what_one_process_writes() {
     assert!(!o.status.success() && err.contains("conflict with existing ones"), "{err}");
     assert!(err.contains("results.jsonl"), "{err}");
     assert!(outputs(&merged) == before, "a refused merge changes nothing");
+    // …eval-loc parts of runs with another seed or map perturbation (same tag, so the same
+    // directory), named with the option that differs…
+    let part1 = cwd.join("task1").join(loc).join("parts/1-of-2");
+    let saved = crate::util::tree(&part1);
+    for (extra, differs) in [
+        (&["--seed", "7"][..], "seed: 0 vs 7"),
+        (&["--map-height-sigma", "2", "--tag", "oracle"][..], "map.perturbation"),
+    ] {
+        let args: Vec<&str> = ["--workdir", "task1"]
+            .iter()
+            .chain(FAST_EVAL)
+            .chain(extra)
+            .copied()
+            .chain(["--shard", "1/2"])
+            .collect();
+        run(&args);
+        let o = crate::util::insgen(cwd, &["merge", "--workdir", "other", "task0", "task1"]);
+        let err = crate::util::stderr(&o);
+        assert!(!o.status.success() && err.contains("are parts of different runs"), "{extra:?}: {err}");
+        assert!(err.contains(differs), "{extra:?}: {err}");
+        assert!(err.contains("task0/") && err.contains("task1/"), "both parts named: {err}");
+        assert!(!cwd.join("other").exists(), "a refused merge writes nothing");
+    }
+    for (name, bytes) in saved {
+        std::fs::write(part1.join(name), bytes).unwrap();
+    }
     // …and a COCO part exported with other options.
     run(&["--workdir", "task1", "export-coco", "--label-only", "--per-building", "--shard", "1/2"]);
     let o = crate::util::insgen(cwd, &["merge", "--workdir", "other", "task0", "task1"]);

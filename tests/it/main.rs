@@ -18,6 +18,7 @@ mod camera_sampling;
 mod cli_run;
 mod coco_export;
 mod coco_rle;
+mod crash;
 mod demo_dataset;
 mod exports;
 mod fuzz;

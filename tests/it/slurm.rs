@@ -5,6 +5,10 @@
 //!
 //! Needs root and the Debian package registry (scripts/slurm/install_local.sh installs the packages);
 //! otherwise it is skipped with the reason, except under `CI=true`.
+//!
+//! Without Slurm, `submit.sh --dry-run` is checked for the job chain it would submit (the eval-loc
+//! array included), and `task.sh`'s `loc` and `merge` stages for the commands they run, with a stand-in
+//! for the insgen binary that records its arguments.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -283,4 +287,115 @@ fn a_slurm_job_array_makes_the_dataset_one_process_makes() {
         std::fs::read(cwd.join("single").join(name)).unwrap() == std::fs::read(workdir.join(name)).unwrap(),
         "{name} differs after the resubmission"
     );
+}
+
+/// `submit.sh --dry-run --eval-loc oracle`: the scripts parse, the chain is prep → masks (after prep),
+/// rgb (after prep), loc (each task after its masks task) → merge (after all three); the loc task runs
+/// `eval-loc --shard auto/N` on its masks shard and the merge job merges the loc shards too.
+#[test]
+fn submit_dry_run_chains_an_eval_loc_array_into_the_merge() {
+    let scripts = repo().join("scripts/slurm");
+    for script in ["submit.sh", "task.sh", "resubmit.sh", "install_local.sh"] {
+        let o = Command::new("bash").arg("-n").arg(scripts.join(script)).output().unwrap();
+        assert!(o.status.success(), "{script}: {}", String::from_utf8_lossy(&o.stderr));
+    }
+    let dir = scratch_with_scenes(&[]);
+    let cwd = dir.path();
+    // A stand-in insgen that records each command line.
+    let fake = cwd.join("fake-insgen");
+    std::fs::write(&fake, format!("#!/bin/sh\necho \"$*\" >> {}\n", cwd.join("calls.txt").display()))
+        .unwrap();
+    let ok = Command::new("chmod").arg("+x").arg(&fake).status().unwrap();
+    assert!(ok.success());
+    let o = Command::new("bash")
+        .arg(scripts.join("submit.sh"))
+        .args(["--areas", "demo", "--camera", "small", "--tasks", "3", "--rgb", "--eval-loc", "oracle"])
+        .args(["--loc-tag", "t", "--loc-args", "--cost instance --limit 6"])
+        .args(["--loc-resources", "--cpus-per-task 8", "--insgen"])
+        .arg(&fake)
+        .args(["--workdir", "runs", "--dry-run"])
+        .current_dir(cwd)
+        .output()
+        .unwrap();
+    let (out, err) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{err}");
+    assert!(
+        out.contains("submitted: prep DRY-prep, masks DRY-masks, rgb DRY-rgb, loc DRY-loc, merge DRY-merge"),
+        "{out}"
+    );
+    let line = |job: &str| {
+        err.lines()
+            .find(|l| l.contains(&format!("--job-name insgen-{job} ")))
+            .unwrap_or_else(|| panic!("no {job} job:\n{err}"))
+            .to_string()
+    };
+    assert!(line("masks").contains("--dependency afterok:DRY-prep --array 0-2"), "{err}");
+    let loc = line("loc");
+    assert!(loc.contains("--dependency aftercorr:DRY-masks --array 0-2 --cpus-per-task 8"), "{loc}");
+    assert!(loc.trim_end().ends_with(" loc"), "{loc}");
+    assert!(line("merge").contains("--dependency afterok:DRY-masks:DRY-rgb:DRY-loc"), "{err}");
+    let config = cwd.join("runs/slurm/config.env");
+    let conf = std::fs::read_to_string(&config).unwrap();
+    assert!(conf.contains("LOC=oracle\nLOC_TAG=t\n"), "{conf}");
+
+    // task.sh loc for array task 1, on the published masks shard 1.
+    let runs = cwd.join("runs");
+    std::fs::create_dir_all(runs.join("demo/scene")).unwrap();
+    std::fs::create_dir_all(runs.join("demo/small")).unwrap();
+    std::fs::write(runs.join("demo/small/poses.jsonl"), "").unwrap();
+    std::fs::create_dir_all(runs.join(".shards/masks-1")).unwrap();
+    std::fs::write(runs.join(".shards/masks-1.done"), "").unwrap();
+    let task = |stage: &str, index: &str| {
+        let o = Command::new("bash")
+            .arg(scripts.join("task.sh"))
+            .arg(&config)
+            .arg(stage)
+            .env("SLURM_ARRAY_TASK_ID", index)
+            .env("TMPDIR", cwd.join("scratch"))
+            .current_dir(cwd)
+            .output()
+            .unwrap();
+        (
+            o.status.success(),
+            format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr)),
+        )
+    };
+    let (ok, log) = task("loc", "1");
+    assert!(ok, "{log}");
+    let calls = std::fs::read_to_string(cwd.join("calls.txt")).unwrap();
+    let masks = runs.join(".shards/masks-1/demo/small/masks");
+    assert_eq!(
+        calls,
+        format!(
+            "--workdir {}/insgen-loc-0-1 --no-progress eval-loc --area demo --camera small --oracle --masks {} \
+             --tag t --cost instance --limit 6 --shard auto/3\n",
+            cwd.join("scratch").display(),
+            masks.display()
+        )
+    );
+    assert!(
+        runs.join(".shards/loc-1.done").exists() && !runs.join(".shards/loc-1/demo/scene").exists(),
+        "{log}"
+    );
+    // Without its masks shard a loc task fails and publishes nothing.
+    let (ok, log) = task("loc", "2");
+    assert!(!ok && log.contains("masks shard 2 is not done"), "{log}");
+    assert!(!runs.join(".shards/loc-2.done").exists());
+    // The merge job merges every shard, the loc ones too.
+    for shard in ["masks-0", "masks-2", "rgb-0", "rgb-1", "rgb-2", "loc-0", "loc-2"] {
+        std::fs::create_dir_all(runs.join(".shards").join(shard)).unwrap();
+        std::fs::write(runs.join(".shards").join(format!("{shard}.done")), "").unwrap();
+    }
+    std::fs::write(cwd.join("calls.txt"), "").unwrap();
+    let (ok, log) = task("merge", "");
+    assert!(ok, "{log}");
+    let calls = std::fs::read_to_string(cwd.join("calls.txt")).unwrap();
+    let r = runs.display().to_string();
+    let r = r.as_str();
+    let shards: Vec<String> = ["masks", "rgb", "loc"]
+        .iter()
+        .flat_map(|s| (0..3).map(move |i| format!("{r}/.shards/{s}-{i}")))
+        .collect();
+    let first = calls.lines().next().unwrap_or_default();
+    assert_eq!(first, format!("--workdir {} merge {}", runs.display(), shards.join(" ")), "{calls}");
 }
