@@ -8,7 +8,7 @@
 //!
 //! Presets (paper table "Camera configurations", SPEC.md):
 //!
-//! | preset | resolution | sensor [mm]    | hFOV | focal [mm] | focal [px] | strategy  |
+//! | preset | resolution | sensor \[mm\]  | hFOV | focal \[mm\] | focal \[px\] | strategy  |
 //! |--------|------------|----------------|------|------------|------------|-----------|
 //! | cam1   | 1600×1200  | 16 × 12        | 45°  | 19.314     | 1931.37    | irregular |
 //! | cam2   | 1920×1080  | 23.76 × 13.365 | 25°  | 53.587     | 4330.28    | grid      |
