@@ -11,6 +11,18 @@ stage="$2"
 source "$config"
 log() { echo "[insgen-slurm $(date -u +%FT%TZ)] $*"; }
 run() { log "$*"; "$@"; }
+# publish WORK SHARDS FINAL INDEX: the shard whole into FINAL (copy, then rename into place, then mark
+# it done), and the node-local WORK removed.
+publish() {
+    mkdir -p "$2"
+    rm -rf "$3.partial"
+    cp -r "$1" "$3.partial"
+    rm -rf "$3"
+    mv "$3.partial" "$3"
+    touch "$3.done"
+    rm -rf "$1"
+    log "shard $4 of $TASKS done → $3"
+}
 log "stage $stage on $(hostname) (job ${SLURM_JOB_ID:-?}, array task ${SLURM_ARRAY_TASK_ID:-none})"
 case "$stage" in
     prep)
@@ -51,15 +63,7 @@ case "$stage" in
             # the RGB frames and runs once in the merge job.
             run "$INSGEN" --workdir "$work" --no-progress export-coco --label-only --shard "auto/$TASKS"
         fi
-        # Publish the shard whole: copy, then rename into place, then mark it done.
-        mkdir -p "$shards"
-        rm -rf "$final.partial"
-        cp -r "$work" "$final.partial"
-        rm -rf "$final"
-        mv "$final.partial" "$final"
-        touch "$final.done"
-        rm -rf "$work"
-        log "shard $index of $TASKS done → $final"
+        publish "$work" "$shards" "$final" "$index"
         ;;
     loc)
         # eval-loc on the queries of masks shard i (positions ≡ i mod TASKS of poses.jsonl), reading
@@ -91,14 +95,7 @@ case "$stage" in
             # Publish the evaluation only: the scene and poses are the prep job's.
             rm -rf "${work:?}/$area/scene"
         done
-        mkdir -p "$shards"
-        rm -rf "$final.partial"
-        cp -r "$work" "$final.partial"
-        rm -rf "$final"
-        mv "$final.partial" "$final"
-        touch "$final.done"
-        rm -rf "$work"
-        log "shard $index of $TASKS done → $final"
+        publish "$work" "$shards" "$final" "$index"
         ;;
     merge)
         shards=()
