@@ -40,7 +40,7 @@ import traceback
 
 PROTOCOL_PREFIX = "INSGEN "
 JOB_FORMAT = "insgen-blender-job"
-JOB_VERSION = 3
+JOB_VERSION = 4
 # Name of the per-face building-ID attribute the script derives from _FEATURE_ID_0 (face domain, so no
 # interpolation can perturb the value: every pixel of a face reads the exact float).
 FACE_ID_ATTRIBUTE = "insgen_building_id"
@@ -298,6 +298,18 @@ def model_bounds(placed):
 # --------------------------------------------------------------------------------------------- looks
 
 
+# Nodes whose values change per frame (apply_frame_look): filled while the look is built.
+LIVE = {"ambient": [], "reflection": [], "haze_beta": [], "haze_color": [], "sun": None, "sky": None,
+        "world_mix": None, "world_haze": None, "world_bg": None}
+
+# Sky ambient colour per unit of sky strength, by weather: a blue sky lights shadows blue; haze and cloud
+# scatter whiter light.
+AMBIENT_BY_SKY = {"clear": (0.5, 0.62, 0.8), "hazy": (0.56, 0.62, 0.72), "overcast": (0.62, 0.64, 0.67)}
+# How much the sky seen by the camera turns to the haze colour, and sky turbidity, by weather.
+SKY_HAZE_MIX = {"clear": 0.12, "hazy": 0.55, "overcast": 0.92}
+SKY_TURBIDITY = {"clear": 2.5, "hazy": 6.0, "overcast": 10.0}
+
+
 def new_material(bpy, name):
     mat = bpy.data.materials.new(name)
     nt = mat.node_tree
@@ -384,6 +396,10 @@ FACADE_COLORS = [
     (0.55, 0.50, 0.42), (0.62, 0.62, 0.60), (0.35, 0.14, 0.09), (0.75, 0.72, 0.66), (0.25, 0.25, 0.26),
     (0.48, 0.40, 0.30), (0.70, 0.66, 0.55), (0.42, 0.44, 0.47), (0.30, 0.20, 0.14), (0.82, 0.80, 0.78),
 ]
+# The varied look's wider palette adds concrete, metal cladding and painted render.
+FACADE_COLORS_WIDE = FACADE_COLORS + [
+    (0.38, 0.37, 0.35), (0.52, 0.52, 0.50), (0.30, 0.34, 0.38), (0.60, 0.45, 0.32), (0.45, 0.52, 0.48),
+]
 ROOF_COLORS = [
     (0.10, 0.10, 0.11), (0.22, 0.22, 0.21), (0.05, 0.05, 0.055), (0.30, 0.29, 0.27), (0.06, 0.09, 0.04),
     (0.20, 0.07, 0.04), (0.16, 0.17, 0.18), (0.36, 0.35, 0.33), (0.13, 0.12, 0.10),
@@ -466,7 +482,7 @@ def facade_shader(nt, look, lighting, bid, seed, geo, pos, nrm):
     window = math_node(nt, "MULTIPLY", math_node(nt, "MULTIPLY", in_u, in_v), math_node(nt, "MULTIPLY", above, upright))
 
     # Wall colour: palette pick, brightness jitter, brick texture for the "brick" style, plaster noise.
-    base = palette(nt, r_color, FACADE_COLORS)
+    base = palette(nt, r_color, FACADE_COLORS_WIDE if look.get("wide_palette") else FACADE_COLORS)
     bright = math_node(nt, "ADD", math_node(nt, "MULTIPLY", r_bright, 0.5), 0.75)
     uvw = node(nt, "ShaderNodeCombineXYZ")
     nt.links.new(t, uvw.inputs["X"])
@@ -486,6 +502,8 @@ def facade_shader(nt, look, lighting, bid, seed, geo, pos, nrm):
     noise.inputs["Detail"].default_value = 3.0
     nt.links.new(uvw.outputs["Vector"], noise.inputs["Vector"])
     grime = math_node(nt, "ADD", math_node(nt, "MULTIPLY", noise.outputs["Fac"], 0.5), 0.75)
+    if look.get("wide_palette"):
+        grime = weathering(nt, grime, t, height, bid, seed)
     shade = math_node(nt, "MULTIPLY", grime, bright)
     wall_scaled = node(nt, "ShaderNodeMix", data_type="RGBA", blend_type="MULTIPLY", clamp_factor=True)
     socket(wall_scaled.inputs, "Factor_Float").default_value = 1.0
@@ -501,6 +519,21 @@ def facade_shader(nt, look, lighting, bid, seed, geo, pos, nrm):
     if lighting == "direct":
         return direct_shader(nt, color, look, glass=window)
     return principled_shader(nt, color, mix_float(nt, window, 0.85, 0.06), mix_float(nt, window, 0.3, 1.0))
+
+
+def weathering(nt, grime, t, height, bid, seed):
+    """Vertical rain streaks (noise stretched 12× along the height), a per-building amount."""
+    streak_uv = node(nt, "ShaderNodeCombineXYZ")
+    nt.links.new(math_node(nt, "MULTIPLY", t, 1.5), streak_uv.inputs["X"])
+    nt.links.new(math_node(nt, "MULTIPLY", height, 0.125), streak_uv.inputs["Y"])
+    streaks = node(nt, "ShaderNodeTexNoise", noise_dimensions="2D")
+    streaks.inputs["Scale"].default_value = 1.0
+    streaks.inputs["Detail"].default_value = 1.0
+    nt.links.new(streak_uv.outputs["Vector"], streaks.inputs["Vector"])
+    weather = math_node(nt, "MULTIPLY", per_building_random(nt, bid, seed, 10), 0.6)
+    dirt = math_node(nt, "MULTIPLY", math_node(nt, "GREATER_THAN", streaks.outputs["Fac"], 0.55), weather)
+    grime = math_node(nt, "MULTIPLY", grime, math_node(nt, "SUBTRACT", 1.0, dirt))
+    return grime
 
 
 def roof_shader(nt, look, lighting, bid, seed, geo, pos):
@@ -527,9 +560,31 @@ def roof_shader(nt, look, lighting, bid, seed, geo, pos):
                         math_node(nt, "LESS_THAN", cells.outputs["Distance"], 0.28))
     clutter_color = mix_color(nt, cell_rand.outputs["Green"], (0.45, 0.45, 0.44, 1.0), (0.03, 0.04, 0.07, 1.0))
     color = mix_color(nt, clutter, stained, clutter_color)
+    if look.get("wide_palette"):
+        color = roof_kinds(nt, color, plan, roof_noise, bid, seed)
     if lighting == "direct":
         return direct_shader(nt, color, look)
     return principled_shader(nt, color, 0.9, 0.3)
+
+
+def roof_kinds(nt, color, plan, roof_noise, bid, seed):
+    """Roof kinds beyond the membrane, per building: green (sedum) roofs, standing-seam metal and clay
+    tile, the last two striped by one wave texture (a period of ~0.5 m: seams and tile rows)."""
+    r_kind = per_building_random(nt, bid, seed, 9)
+    waves = node(nt, "ShaderNodeTexWave", wave_type="BANDS", bands_direction="X")
+    # Bands of sin(20·scale·x): a period of 2π / (20 · 0.6) ≈ 0.52 m.
+    waves.inputs["Scale"].default_value = 0.6
+    waves.inputs["Distortion"].default_value = 0.0
+    nt.links.new(plan.outputs["Vector"], waves.inputs["Vector"])
+    seam = math_node(nt, "GREATER_THAN", waves.outputs["Fac"], 0.8)
+    # Low contrast: at 0.1–0.3 m per pixel the seams are sub-pixel and must not alias into stripes.
+    metal = mix_color(nt, seam, (0.36, 0.39, 0.43, 1.0), (0.42, 0.45, 0.49, 1.0))
+    tile = mix_color(nt, seam, (0.21, 0.068, 0.03, 1.0), (0.17, 0.055, 0.025, 1.0))
+    green = mix_color(nt, roof_noise.outputs["Fac"], (0.03, 0.07, 0.02, 1.0), (0.12, 0.16, 0.04, 1.0))
+    color = mix_color(nt, math_node(nt, "LESS_THAN", r_kind, 0.32), color, tile)
+    color = mix_color(nt, math_node(nt, "LESS_THAN", r_kind, 0.2), color, metal)
+    color = mix_color(nt, math_node(nt, "LESS_THAN", r_kind, 0.08), color, green)
+    return color
 
 
 def principled_shader(nt, color, roughness, specular):
@@ -558,7 +613,10 @@ def direct_shader(nt, color, look, glass=None):
     ambient = node(nt, "ShaderNodeMix", data_type="RGBA", blend_type="MULTIPLY", clamp_factor=True)
     socket(ambient.inputs, "Factor_Float").default_value = 1.0
     nt.links.new(color, socket(ambient.inputs, "A_Color"))
-    socket(ambient.inputs, "B_Color").default_value = (*(sky * c for c in AMBIENT_PER_SKY), 1.0)
+    amb = node(nt, "ShaderNodeRGB")
+    amb.outputs[0].default_value = (*(sky * c for c in AMBIENT_PER_SKY), 1.0)
+    LIVE["ambient"].append(amb)
+    nt.links.new(amb.outputs[0], socket(ambient.inputs, "B_Color"))
     glow = socket(ambient.outputs, "Result_Color")
     if glass is not None:
         fresnel = node(nt, "ShaderNodeLayerWeight")
@@ -567,7 +625,10 @@ def direct_shader(nt, color, look, glass=None):
         add = node(nt, "ShaderNodeMix", data_type="RGBA", blend_type="ADD", clamp_factor=True)
         nt.links.new(weight, socket(add.inputs, "Factor_Float"))
         nt.links.new(glow, socket(add.inputs, "A_Color"))
-        socket(add.inputs, "B_Color").default_value = (*(sky * c for c in REFLECTION_PER_SKY), 1.0)
+        refl = node(nt, "ShaderNodeRGB")
+        refl.outputs[0].default_value = (*(sky * c for c in REFLECTION_PER_SKY), 1.0)
+        LIVE["reflection"].append(refl)
+        nt.links.new(refl.outputs[0], socket(add.inputs, "B_Color"))
         glow = socket(add.outputs, "Result_Color")
     emission = node(nt, "ShaderNodeEmission")
     emission.inputs["Strength"].default_value = 1.0
@@ -703,9 +764,26 @@ def add_sky_and_sun(bpy, scene, look, lighting):
         sky.sun_direction = sun_direction(look)
     if hasattr(sky, "turbidity"):
         sky.turbidity = 2.5
-    nt.links.new(sky.outputs["Color"], bg.inputs["Color"])
-    bg.inputs["Strength"].default_value = float(look.get("sky_strength", 0.25))
+    # The sky seen by the camera turns to the haze colour with the weather (apply_frame_look): sky × strength
+    # mixed with a haze radiance, shown at strength 1.
+    scaled = node(nt, "ShaderNodeMix", data_type="RGBA", blend_type="MULTIPLY", clamp_factor=True)
+    socket(scaled.inputs, "Factor_Float").default_value = 1.0
+    nt.links.new(sky.outputs["Color"], socket(scaled.inputs, "A_Color"))
+    strength = float(look.get("sky_strength", 0.25))
+    socket(scaled.inputs, "B_Color").default_value = (strength, strength, strength, 1.0)
+    hazed = node(nt, "ShaderNodeMix", data_type="RGBA", blend_type="MIX", clamp_factor=True)
+    socket(hazed.inputs, "Factor_Float").default_value = 0.0
+    nt.links.new(socket(scaled.outputs, "Result_Color"), socket(hazed.inputs, "A_Color"))
+    haze_rgb = node(nt, "ShaderNodeRGB")
+    haze_rgb.outputs[0].default_value = (0.5, 0.55, 0.6, 1.0)
+    nt.links.new(haze_rgb.outputs[0], socket(hazed.inputs, "B_Color"))
+    nt.links.new(socket(hazed.outputs, "Result_Color"), bg.inputs["Color"])
+    bg.inputs["Strength"].default_value = 1.0
     nt.links.new(bg.outputs["Background"], out.inputs["Surface"])
+    LIVE["sky"] = sky
+    LIVE["world_bg"] = socket(scaled.inputs, "B_Color")
+    LIVE["world_mix"] = socket(hazed.inputs, "Factor_Float")
+    LIVE["world_haze"] = haze_rgb
 
     light = bpy.data.lights.new("insgen_sun", type="SUN")
     light.energy = float(look.get("sun_strength", 4.0))
@@ -724,6 +802,7 @@ def add_sky_and_sun(bpy, scene, look, lighting):
     sun.rotation_mode = "QUATERNION"
     # A sun lamp shines along its local -Z: point -Z away from the sun.
     sun.rotation_quaternion = (-d).to_track_quat("-Z", "Y")
+    LIVE["sun"] = sun
 
 
 def black_world(bpy, scene):
@@ -739,6 +818,87 @@ def black_world(bpy, scene):
     nt.links.new(bg.outputs["Background"], out.inputs["Surface"])
 
 
+def add_haze(bpy, mat):
+    """Distance haze on a material: its surface shader mixed with the haze radiance by 1 − exp(−β·d), d
+    the distance from the camera (Koschmieder: β = 3 / visibility). β = 0 (no haze) gives a Mix Shader
+    weight of exactly 0, which Cycles skips."""
+    nt = mat.node_tree
+    if nt is None:
+        return
+    outs = [n for n in nt.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
+    if not outs or not outs[0].inputs["Surface"].is_linked:
+        return
+    out = outs[0]
+    surface = out.inputs["Surface"].links[0].from_socket
+    cam = node(nt, "ShaderNodeCameraData")
+    beta = node(nt, "ShaderNodeValue")
+    beta.outputs[0].default_value = 0.0
+    LIVE["haze_beta"].append(beta)
+    # 1 − exp(−β·d)
+    optical = math_node(nt, "MULTIPLY", cam.outputs["View Distance"], beta.outputs[0])
+    fac = math_node(nt, "SUBTRACT", 1.0, math_node(nt, "EXPONENT", math_node(nt, "MULTIPLY", optical, -1.0)))
+    color = node(nt, "ShaderNodeRGB")
+    color.outputs[0].default_value = (0.5, 0.55, 0.6, 1.0)
+    LIVE["haze_color"].append(color)
+    em = node(nt, "ShaderNodeEmission")
+    em.inputs["Strength"].default_value = 1.0
+    nt.links.new(color.outputs[0], em.inputs["Color"])
+    mix = node(nt, "ShaderNodeMixShader")
+    nt.links.new(fac, mix.inputs["Fac"])
+    nt.links.new(surface, mix.inputs[1])
+    nt.links.new(em.outputs["Emission"], mix.inputs[2])
+    nt.links.new(mix.outputs["Shader"], out.inputs["Surface"])
+    # The haze's light is already integrated: never a light source to sample.
+    mat.cycles.emission_sampling = "NONE"
+
+
+def apply_frame_look(scene, job, look):
+    """Sets one frame's sun, sky, haze and exposure (the values drawn by insgen, src/blender/look.rs)."""
+    from mathutils import Vector
+
+    scene.view_settings.exposure = float(job["look"].get("exposure", 0.0)) + float(look.get("exposure_ev", 0.0))
+    sun = LIVE["sun"]
+    if sun is None:
+        # Unlit photogrammetry or Workbench: only haze and exposure apply.
+        sun_level = 1.0
+    else:
+        d = Vector(sun_direction(look))
+        sun.rotation_quaternion = (-d).to_track_quat("-Z", "Y")
+        sun.data.energy = float(look["sun_strength"])
+        sun_level = float(look["sun_strength"]) * max(d.z, 0.0) / math.pi
+    sky_kind = look.get("sky", "clear")
+    sky = float(look["sky_strength"])
+    amb = AMBIENT_BY_SKY.get(sky_kind, AMBIENT_PER_SKY)
+    for n in LIVE["ambient"]:
+        n.outputs[0].default_value = (*(sky * c for c in amb), 1.0)
+    for n in LIVE["reflection"]:
+        n.outputs[0].default_value = (*(sky * c for c in REFLECTION_PER_SKY), 1.0)
+    # The haze is as bright as a white surface under this light (the air scatters sun and sky).
+    white = sun_level + sky * 0.65 if sun is not None else 0.8
+    haze = tuple(float(c) * white for c in look.get("haze_rgb", (0.0, 0.0, 0.0)))
+    visibility = look.get("visibility_m")
+    beta = 3.0 / float(visibility) if visibility else 0.0
+    for n in LIVE["haze_beta"]:
+        n.outputs[0].default_value = beta
+    for n in LIVE["haze_color"]:
+        n.outputs[0].default_value = (*haze, 1.0)
+    sky_node = LIVE["sky"]
+    if sky_node is not None:
+        el = math.radians(float(look["sun_elevation_deg"]))
+        az = math.radians(float(look["sun_azimuth_deg"]))
+        if hasattr(sky_node, "sun_elevation"):
+            sky_node.sun_elevation = el
+            sky_node.sun_rotation = (-az) % (2.0 * math.pi)
+        if hasattr(sky_node, "sun_direction"):
+            sky_node.sun_direction = sun_direction(look)
+        if hasattr(sky_node, "turbidity"):
+            sky_node.turbidity = SKY_TURBIDITY.get(sky_kind, 2.5)
+        LIVE["world_bg"].default_value = (sky, sky, sky, 1.0)
+        LIVE["world_mix"].default_value = SKY_HAZE_MIX.get(sky_kind, 0.0) if visibility else 0.0
+        # A hazy or overcast sky is brighter than the ground's haze.
+        LIVE["world_haze"].outputs[0].default_value = (*(1.5 * c for c in haze), 1.0)
+
+
 def build_look(bpy, scene, job, placed):
     look = job["look"]
     if job["mode"] == "ids":
@@ -752,6 +912,8 @@ def build_look(bpy, scene, job, placed):
         scene.world = bpy.data.worlds.new("insgen_world")
         return
     lighting = job["lighting"]
+    # The varied look (per-frame weather, src/blender/look.rs) also widens the material palette.
+    look = dict(look, wide_palette=any(f.get("look", {}).get("style") == "varied" for f in job["frames"]))
     bmat = building_material(bpy, look, lighting)
     for _root, meshes, model in placed:
         if model["kind"] == "lod":
@@ -764,6 +926,11 @@ def build_look(bpy, scene, job, placed):
     if look.get("ground_plane", True):
         add_ground(bpy, scene, look, ground_material(bpy, look, lighting), look.get("ground_half_extent_m", 20000.0))
     add_sky_and_sun(bpy, scene, look, lighting)
+    # Distance haze on every surface (buildings, ground, tiles, and any other layer's materials).
+    if any(f.get("look", {}).get("visibility_m") for f in job["frames"]):
+        for mat in list(bpy.data.materials):
+            if mat.users > 0 and mat.node_tree is not None:
+                add_haze(bpy, mat)
 
 
 # --------------------------------------------------------------------------------------------- frames
@@ -854,6 +1021,8 @@ def main(argv):
             c0 = time.process_time()
             apply_camera(scene, cam, frame)
             set_visibility(placed, frame)
+            if job["mode"] == "rgb" and job["engine"] == "cycles" and "look" in frame:
+                apply_frame_look(scene, job, frame["look"])
             bpy.ops.render.render(write_still=False)
             save(bpy, scene, frame, job["mode"])
             emit({"done": current, "seconds": round(time.time() - t0, 3),

@@ -108,6 +108,8 @@ pub enum OutputError {
     Ids(#[source] crate::scene::IdError),
     #[error("is {width_px}×{height_px} px, expected {expected_width_px}×{expected_height_px}")]
     Size { width_px: u32, height_px: u32, expected_width_px: u32, expected_height_px: u32 },
+    #[error("applying the camera effects: {0}")]
+    Effects(String),
     #[error("re-encoding the PNG")]
     EncodePng(#[source] png::EncodingError),
     #[error("re-encoding the EXR")]

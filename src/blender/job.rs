@@ -17,14 +17,15 @@ use serde::{Deserialize, Serialize};
 
 use super::camera::{BlenderCamera, Mat4};
 use super::error::JobIssue;
+use super::look::FrameLook;
 use crate::camera::record::check_frame_name;
 use crate::camera::Intrinsics;
 
 /// Value of the `format` field.
 pub const JOB_FORMAT: &str = "insgen-blender-job";
 /// Version of the job layout; the script refuses other versions (2: `device`, `max_bounces`,
-/// `denoise_quality`; 3: `lighting`).
-pub const JOB_VERSION: u32 = 3;
+/// `denoise_quality`; 3: `lighting`; 4: each frame's `look`).
+pub const JOB_VERSION: u32 = 4;
 
 /// What the frames show.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -178,6 +179,8 @@ pub struct JobFrame {
     /// Indices into `models` visible in this frame; `None` = all.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub models: Option<Vec<u32>>,
+    /// The frame's drawn look (sun, sky, haze, exposure; the camera effects are insgen's, after Blender).
+    pub look: FrameLook,
     /// Temporary output paths (renamed into place by insgen after verification).
     #[serde(default)]
     pub png: Option<PathBuf>,
@@ -306,6 +309,16 @@ impl Job {
             {
                 issue(at("intrinsics"), format!("{k:?} is not a valid pinhole"));
             }
+            let fl = &f.look;
+            let vis = fl.visibility_m.unwrap_or(1.0);
+            if ![fl.sun_azimuth_deg, fl.sun_elevation_deg, fl.sun_strength, fl.sky_strength, fl.exposure_ev, vis]
+                .iter()
+                .chain(&fl.haze_rgb)
+                .all(|v| v.is_finite())
+                || vis <= 0.0
+            {
+                issue(at("look"), "sun, sky, haze and exposure must be finite (visibility > 0)".into());
+            }
             if !is_finite_mat(&f.blender_matrix_world) || !is_affine(&f.blender_matrix_world) {
                 issue(at("blender_matrix_world"), "must be a finite affine 4×4 matrix".into());
             }
@@ -398,6 +411,8 @@ mod tests {
                 cam_to_world_enu: cam_to_world_enu(&pose),
                 blender_matrix_world: blender_matrix_world(&pose),
                 models: None,
+                look: crate::blender::look::FrameLook::draw(&crate::blender::look::LookRanges::defaults(35.0), 1, "f0")
+                    .unwrap(),
                 png: Some(dir.join(".insgen-tmp-f0.png")),
                 exr: None,
             }],

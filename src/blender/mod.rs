@@ -6,6 +6,8 @@
 //!
 //! - [`camera`]: the exact Blender camera (lens, sensor fit, shift, pixel aspect, axis flip) for a pinhole;
 //! - [`job`]: the job file (schema `schemas/blender_job.schema.json`) and its validation;
+//! - [`look`]: per-frame look variety (sun from date and time, sky, haze, exposure, white balance, camera
+//!   effects), drawn from the seed and the frame name;
 //! - [`tileset`]: tile selection by frustum and screen-space error over [`crate::lod::tiles3d`]'s tile tree,
 //!   plain GLBs of the chosen contents, ENU placement;
 //! - [`process`]: finding and running Blender, the stdout protocol, failures with hints;
@@ -18,6 +20,7 @@ pub mod align;
 pub mod camera;
 pub mod error;
 pub mod job;
+pub mod look;
 pub mod process;
 pub mod run;
 pub mod tileset;

@@ -10,10 +10,11 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use rand::{Rng, SeedableRng};
+
 
 use super::camera::{blender_matrix_world, cam_to_world_enu, BlenderCamera};
 use super::error::{BlenderError, JobIssue, OutputError};
+use super::look::{apply_camera_effects, CameraEffects, FrameLook, LookRanges};
 use super::job::{
     check_writable, DenoiseQuality, Device, Engine, Job, JobFrame, JobModel, Lighting, Look, Mode, ModelKind,
     RgbSettings, JOB_FORMAT, JOB_VERSION,
@@ -113,8 +114,10 @@ pub struct RenderPlan {
     /// RGB mode: also write a linear float32 EXR per frame.
     pub exr: bool,
     pub source: SceneSource,
-    /// Seed of the per-building material variation and of the sun direction.
+    /// Seed of the per-building material variation and of each frame's look.
     pub look_seed: u64,
+    /// What each frame's look is drawn from ([`super::look`]).
+    pub look: LookRanges,
     /// Ground level in ENU metres.
     pub ground_enu_m: f64,
     /// Directory of the final outputs (`rgb/` or `alignment/`).
@@ -185,6 +188,8 @@ pub struct FrameMeta {
     #[serde(flatten)]
     pub settings: RgbSettings,
     pub seed: u32,
+    /// The frame's drawn look (sun, sky, haze, exposure, camera effects).
+    pub look: FrameLook,
     /// Blender's version string.
     pub blender: Option<String>,
     /// SHA-256 of the frame's camera and settings (the resume fingerprint).
@@ -192,7 +197,7 @@ pub struct FrameMeta {
 }
 
 impl FrameMeta {
-    fn new(plan: &RenderPlan, f: &FrameRequest, info: Option<&ProcessInfo>) -> Self {
+    fn new(plan: &RenderPlan, f: &FrameRequest, look: FrameLook, info: Option<&ProcessInfo>) -> Self {
         FrameMeta {
             frame: f.name.clone(),
             engine: plan.engine.name().into(),
@@ -200,6 +205,7 @@ impl FrameMeta {
             device_requested: plan.device.name().into(),
             settings: plan.rgb,
             seed: plan.seed,
+            look,
             blender: info.and_then(|i| i.blender.clone()),
             fingerprint: frame_fingerprint(plan, f),
         }
@@ -321,11 +327,14 @@ pub fn verify_output(kind: OutputKind, path: &Path, k: &Intrinsics) -> Result<()
 /// Verifies Blender's temporary output and writes the final file atomically, re-encoded by insgen so
 /// that it carries no render metadata (Blender stamps render times into PNG and EXR headers): the
 /// same job gives byte-identical files. The temporary file is removed afterwards.
-fn finalize_output(o: &Output, k: &Intrinsics) -> Result<(), OutputError> {
+fn finalize_output(o: &Output, k: &Intrinsics, effects: Option<(&CameraEffects, u64)>) -> Result<(), OutputError> {
     let decoded = decode_output(o.kind, &o.tmp)?;
     check_size(&decoded, k)?;
     match decoded {
-        Decoded::Png { width, height, rgb } => {
+        Decoded::Png { width, height, mut rgb } => {
+            if let Some((fx, seed)) = effects {
+                apply_camera_effects(&mut rgb, width, height, fx, seed).map_err(OutputError::Effects)?;
+            }
             let mut bytes = Vec::with_capacity(rgb.len() / 2);
             {
                 let mut enc = png::Encoder::new(&mut bytes, width, height);
@@ -369,7 +378,7 @@ pub fn frame_fingerprint(plan: &RenderPlan, f: &FrameRequest) -> String {
         }
     };
     let text = format!(
-        "{:?} {:?} {:?} {:?} {} {} {} {:?} {} {:?} {} {} {} {} {source}",
+        "{:?} {:?} {:?} {:?} {} {} {} {:?} {} {:?} {} {} {} {} {source} {:?}",
         f.intrinsics,
         f.pose,
         plan.mode,
@@ -384,6 +393,7 @@ pub fn frame_fingerprint(plan: &RenderPlan, f: &FrameRequest) -> String {
         plan.look_seed,
         plan.ground_enu_m,
         plan.clip_start_m,
+        plan.look,
     );
     hex::encode(sha2::Sha256::digest(text.as_bytes()))
 }
@@ -414,12 +424,6 @@ pub fn frame_complete(plan: &RenderPlan, f: &FrameRequest) -> bool {
             .all(|o| o.path.is_file() && verify_output(o.kind, &o.path, &f.intrinsics).is_ok())
 }
 
-/// Sun direction for a look seed: azimuth uniform in [0°, 360°), elevation uniform in [30°, 65°].
-pub fn sun_from_seed(seed: u64) -> (f64, f64) {
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x5u64.rotate_left(60));
-    (rng.gen_range(0.0..360.0), rng.gen_range(30.0..65.0))
-}
-
 /// Half side of the ground plane around the area origin, metres: far enough that a camera seeing the
 /// horizon from a few hundred metres up still finds ground below it. It is a constant (not derived from
 /// the frames) so that a frame renders the same whether it is rendered alone, in a shard or in a batch.
@@ -428,7 +432,7 @@ pub const GROUND_HALF_EXTENT_M: f64 = 50_000.0;
 /// The look of a plan; depends only on the plan (never on which frames are rendered), so a frame's image
 /// is the same in any batch or shard.
 fn look_for(plan: &RenderPlan) -> Look {
-    let (az, el) = sun_from_seed(plan.look_seed);
+    let (az, el) = super::look::sun_from_seed(plan.look_seed);
     Look {
         seed: plan.look_seed,
         ground_enu_m: plan.ground_enu_m,
@@ -437,8 +441,8 @@ fn look_for(plan: &RenderPlan) -> Look {
         ground_half_extent_m: GROUND_HALF_EXTENT_M,
         sun_azimuth_deg: az,
         sun_elevation_deg: el,
-        sun_strength: 4.0,
-        sky_strength: 0.18,
+        sun_strength: super::look::PLAIN_SUN_STRENGTH,
+        sky_strength: super::look::PLAIN_SKY_STRENGTH,
         exposure: 0.0,
     }
 }
@@ -467,6 +471,13 @@ fn check_request(plan: &RenderPlan, frames: &[FrameRequest]) -> Vec<JobIssue> {
                 path: format!("frames[{i}].name"),
                 what: format!("{:?} appears twice", f.name),
             });
+        }
+    }
+    if plan.mode == Mode::Rgb {
+        if let Err(what) = plan.look.check() {
+            issues.push(JobIssue { path: "look".into(), what });
+        } else if let Some(Err(what)) = frames.iter().map(|f| FrameLook::draw(&plan.look, plan.look_seed, &f.name)).find(Result::is_err) {
+            issues.push(JobIssue { path: "look.sun".into(), what });
         }
     }
     if plan.restart_every == 0 {
@@ -578,6 +589,14 @@ fn run_batch(
         }
     };
     let outputs: Vec<Vec<Output>> = batch.iter().map(|f| frame_outputs(plan, &f.name)).collect();
+    let looks: Vec<FrameLook> = batch
+        .iter()
+        .map(|f| FrameLook::draw(&plan.look, plan.look_seed, &f.name))
+        .collect::<Result<_, _>>()
+        .map_err(|what| BlenderError::InvalidJob {
+            path: plan.work_dir.clone(),
+            issues: vec![JobIssue { path: "look.sun".into(), what }],
+        })?;
     let mut job_frames = Vec::with_capacity(batch.len());
     for (i, f) in batch.iter().enumerate() {
         let camera =
@@ -590,6 +609,7 @@ fn run_batch(
             cam_to_world_enu: cam_to_world_enu(&f.pose),
             blender_matrix_world: blender_matrix_world(&f.pose),
             models: per_frame.as_ref().map(|p| p[i].clone()),
+            look: looks[i],
             png: find(OutputKind::Png),
             exr: find(OutputKind::RgbExr).or_else(|| find(OutputKind::IdExr)),
         });
@@ -646,15 +666,17 @@ fn run_batch(
                     path: job_path.clone(),
                     source: OutputError::NotInJob,
                 })?;
+                let effects = (plan.mode == Mode::Rgb)
+                    .then(|| (&looks[i].camera, FrameLook::noise_seed(plan.look_seed, &frame)));
                 for o in &outputs[i] {
-                    finalize_output(o, &batch[i].intrinsics).map_err(|source| BlenderError::Output {
+                    finalize_output(o, &batch[i].intrinsics, effects).map_err(|source| BlenderError::Output {
                         frame: frame.clone(),
                         path: o.tmp.clone(),
                         source,
                     })?;
                 }
                 if plan.mode == Mode::Rgb {
-                    let meta = FrameMeta::new(plan, &batch[i], process_info.as_ref());
+                    let meta = FrameMeta::new(plan, &batch[i], looks[i], process_info.as_ref());
                     crate::util::write_json_atomic(
                         &plan.out_dir.join(format!("{frame}.{META_SUFFIX}")),
                         &meta,
@@ -711,6 +733,7 @@ mod tests {
             exr: true,
             source: SceneSource::Lod { glb },
             look_seed: 1,
+            look: LookRanges::plain(35.0),
             ground_enu_m: 0.0,
             out_dir: dir.join("rgb"),
             work_dir: dir.join("blender"),
@@ -833,15 +856,5 @@ mod tests {
         assert!(crate::util::interrupt::in_chain(&e));
         let e = anyhow::Error::from(e).context("render-rgb");
         assert!(crate::util::interrupt::in_chain(e.as_ref()));
-    }
-
-    #[test]
-    fn sun_is_seeded_and_in_range() {
-        assert_eq!(sun_from_seed(5), sun_from_seed(5));
-        assert_ne!(sun_from_seed(5), sun_from_seed(6));
-        for s in 0..50 {
-            let (az, el) = sun_from_seed(s);
-            assert!((0.0..360.0).contains(&az) && (30.0..65.0).contains(&el));
-        }
     }
 }

@@ -6,6 +6,7 @@ use anyhow::{bail, Context};
 
 use crate::blender::align::{building_ious, pixel_agreement, summarise, FrameAlignment};
 use crate::blender::job::{DenoiseQuality, Device, Lighting, RgbSettings};
+use crate::blender::look::{LookRanges, LookStyle, SunRange};
 use crate::blender::run::{frame_outputs, OutputKind};
 use crate::blender::tileset::SelectOptions;
 use crate::blender::{render_frames, Engine, FrameRequest, Launcher, Mode, RenderPlan, SceneSource};
@@ -86,6 +87,39 @@ impl From<DenoiseQualityArg> for DenoiseQuality {
     }
 }
 
+/// The per-frame look on the command line (`--look`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum LookArg {
+    /// Sun from a date and time, clear/hazy/overcast skies, haze, exposure and white-balance jitter and
+    /// camera effects, drawn per frame and recorded (the default).
+    Varied,
+    /// One sun per area and seed, a clear sky, no haze and no camera effects.
+    Plain,
+}
+
+/// A closed range `A..B` of numbers (`A..A` or a single `A` for a constant).
+fn parse_range(s: &str) -> Result<[f64; 2], String> {
+    let (a, b) = s.split_once("..").unwrap_or((s, s));
+    let num = |t: &str| t.trim().parse::<f64>().map_err(|_| format!("{t:?} is not a number in {s:?} (expected A..B)"));
+    let (a, b) = (num(a)?, num(b)?);
+    if !(a.is_finite() && b.is_finite() && a <= b) {
+        return Err(format!("{s:?}: expected an increasing range A..B"));
+    }
+    Ok([a, b])
+}
+
+/// Three non-negative weights `CLEAR,HAZY,OVERCAST`.
+fn parse_weights(s: &str) -> Result<[f64; 3], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>().map_err(|_| format!("{t:?} is not a number in {s:?}")))
+        .collect::<Result<_, _>>()?;
+    match v[..] {
+        [a, b, c] if v.iter().all(|w| w.is_finite() && *w >= 0.0) && a + b + c > 0.0 => Ok([a, b, c]),
+        _ => Err(format!("{s:?}: expected three weights CLEAR,HAZY,OVERCAST, ≥ 0, not all 0")),
+    }
+}
+
 /// Renders RGB frames with Blender for a camera's poses.
 ///
 /// Reads <workdir>/<area>/scene/{scene.glb,manifest.json} and <workdir>/<area>/<camera>/poses.jsonl;
@@ -153,6 +187,32 @@ pub struct Args {
     /// Seed of the sampling, the sun and the per-building materials.
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub seed: u32,
+    /// Per-frame look: `varied` draws sun, sky, haze, exposure, white balance and camera effects per frame
+    /// (recorded in rgb/<frame>.render.json and the COCO image record); `plain` keeps one clear look.
+    #[arg(long, value_enum, value_name = "STYLE", default_value_t = LookArg::Varied)]
+    pub look: LookArg,
+    /// Days of the year the sun is drawn from (varied look; the sun's position follows the area's latitude).
+    #[arg(long, value_name = "A..B", default_value = "1..365", value_parser = parse_range, hide_short_help = true)]
+    pub sun_days: [f64; 2],
+    /// Local solar time the sun is drawn from, hours (draws with the sun below 15° are redrawn).
+    #[arg(long, value_name = "A..B", default_value = "7..18", value_parser = parse_range, hide_short_help = true)]
+    pub sun_hours: [f64; 2],
+    /// Draw the sun's azimuth (degrees clockwise from north) from this range instead of a date and time
+    /// (needs --sun-elevation).
+    #[arg(long, value_name = "A..B", value_parser = parse_range, requires = "sun_elevation", hide_short_help = true)]
+    pub sun_azimuth: Option<[f64; 2]>,
+    /// Draw the sun's elevation (degrees) from this range instead of a date and time (needs --sun-azimuth).
+    #[arg(long, value_name = "A..B", value_parser = parse_range, requires = "sun_azimuth", hide_short_help = true)]
+    pub sun_elevation: Option<[f64; 2]>,
+    /// Relative weights of clear, hazy and overcast skies.
+    #[arg(long, value_name = "C,H,O", default_value = "0.5,0.3,0.2", value_parser = parse_weights, hide_short_help = true)]
+    pub skies: [f64; 3],
+    /// No vignetting, blur or sensor noise (sun, sky, haze, exposure and white balance still vary).
+    #[arg(long, hide_short_help = true)]
+    pub no_camera_effects: bool,
+    /// Re-encode each frame as JPEG with a quality drawn from this range (the PNG holds the decoded JPEG).
+    #[arg(long, value_name = "A..B", value_parser = parse_range, hide_short_help = true)]
+    pub jpeg_quality: Option<[f64; 2]>,
     /// Render a photogrammetry 3D Tiles tileset (tileset.json) instead of the procedural LoD look.
     #[arg(long, value_name = "FILE")]
     pub tileset: Option<PathBuf>,
@@ -251,6 +311,7 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<Plan> {
         (Mode::Rgb, camera_dir.join(crate::label::stage::RGB_DIR))
     };
     let defaults = source.default_rgb_settings(args.lighting.into());
+    let look = look_ranges(args, manifest.origin.lat_deg)?;
     let render = RenderPlan {
         launcher,
         mode,
@@ -276,6 +337,7 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<Plan> {
         exr: args.exr,
         source,
         look_seed: fnv1a(&args.area) ^ args.seed as u64,
+        look,
         ground_enu_m: manifest.ground_enu_m,
         out_dir,
         work_dir: camera_dir.join("blender"),
@@ -286,6 +348,42 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<Plan> {
         report_bounds: false,
     };
     Ok(Plan { camera_dir, frames, render })
+}
+
+/// The look ranges of the flags at the area's latitude.
+fn look_ranges(args: &Args, latitude_deg: f64) -> anyhow::Result<LookRanges> {
+    let mut r = LookRanges::defaults(latitude_deg);
+    if args.look == LookArg::Plain {
+        r.style = LookStyle::Plain;
+    }
+    let whole = |name: &str, [a, b]: [f64; 2]| -> anyhow::Result<[u32; 2]> {
+        if a.fract() != 0.0 || b.fract() != 0.0 || a < 0.0 || b > 366.0 {
+            bail!("--{name} {a}..{b}: expected whole numbers");
+        }
+        Ok([a as u32, b as u32])
+    };
+    r.sun = match (args.sun_azimuth, args.sun_elevation) {
+        (Some(azimuth_deg), Some(elevation_deg)) => SunRange::Angles { azimuth_deg, elevation_deg },
+        _ => SunRange::Dates {
+            latitude_deg,
+            days: whole("sun-days", args.sun_days)?,
+            solar_hours: args.sun_hours,
+            min_elevation_deg: 15.0,
+        },
+    };
+    r.sky_weights = args.skies;
+    r.camera_effects = !args.no_camera_effects;
+    r.jpeg_quality = match args.jpeg_quality {
+        Some(q) => {
+            let [a, b] = whole("jpeg-quality", q)?;
+            Some([a.min(255) as u8, b.min(255) as u8])
+        }
+        None => None,
+    };
+    if let Err(e) = r.check() {
+        bail!("render-rgb: {e}");
+    }
+    Ok(r)
 }
 
 /// Runs `insgen render-rgb`.

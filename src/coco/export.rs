@@ -569,6 +569,17 @@ fn image_record(
         connectivity: inst.connectivity,
         view: pose.view,
         geo: pose.geo,
+        look: frame_look(&frame.rgb),
+    }
+}
+
+/// The `look` of an RGB frame's render metadata (`rgb/<frame>.render.json`), when there is one.
+fn frame_look(rgb: &Path) -> Option<serde_json::Value> {
+    let meta = rgb.with_extension(crate::label::stage::RGB_META_SUFFIX);
+    let bytes = std::fs::read(meta).ok()?;
+    match serde_json::from_slice::<serde_json::Value>(&bytes).ok()? {
+        serde_json::Value::Object(mut m) => m.remove("look"),
+        _ => None,
     }
 }
 

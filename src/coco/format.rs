@@ -168,6 +168,10 @@ pub struct Image {
     /// (degrees), as in `poses.jsonl`.
     #[serde(flatten)]
     pub geo: GeoPose,
+    /// Extension: the frame's drawn look (sun, sky, haze, exposure, camera effects), from its
+    /// `rgb/<frame>.render.json`, when the RGB frame has one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub look: Option<serde_json::Value>,
 }
 
 /// `annotations[]`: one building instance in one image.

@@ -113,6 +113,8 @@ pub fn rgb_render_settings(
             let Ok(serde_json::Value::Object(mut m)) = serde_json::from_slice(&bytes) else { continue };
             m.remove("frame");
             m.remove("fingerprint");
+            // Drawn per frame; recorded in each image record instead.
+            m.remove("look");
             let v = serde_json::Value::Object(m);
             let e = out.entry((im.area_name.clone(), im.camera.clone())).or_default();
             e.entry(v.to_string()).or_insert((0, v)).0 += 1;

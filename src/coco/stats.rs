@@ -456,6 +456,7 @@ mod tests {
                 connectivity: crate::label::Connectivity::Eight,
                 view: pose.view,
                 geo: pose.geo,
+                look: None,
             })
             .collect();
         let annotations = anns

@@ -48,6 +48,7 @@ fn plan(python: &Path, dir: &Path, mode: Mode, source: SceneSource) -> RenderPla
         exr: false,
         source,
         look_seed: 11,
+        look: insgen::blender::look::LookRanges::plain(35.0),
         ground_enu_m: 0.0,
         out_dir: dir.join("out"),
         work_dir: dir.join("work"),
@@ -312,6 +313,101 @@ fn device_is_chosen_logged_and_recorded() {
         }
         assert_eq!((meta.settings.samples, meta.engine.as_str()), (4, "cycles"));
     }
+}
+
+/// Luma mean and mean absolute deviation, and the mean blue/red ratio, of an 8-bit RGB image.
+fn picture_stats(rgb: &[u8]) -> (f64, f64, f64) {
+    let luma: Vec<f64> =
+        rgb.chunks_exact(3).map(|c| 0.2126 * c[0] as f64 + 0.7152 * c[1] as f64 + 0.0722 * c[2] as f64).collect();
+    let mean = luma.iter().sum::<f64>() / luma.len() as f64;
+    let mad = luma.iter().map(|v| (v - mean).abs()).sum::<f64>() / luma.len() as f64;
+    let (r, b) = rgb.chunks_exact(3).fold((0.0, 0.0), |(r, b), c| (r + c[0] as f64, b + c[2] as f64));
+    (mean, mad, b / r.max(1.0))
+}
+
+/// Mean HSV saturation of an 8-bit RGB image.
+fn saturation(rgb: &[u8]) -> f64 {
+    let s: f64 = rgb
+        .chunks_exact(3)
+        .map(|c| {
+            let (max, min) = (c.iter().max().copied().unwrap_or(0), c.iter().min().copied().unwrap_or(0));
+            if max == 0 {
+                0.0
+            } else {
+                (max - min) as f64 / max as f64
+            }
+        })
+        .sum();
+    s / (rgb.len() / 3) as f64
+}
+
+/// The varied look: each frame's drawn values are in its metadata (schema-valid, equal to
+/// `FrameLook::draw` of the seed and frame name), they change the picture the way they say (an overcast
+/// sky gives a darker, greyer picture; a camera white-balanced for 4000 K turns a frame blue, for 9000 K
+/// red), and a rerender with sensor noise reproduces the bytes.
+#[test]
+fn varied_look_is_drawn_per_frame_recorded_and_reproducible() {
+    use insgen::blender::look::{FrameLook, LookRanges, Sky, SunRange};
+    let Some(py) = blender_python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let glb = write_scene_glb(dir.path(), &box_city());
+    let frame = FrameRequest {
+        name: "v".into(),
+        intrinsics: Intrinsics::from_hfov(96, 72, 50.0),
+        pose: Pose::from_ypr_deg(200.0, 40.0, 0.0, [40.0, 60.0, 110.0]),
+    };
+    let meta_schema: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas/rgb_render.schema.json")).unwrap(),
+    )
+    .unwrap();
+    let meta_schema = jsonschema::validator_for(&meta_schema).unwrap();
+    let render = |name: &str, ranges: LookRanges| {
+        let mut p = plan(&py, &dir.path().join(name), Mode::Rgb, SceneSource::Lod { glb: glb.clone() });
+        p.look = ranges;
+        p.force = true;
+        render_frames(&p, std::slice::from_ref(&frame), &NoProgress).unwrap();
+        let bytes = std::fs::read(p.out_dir.join("v.render.json")).unwrap();
+        let json: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
+        let errors: Vec<String> = meta_schema.iter_errors(&json).map(|e| e.to_string()).collect();
+        assert!(errors.is_empty(), "{name}: v.render.json against the schema: {errors:?}");
+        let meta: insgen::blender::run::FrameMeta = serde_json::from_slice(&bytes).unwrap();
+        assert_eq!(meta.look, FrameLook::draw(&ranges, p.look_seed, "v").unwrap(), "{name}");
+        (meta.look, std::fs::read(p.out_dir.join("v.png")).unwrap(), p)
+    };
+    let mut base = LookRanges::defaults(35.0);
+    base.sun = SunRange::Angles { azimuth_deg: [150.0, 150.0], elevation_deg: [45.0, 45.0] };
+    base.camera_effects = false;
+    base.exposure_jitter_ev = 0.0;
+    base.white_balance_k = [6500.0, 6500.0];
+    let clear = LookRanges { sky_weights: [1.0, 0.0, 0.0], ..base };
+    let overcast = LookRanges { sky_weights: [0.0, 0.0, 1.0], ..base };
+    let (lc, png_clear, _) = render("clear", clear);
+    let (lo, png_overcast, _) = render("overcast", overcast);
+    assert_eq!((lc.sky, lo.sky), (Sky::Clear, Sky::Overcast));
+    let (_, _, rgb_clear) = read_rgb_png_bytes(&png_clear);
+    let (_, _, rgb_overcast) = read_rgb_png_bytes(&png_overcast);
+    let (mc, sc) = (picture_stats(&rgb_clear).0, saturation(&rgb_clear));
+    let (mo, so) = (picture_stats(&rgb_overcast).0, saturation(&rgb_overcast));
+    eprintln!("clear: mean {mc:.1}, saturation {sc:.3}; overcast: mean {mo:.1}, saturation {so:.3}");
+    // Grey cloud light and haze: a darker, greyer picture.
+    assert!(mo < mc - 5.0 && so < 0.9 * sc, "overcast {mo} {so} vs clear {mc} {sc}");
+    // White balance: the same clear frame through a camera set to 4000 K and to 9000 K.
+    let (_, cool, _) = render("cool", LookRanges { white_balance_k: [4000.0, 4000.0], ..clear });
+    let (_, warm, _) = render("warm", LookRanges { white_balance_k: [9000.0, 9000.0], ..clear });
+    let (_, _, br_clear) = picture_stats(&rgb_clear);
+    let (_, _, br_cool) = picture_stats(&read_rgb_png_bytes(&cool).2);
+    let (_, _, br_warm) = picture_stats(&read_rgb_png_bytes(&warm).2);
+    eprintln!("blue/red: 4000 K {br_cool:.3}, neutral {br_clear:.3}, 9000 K {br_warm:.3}");
+    assert!(br_cool > 1.1 * br_clear && br_warm < 0.93 * br_clear, "{br_cool} {br_clear} {br_warm}");
+    // All effects on (noise, blur, vignetting, JPEG): a rerender reproduces the bytes; plain differs.
+    let all = LookRanges { camera_effects: true, jpeg_quality: Some([70, 90]), ..LookRanges::defaults(35.0) };
+    let (la, first, mut p) = render("all", all);
+    assert!(la.camera.noise_sigma > 0.0 && la.camera.jpeg_quality.is_some());
+    render_frames(&p, std::slice::from_ref(&frame), &NoProgress).unwrap();
+    assert!(std::fs::read(p.out_dir.join("v.png")).unwrap() == first, "the varied look must rerender exactly");
+    p.look = LookRanges::plain(35.0);
+    render_frames(&p, std::slice::from_ref(&frame), &NoProgress).unwrap();
+    assert!(std::fs::read(p.out_dir.join("v.png")).unwrap() != first);
 }
 
 #[test]

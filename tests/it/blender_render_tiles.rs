@@ -47,6 +47,7 @@ fn plan(python: &Path, dir: &Path, mode: Mode, source: SceneSource) -> RenderPla
         exr: false,
         source,
         look_seed: 11,
+        look: insgen::blender::look::LookRanges::plain(35.0),
         ground_enu_m: 0.0,
         out_dir: dir.join("out"),
         work_dir: dir.join("work"),

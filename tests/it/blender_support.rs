@@ -232,7 +232,12 @@ pub fn edge_mask(ids: &[u32], w: u32, h: u32) -> Vec<bool> {
 
 /// Decodes an 8-bit RGB PNG into (width, height, bytes).
 pub fn read_rgb_png(path: &Path) -> (u32, u32, Vec<u8>) {
-    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    read_rgb_png_bytes(&std::fs::read(path).unwrap())
+}
+
+/// Decodes 8-bit RGB PNG bytes into (width, height, bytes).
+pub fn read_rgb_png_bytes(png_bytes: &[u8]) -> (u32, u32, Vec<u8>) {
+    let decoder = png::Decoder::new(std::io::Cursor::new(png_bytes));
     let mut reader = decoder.read_info().unwrap();
     let mut buf = vec![0; reader.output_buffer_size()];
     let info = reader.next_frame(&mut buf).unwrap();
