@@ -325,6 +325,23 @@ fn picture_stats(rgb: &[u8]) -> (f64, f64, f64) {
     (mean, mad, b / r.max(1.0))
 }
 
+/// The frame look is defined once per schema that carries it (the validator resolves no cross-file
+/// references): the job's, the render metadata's and the COCO image record's copies must stay equal.
+#[test]
+fn frame_look_schema_copies_agree() {
+    let def = |file: &str| {
+        let v: serde_json::Value = serde_json::from_slice(
+            &std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas").join(file)).unwrap(),
+        )
+        .unwrap();
+        v["$defs"]["frame_look"].clone()
+    };
+    let job = def("blender_job.schema.json");
+    assert!(job.is_object());
+    assert_eq!(def("rgb_render.schema.json"), job);
+    assert_eq!(def("coco_instances.schema.json"), job);
+}
+
 /// Mean HSV saturation of an 8-bit RGB image.
 fn saturation(rgb: &[u8]) -> f64 {
     let s: f64 = rgb

@@ -4,7 +4,7 @@
 //! Checks the promise of issue 14: the COCO dataset the demo ends with lists photos only — every
 //! `file_name` is an RGB frame on disk under `rgb/`, never an ID map, that decodes at the width and
 //! height the image entry gives — and every frame's `rgb/<frame>.render.json` records the device (the
-//! CPU here: the demo never asks for a GPU). Skips (fails under CI=true) without the bpy interpreter.
+//! CPU here: the demo never asks for a GPU) and the frame's drawn look, which the COCO image record repeats. Skips (fails under CI=true) without the bpy interpreter.
 
 use std::path::Path;
 
@@ -35,9 +35,11 @@ fn demo_dataset_lists_only_rgb_photos() {
     assert!(o.status.success(), "demo failed: {}", crate::util::stderr(&o));
 
     let mut images = 0;
+    let mut looks = std::collections::BTreeSet::new();
     for split in ["train", "val", "test"] {
         let path = dir.path().join(format!("runs/coco/instances_{split}.json"));
         let coco: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+        crate::util::assert_schema("coco_instances.schema.json", &coco);
         // File names are relative to `info.image_root`, itself relative to the COCO file's folder.
         let root = path.parent().unwrap().join(coco["info"]["image_root"].as_str().expect("info.image_root"));
         for im in coco["images"].as_array().unwrap() {
@@ -61,11 +63,16 @@ fn demo_dataset_lists_only_rgb_photos() {
                 (meta["device"].as_str(), meta["device_requested"].as_str()),
                 (Some("CPU"), Some("cpu"))
             );
+            // The demo's look varies per frame, and the image record carries the frame's drawn values.
+            assert_eq!(meta["look"]["style"].as_str(), Some("varied"), "{name}");
+            assert_eq!(im["look"], meta["look"], "{name}: the image record's look differs from its render.json");
+            looks.insert(meta["look"].to_string());
             images += 1;
         }
     }
     // 3 districts × 2 poses, all labelled (the demo city is dense) and all rendered.
     assert_eq!(images, 6, "expected every labelled frame as a photo");
+    assert_eq!(looks.len(), 6, "every frame draws its own look");
     assert!(Path::new(&dir.path().join("runs/coco/contact_sheet.png")).is_file(), "no contact sheet");
     // The manifest records how the photos were rendered (the look), per camera.
     let manifest: serde_json::Value =
