@@ -112,6 +112,7 @@ fn blender_ids(
         exr: false,
         source: SceneSource::Lod { glb: scene_dir.join(GLB_FILE) },
         look_seed: 0,
+        look: insgen::blender::look::LookRanges::plain(35.0),
         ground_enu_m: ground_m,
         out_dir: out.join("ids"),
         work_dir: out.join("work"),

@@ -311,10 +311,17 @@ impl Job {
             }
             let fl = &f.look;
             let vis = fl.visibility_m.unwrap_or(1.0);
-            if ![fl.sun_azimuth_deg, fl.sun_elevation_deg, fl.sun_strength, fl.sky_strength, fl.exposure_ev, vis]
-                .iter()
-                .chain(&fl.haze_rgb)
-                .all(|v| v.is_finite())
+            if ![
+                fl.sun_azimuth_deg,
+                fl.sun_elevation_deg,
+                fl.sun_strength,
+                fl.sky_strength,
+                fl.exposure_ev,
+                vis,
+            ]
+            .iter()
+            .chain(&fl.haze_rgb)
+            .all(|v| v.is_finite())
                 || vis <= 0.0
             {
                 issue(at("look"), "sun, sky, haze and exposure must be finite (visibility > 0)".into());
@@ -411,8 +418,12 @@ mod tests {
                 cam_to_world_enu: cam_to_world_enu(&pose),
                 blender_matrix_world: blender_matrix_world(&pose),
                 models: None,
-                look: crate::blender::look::FrameLook::draw(&crate::blender::look::LookRanges::defaults(35.0), 1, "f0")
-                    .unwrap(),
+                look: crate::blender::look::FrameLook::draw(
+                    &crate::blender::look::LookRanges::defaults(35.0),
+                    1,
+                    "f0",
+                )
+                .unwrap(),
                 png: Some(dir.join(".insgen-tmp-f0.png")),
                 exr: None,
             }],

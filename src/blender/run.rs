@@ -10,15 +10,13 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-
-
 use super::camera::{blender_matrix_world, cam_to_world_enu, BlenderCamera};
 use super::error::{BlenderError, JobIssue, OutputError};
-use super::look::{apply_camera_effects, CameraEffects, FrameLook, LookRanges};
 use super::job::{
     check_writable, DenoiseQuality, Device, Engine, Job, JobFrame, JobModel, Lighting, Look, Mode, ModelKind,
     RgbSettings, JOB_FORMAT, JOB_VERSION,
 };
+use super::look::{apply_camera_effects, CameraEffects, FrameLook, LookRanges};
 use super::process::{run_job, Event, Launcher};
 use super::tileset::{prepare_tile, select_tiles, SelectOptions, ENU_FROM_SCENE_GLTF};
 use crate::camera::record::check_frame_name;
@@ -327,7 +325,11 @@ pub fn verify_output(kind: OutputKind, path: &Path, k: &Intrinsics) -> Result<()
 /// Verifies Blender's temporary output and writes the final file atomically, re-encoded by insgen so
 /// that it carries no render metadata (Blender stamps render times into PNG and EXR headers): the
 /// same job gives byte-identical files. The temporary file is removed afterwards.
-fn finalize_output(o: &Output, k: &Intrinsics, effects: Option<(&CameraEffects, u64)>) -> Result<(), OutputError> {
+fn finalize_output(
+    o: &Output,
+    k: &Intrinsics,
+    effects: Option<(&CameraEffects, u64)>,
+) -> Result<(), OutputError> {
     let decoded = decode_output(o.kind, &o.tmp)?;
     check_size(&decoded, k)?;
     match decoded {
@@ -393,7 +395,8 @@ pub fn frame_fingerprint(plan: &RenderPlan, f: &FrameRequest) -> String {
         plan.look_seed,
         plan.ground_enu_m,
         plan.clip_start_m,
-        plan.look,
+        // ID renders do not depend on the look.
+        (plan.mode == Mode::Rgb).then_some(plan.look),
     );
     hex::encode(sha2::Sha256::digest(text.as_bytes()))
 }
@@ -476,7 +479,9 @@ fn check_request(plan: &RenderPlan, frames: &[FrameRequest]) -> Vec<JobIssue> {
     if plan.mode == Mode::Rgb {
         if let Err(what) = plan.look.check() {
             issues.push(JobIssue { path: "look".into(), what });
-        } else if let Some(Err(what)) = frames.iter().map(|f| FrameLook::draw(&plan.look, plan.look_seed, &f.name)).find(Result::is_err) {
+        } else if let Some(Err(what)) =
+            frames.iter().map(|f| FrameLook::draw(&plan.look, plan.look_seed, &f.name)).find(Result::is_err)
+        {
             issues.push(JobIssue { path: "look.sun".into(), what });
         }
     }
@@ -669,10 +674,8 @@ fn run_batch(
                 let effects = (plan.mode == Mode::Rgb)
                     .then(|| (&looks[i].camera, FrameLook::noise_seed(plan.look_seed, &frame)));
                 for o in &outputs[i] {
-                    finalize_output(o, &batch[i].intrinsics, effects).map_err(|source| BlenderError::Output {
-                        frame: frame.clone(),
-                        path: o.tmp.clone(),
-                        source,
+                    finalize_output(o, &batch[i].intrinsics, effects).map_err(|source| {
+                        BlenderError::Output { frame: frame.clone(), path: o.tmp.clone(), source }
                     })?;
                 }
                 if plan.mode == Mode::Rgb {

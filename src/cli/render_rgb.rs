@@ -100,7 +100,9 @@ pub enum LookArg {
 /// A closed range `A..B` of numbers (`A..A` or a single `A` for a constant).
 fn parse_range(s: &str) -> Result<[f64; 2], String> {
     let (a, b) = s.split_once("..").unwrap_or((s, s));
-    let num = |t: &str| t.trim().parse::<f64>().map_err(|_| format!("{t:?} is not a number in {s:?} (expected A..B)"));
+    let num = |t: &str| {
+        t.trim().parse::<f64>().map_err(|_| format!("{t:?} is not a number in {s:?} (expected A..B)"))
+    };
     let (a, b) = (num(a)?, num(b)?);
     if !(a.is_finite() && b.is_finite() && a <= b) {
         return Err(format!("{s:?}: expected an increasing range A..B"));

@@ -317,8 +317,10 @@ fn device_is_chosen_logged_and_recorded() {
 
 /// Luma mean and mean absolute deviation, and the mean blue/red ratio, of an 8-bit RGB image.
 fn picture_stats(rgb: &[u8]) -> (f64, f64, f64) {
-    let luma: Vec<f64> =
-        rgb.chunks_exact(3).map(|c| 0.2126 * c[0] as f64 + 0.7152 * c[1] as f64 + 0.0722 * c[2] as f64).collect();
+    let luma: Vec<f64> = rgb
+        .chunks_exact(3)
+        .map(|c| 0.2126 * c[0] as f64 + 0.7152 * c[1] as f64 + 0.0722 * c[2] as f64)
+        .collect();
     let mean = luma.iter().sum::<f64>() / luma.len() as f64;
     let mad = luma.iter().map(|v| (v - mean).abs()).sum::<f64>() / luma.len() as f64;
     let (r, b) = rgb.chunks_exact(3).fold((0.0, 0.0), |(r, b), c| (r + c[0] as f64, b + c[2] as f64));
@@ -421,7 +423,10 @@ fn varied_look_is_drawn_per_frame_recorded_and_reproducible() {
     let (la, first, mut p) = render("all", all);
     assert!(la.camera.noise_sigma > 0.0 && la.camera.jpeg_quality.is_some());
     render_frames(&p, std::slice::from_ref(&frame), &NoProgress).unwrap();
-    assert!(std::fs::read(p.out_dir.join("v.png")).unwrap() == first, "the varied look must rerender exactly");
+    assert!(
+        std::fs::read(p.out_dir.join("v.png")).unwrap() == first,
+        "the varied look must rerender exactly"
+    );
     p.look = LookRanges::plain(35.0);
     render_frames(&p, std::slice::from_ref(&frame), &NoProgress).unwrap();
     assert!(std::fs::read(p.out_dir.join("v.png")).unwrap() != first);

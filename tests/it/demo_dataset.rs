@@ -65,7 +65,10 @@ fn demo_dataset_lists_only_rgb_photos() {
             );
             // The demo's look varies per frame, and the image record carries the frame's drawn values.
             assert_eq!(meta["look"]["style"].as_str(), Some("varied"), "{name}");
-            assert_eq!(im["look"], meta["look"], "{name}: the image record's look differs from its render.json");
+            assert_eq!(
+                im["look"], meta["look"],
+                "{name}: the image record's look differs from its render.json"
+            );
             looks.insert(meta["look"].to_string());
             images += 1;
         }
