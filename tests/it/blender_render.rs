@@ -691,6 +691,7 @@ fn cli_renders_rgb_and_checks_alignment_against_masks() {
         triangles: 12 * boxes.len() as u64,
         degenerate_faces: 0,
         attributions: vec![],
+        clutter: None,
     };
     std::fs::write(scene_dir.join("manifest.json"), serde_json::to_vec_pretty(&manifest).unwrap()).unwrap();
     // Poses and the "masks" (the f64 reference standing in for the wgpu renderer's ID maps).
