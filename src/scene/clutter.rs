@@ -937,6 +937,20 @@ pub fn generate(
     (clutter, summary)
 }
 
+/// Tree species names, in the order [`tree_instance`] takes them.
+pub const TREE_SPECIES: [&str; 3] = [SPECIES[0].name, SPECIES[1].name, SPECIES[2].name];
+
+/// One tree as the generator builds it (species by index into [`TREE_SPECIES`], base point, height
+/// and crown radius in metres), on its own: for tests and previews of the templates.
+///
+/// # Panics
+/// If `species` is not below `TREE_SPECIES.len()`.
+pub fn tree_instance(species: usize, base_m: [f64; 3], height_m: f64, crown_r_m: f64) -> LayerMesh {
+    let mut m = LayerMesh::default();
+    add_tree(&mut m, &SPECIES[species], [base_m[0], base_m[1]], base_m[2], height_m, crown_r_m, 0);
+    m
+}
+
 /// A tree: a pentagonal trunk and a spheroid (broadleaf) or two stacked cones (conifer).
 fn add_tree(m: &mut LayerMesh, sp: &Species, p: [f64; 2], z0: f64, height_m: f64, r_m: f64, tone: usize) {
     let trunk_r = (0.12 * r_m).clamp(0.15, 0.4);

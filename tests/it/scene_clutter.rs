@@ -1,0 +1,148 @@
+//! Clutter as occluders in the masks: a building hidden behind a generated tree has no mask pixels,
+//! the tree's pixels are background (0), and the same view without occluders shows the building (so
+//! the tree, not the framing, hides it). ID maps are compared exactly (integer images, no tolerance).
+
+use crate::render_common::{box_mesh, renderer, Box3};
+
+use insgen::camera::{Intrinsics, Pose, PoseRecord, Trajectory};
+use insgen::geo::{EnuFrame, Geodetic};
+use insgen::label::stage::{self, MaskPlan};
+use insgen::label::FrameInstances;
+use insgen::render::{RenderOptions, View};
+use insgen::scene::artifact::{GeoidUsed, Origin};
+use insgen::scene::clutter::{tree_instance, Clutter, ClutterLayer};
+use insgen::scene::{BuildingId, BuildingRecord, IdMap, Manifest, PreparedScene, SceneMesh};
+use insgen::util::NoProgress;
+
+/// A 2 × 2 × 3 m kiosk 11–13 m north of a broadleaf tree (crown radius 4 m) seen from the south.
+const KIOSK: Box3 = Box3 { id: 7, min_m: [-1.0, 11.0, 0.0], max_m: [1.0, 13.0, 3.0] };
+/// And a tall building off to the side that stays visible.
+const TOWER: Box3 = Box3 { id: 9, min_m: [14.0, 20.0, 0.0], max_m: [24.0, 30.0, 30.0] };
+
+fn tree() -> insgen::scene::clutter::LayerMesh {
+    tree_instance(0, [0.0, 0.0, 0.0], 12.0, 4.0)
+}
+
+fn scene() -> PreparedScene {
+    let origin = Origin { lat_deg: 35.658, lon_deg: 139.701, h_m: 40.0 };
+    let enu = EnuFrame::new(Geodetic::new(origin.lat_deg, origin.lon_deg, origin.h_m));
+    let boxes = [KIOSK, TOWER];
+    let buildings: Vec<BuildingRecord> = boxes
+        .iter()
+        .map(|b| BuildingRecord {
+            id: BuildingId::new(b.id).unwrap(),
+            source_id: format!("b{}", b.id),
+            source_file: "test".into(),
+            lod: "1".into(),
+            height_m: b.max_m[2] - b.min_m[2],
+            measured_height_m: None,
+            footprint_area_m2: (b.max_m[0] - b.min_m[0]) * (b.max_m[1] - b.min_m[1]),
+            centroid_lat_deg: 0.0,
+            centroid_lon_deg: 0.0,
+            bbox_min_enu_m: b.min_m,
+            bbox_max_enu_m: b.max_m,
+            triangles: 12,
+        })
+        .collect();
+    let mesh = box_mesh(&boxes);
+    PreparedScene {
+        manifest: Manifest {
+            insgen_version: "test".into(),
+            area: "clutter".into(),
+            split: "test".into(),
+            origin,
+            ecef_from_enu: enu.ecef_from_enu(),
+            area_polygon_enu_m: vec![[-50.0, -50.0], [50.0, -50.0], [50.0, 50.0], [-50.0, 50.0]],
+            ground_enu_m: 0.0,
+            geoid: GeoidUsed { model: "none".into(), ..Default::default() },
+            sources: vec![],
+            buildings: 2,
+            triangles: mesh.triangle_count() as u64,
+            degenerate_faces: 0,
+            attributions: vec![],
+            clutter: None,
+        },
+        buildings,
+        mesh,
+        clutter: Clutter { layers: vec![(ClutterLayer::Trees, tree())] },
+    }
+}
+
+/// 160 × 90, 30° wide, 30 m up and 40 m south of the tree, looking north 29° below the horizon (at
+/// the crown's centre, whose line of sight reaches the ground at y ≈ 14 m, behind the kiosk).
+fn view() -> View {
+    let k = Intrinsics::from_hfov(160, 90, 30.0);
+    let depression_deg = (22.2f64 / 40.0).atan().to_degrees();
+    View { intrinsics: k, pose: Pose::from_ypr_deg(0.0, 90.0 - depression_deg, 0.0, [0.0, -40.0, 30.0]) }
+}
+
+/// The pixels where `mesh` (every triangle given ID 1) is drawn alone.
+fn silhouette(mesh: &SceneMesh) -> Vec<bool> {
+    let r = renderer();
+    let gpu = r.upload(mesh).unwrap();
+    let f = r.render(&gpu, &view(), &RenderOptions::default()).unwrap();
+    f.ids.raw().iter().map(|&id| id != 0).collect()
+}
+
+fn tree_as_building() -> SceneMesh {
+    let t = tree();
+    SceneMesh {
+        building_ids: vec![BuildingId::new(1).unwrap(); t.positions_m.len()],
+        positions_m: t.positions_m,
+        indices: t.indices,
+    }
+}
+
+fn run(scene: &PreparedScene, occluders: Vec<ClutterLayer>) -> (IdMap, FrameInstances) {
+    let dir = tempfile::tempdir().unwrap();
+    let cam = dir.path().join("clutter/test");
+    std::fs::create_dir_all(&cam).unwrap();
+    let v = view();
+    let enu = EnuFrame::new(Geodetic::new(35.658, 139.701, 40.0));
+    let rec = PoseRecord::new("f000".into(), "clutter", "test", Trajectory::Grid, 0, 0, v.intrinsics, &v.pose, &enu, 0.0);
+    std::fs::write(cam.join("poses.jsonl"), serde_json::to_string(&rec).unwrap() + "\n").unwrap();
+    let mut plan = MaskPlan::new(cam.clone());
+    plan.min_area_px = 1;
+    plan.visible_fraction = true;
+    plan.occluders = occluders;
+    let report = stage::render_masks(&plan, scene, renderer(), &NoProgress).unwrap();
+    assert_eq!(report.rendered, 1, "{:?}", report.failed);
+    let ids = IdMap::read_png(&plan.png_path("f000")).unwrap();
+    let fi: FrameInstances = serde_json::from_slice(&std::fs::read(plan.instances_path("f000")).unwrap()).unwrap();
+    (ids, fi)
+}
+
+#[test]
+fn a_building_behind_a_generated_tree_has_no_mask_pixels_and_the_tree_is_background() {
+    let scene = scene();
+    let kiosk_alone = silhouette(&box_mesh(&[KIOSK]));
+    let tree_alone = silhouette(&tree_as_building());
+    let kiosk_px = kiosk_alone.iter().filter(|&&b| b).count();
+    assert!(kiosk_px >= 20, "the kiosk covers only {kiosk_px} px in the test view");
+    // The set-up: every kiosk pixel lies inside the tree's silhouette (the tree is nearer).
+    assert!(kiosk_alone.iter().zip(&tree_alone).all(|(&k, &t)| !k || t), "the tree does not cover the kiosk");
+
+    // Without occluders the kiosk is in the mask …
+    let (open, open_fi) = run(&scene, vec![]);
+    let kiosk = BuildingId::new(KIOSK.id).unwrap();
+    let tower = BuildingId::new(TOWER.id).unwrap();
+    assert_eq!(open.raw().iter().filter(|&&id| id == KIOSK.id).count(), kiosk_px);
+    assert!(open_fi.instances.iter().any(|e| e.building_id == kiosk));
+    assert!(open_fi.occluders.is_empty());
+
+    // … with the tree as an occluder it has no pixel, and every tree pixel is background or the tower
+    // (which stands behind the tree's edge in this view, never in front of it).
+    let (hidden, fi) = run(&scene, vec![ClutterLayer::Trees]);
+    assert_eq!(hidden.raw().iter().filter(|&&id| id == KIOSK.id).count(), 0);
+    for (i, (&t, &id)) in tree_alone.iter().zip(hidden.raw()).enumerate() {
+        if t {
+            assert_eq!(id, 0, "tree pixel {i} holds building {id}");
+        }
+    }
+    assert!(fi.instances.iter().all(|e| e.building_id != kiosk), "{:?}", fi.instances);
+    assert_eq!(fi.occluders, vec![ClutterLayer::Trees]);
+    // The tower stays, with its visible fraction following the occlusion.
+    let tower_entry = fi.instances.iter().find(|e| e.building_id == tower).expect("the tower is visible");
+    let open_tower = open_fi.instances.iter().find(|e| e.building_id == tower).unwrap();
+    assert!(tower_entry.visible_fraction.unwrap() <= open_tower.visible_fraction.unwrap());
+}
