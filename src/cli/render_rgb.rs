@@ -141,6 +141,17 @@ pub struct Args {
     /// Render building IDs and compare them with the masks instead of rendering RGB.
     #[arg(long)]
     pub check_alignment: bool,
+    /// Clutter layers that hide buildings in the --check-alignment ID render.
+    ///
+    /// Same syntax and default as `render-masks --occluders`; give both commands the same list. RGB
+    /// frames always show every clutter layer.
+    #[arg(
+        long,
+        value_name = "LAYERS",
+        default_value = "trees,cars,rooftop",
+        value_parser = super::render_masks::parse_occluders
+    )]
+    pub occluders: super::render_masks::LayerList,
     /// Start a fresh Blender process every N frames (bounds memory).
     #[arg(long, value_name = "N", default_value_t = 50, value_parser = clap::value_parser!(u32).range(1..))]
     pub restart_every: u32,
@@ -284,6 +295,7 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<Plan> {
         clip_start_m: 0.5,
         clip_end_m: 100_000.0,
         report_bounds: false,
+        clutter_occluders: Some(args.occluders.0.clone()),
     };
     Ok(Plan { camera_dir, frames, render })
 }
