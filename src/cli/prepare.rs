@@ -47,10 +47,8 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         let area = file.file_stem().and_then(|s| s.to_str()).unwrap_or("area").to_string();
         let out = global.workdir.join(&area).join("scene");
         let options = scene::prepare::PrepareOptions {
-            clutter: (!args.no_clutter).then(|| scene::clutter::ClutterSpec {
-                seed: args.clutter_seed,
-                ..Default::default()
-            }),
+            clutter: (!args.no_clutter)
+                .then(|| scene::clutter::ClutterSpec { seed: args.clutter_seed, ..Default::default() }),
         };
         let report = scene::prepare::prepare_with(&file, &out, &options, &progress)
             .with_context(|| format!("preparing area {area} from {}", file.display()))?;

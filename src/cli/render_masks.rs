@@ -5,8 +5,8 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 
 use crate::label::stage::{self, MaskPlan, DEFAULT_MIN_AREA_PX};
-use crate::scene::clutter::ClutterLayer;
 use crate::label::Connectivity;
+use crate::scene::clutter::ClutterLayer;
 
 /// `--connectivity`: the pixel neighbourhood of instances ([`Connectivity`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]

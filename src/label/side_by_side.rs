@@ -135,7 +135,8 @@ mod tests {
 
     #[test]
     fn layer_colours_differ() {
-        let set: std::collections::BTreeSet<[u8; 3]> = ClutterLayer::ALL.iter().map(|l| layer_colour(*l)).collect();
+        let set: std::collections::BTreeSet<[u8; 3]> =
+            ClutterLayer::ALL.iter().map(|l| layer_colour(*l)).collect();
         assert_eq!(set.len(), ClutterLayer::ALL.len());
     }
 }

@@ -374,7 +374,11 @@ pub fn render_masks(
     }
     // Verifying reads every existing PNG header and JSON: spread it over the pool.
     let todo: Vec<usize> = {
-        selected.par_iter().copied().filter(|&i| plan.force || !outputs_verify(plan, &records[i], &occluders)).collect()
+        selected
+            .par_iter()
+            .copied()
+            .filter(|&i| plan.force || !outputs_verify(plan, &records[i], &occluders))
+            .collect()
     };
     let skipped = selected.len() - todo.len();
     if skipped > 0 {

@@ -186,7 +186,9 @@ impl PreparedScene {
             });
         }
         let clutter = match &manifest.clutter {
-            Some(_) => super::glb::read_layers(&glb_path).map_err(|source| SceneError::ArtifactGlb { source })?,
+            Some(_) => {
+                super::glb::read_layers(&glb_path).map_err(|source| SceneError::ArtifactGlb { source })?
+            }
             None => super::clutter::Clutter::default(),
         };
         Ok(PreparedScene { manifest, buildings, mesh, clutter })

@@ -120,7 +120,10 @@ impl ClutterLayer {
     pub fn is_ground(self) -> bool {
         matches!(
             self,
-            ClutterLayer::Roads | ClutterLayer::Markings | ClutterLayer::Pavements | ClutterLayer::GroundCover
+            ClutterLayer::Roads
+                | ClutterLayer::Markings
+                | ClutterLayer::Pavements
+                | ClutterLayer::GroundCover
         )
     }
 }
@@ -249,7 +252,10 @@ impl LayerMesh {
             let row = (0..count)
                 .map(|i| {
                     let a = std::f64::consts::TAU * (i as f64 + 0.5 * (b % 2) as f64) / SEG as f64;
-                    self.vertex([c_m[0] + r_m * s * a.cos(), c_m[1] + r_m * s * a.sin(), c_m[2] + h_m * z], col)
+                    self.vertex(
+                        [c_m[0] + r_m * s * a.cos(), c_m[1] + r_m * s * a.sin(), c_m[2] + h_m * z],
+                        col,
+                    )
                 })
                 .collect();
             rows.push(row);
@@ -288,7 +294,12 @@ impl LayerMesh {
 fn rectangle(centre: [f64; 2], dir: [f64; 2], half_len_m: f64, half_wid_m: f64) -> [[f64; 2]; 4] {
     let n = [-dir[1], dir[0]];
     let at = |a: f64, b: f64| [centre[0] + a * dir[0] + b * n[0], centre[1] + a * dir[1] + b * n[1]];
-    [at(-half_len_m, -half_wid_m), at(half_len_m, -half_wid_m), at(half_len_m, half_wid_m), at(-half_len_m, half_wid_m)]
+    [
+        at(-half_len_m, -half_wid_m),
+        at(half_len_m, -half_wid_m),
+        at(half_len_m, half_wid_m),
+        at(-half_len_m, half_wid_m),
+    ]
 }
 
 /// What the manifest records of one layer.
@@ -369,7 +380,8 @@ impl Grid {
     fn cell_of(&self, p: [f64; 2]) -> Option<(usize, usize)> {
         let i = ((p[0] - self.x0_m) / self.cell_m).floor();
         let j = ((p[1] - self.y0_m) / self.cell_m).floor();
-        (i >= 0.0 && j >= 0.0 && (i as usize) < self.nx && (j as usize) < self.ny).then(|| (i as usize, j as usize))
+        (i >= 0.0 && j >= 0.0 && (i as usize) < self.nx && (j as usize) < self.ny)
+            .then(|| (i as usize, j as usize))
     }
 }
 
@@ -558,7 +570,8 @@ pub fn generate(
         for j in j0..j1 {
             for i in i0..i1 {
                 let [x, y] = g.centre(i, j);
-                let e = |p: [f64; 3], q: [f64; 3]| s * ((q[0] - p[0]) * (y - p[1]) - (q[1] - p[1]) * (x - p[0]));
+                let e =
+                    |p: [f64; 3], q: [f64; 3]| s * ((q[0] - p[0]) * (y - p[1]) - (q[1] - p[1]) * (x - p[0]));
                 if e(a, b) >= 0.0 && e(b, c) >= 0.0 && e(c, a) >= 0.0 {
                     dist[j * g.nx + i] = 0.0;
                     ground[j * g.nx + i] = base as f32;
@@ -587,7 +600,13 @@ pub fn generate(
     // 2. Distance to the (dilated) footprints, and the nearest building's base as the local ground.
     chamfer(&g, &mut dist, &mut ground);
     // The dilation already took one cell: distances are from its outer edge, so add it back.
-    let d_at = |k: usize| -> f64 { if dist[k] == 0.0 { 0.0 } else { dist[k] as f64 + 0.5 * cell_m } };
+    let d_at = |k: usize| -> f64 {
+        if dist[k] == 0.0 {
+            0.0
+        } else {
+            dist[k] as f64 + 0.5 * cell_m
+        }
+    };
 
     // 3. Classes.
     let mut inside = vec![false; g.nx];
@@ -711,20 +730,24 @@ pub fn generate(
             let z = ground[k] as f64 + MARKING_Z_M;
             if ridge_y && !ridge_x && ((x / dash_m).floor() as i64).rem_euclid(2) == 0 {
                 markings.quad(
-                    [[x - 0.5 * cell_m, y - 0.08], [x + 0.5 * cell_m, y - 0.08], [x + 0.5 * cell_m, y + 0.08], [
-                        x - 0.5 * cell_m,
-                        y + 0.08,
-                    ]],
+                    [
+                        [x - 0.5 * cell_m, y - 0.08],
+                        [x + 0.5 * cell_m, y - 0.08],
+                        [x + 0.5 * cell_m, y + 0.08],
+                        [x - 0.5 * cell_m, y + 0.08],
+                    ],
                     z,
                     MARKING,
                 );
                 n_mark += 1;
             } else if ridge_x && !ridge_y && ((y / dash_m).floor() as i64).rem_euclid(2) == 0 {
                 markings.quad(
-                    [[x - 0.08, y - 0.5 * cell_m], [x + 0.08, y - 0.5 * cell_m], [x + 0.08, y + 0.5 * cell_m], [
-                        x - 0.08,
-                        y + 0.5 * cell_m,
-                    ]],
+                    [
+                        [x - 0.08, y - 0.5 * cell_m],
+                        [x + 0.08, y - 0.5 * cell_m],
+                        [x + 0.08, y + 0.5 * cell_m],
+                        [x - 0.08, y + 0.5 * cell_m],
+                    ],
                     z,
                     MARKING,
                 );
@@ -756,7 +779,10 @@ pub fn generate(
                 let size: [f64; 2] = [rng.gen(), rng.gen()];
                 let tone = rng.gen_range(0..3usize);
                 let keep: f64 = rng.gen();
-                let p = [g.x0_m + (a as f64 + 0.5 + jitter[0]) * step_m, g.y0_m + (b as f64 + 0.5 + jitter[1]) * step_m];
+                let p = [
+                    g.x0_m + (a as f64 + 0.5 + jitter[0]) * step_m,
+                    g.y0_m + (b as f64 + 0.5 + jitter[1]) * step_m,
+                ];
                 let Some((i, j)) = g.cell_of(p) else { continue };
                 let k = j * g.nx + i;
                 let d = d_at(k);
@@ -770,7 +796,13 @@ pub fn generate(
                     continue;
                 }
                 let sp = if park {
-                    &SPECIES[if species_pick < 0.55 { 0 } else if species_pick < 0.8 { 1 } else { 2 }]
+                    &SPECIES[if species_pick < 0.55 {
+                        0
+                    } else if species_pick < 0.8 {
+                        1
+                    } else {
+                        2
+                    }]
                 } else {
                     &SPECIES[if species_pick < 0.7 { 0 } else { 2 }]
                 };
@@ -888,7 +920,10 @@ pub fn generate(
             ];
             let (hl, hw, hh) = (0.6 + 1.0 * dims[0], 0.5 + 0.8 * dims[1], 0.8 + 1.2 * dims[2]);
             let reach = (hl * hl + hw * hw).sqrt();
-            if placed.iter().any(|(q, r)| ((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)).sqrt() < r + reach + 0.5) {
+            if placed
+                .iter()
+                .any(|(q, r)| ((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)).sqrt() < r + reach + 0.5)
+            {
                 continue;
             }
             // The whole unit, plus 0.5 m, stands on the roof.
@@ -1195,7 +1230,8 @@ mod tests {
             let (mesh, rec, area) = city();
             let feet = footprint_triangles(&mesh);
             for seed in [1, 2, 3] {
-                let (clutter, _) = generate(&ClutterSpec { seed, ..ClutterSpec::default() }, &mesh, &rec, &area, 0.0);
+                let (clutter, _) =
+                    generate(&ClutterSpec { seed, ..ClutterSpec::default() }, &mesh, &rec, &area, 0.0);
                 for (layer, m) in &clutter.layers {
                     if *layer == ClutterLayer::Rooftop {
                         continue;
@@ -1223,7 +1259,8 @@ mod tests {
         #[test]
         fn rooftop_units_stand_on_their_roofs() {
             let (mesh, rec, area) = city();
-            let roofs: Vec<[[f64; 3]; 3]> = footprint_triangles(&mesh).into_iter().filter(|t| t[0][2] > 0.0).collect();
+            let roofs: Vec<[[f64; 3]; 3]> =
+                footprint_triangles(&mesh).into_iter().filter(|t| t[0][2] > 0.0).collect();
             let (clutter, _) = generate(&ClutterSpec::default(), &mesh, &rec, &area, 0.0);
             let m = clutter.layer(ClutterLayer::Rooftop).expect("flat roofs get units");
             for p in &m.positions_m {

@@ -822,14 +822,14 @@ pub fn add_layers(path: &Path, layers: &crate::scene::clutter::Clutter) -> Resul
     let bytes = crate::util::read_file(path)?;
     let parse = |source: gltf::Error| GlbError::Parse { path: path.to_path_buf(), source };
     let glb = gltf::Glb::from_slice(&bytes).map_err(parse)?;
-    let mut doc: Value =
-        serde_json::from_slice(&glb.json).map_err(|e| parse(gltf::Error::Deserialize(e)))?;
+    let mut doc: Value = serde_json::from_slice(&glb.json).map_err(|e| parse(gltf::Error::Deserialize(e)))?;
     let mut bin: Vec<u8> = glb.bin.as_deref().unwrap_or(&[]).to_vec();
     let bad = |what: String| GlbError::BadInput { path: path.to_path_buf(), what };
     let count = |key: &str, doc: &Value| doc[key].as_array().map_or(0, |a| a.len());
     for (layer, m) in &layers.layers {
         let n = m.positions_m.len();
-        if m.colors_srgb.len() != n || m.indices.len() % 3 != 0 || m.indices.iter().any(|&i| i as usize >= n) {
+        if m.colors_srgb.len() != n || m.indices.len() % 3 != 0 || m.indices.iter().any(|&i| i as usize >= n)
+        {
             return Err(bad(format!("clutter layer {layer}: inconsistent buffers")));
         }
         if m.positions_m.iter().any(|p| !p.iter().all(|c| c.is_finite())) {
@@ -841,9 +841,11 @@ pub fn add_layers(path: &Path, layers: &crate::scene::clutter::Clutter) -> Resul
             while bin.len() as u64 % VIEW_ALIGN != 0 {
                 bin.push(0);
             }
-            let view = json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": data.len(), "target": target});
+            let view =
+                json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": data.len(), "target": target});
             bin.extend_from_slice(&data);
-            let views = doc["bufferViews"].as_array_mut().expect("a GLB written by write_glb has bufferViews");
+            let views =
+                doc["bufferViews"].as_array_mut().expect("a GLB written by write_glb has bufferViews");
             views.push(view);
             views.len() - 1
         };
@@ -964,7 +966,15 @@ pub fn read_layers(path: &Path) -> Result<crate::scene::clutter::Clutter, GlbErr
                 return Err(invalid(at, "COLOR_0 and POSITION counts differ".into()));
             }
             let acc = prim.indices().ok_or_else(|| invalid(at.clone(), "no indices".into()))?;
-            read_indices(path, &format!("{at}.indices"), &acc, bin, base as u32, pos.count(), &mut m.indices)?;
+            read_indices(
+                path,
+                &format!("{at}.indices"),
+                &acc,
+                bin,
+                base as u32,
+                pos.count(),
+                &mut m.indices,
+            )?;
         }
         out.layers.push((layer, m));
     }

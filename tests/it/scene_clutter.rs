@@ -102,7 +102,18 @@ fn run(scene: &PreparedScene, occluders: Vec<ClutterLayer>) -> (IdMap, FrameInst
     std::fs::create_dir_all(&cam).unwrap();
     let v = view();
     let enu = EnuFrame::new(Geodetic::new(35.658, 139.701, 40.0));
-    let rec = PoseRecord::new("f000".into(), "clutter", "test", Trajectory::Grid, 0, 0, v.intrinsics, &v.pose, &enu, 0.0);
+    let rec = PoseRecord::new(
+        "f000".into(),
+        "clutter",
+        "test",
+        Trajectory::Grid,
+        0,
+        0,
+        v.intrinsics,
+        &v.pose,
+        &enu,
+        0.0,
+    );
     std::fs::write(cam.join("poses.jsonl"), serde_json::to_string(&rec).unwrap() + "\n").unwrap();
     let mut plan = MaskPlan::new(cam.clone());
     plan.min_area_px = 1;
@@ -111,7 +122,8 @@ fn run(scene: &PreparedScene, occluders: Vec<ClutterLayer>) -> (IdMap, FrameInst
     let report = stage::render_masks(&plan, scene, renderer(), &NoProgress).unwrap();
     assert_eq!(report.rendered, 1, "{:?}", report.failed);
     let ids = IdMap::read_png(&plan.png_path("f000")).unwrap();
-    let fi: FrameInstances = serde_json::from_slice(&std::fs::read(plan.instances_path("f000")).unwrap()).unwrap();
+    let fi: FrameInstances =
+        serde_json::from_slice(&std::fs::read(plan.instances_path("f000")).unwrap()).unwrap();
     (ids, fi)
 }
 
@@ -171,13 +183,28 @@ fn demo_with_clutter(work: &std::path::Path) -> PreparedScene {
     ));
     let k = Intrinsics::from_hfov(160, 90, 50.0);
     let mut lines = String::new();
-    for (i, (yaw, centre)) in
-        [(0.0, [-150.0, -250.0, 90.0]), (90.0, [-300.0, 100.0, 80.0]), (200.0, [100.0, 300.0, 100.0]), (300.0, [250.0, -50.0, 90.0])]
-            .into_iter()
-            .enumerate()
+    for (i, (yaw, centre)) in [
+        (0.0, [-150.0, -250.0, 90.0]),
+        (90.0, [-300.0, 100.0, 80.0]),
+        (200.0, [100.0, 300.0, 100.0]),
+        (300.0, [250.0, -50.0, 90.0]),
+    ]
+    .into_iter()
+    .enumerate()
     {
         let pose = Pose::from_ypr_deg(yaw, 60.0, 0.0, centre);
-        let rec = PoseRecord::new(format!("v{i}"), "demo", "cam9", Trajectory::Grid, i as u32, 0, k, &pose, &enu, 0.0);
+        let rec = PoseRecord::new(
+            format!("v{i}"),
+            "demo",
+            "cam9",
+            Trajectory::Grid,
+            i as u32,
+            0,
+            k,
+            &pose,
+            &enu,
+            0.0,
+        );
         lines.push_str(&(serde_json::to_string(&rec).unwrap() + "\n"));
     }
     std::fs::write(cam.join("poses.jsonl"), lines).unwrap();
@@ -210,12 +237,15 @@ fn prepared_demo_clutter_occludes_and_blender_ids_agree_with_the_masks() {
     let gpu = renderer().upload(&scene.mesh).unwrap();
     let (mut with, mut without) = (0usize, 0usize);
     for i in 0..4 {
-        let rec: PoseRecord = serde_json::from_str(
-            std::fs::read_to_string(plan.poses_path()).unwrap().lines().nth(i).unwrap(),
-        )
-        .unwrap();
+        let rec: PoseRecord =
+            serde_json::from_str(std::fs::read_to_string(plan.poses_path()).unwrap().lines().nth(i).unwrap())
+                .unwrap();
         let bare = renderer()
-            .render(&gpu, &View { intrinsics: rec.view.intrinsics, pose: rec.pose() }, &RenderOptions::default())
+            .render(
+                &gpu,
+                &View { intrinsics: rec.view.intrinsics, pose: rec.pose() },
+                &RenderOptions::default(),
+            )
             .unwrap();
         without += bare.ids.raw().iter().filter(|&&id| id != 0).count();
         let masked = IdMap::read_png(&plan.png_path(&rec.name)).unwrap();
@@ -235,12 +265,22 @@ fn prepared_demo_clutter_occludes_and_blender_ids_agree_with_the_masks() {
         log_every: 30.0,
     };
     let py_s = py.to_string_lossy().into_owned();
-    let argv = ["x", "--area", "demo", "--camera", "cam9", "--blender-python", &py_s, "--threads", "2", "--check-alignment"];
+    let argv = [
+        "x",
+        "--area",
+        "demo",
+        "--camera",
+        "cam9",
+        "--blender-python",
+        &py_s,
+        "--threads",
+        "2",
+        "--check-alignment",
+    ];
     run(&Wrap::try_parse_from(argv).unwrap().args, &global).unwrap();
-    let report: serde_json::Value = serde_json::from_slice(
-        &std::fs::read(work.path().join("demo/cam9/alignment/report.json")).unwrap(),
-    )
-    .unwrap();
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(work.path().join("demo/cam9/alignment/report.json")).unwrap())
+            .unwrap();
     eprintln!("alignment: {}", report);
     assert_eq!(report["frames"], 4);
     assert_eq!(report["pass"], true);
