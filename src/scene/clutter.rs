@@ -381,7 +381,7 @@ impl Grid {
         let i = ((p[0] - self.x0_m) / self.cell_m).floor();
         let j = ((p[1] - self.y0_m) / self.cell_m).floor();
         (i >= 0.0 && j >= 0.0 && (i as usize) < self.nx && (j as usize) < self.ny)
-            .then(|| (i as usize, j as usize))
+            .then_some((i as usize, j as usize))
     }
 }
 
@@ -615,9 +615,9 @@ pub fn generate(
     let mut core_carry = vec![0f32; n];
     for j in 0..g.ny {
         row_inside(&g, area_polygon_enu_m, j, &mut inside);
-        for i in 0..g.nx {
+        for (i, &in_area) in inside.iter().enumerate() {
             let k = j * g.nx + i;
-            if !inside[i] || d_at(k) < CLEARANCE_M {
+            if !in_area || d_at(k) < CLEARANCE_M {
                 continue;
             }
             class[k] = if d_at(k) < PAVEMENT_WIDTH_M { Class::Pavement } else { Class::Road };
@@ -878,7 +878,7 @@ pub fn generate(
     let roofs = flat_roofs(mesh);
     for b in buildings {
         let Some(roof) = roofs.get(&b.id.get()) else { continue };
-        let area: f64 = roof.iter().map(|t| tri_area(t)).sum();
+        let area: f64 = roof.iter().map(tri_area).sum();
         if area < ROOF_MIN_AREA_M2 {
             continue;
         }

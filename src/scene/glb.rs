@@ -828,7 +828,9 @@ pub fn add_layers(path: &Path, layers: &crate::scene::clutter::Clutter) -> Resul
     let count = |key: &str, doc: &Value| doc[key].as_array().map_or(0, |a| a.len());
     for (layer, m) in &layers.layers {
         let n = m.positions_m.len();
-        if m.colors_srgb.len() != n || m.indices.len() % 3 != 0 || m.indices.iter().any(|&i| i as usize >= n)
+        if m.colors_srgb.len() != n
+            || !m.indices.len().is_multiple_of(3)
+            || m.indices.iter().any(|&i| i as usize >= n)
         {
             return Err(bad(format!("clutter layer {layer}: inconsistent buffers")));
         }
@@ -838,7 +840,7 @@ pub fn add_layers(path: &Path, layers: &crate::scene::clutter::Clutter) -> Resul
         let name = format!("{CLUTTER_NODE_PREFIX}{}", layer.name());
         let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
         let push_view = |bin: &mut Vec<u8>, data: Vec<u8>, target: u32, doc: &mut Value| -> usize {
-            while bin.len() as u64 % VIEW_ALIGN != 0 {
+            while !(bin.len() as u64).is_multiple_of(VIEW_ALIGN) {
                 bin.push(0);
             }
             let view =
@@ -895,7 +897,7 @@ pub fn add_layers(path: &Path, layers: &crate::scene::clutter::Clutter) -> Resul
             .ok_or_else(|| bad("the scene GLB has no scene node list".into()))?
             .push(json!(node));
     }
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     doc["buffers"][0]["byteLength"] = json!(bin.len());

@@ -286,3 +286,37 @@ fn prepared_demo_clutter_occludes_and_blender_ids_agree_with_the_masks() {
     assert_eq!(report["pass"], true);
     assert!(report["median_iou"].as_f64().unwrap() >= 0.995, "{report}");
 }
+
+#[test]
+fn side_by_side_picture_shows_rgb_outlines_and_the_clutter_layer() {
+    use insgen::label::overlay::{read_rgb_png, write_rgb_png, RgbImage};
+    use insgen::label::side_by_side::{layer_colour, write_side_by_side, SideFrame, PANEL_WIDTH_PX};
+    let scene = scene();
+    let dir = tempfile::tempdir().unwrap();
+    let rgb = dir.path().join("f000.png");
+    write_rgb_png(&rgb, &RgbImage::filled(160, 90, [120, 130, 140])).unwrap();
+    let frames = [
+        SideFrame { name: "f000".into(), view: view(), rgb_png: rgb, mask_png: dir.path().join("none.png") },
+        // No RGB frame: left out.
+        SideFrame {
+            name: "f001".into(),
+            view: view(),
+            rgb_png: dir.path().join("missing.png"),
+            mask_png: dir.path().join("none.png"),
+        },
+    ];
+    let out = dir.path().join("side_by_side.png");
+    assert_eq!(write_side_by_side(&out, &scene, renderer(), &frames, 4).unwrap(), 1);
+    let img = read_rgb_png(&out).unwrap();
+    // Three panels of 320 px with 4 px gaps; one row of 320 × 180 tiles.
+    assert_eq!((img.width, img.height), (4 + 3 * (PANEL_WIDTH_PX + 4), 4 + 180 + 4));
+    let px = |x: u32, y: u32| {
+        let i = 3 * (y as usize * img.width as usize + x as usize);
+        [img.rgb[i], img.rgb[i + 1], img.rgb[i + 2]]
+    };
+    // The tree fills the middle of the view: the third panel shows it in the trees' colour, the first
+    // the RGB frame unchanged.
+    let third_centre = (4 + 2 * (PANEL_WIDTH_PX + 4) + PANEL_WIDTH_PX / 2, 4 + 90);
+    assert_eq!(px(third_centre.0, third_centre.1), layer_colour(ClutterLayer::Trees));
+    assert_eq!(px(4 + 10, 4 + 10), [120, 130, 140]);
+}
