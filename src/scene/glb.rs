@@ -24,6 +24,9 @@
 //!   ([`building_colour`]), with an unlit (`KHR_materials_unlit`), double-sided material, so any glTF
 //!   viewer shows the instances.
 //!
+//! [`add_layers`] then appends the clutter layers as further nodes/meshes named `insgen_clutter_<layer>`
+//! (POSITION, COLOR_0, indices; no feature IDs); [`read_glb`] skips them and [`read_layers`] reads them.
+//!
 //! The JSON is serialised with sorted keys and the binary chunk is written in a fixed order, so
 //! identical input gives a byte-identical file.
 //!
