@@ -112,9 +112,11 @@ fn prepared(mesh: SceneMesh, buildings: Vec<BuildingRecord>, enu: &EnuFrame) -> 
             triangles: t,
             degenerate_faces: 0,
             attributions: vec![],
+            clutter: None,
         },
         buildings,
         mesh,
+        clutter: Default::default(),
     }
 }
 

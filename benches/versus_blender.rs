@@ -121,6 +121,7 @@ fn blender_ids(
         clip_start_m: 0.5,
         clip_end_m: 100_000.0,
         report_bounds: false,
+        clutter_occluders: None,
     };
     let summary = render_frames(&plan, frames, &NoProgress).expect("Blender renders the IDs");
     let secs = median_or_nan(&summary.rendered.iter().map(|t| t.seconds).collect::<Vec<_>>());

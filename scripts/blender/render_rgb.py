@@ -899,12 +899,106 @@ def apply_frame_look(scene, job, look):
         LIVE["world_haze"].outputs[0].default_value = (*(1.5 * c for c in haze), 1.0)
 
 
+# ------------------------------------------------------------------------------------------- clutter
+# The scene GLB's clutter layers (src/scene/clutter.rs): one node per layer named insgen_clutter_<layer>
+# (node extras insgen_layer = <layer>), triangles with a per-vertex sRGB colour in COLOR_0 and no building
+# IDs, so the ID render draws them as background (0) and they hide what is behind them.
+
+CLUTTER_PREFIX = "insgen_clutter_"
+# Per layer: scale of the grain noise (1/m; 0 = none) and its contrast, and the path-traced roughness.
+CLUTTER_LOOKS = {
+    "roads": (0.9, 0.35, 0.9),
+    "markings": (0.0, 0.0, 0.6),
+    "pavements": (1.6, 0.25, 0.85),
+    "ground_cover": (0.35, 0.5, 0.95),
+    "trees": (1.8, 0.6, 0.9),
+    "cars": (0.0, 0.0, 0.3),
+    "rooftop": (0.0, 0.0, 0.5),
+}
+
+
+def clutter_layer(obj):
+    """The clutter layer of an imported object, or None for a building mesh."""
+    layer = obj.get("insgen_layer") if hasattr(obj, "get") else None
+    if layer is None and obj.name.startswith(CLUTTER_PREFIX):
+        layer = obj.name[len(CLUTTER_PREFIX):].split(".")[0]
+    return layer
+
+
+def clutter_material(bpy, layer, look, lighting, color_attribute):
+    """Vertex colour (sRGB bytes in COLOR_0, taken to linear with gamma 2.2) with a grain noise per layer;
+    the same cheap direct-lighting shader as the buildings, or a Principled BSDF when path tracing."""
+    grain_scale, grain_amount, roughness = CLUTTER_LOOKS.get(layer, (0.0, 0.0, 0.8))
+    mat, nt = new_material(bpy, f"{CLUTTER_PREFIX}{layer}")
+    out = node(nt, "ShaderNodeOutputMaterial")
+    attr = node(nt, "ShaderNodeVertexColor", layer_name=color_attribute or "")
+    gamma = node(nt, "ShaderNodeGamma")
+    nt.links.new(attr.outputs["Color"], gamma.inputs["Color"])
+    gamma.inputs["Gamma"].default_value = 2.2
+    color = gamma.outputs["Color"]
+    if grain_scale > 0.0:
+        geo = node(nt, "ShaderNodeNewGeometry")
+        noise = node(nt, "ShaderNodeTexNoise", noise_dimensions="3D")
+        noise.inputs["Scale"].default_value = grain_scale
+        noise.inputs["Detail"].default_value = 2.0
+        nt.links.new(geo.outputs["Position"], noise.inputs["Vector"])
+        # Brightness between 1 - amount and 1 + amount/2 around the vertex colour.
+        lo = math_node(nt, "MULTIPLY", noise.outputs["Fac"], 1.5 * grain_amount)
+        fac = math_node(nt, "ADD", lo, 1.0 - 0.75 * grain_amount)
+        scale = node(nt, "ShaderNodeMix", data_type="RGBA", blend_type="MULTIPLY", clamp_factor=True)
+        socket(scale.inputs, "Factor_Float").default_value = 1.0
+        nt.links.new(color, socket(scale.inputs, "A_Color"))
+        combine = node(nt, "ShaderNodeCombineColor")
+        for ch in ("Red", "Green", "Blue"):
+            nt.links.new(fac, combine.inputs[ch])
+        nt.links.new(combine.outputs["Color"], socket(scale.inputs, "B_Color"))
+        color = socket(scale.outputs, "Result_Color")
+    if lighting == "direct":
+        shader = direct_shader(nt, color, look)
+        mat.cycles.emission_sampling = "NONE"
+    else:
+        shader = principled_shader(nt, color, roughness, 0.5)
+    nt.links.new(shader, out.inputs["Surface"])
+    return mat
+
+
+def apply_clutter(bpy, job, placed):
+    """RGB mode: each clutter layer gets its material. IDs mode: layers not listed in the job's
+    `clutter_occluders` are deleted; the rest keep the ID material and its face ID 0 (no
+    _FEATURE_ID_0), i.e. background that hides the buildings behind it."""
+    look = job["look"]
+    keep = job.get("clutter_occluders")
+    materials = {}
+    for index, (root, meshes, model) in enumerate(placed):
+        kept = []
+        for obj in meshes:
+            layer = clutter_layer(obj)
+            if layer is None:
+                kept.append(obj)
+            elif job["mode"] == "ids":
+                if keep is None or layer in keep:
+                    kept.append(obj)
+                else:
+                    bpy.data.objects.remove(obj, do_unlink=True)
+            else:
+                kept.append(obj)
+                if job["engine"] == "workbench":
+                    continue
+                if layer not in materials:
+                    attrs = getattr(obj.data, "color_attributes", None)
+                    name = attrs[0].name if attrs is not None and len(attrs) else ""
+                    materials[layer] = clutter_material(bpy, layer, look, job["lighting"], name)
+                assign_material([obj], materials[layer])
+        placed[index] = (root, kept, model)
+
+
 def build_look(bpy, scene, job, placed):
     look = job["look"]
     if job["mode"] == "ids":
         mat = id_material(bpy)
         for _root, meshes, _model in placed:
             assign_material(meshes, mat)
+        apply_clutter(bpy, job, placed)
         black_world(bpy, scene)
         return
     if job["engine"] == "workbench":
@@ -923,6 +1017,7 @@ def build_look(bpy, scene, job, placed):
                 for slot in obj.material_slots:
                     if slot.material is not None:
                         emission_from_base_color(bpy, slot.material)
+    apply_clutter(bpy, job, placed)
     if look.get("ground_plane", True):
         add_ground(bpy, scene, look, ground_material(bpy, look, lighting), look.get("ground_half_extent_m", 20000.0))
     add_sky_and_sun(bpy, scene, look, lighting)

@@ -225,6 +225,11 @@ pub struct Job {
     /// Print each model's ENU bounds after import (the `ready` protocol line); used by tests.
     #[serde(default)]
     pub report_bounds: bool,
+    /// ID mode: the clutter layers (glTF nodes `insgen_clutter_<layer>` of the scene GLB) kept as
+    /// occluders, drawn with ID 0; the other clutter layers are removed before rendering. Absent = all
+    /// clutter layers occlude. RGB mode draws every layer with its material.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clutter_occluders: Option<Vec<crate::scene::clutter::ClutterLayer>>,
     pub models: Vec<JobModel>,
     pub look: Look,
     pub frames: Vec<JobFrame>,
@@ -394,6 +399,7 @@ mod tests {
             device: Device::Cpu,
             threads: 0,
             report_bounds: false,
+            clutter_occluders: None,
             models: vec![JobModel {
                 glb,
                 enu_from_gltf: crate::blender::tileset::ENU_FROM_SCENE_GLTF,

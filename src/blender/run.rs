@@ -131,6 +131,9 @@ pub struct RenderPlan {
     pub clip_end_m: f64,
     /// Ask the script for each model's ENU bounds (tests).
     pub report_bounds: bool,
+    /// ID mode: the clutter layers kept as occluders (background); the scene's other clutter layers
+    /// are left out of the ID render. `None` = every clutter layer occludes.
+    pub clutter_occluders: Option<Vec<crate::scene::clutter::ClutterLayer>>,
 }
 
 /// Time spent on one frame, as Blender reported it.
@@ -629,6 +632,7 @@ fn run_batch(
         device: plan.device,
         threads: plan.threads,
         report_bounds: plan.report_bounds,
+        clutter_occluders: plan.clutter_occluders.clone(),
         models,
         look: look.clone(),
         frames: job_frames,
@@ -745,6 +749,7 @@ mod tests {
             clip_start_m: 0.1,
             clip_end_m: 1e5,
             report_bounds: false,
+            clutter_occluders: None,
         }
     }
 

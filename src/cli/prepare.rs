@@ -21,6 +21,16 @@ pub struct Args {
     /// A scene file given by path instead of by area name.
     #[arg(long, value_name = "FILE", conflicts_with = "areas")]
     pub scene: Option<PathBuf>,
+    /// Buildings only: no streets, ground cover, trees, cars or rooftop units.
+    ///
+    /// By default `prepare` generates these clutter layers from the footprints and the area (seeded,
+    /// deterministic) and writes them beside the buildings in scene.glb; the masks treat trees, cars
+    /// and rooftop units as occluders (see `render-masks --occluders`).
+    #[arg(long)]
+    pub no_clutter: bool,
+    /// Seed of the clutter generator.
+    #[arg(long, value_name = "N", default_value_t = crate::scene::clutter::ClutterSpec::default().seed)]
+    pub clutter_seed: u64,
 }
 
 pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
@@ -36,11 +46,23 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     for file in files {
         let area = file.file_stem().and_then(|s| s.to_str()).unwrap_or("area").to_string();
         let out = global.workdir.join(&area).join("scene");
-        let report = scene::prepare::prepare(&file, &out, &progress)
+        let options = scene::prepare::PrepareOptions {
+            clutter: (!args.no_clutter)
+                .then(|| scene::clutter::ClutterSpec { seed: args.clutter_seed, ..Default::default() }),
+        };
+        let report = scene::prepare::prepare_with(&file, &out, &options, &progress)
             .with_context(|| format!("preparing area {area} from {}", file.display()))?;
         let m = &report.scene.manifest;
+        let clutter = match &m.clutter {
+            Some(c) => format!(
+                ", clutter {} triangles ({})",
+                c.layers.iter().map(|l| l.triangles).sum::<u64>(),
+                c.layers.iter().map(|l| format!("{} {}", l.instances, l.name)).collect::<Vec<_>>().join(", ")
+            ),
+            None => String::new(),
+        };
         printer.summary(format!(
-            "{area}: {}, {}, {} dropped, geoid {}, origin {:.6}° N {:.6}° E {:.2} m → {} ({:.1} s)",
+            "{area}: {}, {}, {} dropped, geoid {}, origin {:.6}° N {:.6}° E {:.2} m{clutter} → {} ({:.1} s)",
             counted(m.buildings, "building", "buildings"),
             counted(m.triangles, "triangle", "triangles"),
             counted(m.degenerate_faces, "degenerate face", "degenerate faces"),

@@ -6,6 +6,7 @@ use anyhow::{bail, Context};
 
 use crate::label::stage::{self, MaskPlan, DEFAULT_MIN_AREA_PX};
 use crate::label::Connectivity;
+use crate::scene::clutter::ClutterLayer;
 
 /// `--connectivity`: the pixel neighbourhood of instances ([`Connectivity`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
@@ -104,6 +105,25 @@ pub struct Args {
     /// Far clipping plane.
     #[arg(long, value_name = "METERS", default_value_t = 10_000.0, hide_short_help = true)]
     pub far: f64,
+
+    /// Clutter layers that hide buildings (drawn as background, ID 0).
+    ///
+    /// A comma-separated list of roads, markings, pavements, ground_cover, trees, cars, rooftop, or
+    /// `all` / `none`. Only layers the prepared scene holds matter (`insgen prepare` writes them unless
+    /// --no-clutter). A building behind a tree then has no mask pixels there, and visible_fraction and
+    /// the COCO area follow. Use the same list for `render-rgb --occluders` so that
+    /// --check-alignment compares like with like.
+    #[arg(long, value_name = "LAYERS", default_value = "trees,cars,rooftop", value_parser = parse_occluders)]
+    pub occluders: LayerList,
+}
+
+/// A comma-separated list of clutter layers, as one command-line value.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LayerList(pub Vec<ClutterLayer>);
+
+/// Parses `--occluders`.
+pub fn parse_occluders(s: &str) -> Result<LayerList, String> {
+    crate::scene::clutter::parse_layers(s).map(LayerList)
 }
 
 /// The plan and the scene directory, resolved from the arguments (no I/O).
@@ -122,6 +142,7 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<(MaskPlan, PathBu
     plan.shard = super::resolve_shard(args.shard)?;
     plan.limit = args.limit;
     plan.range = DepthRange { near_m: args.near, far_m: args.far };
+    plan.occluders = args.occluders.0.clone();
     Ok((plan, area_dir.join("scene")))
 }
 
@@ -247,6 +268,17 @@ mod tests {
         fn switches() {
             let a = parse(&["--visible-fraction", "--depth", "--force"]).unwrap().args;
             assert!(a.visible_fraction && a.depth && a.force);
+        }
+
+        #[test]
+        fn occluders() {
+            use ClutterLayer::*;
+            assert_eq!(parse(&[]).unwrap().args.occluders.0, vec![Trees, Cars, Rooftop]);
+            assert_eq!(parse(&["--occluders", "none"]).unwrap().args.occluders.0, vec![]);
+            assert_eq!(parse(&["--occluders", "cars,roads"]).unwrap().args.occluders.0, vec![Roads, Cars]);
+            assert_eq!(parse(&["--occluders", "all"]).unwrap().args.occluders.0.len(), 7);
+            let e = parse(&["--occluders", "bushes"]).unwrap_err().to_string();
+            assert!(e.contains("unknown clutter layer \"bushes\""), "{e}");
         }
 
         #[test]

@@ -177,6 +177,23 @@ pub struct Args {
     /// Render building IDs and compare them with the masks instead of rendering RGB.
     #[arg(long)]
     pub check_alignment: bool,
+    /// Clutter layers that hide buildings in the --check-alignment ID render.
+    ///
+    /// Same syntax and default as `render-masks --occluders`; give both commands the same list. RGB
+    /// frames always show every clutter layer.
+    #[arg(
+        long,
+        value_name = "LAYERS",
+        default_value = "trees,cars,rooftop",
+        value_parser = super::render_masks::parse_occluders
+    )]
+    pub occluders: super::render_masks::LayerList,
+    /// After rendering RGB, write rgb/side_by_side.png showing K frames.
+    ///
+    /// One row per frame: the RGB frame, the mask outlines over it, and the clutter/occluder layer
+    /// (each clutter layer in a flat colour, buildings grey). Uses masks/<frame>.png when it exists.
+    #[arg(long, value_name = "K", default_value_t = 0)]
+    pub side_by_side: usize,
     /// Start a fresh Blender process every N frames (bounds memory).
     #[arg(long, value_name = "N", default_value_t = 50, value_parser = clap::value_parser!(u32).range(1..))]
     pub restart_every: u32,
@@ -348,6 +365,7 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<Plan> {
         clip_start_m: 0.5,
         clip_end_m: 100_000.0,
         report_bounds: false,
+        clutter_occluders: Some(args.occluders.0.clone()),
     };
     Ok(Plan { camera_dir, frames, render })
 }
@@ -436,6 +454,9 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
         ));
     }
     if !args.check_alignment {
+        if args.side_by_side > 0 {
+            side_by_side(args, global, &plan)?;
+        }
         return Ok(());
     }
     let masks = plan.camera_dir.join("masks");
@@ -486,6 +507,31 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
             dir.join("report.md").display()
         );
     }
+    Ok(())
+}
+
+/// Writes `rgb/side_by_side.png` for the first `--side-by-side` frames of the plan.
+fn side_by_side(args: &Args, global: &super::Global, plan: &Plan) -> anyhow::Result<()> {
+    use crate::label::side_by_side::{write_side_by_side, SideFrame};
+    let scene_dir = global.workdir.join(&args.area).join("scene");
+    let scene = crate::scene::PreparedScene::load(&scene_dir)
+        .with_context(|| format!("loading {}", scene_dir.display()))?;
+    let renderer = crate::render::Renderer::new().context("setting up the GPU renderer")?;
+    let rgb_dir = plan.camera_dir.join(crate::label::stage::RGB_DIR);
+    let frames: Vec<SideFrame> = plan
+        .frames
+        .iter()
+        .map(|f| SideFrame {
+            name: f.name.clone(),
+            view: crate::render::View { intrinsics: f.intrinsics, pose: f.pose },
+            rgb_png: rgb_dir.join(format!("{}.png", f.name)),
+            mask_png: plan.camera_dir.join("masks").join(format!("{}.png", f.name)),
+        })
+        .collect();
+    let out = rgb_dir.join("side_by_side.png");
+    let shown = write_side_by_side(&out, &scene, &renderer, &frames, args.side_by_side)
+        .with_context(|| format!("writing {}", out.display()))?;
+    global.printer().summary(format!("side-by-side picture of {shown} frame(s) → {}", out.display()));
     Ok(())
 }
 

@@ -42,4 +42,7 @@ pub struct FrameInstances {
     /// frames whose pose or intrinsics changed since (e.g. after `sample` ran again).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pose_sha256: Option<String>,
+    /// The clutter layers drawn as occluders (background) in this frame's ID map; absent when none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub occluders: Vec<crate::scene::clutter::ClutterLayer>,
 }

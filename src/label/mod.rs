@@ -3,6 +3,7 @@
 pub mod components;
 pub mod instances;
 pub mod overlay;
+pub mod side_by_side;
 pub mod stage;
 
 pub use components::{label_components, Component, Connectivity, Labelling};

@@ -40,6 +40,7 @@ use super::{label_components, Connectivity, FrameInstances, InstanceEntry};
 use crate::camera::record::read_jsonl;
 use crate::camera::{CameraError, PoseRecord};
 use crate::render::{DepthRange, GpuScene, RenderError, RenderOptions, RenderedFrame, Renderer, View};
+use crate::scene::clutter::ClutterLayer;
 use crate::scene::{BuildingId, IdError, IdMap, PreparedScene};
 use crate::util::{FileError, Progress, Shard};
 
@@ -112,6 +113,9 @@ pub struct MaskPlan {
     pub limit: Option<usize>,
     /// Clip planes.
     pub range: DepthRange,
+    /// Clutter layers drawn as occluders (ID 0) when the scene has them
+    /// (default [`ClutterLayer::DEFAULT_OCCLUDERS`]: trees, cars, rooftop units).
+    pub occluders: Vec<ClutterLayer>,
 }
 
 impl MaskPlan {
@@ -128,6 +132,7 @@ impl MaskPlan {
             shard: Shard::default(),
             limit: None,
             range: DepthRange::default(),
+            occluders: ClutterLayer::DEFAULT_OCCLUDERS.to_vec(),
         }
     }
 
@@ -205,7 +210,7 @@ pub fn pose_digest(rec: &PoseRecord) -> String {
 
 /// Whether a frame's outputs exist and match what this plan would write (same pose, size and
 /// settings).
-fn outputs_verify(plan: &MaskPlan, rec: &PoseRecord) -> bool {
+fn outputs_verify(plan: &MaskPlan, rec: &PoseRecord, occluders: &[ClutterLayer]) -> bool {
     let k = &rec.view.intrinsics;
     match IdMap::read_png_size(&plan.png_path(&rec.name)) {
         Ok(size) if size == (k.width_px, k.height_px) => {}
@@ -218,6 +223,7 @@ fn outputs_verify(plan: &MaskPlan, rec: &PoseRecord) -> bool {
         && (fi.width, fi.height) == (k.width_px, k.height_px)
         && fi.connectivity == plan.connectivity
         && fi.min_component_area_px == plan.min_area_px
+        && fi.occluders == occluders
         && (!plan.visible_fraction || fi.instances.iter().all(|e| e.visible_fraction.is_some()));
     if !settings_match {
         return false;
@@ -305,7 +311,28 @@ pub fn frame_instances(
         min_component_area_px: min_area_px,
         instances,
         pose_sha256: None,
+        occluders: Vec::new(),
     }
+}
+
+/// The mesh the masks are rendered from: the buildings, plus the scene's clutter layers in `occluders`
+/// as ID-0 triangles (they hide buildings and write background).
+pub fn occluded_mesh<'a>(
+    scene: &'a PreparedScene,
+    occluders: &[ClutterLayer],
+) -> std::borrow::Cow<'a, crate::scene::SceneMesh> {
+    let present = scene.clutter.layers.iter().any(|(l, _)| occluders.contains(l));
+    if !present {
+        return std::borrow::Cow::Borrowed(&scene.mesh);
+    }
+    let mut mesh = scene.mesh.clone();
+    scene.clutter.append_occluders(&mut mesh, occluders);
+    std::borrow::Cow::Owned(mesh)
+}
+
+/// The occluder layers actually present in the scene (recorded in each frame's instance list).
+fn occluders_used(scene: &PreparedScene, occluders: &[ClutterLayer]) -> Vec<ClutterLayer> {
+    scene.clutter.layers.iter().map(|(l, _)| *l).filter(|l| occluders.contains(l)).collect()
 }
 
 /// One rendered frame travelling from the render thread to the writers.
@@ -335,7 +362,8 @@ pub fn render_masks(
     }
     let source_ids: BTreeMap<BuildingId, String> =
         scene.buildings.iter().map(|b| (b.id, b.source_id.clone())).collect();
-    let gpu_scene = renderer.upload(&scene.mesh)?;
+    let gpu_scene = renderer.upload(&occluded_mesh(scene, &plan.occluders))?;
+    let occluders = occluders_used(scene, &plan.occluders);
     if let Some(b) = gpu_scene.buildings().iter().find(|b| !source_ids.contains_key(&b.building_id)) {
         return Err(StageError::Scene {
             what: format!(
@@ -346,7 +374,11 @@ pub fn render_masks(
     }
     // Verifying reads every existing PNG header and JSON: spread it over the pool.
     let todo: Vec<usize> = {
-        selected.par_iter().copied().filter(|&i| plan.force || !outputs_verify(plan, &records[i])).collect()
+        selected
+            .par_iter()
+            .copied()
+            .filter(|&i| plan.force || !outputs_verify(plan, &records[i], &occluders))
+            .collect()
     };
     let skipped = selected.len() - todo.len();
     if skipped > 0 {
@@ -371,7 +403,7 @@ pub fn render_masks(
         let writer = s.spawn(|| {
             rx.into_iter().par_bridge().for_each(|job| {
                 let rec = &records[job.record];
-                match write_frame(plan, rec, &job, &source_ids) {
+                match write_frame(plan, rec, &job, &source_ids, &occluders) {
                     Ok(n) => {
                         instance_count.fetch_add(n, std::sync::atomic::Ordering::Relaxed);
                     }
@@ -446,6 +478,7 @@ fn write_frame(
     rec: &PoseRecord,
     job: &Job,
     source_ids: &BTreeMap<BuildingId, String>,
+    occluders: &[ClutterLayer],
 ) -> Result<u64, StageError> {
     let image = &job.image;
     let mut instances = frame_instances(
@@ -457,6 +490,7 @@ fn write_frame(
         job.amodal_px.as_ref(),
     );
     instances.pose_sha256 = Some(pose_digest(rec));
+    instances.occluders = occluders.to_vec();
     if let Some(depth) = &image.depth_m {
         write_depth_exr(&plan.depth_path(&rec.name), depth, image.ids.width(), image.ids.height())?;
     }

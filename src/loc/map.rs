@@ -88,7 +88,10 @@ struct Draws {
 /// Returns `scene` with `p` applied (the manifest is kept; building records are recomputed).
 pub fn perturb(scene: &PreparedScene, p: &MapPerturbation) -> (PreparedScene, PerturbationReport) {
     let (mesh, buildings, report) = perturb_mesh(&scene.mesh, &scene.buildings, p);
-    (PreparedScene { manifest: scene.manifest.clone(), buildings, mesh }, report)
+    (
+        PreparedScene { manifest: scene.manifest.clone(), buildings, mesh, clutter: scene.clutter.clone() },
+        report,
+    )
 }
 
 /// [`perturb`] on a mesh and its building records (every vertex's ID must have a record).

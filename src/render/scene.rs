@@ -50,6 +50,8 @@ pub struct GpuScene {
     pub(crate) index_count: u32,
     /// Ordered by building ID.
     buildings: Vec<BuildingRange>,
+    /// Triangles with ID 0 (occluders).
+    occluder_triangles: u32,
 }
 
 impl GpuScene {
@@ -59,8 +61,12 @@ impl GpuScene {
     ///
     /// # Errors
     /// [`RenderError::InvalidMesh`] when buffers disagree in length, an index is out of range, a
-    /// coordinate is not finite, a building ID is the background's (0), or a triangle's vertices carry
-    /// different building IDs (the flat-interpolated ID would then depend on the provoking vertex).
+    /// coordinate is not finite, or a triangle's vertices carry different building IDs (the
+    /// flat-interpolated ID would then depend on the provoking vertex).
+    ///
+    /// Triangles whose ID is the background's (0) are *occluders* (clutter: trees, cars, …): they are
+    /// drawn with the buildings, depth-tested, and write 0, so they hide what is behind them; they are
+    /// not listed in [`GpuScene::buildings`] and never drawn alone.
     pub fn new(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
@@ -90,9 +96,6 @@ impl GpuScene {
         {
             return bad(format!("vertex {v} has a non-finite position {p:?}"));
         }
-        if let Some(v) = mesh.building_ids.iter().position(|id| id.is_background()) {
-            return bad(format!("vertex {v} has building ID 0, the background's"));
-        }
         let n_vertices = mesh.positions_m.len();
         let mut tri_ids = Vec::with_capacity(mesh.triangle_count());
         for (t, tri) in mesh.indices.chunks_exact(3).enumerate() {
@@ -103,6 +106,11 @@ impl GpuScene {
             }
             let ids = [tri[0], tri[1], tri[2]].map(|i| mesh.building_ids[i as usize]);
             if ids[0] != ids[1] || ids[0] != ids[2] {
+                if ids.iter().any(|id| id.is_background()) {
+                    return bad(format!(
+                        "triangle {t} mixes building ID 0 (an occluder) with a building: {ids:?}"
+                    ));
+                }
                 return bad(format!("triangle {t} joins vertices of buildings {ids:?}"));
             }
             tri_ids.push(ids[0]);
@@ -137,6 +145,11 @@ impl GpuScene {
             b.index_count += 3;
             indices.extend_from_slice(tri);
         }
+        // Occluders (ID 0) sort first; they are drawn with everything but are no building.
+        let occluder_triangles = match buildings.first() {
+            Some(b) if b.building_id.is_background() => buildings.remove(0).index_count / 3,
+            _ => 0,
+        };
         let vertices: Vec<GpuVertex> = mesh
             .positions_m
             .iter()
@@ -169,6 +182,7 @@ impl GpuScene {
             indices: index_buffer,
             index_count: indices.len() as u32,
             buildings,
+            occluder_triangles,
         })
     }
 
@@ -177,7 +191,12 @@ impl GpuScene {
         self.index_count / 3
     }
 
-    /// The buildings in the scene, ordered by ID.
+    /// Triangles of occluders (ID 0: clutter drawn into the depth test as background).
+    pub fn occluder_triangles(&self) -> u32 {
+        self.occluder_triangles
+    }
+
+    /// The buildings in the scene, ordered by ID (occluders are not listed).
     pub fn buildings(&self) -> &[BuildingRange] {
         &self.buildings
     }

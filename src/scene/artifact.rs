@@ -8,6 +8,10 @@
 //!   polygon ([`Manifest`]);
 //! - `buildings.json`: the building table ([`BuildingRecord`]s ordered by ID).
 //!
+//! With clutter (the default of `insgen prepare`), `scene.glb` also holds one node per clutter layer
+//! (`insgen_clutter_roads`, `…_trees`, …, see [`super::clutter`]) and the manifest's `clutter` section
+//! lists them.
+//!
 //! Later stages (sample, render-masks, export-coco, render-rgb, eval-loc) only read these three files
 //! through [`PreparedScene::load`].
 
@@ -123,6 +127,10 @@ pub struct Manifest {
     pub degenerate_faces: u64,
     /// Attribution lines to carry into datasets (e.g. PLATEAU's CC BY 4.0 notice).
     pub attributions: Vec<String>,
+    /// The clutter layers written beside the buildings in `scene.glb` (nodes `insgen_clutter_<layer>`),
+    /// absent when `prepare` ran with `--no-clutter`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clutter: Option<super::clutter::ClutterSummary>,
 }
 
 /// A loaded scene: manifest, building table and mesh.
@@ -131,6 +139,8 @@ pub struct PreparedScene {
     pub manifest: Manifest,
     pub buildings: Vec<BuildingRecord>,
     pub mesh: SceneMesh,
+    /// Clutter layers (empty when the scene has none); never part of `mesh`.
+    pub clutter: super::clutter::Clutter,
 }
 
 impl PreparedScene {
@@ -175,6 +185,12 @@ impl PreparedScene {
                 ),
             });
         }
-        Ok(PreparedScene { manifest, buildings, mesh })
+        let clutter = match &manifest.clutter {
+            Some(_) => {
+                super::glb::read_layers(&glb_path).map_err(|source| SceneError::ArtifactGlb { source })?
+            }
+            None => super::clutter::Clutter::default(),
+        };
+        Ok(PreparedScene { manifest, buildings, mesh, clutter })
     }
 }

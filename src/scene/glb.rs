@@ -24,6 +24,9 @@
 //!   ([`building_colour`]), with an unlit (`KHR_materials_unlit`), double-sided material, so any glTF
 //!   viewer shows the instances.
 //!
+//! [`add_layers`] then appends the clutter layers as further nodes/meshes named `insgen_clutter_<layer>`
+//! (POSITION, COLOR_0, indices; no feature IDs); [`read_glb`] skips them and [`read_layers`] reads them.
+//!
 //! The JSON is serialised with sorted keys and the binary chunk is written in a fixed order, so
 //! identical input gives a byte-identical file.
 //!
@@ -692,6 +695,10 @@ pub fn read_glb(path: &Path) -> Result<SceneMesh, GlbError> {
     let mut mesh = SceneMesh::default();
     while let Some((node, parent)) = stack.pop() {
         // glTF stores node matrices column-major, as glam does.
+        // Clutter layers (see `add_layers`) are not buildings: `read_layers` reads them.
+        if node.name().is_some_and(|n| n.starts_with(CLUTTER_NODE_PREFIX)) {
+            continue;
+        }
         let local = Mat4::from_cols_array_2d(&node.transform().matrix()).as_dmat4();
         let world = if local == DMat4::IDENTITY { parent } else { parent * local };
         for child in node.children().collect::<Vec<_>>().into_iter().rev() {
@@ -794,6 +801,190 @@ pub fn read_glb(path: &Path) -> Result<SceneMesh, GlbError> {
         return Err(invalid("meshes".into(), "the scene has no triangles".into()));
     }
     Ok(mesh)
+}
+
+/// Name prefix of the clutter layer nodes and meshes (`insgen_clutter_trees`, …).
+pub const CLUTTER_NODE_PREFIX: &str = "insgen_clutter_";
+
+/// Appends clutter layers to a scene GLB written by [`write_glb`] (atomically): per layer one node and
+/// mesh named `insgen_clutter_<layer>` (node `extras.insgen_layer` = the layer name), one triangle
+/// primitive with `POSITION` (VEC3 FLOAT, ENU → glTF axes as for the buildings), `COLOR_0` (VEC4
+/// UNSIGNED_BYTE normalized, the clutter's sRGB colour) and `u32` indices, and a double-sided material
+/// of the same name. Layer primitives carry no feature IDs: they are not buildings, and
+/// [`read_glb`] skips them ([`read_layers`] reads them back). The building part of the file is left
+/// as it was; the new data follows the existing binary chunk.
+///
+/// # Errors
+/// [`GlbError::File`] on I/O failure, [`GlbError::Parse`] if `path` is not a GLB,
+/// [`GlbError::BadInput`] for a layer with inconsistent buffers or non-finite coordinates,
+/// [`GlbError::TooLarge`] past 4 GiB.
+pub fn add_layers(path: &Path, layers: &crate::scene::clutter::Clutter) -> Result<(), GlbError> {
+    if layers.layers.is_empty() {
+        return Ok(());
+    }
+    let bytes = crate::util::read_file(path)?;
+    let parse = |source: gltf::Error| GlbError::Parse { path: path.to_path_buf(), source };
+    let glb = gltf::Glb::from_slice(&bytes).map_err(parse)?;
+    let mut doc: Value = serde_json::from_slice(&glb.json).map_err(|e| parse(gltf::Error::Deserialize(e)))?;
+    let mut bin: Vec<u8> = glb.bin.as_deref().unwrap_or(&[]).to_vec();
+    let bad = |what: String| GlbError::BadInput { path: path.to_path_buf(), what };
+    let count = |key: &str, doc: &Value| doc[key].as_array().map_or(0, |a| a.len());
+    for (layer, m) in &layers.layers {
+        let n = m.positions_m.len();
+        if m.colors_srgb.len() != n
+            || !m.indices.len().is_multiple_of(3)
+            || m.indices.iter().any(|&i| i as usize >= n)
+        {
+            return Err(bad(format!("clutter layer {layer}: inconsistent buffers")));
+        }
+        if m.positions_m.iter().any(|p| !p.iter().all(|c| c.is_finite())) {
+            return Err(bad(format!("clutter layer {layer}: a non-finite coordinate")));
+        }
+        let name = format!("{CLUTTER_NODE_PREFIX}{}", layer.name());
+        let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        let push_view = |bin: &mut Vec<u8>, data: Vec<u8>, target: u32, doc: &mut Value| -> usize {
+            while !(bin.len() as u64).is_multiple_of(VIEW_ALIGN) {
+                bin.push(0);
+            }
+            let view =
+                json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": data.len(), "target": target});
+            bin.extend_from_slice(&data);
+            let views =
+                doc["bufferViews"].as_array_mut().expect("a GLB written by write_glb has bufferViews");
+            views.push(view);
+            views.len() - 1
+        };
+        let mut pos = Vec::with_capacity(n * 12);
+        for &p in &m.positions_m {
+            let g = enu_to_gltf(p);
+            for k in 0..3 {
+                lo[k] = lo[k].min(g[k]);
+                hi[k] = hi[k].max(g[k]);
+                pos.extend_from_slice(&g[k].to_le_bytes());
+            }
+        }
+        let col: Vec<u8> = m.colors_srgb.iter().flat_map(|c| [c[0], c[1], c[2], 255]).collect();
+        let idx: Vec<u8> = m.indices.iter().flat_map(|i| i.to_le_bytes()).collect();
+        let v_pos = push_view(&mut bin, pos, TARGET_ARRAY_BUFFER, &mut doc);
+        let v_col = push_view(&mut bin, col, TARGET_ARRAY_BUFFER, &mut doc);
+        let v_idx = push_view(&mut bin, idx, TARGET_ELEMENT_ARRAY_BUFFER, &mut doc);
+        let a0 = count("accessors", &doc);
+        let f64s = |a: [f32; 3]| a.map(f64::from).to_vec();
+        let accessors = doc["accessors"].as_array_mut().expect("a GLB written by write_glb has accessors");
+        accessors.push(json!({"bufferView": v_pos, "componentType": COMPONENT_FLOAT, "count": n,
+                              "type": "VEC3", "min": f64s(lo), "max": f64s(hi)}));
+        accessors.push(json!({"bufferView": v_col, "componentType": COMPONENT_UNSIGNED_BYTE,
+                              "normalized": true, "count": n, "type": "VEC4"}));
+        accessors.push(json!({"bufferView": v_idx, "componentType": COMPONENT_UNSIGNED_INT,
+                              "count": m.indices.len(), "type": "SCALAR"}));
+        let material = count("materials", &doc);
+        doc["materials"].as_array_mut().expect("a GLB written by write_glb has materials").push(json!({
+            "name": name,
+            "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0,
+                                     "roughnessFactor": 1.0},
+            "doubleSided": true
+        }));
+        let mesh = count("meshes", &doc);
+        doc["meshes"].as_array_mut().expect("a GLB written by write_glb has meshes").push(json!({
+            "name": name,
+            "primitives": [{"attributes": {"POSITION": a0, "COLOR_0": a0 + 1}, "indices": a0 + 2,
+                            "material": material, "mode": MODE_TRIANGLES}]
+        }));
+        let node = count("nodes", &doc);
+        doc["nodes"].as_array_mut().expect("a GLB written by write_glb has nodes").push(json!({
+            "name": name, "mesh": mesh, "extras": {"insgen_layer": layer.name()}
+        }));
+        let scene = doc["scene"].as_u64().unwrap_or(0) as usize;
+        doc["scenes"][scene]["nodes"]
+            .as_array_mut()
+            .ok_or_else(|| bad("the scene GLB has no scene node list".into()))?
+            .push(json!(node));
+    }
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    doc["buffers"][0]["byteLength"] = json!(bin.len());
+    let mut json_bytes =
+        serde_json::to_vec(&doc).map_err(|e| FileError::new("serialising glTF JSON for", path, e.into()))?;
+    while json_bytes.len() % 4 != 0 {
+        json_bytes.push(b' ');
+    }
+    let total = 12 + 8 + json_bytes.len() as u64 + 8 + bin.len() as u64;
+    if total > u64::from(u32::MAX) {
+        return Err(GlbError::TooLarge { path: path.to_path_buf(), bytes: total });
+    }
+    let mut out = Vec::with_capacity(total as usize);
+    out.extend_from_slice(GLB_MAGIC);
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(json_bytes.len() as u32).to_le_bytes());
+    out.extend_from_slice(&CHUNK_JSON.to_le_bytes());
+    out.extend_from_slice(&json_bytes);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(&CHUNK_BIN.to_le_bytes());
+    out.extend_from_slice(&bin);
+    Ok(crate::util::write_bytes_atomic(path, &out)?)
+}
+
+/// Reads the clutter layers of a scene GLB (the nodes [`add_layers`] wrote); none for a scene
+/// without clutter.
+///
+/// # Errors
+/// As [`read_glb`]; [`GlbError::Invalid`] for a clutter node of an unknown layer or malformed data.
+pub fn read_layers(path: &Path) -> Result<crate::scene::clutter::Clutter, GlbError> {
+    use crate::scene::clutter::{Clutter, ClutterLayer, LayerMesh};
+    use gltf::accessor::{DataType, Dimensions};
+    let bytes = crate::util::read_file(path)?;
+    let parse = |source: gltf::Error| GlbError::Parse { path: path.to_path_buf(), source };
+    let glb = gltf::Glb::from_slice(&bytes).map_err(parse)?;
+    let root: gltf::json::Root =
+        gltf::json::deserialize::from_slice(&glb.json).map_err(|e| parse(gltf::Error::Deserialize(e)))?;
+    let doc = gltf::Document::from_json(root).map_err(parse)?;
+    let bin: &[u8] = glb.bin.as_deref().unwrap_or(&[]);
+    let invalid = |at: String, what: String| GlbError::Invalid { path: path.to_path_buf(), at, what };
+    let mut out = Clutter::default();
+    for node in doc.nodes() {
+        let Some(name) = node.name().and_then(|n| n.strip_prefix(CLUTTER_NODE_PREFIX)) else { continue };
+        let at = format!("nodes[{}]", node.index());
+        let layer = ClutterLayer::from_name(name)
+            .ok_or_else(|| invalid(at.clone(), format!("unknown clutter layer {name:?}")))?;
+        let Some(mesh) = node.mesh() else { continue };
+        let mut m = LayerMesh::default();
+        for prim in mesh.primitives() {
+            let at = format!("meshes[{}].primitives[{}]", mesh.index(), prim.index());
+            let pos = prim
+                .get(&gltf::Semantic::Positions)
+                .ok_or_else(|| invalid(at.clone(), "no POSITION".into()))?;
+            let base = m.positions_m.len();
+            read_positions(path, &at, &pos, bin, None, &mut m.positions_m)?;
+            match prim.get(&gltf::Semantic::Colors(0)) {
+                Some(c) if c.data_type() == DataType::U8 && c.dimensions() == Dimensions::Vec4 => {
+                    let a = accessor_bytes(path, &at, &c, bin, 4)?;
+                    m.colors_srgb.extend((0..a.count).map(|k| {
+                        let e = &a.data[k * a.stride..k * a.stride + 3];
+                        [e[0], e[1], e[2]]
+                    }));
+                }
+                _ => m.colors_srgb.extend(std::iter::repeat_n([128, 128, 128], pos.count())),
+            }
+            if m.colors_srgb.len() != m.positions_m.len() {
+                return Err(invalid(at, "COLOR_0 and POSITION counts differ".into()));
+            }
+            let acc = prim.indices().ok_or_else(|| invalid(at.clone(), "no indices".into()))?;
+            read_indices(
+                path,
+                &format!("{at}.indices"),
+                &acc,
+                bin,
+                base as u32,
+                pos.count(),
+                &mut m.indices,
+            )?;
+        }
+        out.layers.push((layer, m));
+    }
+    out.layers.sort_by_key(|(l, _)| *l);
+    Ok(out)
 }
 
 #[cfg(test)]

@@ -7,9 +7,11 @@
 //! - [`ids`] — the 24-bit [`BuildingId`] and [`IdMap`], the one image-of-IDs type, with its codecs;
 //! - [`mesh`] — the instanced [`SceneMesh`] renderers consume;
 //! - [`glb`] — the scene GLB (EXT_mesh_features) writer and reader;
-//! - [`procedural`] — the embedded demo city generator.
+//! - [`procedural`] — the embedded demo city generator;
+//! - [`clutter`] — streets, ground cover, trees, cars and rooftop units around the buildings (seeded).
 
 pub mod artifact;
+pub mod clutter;
 pub mod config;
 pub mod error;
 pub mod ids;

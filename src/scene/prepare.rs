@@ -563,15 +563,58 @@ pub fn footprint(positions: &[[f64; 3]], triangles: &[[u32; 3]]) -> (f64, [f64; 
 ///
 /// # Errors
 /// [`SceneError`] naming the scene file or source and what is wrong; nothing is written on error.
+///
+/// This writes the buildings alone, no clutter (what library users and the older tests expect);
+/// `insgen prepare` calls [`prepare_with`] with clutter on.
 pub fn prepare(
     scene_file: &Path,
     out_dir: &Path,
     progress: &dyn Progress,
 ) -> Result<PrepareReport, SceneError> {
+    prepare_with(scene_file, out_dir, &PrepareOptions::default(), progress)
+}
+
+/// Options of [`prepare_with`].
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PrepareOptions {
+    /// Generate clutter layers beside the buildings ([`super::clutter`]); `None` = buildings only.
+    pub clutter: Option<super::clutter::ClutterSpec>,
+}
+
+/// [`prepare`] with options: with `clutter`, the clutter layers are generated from the instanced
+/// buildings and the area polygon, written as extra nodes of `scene.glb`, and listed in the manifest's
+/// `clutter` section.
+///
+/// # Errors
+/// As [`prepare`].
+pub fn prepare_with(
+    scene_file: &Path,
+    out_dir: &Path,
+    options: &PrepareOptions,
+    progress: &dyn Progress,
+) -> Result<PrepareReport, SceneError> {
     let started = Instant::now();
     let cfg = SceneConfig::load(scene_file)?;
     let sources = read_sources(scene_file, &cfg, progress)?;
-    let scene = instance(&cfg, sources)?;
+    let mut scene = instance(&cfg, sources)?;
+    if let Some(spec) = &options.clutter {
+        let t0 = Instant::now();
+        let (clutter, summary) = super::clutter::generate(
+            spec,
+            &scene.mesh,
+            &scene.buildings,
+            &scene.manifest.area_polygon_enu_m,
+            scene.manifest.ground_enu_m,
+        );
+        log::info!(
+            "clutter: {} triangles in {} layers ({:.2} s)",
+            summary.layers.iter().map(|l| l.triangles).sum::<u64>(),
+            summary.layers.len(),
+            t0.elapsed().as_secs_f64()
+        );
+        scene.clutter = clutter;
+        scene.manifest.clutter = Some(summary);
+    }
     write_artifact(out_dir, &scene)?;
     Ok(PrepareReport { scene, out_dir: out_dir.to_path_buf(), seconds: started.elapsed().as_secs_f64() })
 }
@@ -864,8 +907,9 @@ fn instance(cfg: &SceneConfig, sources: Sources) -> Result<PreparedScene, SceneE
         triangles: mesh.triangle_count() as u64,
         degenerate_faces: sources.degenerate_faces,
         attributions: cfg.attribution.iter().cloned().collect(),
+        clutter: None,
     };
-    Ok(PreparedScene { manifest, buildings: records, mesh })
+    Ok(PreparedScene { manifest, buildings: records, mesh, clutter: Default::default() })
 }
 
 /// Writes the artifact: GLB and building table first, the manifest last (its presence marks a complete
@@ -873,6 +917,8 @@ fn instance(cfg: &SceneConfig, sources: Sources) -> Result<PreparedScene, SceneE
 fn write_artifact(out_dir: &Path, scene: &PreparedScene) -> Result<(), SceneError> {
     util::create_dir_all(out_dir)?;
     super::glb::write_glb(&out_dir.join(artifact::GLB_FILE), &scene.mesh, &scene.buildings)
+        .map_err(|source| SceneError::ArtifactGlb { source })?;
+    super::glb::add_layers(&out_dir.join(artifact::GLB_FILE), &scene.clutter)
         .map_err(|source| SceneError::ArtifactGlb { source })?;
     util::write_json_atomic(&out_dir.join(artifact::BUILDINGS_FILE), &scene.buildings)?;
     util::write_json_atomic(&out_dir.join(artifact::MANIFEST_FILE), &scene.manifest)?;

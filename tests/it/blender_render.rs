@@ -57,6 +57,7 @@ fn plan(python: &Path, dir: &Path, mode: Mode, source: SceneSource) -> RenderPla
         clip_start_m: 0.5,
         clip_end_m: 100_000.0,
         report_bounds: false,
+        clutter_occluders: None,
     }
 }
 
@@ -809,6 +810,7 @@ fn cli_renders_rgb_and_checks_alignment_against_masks() {
         triangles: 12 * boxes.len() as u64,
         degenerate_faces: 0,
         attributions: vec![],
+        clutter: None,
     };
     std::fs::write(scene_dir.join("manifest.json"), serde_json::to_vec_pretty(&manifest).unwrap()).unwrap();
     // Poses and the "masks" (the f64 reference standing in for the wgpu renderer's ID maps).

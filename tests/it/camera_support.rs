@@ -111,8 +111,9 @@ pub fn city_with(polygon: Vec<[f64; 2]>, with_mesh: bool) -> PreparedScene {
         triangles: mesh.triangle_count() as u64,
         degenerate_faces: 0,
         attributions: Vec::new(),
+        clutter: None,
     };
-    PreparedScene { manifest, buildings, mesh }
+    PreparedScene { manifest, buildings, mesh, clutter: Default::default() }
 }
 
 pub fn preset(name: &str) -> CameraSpec {

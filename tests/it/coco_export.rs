@@ -151,6 +151,7 @@ fn write_area(workdir: &Path, spec: &AreaSpec) {
         triangles: 0,
         degenerate_faces: 0,
         attributions: vec!["3D city model (Project PLATEAU), MLIT, CC BY 4.0".into()],
+        clutter: None,
     };
     write_json(&dir.join("scene/manifest.json"), &manifest);
     let buildings: Vec<BuildingRecord> = (1..=BUILDINGS)
@@ -231,6 +232,7 @@ fn write_area(workdir: &Path, spec: &AreaSpec) {
             min_component_area_px: spec.min_component_area_px,
             instances,
             pose_sha256: None,
+            occluders: Vec::new(),
         };
         write_json(&cam.join(format!("masks/{name}.instances.json")), &fi);
         if i < spec.rgb_frames {

@@ -67,9 +67,11 @@ fn scene() -> PreparedScene {
             triangles: 48,
             degenerate_faces: 0,
             attributions: vec![],
+            clutter: None,
         },
         buildings,
         mesh: box_mesh(&boxes()),
+        clutter: Default::default(),
     }
 }
 

@@ -390,6 +390,29 @@ mod validator {
         assert_eq!(report["issues"]["numWarnings"], 0, "{:#}", report["issues"]);
     }
 
+    /// A scene GLB with clutter layers appended (`glb::add_layers`) stays valid glTF: no errors, no
+    /// warnings, the buildings' data untouched and the layers' triangles counted.
+    #[test]
+    fn khronos_validator_accepts_clutter_layers() {
+        use insgen::scene::clutter::{tree_instance, Clutter, ClutterLayer};
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("scene.glb");
+        let (mesh, buildings) = small_scene();
+        write_glb(&path, &mesh, &buildings).unwrap();
+        let trees = tree_instance(0, [40.0, 40.0, 0.0], 10.0, 3.0);
+        let conifer = tree_instance(1, [-40.0, 40.0, 0.0], 12.0, 2.0);
+        let clutter =
+            Clutter { layers: vec![(ClutterLayer::Trees, trees.clone()), (ClutterLayer::Cars, conifer)] };
+        insgen::scene::glb::add_layers(&path, &clutter).unwrap();
+        assert_eq!(insgen::scene::glb::read_glb(&path).unwrap(), mesh);
+        assert_eq!(insgen::scene::glb::read_layers(&path).unwrap(), clutter);
+        let Some(report) = validate(&path) else { return };
+        assert_no_errors(&report);
+        assert_eq!(report["issues"]["numWarnings"], 0, "{:#}", report["issues"]);
+        let layer_tris: usize = clutter.layers.iter().map(|(_, m)| m.triangle_count()).sum();
+        assert_eq!(report["info"]["totalTriangleCount"], 36 + layer_tris as u64);
+    }
+
     /// The procedural demo city, triangulated here (walls as two triangles, roofs and grounds with
     /// earcut) in a plain local frame (EPSG:6677 minus the plane origin, H as up): validates with no
     /// errors or warnings and reads back exactly. Also left in target/test-output/demo_city.glb for
