@@ -4,16 +4,21 @@
 //! - [`triangulate`] — planar polygons with holes → triangles;
 //! - [`prepare`] — the `prepare` stage (read → geo-reference → triangulate → instance → write);
 //! - [`artifact`] — the files it writes and [`PreparedScene::load`] for later stages;
+//! - [`correction`] — the rigid alignment correction of the LoD model recorded in the manifest;
+//! - [`align`] — estimating that correction against a reference tileset (`insgen align`);
 //! - [`ids`] — the 24-bit [`BuildingId`] and [`IdMap`], the one image-of-IDs type, with its codecs;
 //! - [`mesh`] — the instanced [`SceneMesh`] renderers consume;
 //! - [`glb`] — the scene GLB (EXT_mesh_features) writer and reader;
 //! - [`procedural`] — the embedded demo city generator.
 
+pub mod align;
 pub mod artifact;
 pub mod config;
+pub mod correction;
 pub mod error;
 pub mod ids;
 pub mod mesh;
+pub mod photogrammetry;
 pub mod prepare;
 pub mod triangulate;
 

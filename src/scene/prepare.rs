@@ -864,6 +864,10 @@ fn instance(cfg: &SceneConfig, sources: Sources) -> Result<PreparedScene, SceneE
         triangles: mesh.triangle_count() as u64,
         degenerate_faces: sources.degenerate_faces,
         attributions: cfg.attribution.iter().cloned().collect(),
+        alignment: cfg.alignment.map(|c| {
+            use super::correction::{AlignmentRecord, CorrectionSource};
+            AlignmentRecord::new(CorrectionSource::SceneConfig, c, enu.ecef_from_enu())
+        }),
     };
     Ok(PreparedScene { manifest, buildings: records, mesh })
 }

@@ -111,6 +111,7 @@ pub fn city_with(polygon: Vec<[f64; 2]>, with_mesh: bool) -> PreparedScene {
         triangles: mesh.triangle_count() as u64,
         degenerate_faces: 0,
         attributions: Vec::new(),
+        alignment: None,
     };
     PreparedScene { manifest, buildings, mesh }
 }

@@ -151,6 +151,7 @@ fn write_area(workdir: &Path, spec: &AreaSpec) {
         triangles: 0,
         degenerate_faces: 0,
         attributions: vec!["3D city model (Project PLATEAU), MLIT, CC BY 4.0".into()],
+        alignment: None,
     };
     write_json(&dir.join("scene/manifest.json"), &manifest);
     let buildings: Vec<BuildingRecord> = (1..=BUILDINGS)

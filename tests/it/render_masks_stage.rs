@@ -67,6 +67,7 @@ fn scene() -> PreparedScene {
             triangles: 48,
             degenerate_faces: 0,
             attributions: vec![],
+            alignment: None,
         },
         buildings,
         mesh: box_mesh(&boxes()),
