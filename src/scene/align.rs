@@ -66,7 +66,7 @@ impl Default for AlignOptions {
 /// Errors of the estimate.
 #[derive(Debug, thiserror::Error)]
 pub enum AlignError {
-    #[error("the {what} model has no surface over the area")]
+    #[error("the {what} model has no surface over the area: the models do not overlap")]
     Empty { what: &'static str },
     #[error("the models do not overlap: {what}")]
     NoOverlap { what: String },
@@ -618,17 +618,22 @@ pub fn estimate(lod: &TriMesh, tiles: &TriMesh, opts: &AlignOptions) -> Result<E
         m.rasterise(mesh, &Correction::IDENTITY);
         m
     };
+    let clock = std::time::Instant::now();
     let (t2, l2) = (map(tiles, 2.0), map(lod, 2.0));
     let pts = roof_points(&l2, 6000);
     if pts.is_empty() {
         return Err(AlignError::Empty { what: "LoD" });
     }
+    log::debug!("align: 2 m height maps in {:.2} s", clock.elapsed().as_secs_f64());
     let (c1, _) = search(&pts, &t2, &start, (opts.search_m, 1.0), (opts.search_deg, 0.2), 1.0);
+    log::debug!("align: coarse pass 1 done at {:.2} s: {c1:?}", clock.elapsed().as_secs_f64());
     // Coarse pass 2: 0.5 m cells around the best, 0.25 m / 0.05° steps, ±0.4 m.
     let (t05, l05) = (map(tiles, 0.5), map(lod, 0.5));
-    let pts = roof_points(&l05, 20_000);
+    let pts = roof_points(&l05, 8000);
+    log::debug!("align: 0.5 m height maps at {:.2} s", clock.elapsed().as_secs_f64());
     let (coarse, inliers) = search(&pts, &t05, &c1, (1.0, 0.25), (0.2, 0.05), 0.4);
     let coarse_inlier_fraction = inliers as f64 / pts.len() as f64;
+    log::debug!("align: coarse pass 2 done at {:.2} s: {coarse:?}", clock.elapsed().as_secs_f64());
     if coarse_inlier_fraction < 0.05 {
         return Err(AlignError::NoOverlap {
             what: format!(
@@ -652,6 +657,7 @@ pub fn estimate(lod: &TriMesh, tiles: &TriMesh, opts: &AlignOptions) -> Result<E
     let spacing = (total_area / opts.max_samples.max(100) as f64).sqrt().max(0.25);
     let samples = surface_samples(lod, spacing);
     let grid = TriangleGrid::new(tiles, 2.0);
+    log::debug!("align: {} samples, grid built at {:.2} s", samples.len(), clock.elapsed().as_secs_f64());
     let mut c = coarse;
     let mut sigma_m: f64 = 0.3;
     let mut last = None;
@@ -689,6 +695,7 @@ pub fn estimate(lod: &TriMesh, tiles: &TriMesh, opts: &AlignOptions) -> Result<E
             break;
         }
     }
+    log::debug!("align: refined in {iterations} iterations at {:.2} s", clock.elapsed().as_secs_f64());
     let (inv, var, kept) = last.expect("the loop runs at least once");
     let sd = |k: usize| (var * inv.col(k)[k]).max(0.0).sqrt();
     Ok(Estimate {

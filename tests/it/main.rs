@@ -11,6 +11,7 @@ mod camera_support;
 mod render_common;
 mod util;
 
+mod align;
 mod blender_render;
 mod blender_render_tiles;
 mod camera_io;
