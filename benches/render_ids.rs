@@ -112,6 +112,7 @@ fn prepared(mesh: SceneMesh, buildings: Vec<BuildingRecord>, enu: &EnuFrame) -> 
             triangles: t,
             degenerate_faces: 0,
             attributions: vec![],
+            alignment: None,
         },
         buildings,
         mesh,

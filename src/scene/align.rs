@@ -215,7 +215,8 @@ impl HeightMap {
                     }
                     let z = (w0 * a[2] + w1 * b[2] + w2 * d[2]) as f32;
                     let h = &mut self.h_m[j * self.nx + i];
-                    if !(*h >= z) {
+                    // NaN (empty) or lower: the new surface is on top.
+                    if h.is_nan() || *h < z {
                         *h = z;
                     }
                 }
@@ -276,10 +277,9 @@ pub fn agreement(lod: &TriMesh, tiles: &HeightMap, tiles_ground: &[f32], c: &Cor
     l.rasterise(lod, c);
     let mut dh = Vec::new();
     let (mut inter, mut union) = (0u64, 0u64);
-    for k in 0..l.h_m.len() {
-        let (hl, ht) = (l.h_m[k], tiles.h_m[k]);
+    for ((&hl, &ht), &g) in l.h_m.iter().zip(&tiles.h_m).zip(tiles_ground) {
         let building = hl.is_finite();
-        let above = ht.is_finite() && (ht - tiles_ground[k]) as f64 > ABOVE_GROUND_M;
+        let above = ht.is_finite() && (ht - g) as f64 > ABOVE_GROUND_M;
         if building && ht.is_finite() {
             dh.push((ht - hl).abs() as f64);
         }
@@ -597,9 +597,8 @@ fn normal_equations(rows: &[Row], w: &[f64]) -> (DMat4, [f64; 4]) {
 /// [`AlignError`] when a model is empty over the area, nothing overlaps, or the refinement cannot
 /// fix all four parameters.
 pub fn estimate(lod: &TriMesh, tiles: &TriMesh, opts: &AlignOptions) -> Result<Estimate, AlignError> {
-    if !(opts.search_m > 0.0 && opts.search_m <= 100.0)
-        || !(opts.search_deg >= 0.0 && opts.search_deg <= 20.0)
-    {
+    let window_ok = opts.search_m > 0.0 && opts.search_m <= 100.0;
+    if !(window_ok && opts.search_deg >= 0.0 && opts.search_deg <= 20.0) {
         return Err(AlignError::Option(format!(
             "search window {} m / {}° (expected 0 < m ≤ 100, 0 ≤ deg ≤ 20)",
             opts.search_m, opts.search_deg

@@ -126,9 +126,9 @@ impl Correction {
         let mut bounds: HashMap<u32, ([f64; 3], [f64; 3])> = HashMap::new();
         for (p, id) in moved.positions_m.iter().zip(&moved.building_ids) {
             let b = bounds.entry(id.get()).or_insert(([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]));
-            for k in 0..3 {
-                b.0[k] = b.0[k].min(p[k] as f64);
-                b.1[k] = b.1[k].max(p[k] as f64);
+            for (k, &v) in p.iter().enumerate() {
+                b.0[k] = b.0[k].min(v as f64);
+                b.1[k] = b.1[k].max(v as f64);
             }
         }
         for r in buildings {
