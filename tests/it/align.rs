@@ -123,10 +123,10 @@ fn align_recovers_known_offsets_on_shibuya() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     prepare(d, "tokyo");
-    for (k, offset) in [[-3.1, 4.2, -1.3, -0.7], [0.0; 4]].into_iter().enumerate() {
-        let ts = reference(d, "tokyo", "plateau", offset, 20 + k as u64, &format!("ref{k}"));
-        check_recovered(d, "tokyo", &ts, offset);
-    }
+    // One offset (the zero case of Shibuya is in bench/align.md; the demo test covers zero here).
+    let offset = [-3.1, 4.2, -1.3, -0.7];
+    let ts = reference(d, "tokyo", "plateau", offset, 20, "ref0");
+    check_recovered(d, "tokyo", &ts, offset);
 }
 
 /// A small procedural area (2 × 2 blocks) for the tests that are about files, not accuracy.

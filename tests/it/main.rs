@@ -25,6 +25,7 @@ mod exports;
 mod fuzz;
 mod geo_geoid_grids;
 mod geo_pyproj;
+mod label_occlusion;
 mod loc_eval;
 mod lod_citygml;
 mod lod_cityjson;
