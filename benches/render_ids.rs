@@ -113,6 +113,7 @@ fn prepared(mesh: SceneMesh, buildings: Vec<BuildingRecord>, enu: &EnuFrame) -> 
             degenerate_faces: 0,
             attributions: vec![],
             clutter: None,
+            alignment: None,
         },
         buildings,
         mesh,

@@ -110,7 +110,10 @@ fn blender_ids(
         device: insgen::blender::job::Device::Cpu,
         threads: 0,
         exr: false,
-        source: SceneSource::Lod { glb: scene_dir.join(GLB_FILE) },
+        source: SceneSource::Lod {
+            glb: scene_dir.join(GLB_FILE),
+            enu_from_gltf: insgen::blender::tileset::ENU_FROM_SCENE_GLTF,
+        },
         look_seed: 0,
         look: insgen::blender::look::LookRanges::plain(35.0),
         ground_enu_m: ground_m,

@@ -10,7 +10,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use super::camera::{blender_matrix_world, cam_to_world_enu, BlenderCamera};
+use super::camera::{blender_matrix_world, cam_to_world_enu, BlenderCamera, Mat4};
 use super::error::{BlenderError, JobIssue, OutputError};
 use super::job::{
     check_writable, DenoiseQuality, Device, Engine, Job, JobFrame, JobModel, Lighting, Look, Mode, ModelKind,
@@ -18,7 +18,7 @@ use super::job::{
 };
 use super::look::{apply_camera_effects, CameraEffects, FrameLook, LookRanges};
 use super::process::{run_job, Event, Launcher};
-use super::tileset::{prepare_tile, select_tiles, SelectOptions, ENU_FROM_SCENE_GLTF};
+use super::tileset::{prepare_tile, select_tiles, SelectOptions};
 use crate::camera::record::check_frame_name;
 use crate::camera::{Intrinsics, Pose};
 use crate::geo::EnuFrame;
@@ -35,8 +35,10 @@ pub use crate::util::TMP_PREFIX;
 /// Where the geometry comes from.
 #[derive(Debug, Clone)]
 pub enum SceneSource {
-    /// The prepared scene's `scene.glb` (the instanced LoD model, procedural look).
-    Lod { glb: PathBuf },
+    /// The prepared scene's `scene.glb` (the instanced LoD model, procedural look), placed by
+    /// `enu_from_gltf` (row-major): [`super::tileset::ENU_FROM_SCENE_GLTF`], preceded by the area's alignment correction
+    /// when it has one ([`crate::scene::PreparedScene::enu_from_scene_gltf`]).
+    Lod { glb: PathBuf, enu_from_gltf: Mat4 },
     /// A photogrammetry tileset, placed with the area's ENU frame; tiles chosen per frame.
     Tileset { tileset: PathBuf, enu: EnuFrame, select: SelectOptions },
 }
@@ -377,7 +379,7 @@ fn finalize_output(
 pub fn frame_fingerprint(plan: &RenderPlan, f: &FrameRequest) -> String {
     use sha2::Digest;
     let source = match &plan.source {
-        SceneSource::Lod { glb } => format!("lod {}", glb.display()),
+        SceneSource::Lod { glb, .. } => format!("lod {}", glb.display()),
         SceneSource::Tileset { tileset, enu, select } => {
             format!("tileset {} {enu:?} {select:?}", tileset.display())
         }
@@ -492,7 +494,7 @@ fn check_request(plan: &RenderPlan, frames: &[FrameRequest]) -> Vec<JobIssue> {
         issues.push(JobIssue { path: "restart_every".into(), what: "must be at least 1".into() });
     }
     match &plan.source {
-        SceneSource::Lod { glb } if !glb.is_file() => issues.push(JobIssue {
+        SceneSource::Lod { glb, .. } if !glb.is_file() => issues.push(JobIssue {
             path: "scene".into(),
             what: format!("{} does not exist (run `insgen prepare` for the area first)", glb.display()),
         }),
@@ -580,10 +582,9 @@ fn run_batch(
     summary: &mut RenderSummary,
 ) -> Result<(), BlenderError> {
     let (models, per_frame): (Vec<JobModel>, Option<Vec<Vec<u32>>>) = match &plan.source {
-        SceneSource::Lod { glb } => (
-            vec![JobModel { glb: absolute(glb), enu_from_gltf: ENU_FROM_SCENE_GLTF, kind: ModelKind::Lod }],
-            None,
-        ),
+        SceneSource::Lod { glb, enu_from_gltf } => {
+            (vec![JobModel { glb: absolute(glb), enu_from_gltf: *enu_from_gltf, kind: ModelKind::Lod }], None)
+        }
         SceneSource::Tileset { tileset, enu, select } => {
             let cams: Vec<(Intrinsics, Pose)> = batch.iter().map(|f| (f.intrinsics, f.pose)).collect();
             let sel = select_tiles(tileset, enu, &cams, select)?;
@@ -719,6 +720,7 @@ fn run_batch(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::blender::tileset::ENU_FROM_SCENE_GLTF;
 
     fn plan(dir: &Path) -> RenderPlan {
         let glb = dir.join("scene.glb");
@@ -738,7 +740,7 @@ mod tests {
             device: Device::Cpu,
             threads: 0,
             exr: true,
-            source: SceneSource::Lod { glb },
+            source: SceneSource::Lod { glb, enu_from_gltf: ENU_FROM_SCENE_GLTF },
             look_seed: 1,
             look: LookRanges::plain(35.0),
             ground_enu_m: 0.0,
@@ -831,7 +833,10 @@ mod tests {
     fn bad_requests_fail_before_anything_is_written() {
         let dir = tempfile::tempdir().unwrap();
         let mut p = plan(dir.path());
-        p.source = SceneSource::Lod { glb: dir.path().join("missing/scene.glb") };
+        p.source = SceneSource::Lod {
+            glb: dir.path().join("missing/scene.glb"),
+            enu_from_gltf: ENU_FROM_SCENE_GLTF,
+        };
         let e =
             render_frames(&p, &[frame("a"), frame("a"), frame("x/y")], &crate::util::NoProgress).unwrap_err();
         let text = e.to_string();

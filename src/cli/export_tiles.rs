@@ -30,6 +30,29 @@ pub struct Args {
     /// rendering (scripts/bench_rgb.sh); the tiles carry no building IDs a dataset could use.
     #[arg(long, value_enum, value_name = "STYLE", hide_short_help = true)]
     pub style: Option<StyleArg>,
+    /// With --style: move the buildings by a known rigid offset "EAST_M,NORTH_M,UP_M,YAW_DEG" (yaw
+    /// about the centre of the area's footprint, as `insgen align` reports it), so that `align` has
+    /// something to recover.
+    #[arg(long, value_name = "E,N,U,YAW", requires = "style", value_parser = parse_offset, allow_hyphen_values = true, hide_short_help = true)]
+    pub offset: Option<[f64; 4]>,
+    /// With --style: make it photogrammetry-like: ±5 cm vertex jitter, a ground surface, 40 box trees
+    /// and a 45 m crane the LoD model does not have (seeded by --seed).
+    #[arg(long, requires = "style", hide_short_help = true)]
+    pub photogrammetry_noise: bool,
+    /// Seed of --photogrammetry-noise.
+    #[arg(long, value_name = "N", default_value_t = 1, hide_short_help = true)]
+    pub seed: u64,
+}
+
+fn parse_offset(s: &str) -> Result<[f64; 4], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().map_err(|e| format!("{x:?}: {e}")))
+        .collect::<Result<_, _>>()?;
+    match v[..] {
+        [e, n, u, y] if v.iter().all(|x| x.is_finite()) => Ok([e, n, u, y]),
+        _ => Err(format!("expected four finite numbers EAST_M,NORTH_M,UP_M,YAW_DEG, got {s:?}")),
+    }
 }
 
 /// Style of a synthetic tileset.
@@ -65,7 +88,29 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
             StyleArg::Plateau => Style::Plateau,
             StyleArg::Bag3d => Style::Bag3d,
         };
-        let g = generate_city_tileset(&buildings_from_scene(&prepared.mesh), &enu, &out, style)
+        let mut buildings = buildings_from_scene(&prepared.mesh);
+        if args.offset.is_some() || args.photogrammetry_noise {
+            use crate::scene::correction::Correction;
+            use crate::scene::photogrammetry::{perturb, Perturbation};
+            let [east_m, north_m, up_m, yaw_deg] = args.offset.unwrap_or([0.0; 4]);
+            let pivot_enu_m =
+                crate::scene::align::pivot_of(&crate::scene::align::scene_surface(&prepared.mesh));
+            let offset = Correction { east_m, north_m, up_m, yaw_deg, pivot_enu_m };
+            let p = if args.photogrammetry_noise {
+                Perturbation::photogrammetry_like(offset, prepared.manifest.ground_enu_m, args.seed)
+            } else {
+                Perturbation {
+                    offset,
+                    jitter_m: 0.0,
+                    trees: 0,
+                    crane: false,
+                    ground_enu_m: None,
+                    seed: args.seed,
+                }
+            };
+            buildings = perturb(&buildings, &p).map_err(|e| anyhow::anyhow!("area {}: {e}", args.area))?;
+        }
+        let g = generate_city_tileset(&buildings, &enu, &out, style)
             .with_context(|| format!("writing a synthetic tileset of area {}", args.area))?;
         global.printer().summary(format!("wrote {} ({} tiles)", g.tileset.display(), g.tiles.len()));
         return Ok(());
@@ -94,5 +139,14 @@ mod tests {
         );
         let t = parse(&["--area", "demo", "--out", "o"]).unwrap();
         assert_eq!(t.args.dirs(&t.global).1, PathBuf::from("o"));
+    }
+
+    #[test]
+    fn offset_needs_a_style_and_four_numbers() {
+        assert!(parse(&["--area", "demo", "--offset", "1,2,3,0.5"]).is_err());
+        let t = parse(&["--area", "demo", "--style", "plateau", "--offset", "-1,2,-3,0.5"]).unwrap();
+        assert_eq!(t.args.offset, Some([-1.0, 2.0, -3.0, 0.5]));
+        assert!(parse(&["--area", "demo", "--style", "plateau", "--offset", "1,2,3"]).is_err());
+        assert!(parse(&["--area", "demo", "--style", "plateau", "--offset", "1,2,3,nan"]).is_err());
     }
 }

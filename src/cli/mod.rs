@@ -6,6 +6,7 @@
 //! Exit codes: 0 success, 1 failure (the cause chain is printed on stderr), 2 usage error (clap), 130
 //! stopped by Ctrl-C between items.
 
+pub mod align;
 pub mod completions;
 pub mod demo;
 pub mod eval_loc;
@@ -106,6 +107,8 @@ pub enum Command {
     ExportYolo(export_yolo::Args),
     /// Write a prepared area as a 3D Tiles 1.1 tileset placed on the globe.
     ExportTiles(export_tiles::Args),
+    /// Measure and correct the LoD model's offset from a photogrammetry tileset.
+    Align(align::Args),
     /// Print a shell completion script (bash, zsh, fish, elvish, powershell).
     Completions(completions::CompletionsArgs),
     /// Write man pages generated from these definitions.
@@ -130,6 +133,7 @@ impl Command {
             Command::ExportPanoptic(_) => "export-panoptic",
             Command::ExportYolo(_) => "export-yolo",
             Command::ExportTiles(_) => "export-tiles",
+            Command::Align(_) => "align",
             Command::Completions(_) => "completions",
             Command::Man(_) => "man",
         }
@@ -186,6 +190,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::ExportPanoptic(a) => export_panoptic::run(a, g),
         Command::ExportYolo(a) => export_yolo::run(a, g),
         Command::ExportTiles(a) => export_tiles::run(a, g),
+        Command::Align(a) => align::run(a, g),
         Command::Completions(a) => completions::run_completions(a, g),
         Command::Man(a) => completions::run_man(a, g),
     }

@@ -322,7 +322,12 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<Plan> {
             }
         }
         // The masks come from the LoD model, so the alignment check always renders it.
-        _ => SceneSource::Lod { glb: scene_dir.join(GLB_FILE) },
+        _ => SceneSource::Lod {
+            glb: scene_dir.join(GLB_FILE),
+            enu_from_gltf: crate::util::row_major::rows(&crate::scene::PreparedScene::enu_from_scene_gltf(
+                &manifest,
+            )),
+        },
     };
     let (mode, out_dir) = if args.check_alignment {
         (Mode::Ids, camera_dir.join("alignment"))

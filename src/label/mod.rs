@@ -2,6 +2,7 @@
 
 pub mod components;
 pub mod instances;
+pub mod occlusion;
 pub mod overlay;
 pub mod side_by_side;
 pub mod stage;

@@ -13,7 +13,8 @@
 //! lists them.
 //!
 //! Later stages (sample, render-masks, export-coco, render-rgb, eval-loc) only read these three files
-//! through [`PreparedScene::load`].
+//! through [`PreparedScene::load`], which applies the manifest's alignment correction (if any) to the
+//! mesh and the building table, so every stage sees the LoD model where the reference model puts it.
 
 use serde::{Deserialize, Serialize};
 
@@ -131,6 +132,10 @@ pub struct Manifest {
     /// absent when `prepare` ran with `--no-clutter`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub clutter: Option<super::clutter::ClutterSummary>,
+    /// The rigid correction of the LoD model, when one was estimated (`insgen align`) or pinned in the
+    /// scene file (`[alignment]`); [`PreparedScene::load`] applies it (see [`super::correction`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alignment: Option<super::correction::AlignmentRecord>,
 }
 
 /// A loaded scene: manifest, building table and mesh.
@@ -149,8 +154,34 @@ impl PreparedScene {
     /// # Errors
     /// [`super::SceneError::Artifact`] naming the file that is missing or inconsistent,
     /// [`super::SceneError::ArtifactJson`] / [`super::SceneError::ArtifactGlb`] for a file that does not
-    /// parse (the parser's error as the source), each with a hint to run `insgen prepare`.
+    /// parse (the parser's error as the source), each with a hint to run `insgen prepare`; an
+    /// alignment record with a non-finite number.
     pub fn load(dir: &std::path::Path) -> Result<PreparedScene, super::SceneError> {
+        let mut scene = PreparedScene::load_as_prepared(dir)?;
+        if let Some(rec) = &scene.manifest.alignment {
+            let c = rec.correction;
+            c.validate()
+                .map_err(|what| super::SceneError::Artifact { path: dir.join(MANIFEST_FILE), what })?;
+            if !c.is_identity() {
+                let o = scene.manifest.origin;
+                let enu = crate::geo::EnuFrame::new(crate::geo::Geodetic::new(o.lat_deg, o.lon_deg, o.h_m));
+                c.apply_to_mesh(&mut scene.mesh);
+                c.apply_to_buildings(&scene.mesh, &mut scene.buildings, &enu);
+                // The clutter was laid out from the LoD footprints: it moves with them.
+                for (_, layer) in &mut scene.clutter.layers {
+                    c.apply_to_points(&mut layer.positions_m);
+                }
+            }
+        }
+        Ok(scene)
+    }
+
+    /// As [`PreparedScene::load`] but without applying the alignment correction: the LoD model as
+    /// `prepare` wrote it (what `insgen align` measures).
+    ///
+    /// # Errors
+    /// As [`PreparedScene::load`].
+    pub fn load_as_prepared(dir: &std::path::Path) -> Result<PreparedScene, super::SceneError> {
         use super::SceneError;
         let hint = "run `insgen prepare --area <name>`";
         let manifest_path = dir.join(MANIFEST_FILE);
@@ -192,5 +223,14 @@ impl PreparedScene {
             None => super::clutter::Clutter::default(),
         };
         Ok(PreparedScene { manifest, buildings, mesh, clutter })
+    }
+
+    /// The LoD model's ENU-from-glTF transform for the scene GLB as written by `prepare` (glTF y-up
+    /// turned z-up, then the alignment correction if any), in glam's column-major form.
+    pub fn enu_from_scene_gltf(manifest: &Manifest) -> glam::DMat4 {
+        let y_up_to_z_up = crate::lod::tiles3d::UpAxis::Y.to_z_up();
+        let m =
+            manifest.alignment.as_ref().map(|r| r.correction.enu_from_lod()).unwrap_or(glam::DMat4::IDENTITY);
+        m * y_up_to_z_up
     }
 }

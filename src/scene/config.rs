@@ -30,6 +30,13 @@
 //! # polygon_deg = [[lon, lat], ...]
 //!
 //! [sampling]                     # camera sampling parameters, read by `insgen sample`
+//!
+//! [alignment]                    # optional: pin a rigid correction of the LoD model (see scene::correction)
+//! east_m = 0.4
+//! north_m = -1.2
+//! up_m = 0.3
+//! yaw_deg = 0.15
+//! pivot_enu_m = [120.0, -35.0]   # optional, default [0, 0] (the area origin)
 //! ```
 
 use std::path::{Path, PathBuf};
@@ -60,6 +67,11 @@ pub struct SceneConfig {
     /// Camera sampling parameters; parsed by the camera stage.
     #[serde(default)]
     pub sampling: Option<toml::Table>,
+    /// A rigid correction of the LoD model pinned by hand (`[alignment]`: `east_m`, `north_m`, `up_m`,
+    /// `yaw_deg`, optional `pivot_enu_m`, default the area origin); `prepare` records it in the
+    /// manifest and every later stage applies it (see [`super::correction`]).
+    #[serde(default)]
+    pub alignment: Option<super::correction::Correction>,
 }
 
 /// The geographic split an area belongs to.
@@ -215,6 +227,15 @@ impl SceneConfig {
         }
         if self.sources.is_empty() {
             return err("no [[sources]]: an area needs at least one source of building models".into());
+        }
+        if let Some(c) = &self.alignment {
+            c.validate().or_else(|what| err(format!("[alignment]: {what}")))?;
+            if c.east_m.abs().max(c.north_m.abs()).max(c.up_m.abs()) > 1000.0 || c.yaw_deg.abs() > 180.0 {
+                return err(format!(
+                    "[alignment]: shift ({}, {}, {}) m / yaw {}° is not a residual correction (limits: 1000 m, 180°)",
+                    c.east_m, c.north_m, c.up_m, c.yaw_deg
+                ));
+            }
         }
         for (i, s) in self.sources.iter().enumerate() {
             let procedural = s.format.as_deref() == Some("procedural");

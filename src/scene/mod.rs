@@ -4,18 +4,23 @@
 //! - [`triangulate`] — planar polygons with holes → triangles;
 //! - [`prepare`] — the `prepare` stage (read → geo-reference → triangulate → instance → write);
 //! - [`artifact`] — the files it writes and [`PreparedScene::load`] for later stages;
+//! - [`correction`] — the rigid alignment correction of the LoD model recorded in the manifest;
+//! - [`align`] — estimating that correction against a reference tileset (`insgen align`);
 //! - [`ids`] — the 24-bit [`BuildingId`] and [`IdMap`], the one image-of-IDs type, with its codecs;
 //! - [`mesh`] — the instanced [`SceneMesh`] renderers consume;
 //! - [`glb`] — the scene GLB (EXT_mesh_features) writer and reader;
 //! - [`procedural`] — the embedded demo city generator;
 //! - [`clutter`] — streets, ground cover, trees, cars and rooftop units around the buildings (seeded).
 
+pub mod align;
 pub mod artifact;
 pub mod clutter;
 pub mod config;
+pub mod correction;
 pub mod error;
 pub mod ids;
 pub mod mesh;
+pub mod photogrammetry;
 pub mod prepare;
 pub mod triangulate;
 

@@ -908,6 +908,10 @@ fn instance(cfg: &SceneConfig, sources: Sources) -> Result<PreparedScene, SceneE
         degenerate_faces: sources.degenerate_faces,
         attributions: cfg.attribution.iter().cloned().collect(),
         clutter: None,
+        alignment: cfg.alignment.map(|c| {
+            use super::correction::{AlignmentRecord, CorrectionSource};
+            AlignmentRecord::new(CorrectionSource::SceneConfig, c, enu.ecef_from_enu())
+        }),
     };
     Ok(PreparedScene { manifest, buildings: records, mesh, clutter: Default::default() })
 }

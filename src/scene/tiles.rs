@@ -78,7 +78,9 @@ pub struct TilesetSummary {
 /// [`TilesetExportError::Empty`] for a scene without triangles, [`TilesetExportError::File`] naming
 /// the file that could not be read or written.
 pub fn write_scene_tileset(scene_dir: &Path, out_dir: &Path) -> Result<TilesetSummary, TilesetExportError> {
-    let scene = PreparedScene::load(scene_dir)
+    // The GLB is copied as prepared, so its bounds are the prepared ones; an alignment correction goes
+    // into the root transform (ecef_from_lod_corrected = ecef_from_enu · correction).
+    let scene = PreparedScene::load_as_prepared(scene_dir)
         .map_err(|e| TilesetExportError::Scene { dir: scene_dir.to_path_buf(), source: Box::new(e) })?;
     let Some((lo, hi)) = scene.mesh.bounds_m() else {
         return Err(TilesetExportError::Empty { dir: scene_dir.to_path_buf() });
@@ -102,7 +104,11 @@ pub fn write_scene_tileset(scene_dir: &Path, out_dir: &Path) -> Result<TilesetSu
             "geometricError": 0.0,
             "refine": "REPLACE",
             // 3D Tiles stores matrices column-major.
-            "transform": m.ecef_from_enu.to_cols_array(),
+            "transform": m
+                .alignment
+                .as_ref()
+                .map_or(m.ecef_from_enu, |a| a.ecef_from_lod_corrected)
+                .to_cols_array(),
             "content": {"uri": GLB_FILE},
         },
         "extras": {"insgen": {

@@ -21,7 +21,7 @@ use glam::{DMat4, DVec3};
 use insgen::blender::align::{building_ious, summarise, FrameAlignment};
 use insgen::blender::job::{Device, Lighting};
 use insgen::blender::run::frame_outputs;
-use insgen::blender::tileset::SelectOptions;
+use insgen::blender::tileset::{SelectOptions, ENU_FROM_SCENE_GLTF};
 use insgen::blender::{render_frames, Engine, FrameRequest, Launcher, Mode, RenderPlan, SceneSource};
 use insgen::camera::{Intrinsics, Pose};
 use insgen::geo::{EnuFrame, Geodetic};
@@ -144,7 +144,7 @@ fn ids_render_matches_f64_reference() {
     let dir = tempfile::tempdir().unwrap();
     let boxes = box_city();
     let glb = write_scene_glb(dir.path(), &boxes);
-    let p = plan(&py, dir.path(), Mode::Ids, SceneSource::Lod { glb });
+    let p = plan(&py, dir.path(), Mode::Ids, SceneSource::Lod { glb, enu_from_gltf: ENU_FROM_SCENE_GLTF });
     let frames = test_frames();
     let s = render_frames(&p, &frames, &NoProgress).unwrap();
     assert_eq!(s.rendered.len(), 3);
@@ -295,7 +295,12 @@ fn device_is_chosen_logged_and_recorded() {
     .unwrap();
     let meta_schema = jsonschema::validator_for(&meta_schema).unwrap();
     for (device, word) in [(Device::Cpu, "cpu"), (Device::Auto, "auto")] {
-        let mut p = plan(&py, dir.path(), Mode::Rgb, SceneSource::Lod { glb: glb.clone() });
+        let mut p = plan(
+            &py,
+            dir.path(),
+            Mode::Rgb,
+            SceneSource::Lod { glb: glb.clone(), enu_from_gltf: ENU_FROM_SCENE_GLTF },
+        );
         p.device = device;
         p.force = true;
         let s = render_frames(&p, std::slice::from_ref(&frame), &NoProgress).unwrap();
@@ -382,7 +387,7 @@ fn varied_look_is_drawn_per_frame_recorded_and_reproducible() {
     .unwrap();
     let meta_schema = jsonschema::validator_for(&meta_schema).unwrap();
     let render = |name: &str, ranges: LookRanges| {
-        let mut p = plan(&py, &dir.path().join(name), Mode::Rgb, SceneSource::Lod { glb: glb.clone() });
+        let mut p = plan(&py, &dir.path().join(name), Mode::Rgb, SceneSource::Lod { glb: glb.clone(), enu_from_gltf: ENU_FROM_SCENE_GLTF });
         p.look = ranges;
         p.force = true;
         render_frames(&p, std::slice::from_ref(&frame), &NoProgress).unwrap();
@@ -439,7 +444,8 @@ fn rgb_job_renders_resumes_and_repeats_exactly() {
     let dir = tempfile::tempdir().unwrap();
     let boxes = box_city();
     let glb = write_scene_glb(dir.path(), &boxes);
-    let mut p = plan(&py, dir.path(), Mode::Rgb, SceneSource::Lod { glb });
+    let mut p =
+        plan(&py, dir.path(), Mode::Rgb, SceneSource::Lod { glb, enu_from_gltf: ENU_FROM_SCENE_GLTF });
     p.restart_every = 1;
     p.exr = true;
     let k = Intrinsics::from_hfov(64, 48, 50.0);
@@ -526,7 +532,8 @@ fn workbench_engine_renders() {
     let Some(py) = blender_python() else { return };
     let dir = tempfile::tempdir().unwrap();
     let glb = write_scene_glb(dir.path(), &box_city());
-    let mut p = plan(&py, dir.path(), Mode::Rgb, SceneSource::Lod { glb });
+    let mut p =
+        plan(&py, dir.path(), Mode::Rgb, SceneSource::Lod { glb, enu_from_gltf: ENU_FROM_SCENE_GLTF });
     p.engine = Engine::Workbench;
     let k = Intrinsics::from_hfov(64, 48, 50.0);
     let f = FrameRequest {
@@ -546,7 +553,7 @@ fn corrupt_model_fails_with_blender_output_and_no_partial_frame() {
     let dir = tempfile::tempdir().unwrap();
     let glb = dir.path().join("scene.glb");
     std::fs::write(&glb, b"glTF\x02\x00\x00\x00garbage that is not a glb").unwrap();
-    let p = plan(&py, dir.path(), Mode::Ids, SceneSource::Lod { glb });
+    let p = plan(&py, dir.path(), Mode::Ids, SceneSource::Lod { glb, enu_from_gltf: ENU_FROM_SCENE_GLTF });
     let f = &test_frames()[0];
     let e = render_frames(&p, std::slice::from_ref(f), &NoProgress).unwrap_err();
     let text = e.to_string();
@@ -685,7 +692,7 @@ fn bench_cam2_full_resolution() {
         }
     }
     let glb = write_scene_glb(dir, &boxes);
-    let mut p = plan(&py, dir, Mode::Rgb, SceneSource::Lod { glb });
+    let mut p = plan(&py, dir, Mode::Rgb, SceneSource::Lod { glb, enu_from_gltf: ENU_FROM_SCENE_GLTF });
     p.rgb.samples = samples;
     p.rgb.denoise = std::env::var("INSGEN_BENCH_DENOISE").map(|v| v == "1").unwrap_or(false);
     p.threads = 0;
@@ -733,7 +740,12 @@ fn job_files_follow_the_schema() {
     let no_python = Path::new("/nonexistent/python");
     let mut jobs = Vec::new();
     for mode in [Mode::Ids, Mode::Rgb] {
-        let mut p = plan(no_python, dir.path(), mode, SceneSource::Lod { glb: glb.clone() });
+        let mut p = plan(
+            no_python,
+            dir.path(),
+            mode,
+            SceneSource::Lod { glb: glb.clone(), enu_from_gltf: ENU_FROM_SCENE_GLTF },
+        );
         p.exr = true;
         assert!(render_frames(&p, &test_frames(), &NoProgress).is_err());
         let name =
@@ -811,6 +823,7 @@ fn cli_renders_rgb_and_checks_alignment_against_masks() {
         degenerate_faces: 0,
         attributions: vec![],
         clutter: None,
+        alignment: None,
     };
     std::fs::write(scene_dir.join("manifest.json"), serde_json::to_vec_pretty(&manifest).unwrap()).unwrap();
     // Poses and the "masks" (the f64 reference standing in for the wgpu renderer's ID maps).
@@ -914,7 +927,12 @@ fn direct_lighting_is_noise_free_but_for_anti_aliasing() {
     for lighting in [Lighting::Direct, Lighting::Path] {
         for seed in [1u32, 2] {
             let run = dir.path().join(format!("{}-{seed}", lighting.name()));
-            let mut p = plan(&py, &run, Mode::Rgb, SceneSource::Lod { glb: glb.clone() });
+            let mut p = plan(
+                &py,
+                &run,
+                Mode::Rgb,
+                SceneSource::Lod { glb: glb.clone(), enu_from_gltf: ENU_FROM_SCENE_GLTF },
+            );
             (p.rgb.samples, p.seed, p.rgb.lighting, p.rgb.max_bounces) = (1, seed, lighting, 2);
             render_frames(&p, std::slice::from_ref(&frame), &NoProgress).unwrap();
             png.insert((lighting.name(), seed), p.out_dir.join("f.png"));

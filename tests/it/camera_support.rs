@@ -112,6 +112,7 @@ pub fn city_with(polygon: Vec<[f64; 2]>, with_mesh: bool) -> PreparedScene {
         degenerate_faces: 0,
         attributions: Vec::new(),
         clutter: None,
+        alignment: None,
     };
     PreparedScene { manifest, buildings, mesh, clutter: Default::default() }
 }

@@ -152,6 +152,7 @@ fn write_area(workdir: &Path, spec: &AreaSpec) {
         degenerate_faces: 0,
         attributions: vec!["3D city model (Project PLATEAU), MLIT, CC BY 4.0".into()],
         clutter: None,
+        alignment: None,
     };
     write_json(&dir.join("scene/manifest.json"), &manifest);
     let buildings: Vec<BuildingRecord> = (1..=BUILDINGS)

@@ -11,6 +11,7 @@ mod camera_support;
 mod render_common;
 mod util;
 
+mod align;
 mod blender_render;
 mod blender_render_tiles;
 mod camera_io;
@@ -24,6 +25,7 @@ mod exports;
 mod fuzz;
 mod geo_geoid_grids;
 mod geo_pyproj;
+mod label_occlusion;
 mod loc_eval;
 mod lod_citygml;
 mod lod_cityjson;

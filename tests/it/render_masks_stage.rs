@@ -68,6 +68,7 @@ fn scene() -> PreparedScene {
             degenerate_faces: 0,
             attributions: vec![],
             clutter: None,
+            alignment: None,
         },
         buildings,
         mesh: box_mesh(&boxes()),

@@ -64,6 +64,7 @@ fn scene() -> PreparedScene {
             degenerate_faces: 0,
             attributions: vec![],
             clutter: None,
+            alignment: None,
         },
         buildings,
         mesh,
