@@ -1,6 +1,7 @@
 //! Scenes: area definitions, triangulation, instancing, and the prepared scene artifact.
 //!
 //! - [`config`] — `scenes/<area>.toml`;
+//! - [`appearance`] — textures and colours of LoD faces, carried into the scene GLB;
 //! - [`triangulate`] — planar polygons with holes → triangles;
 //! - [`prepare`] — the `prepare` stage (read → geo-reference → triangulate → instance → write);
 //! - [`artifact`] — the files it writes and [`PreparedScene::load`] for later stages;
@@ -9,6 +10,7 @@
 //! - [`glb`] — the scene GLB (EXT_mesh_features) writer and reader;
 //! - [`procedural`] — the embedded demo city generator.
 
+pub mod appearance;
 pub mod artifact;
 pub mod config;
 pub mod error;

@@ -26,11 +26,12 @@ use crate::geo::{self, AxisConvention, Crs, EnuFrame, Geodetic, Geoid, HeightKin
 use crate::lod::{self, Format, Frame, Geometry, ReadOptions, SourceModel};
 use crate::util::{self, Progress};
 
+use super::appearance::{AppearanceTable, VertexAppearance};
 use super::artifact::{self, BuildingRecord, GeoidUsed, Manifest, Origin, PreparedScene, SourceEntry};
 use super::config::{GeoidModel, Heights, SceneConfig, SourceConfig};
 use super::ids::BuildingId;
 use super::mesh::SceneMesh;
-use super::triangulate::triangulate_polygon;
+use super::triangulate::{triangulate_polygon, triangulate_polygon_uv};
 use super::SceneError;
 
 /// A building after geo-referencing: triangles in ECEF (f64), before the ENU frame is known.
@@ -41,6 +42,8 @@ struct EcefBuilding {
     measured_height_m: Option<f64>,
     positions_ecef: Vec<[f64; 3]>,
     triangles: Vec<[u32; 3]>,
+    /// Texture coordinates and appearance per vertex, when a face of the building has one.
+    appearance: Option<VertexAppearance>,
     /// Lowest ellipsoidal height of the building (its base), metres.
     base_h_m: f64,
     lat_range: [f64; 2],
@@ -176,7 +179,12 @@ fn read_one(
         Some("3dtiles") => Some(Format::Tiles3d),
         _ => None,
     };
-    let opts = ReadOptions { lod: src.lod.clone(), weld_tolerance_m: src.weld_tolerance_m };
+    let opts = ReadOptions {
+        lod: src.lod.clone(),
+        weld_tolerance_m: src.weld_tolerance_m,
+        theme: src.theme.clone(),
+        no_appearance: !src.appearance.unwrap_or(true),
+    };
     let model = lod::read_source(&path, format, &opts)?;
     let fmt = format
         .or_else(|| Format::from_path(&path))
@@ -210,8 +218,10 @@ fn georeference(
     model: SourceModel,
     source_label: &str,
     geoid: &mut GeoidSlot,
+    appearance: &mut AppearanceTable,
     progress: &dyn Progress,
 ) -> Result<(Vec<EcefBuilding>, String, u64), SceneError> {
+    let images = model.appearance.images.clone();
     let path = model.path.clone();
     let mut dropped = 0u64;
     let georef_err =
@@ -354,6 +364,7 @@ fn georeference(
                 }
             }
         };
+        let mut vertex_app: Option<VertexAppearance> = None;
         let (positions_ecef, triangles) = match b.geometry {
             Geometry::Mesh(m) => {
                 let pos = m.positions.iter().map(|&p| to_ecef(p)).collect::<Result<Vec<_>, _>>()?;
@@ -374,7 +385,8 @@ fn georeference(
                 // polygon's first vertex, so magnitudes do not cost precision).
                 let mut pos = Vec::new();
                 let mut tris = Vec::new();
-                for poly in &polys {
+                let mut va = (!b.appearance.is_empty()).then(VertexAppearance::default);
+                for (k, poly) in polys.iter().enumerate() {
                     let ext = poly.exterior.iter().map(|&p| to_ecef(p)).collect::<Result<Vec<_>, _>>()?;
                     let holes = poly
                         .interiors
@@ -382,10 +394,41 @@ fn georeference(
                         .map(|r| r.iter().map(|&p| to_ecef(p)).collect::<Result<Vec<_>, _>>())
                         .collect::<Result<Vec<_>, _>>()?;
                     // Degenerate polygons (collinear, zero area) are dropped and counted.
-                    if !triangulate_polygon(&ext, &holes, &mut pos, &mut tris) {
+                    let before = pos.len();
+                    let ok = match (va.as_mut(), b.appearance.get(k).and_then(Option::as_ref)) {
+                        (Some(va), Some(lod::FaceAppearance::Texture { image, uv_exterior, uv_interiors })) => {
+                            let ok = triangulate_polygon_uv(
+                                &ext,
+                                &holes,
+                                uv_exterior,
+                                uv_interiors,
+                                &mut pos,
+                                &mut va.uvs,
+                                &mut tris,
+                            );
+                            // A missing or unreadable image: the face keeps the procedural look.
+                            let id = images.get(*image).map_or(0, |p| appearance.texture(p));
+                            va.ids.resize(pos.len(), id);
+                            ok
+                        }
+                        (Some(va), face) => {
+                            let ok = triangulate_polygon(&ext, &holes, &mut pos, &mut tris);
+                            let id = match face {
+                                Some(lod::FaceAppearance::Colour { rgb }) => appearance.colour(*rgb),
+                                _ => 0,
+                            };
+                            va.uvs.resize(pos.len(), [0.0, 0.0]);
+                            va.ids.resize(pos.len(), id);
+                            ok
+                        }
+                        (None, _) => triangulate_polygon(&ext, &holes, &mut pos, &mut tris),
+                    };
+                    debug_assert!(va.as_ref().is_none_or(|v| v.uvs.len() == pos.len()) || pos.len() == before);
+                    if !ok {
                         dropped += 1;
                     }
                 }
+                vertex_app = va.filter(|v| v.ids.iter().any(|&i| i != 0));
                 (pos, tris)
             }
         };
@@ -409,6 +452,7 @@ fn georeference(
             measured_height_m: b.measured_height_m,
             positions_ecef,
             triangles,
+            appearance: vertex_app,
             base_h_m,
             lat_range,
             lon_range,
@@ -571,8 +615,8 @@ pub fn prepare(
     let started = Instant::now();
     let cfg = SceneConfig::load(scene_file)?;
     let sources = read_sources(scene_file, &cfg, progress)?;
-    let scene = instance(&cfg, sources)?;
-    write_artifact(out_dir, &scene)?;
+    let (scene, appearance) = instance(&cfg, sources)?;
+    write_artifact(out_dir, &scene, appearance.as_ref())?;
     Ok(PrepareReport { scene, out_dir: out_dir.to_path_buf(), seconds: started.elapsed().as_secs_f64() })
 }
 
@@ -587,6 +631,8 @@ struct Sources {
     proj: Option<ProjHeights>,
     /// `[geoid] model = "proj"`: grids PROJ wanted but did not find.
     missing_grids: Vec<String>,
+    /// The distinct textures and colours of all sources.
+    appearance: AppearanceTable,
 }
 
 /// Reads and geo-references the sources of `cfg` in order; at least one building.
@@ -604,6 +650,7 @@ fn read_sources(
         geoid: None,
         proj: None,
         missing_grids: Vec::new(),
+        appearance: AppearanceTable::default(),
     };
     for src in &cfg.sources {
         let (model, fmt) = read_one(scene_file, cfg, src)?;
@@ -618,8 +665,23 @@ fn read_sources(
         let stats = model.stats.clone();
         let model_path = model.path.clone();
         let heights = heights_note(src, &model)?;
+        let model_appearance = model.appearance.clone();
+        let missing_before = out.appearance.missing.len();
         let (mut bs, chain, dropped_here) =
-            georeference(scene_file, src, model, &label, &mut geoid, progress)?;
+            georeference(scene_file, src, model, &label, &mut geoid, &mut out.appearance, progress)?;
+        let appearance = appearance_entry(&model_appearance, &out.appearance.missing[missing_before..]);
+        if let Some(a) = &appearance {
+            if a.missing_images > 0 {
+                log::warn!(
+                    "{}: {} of {} texture image(s) are missing or unreadable (first: {}); their faces keep the \
+                     procedural look",
+                    model_path.display(),
+                    a.missing_images,
+                    a.images,
+                    a.missing_examples.first().map_or("", String::as_str)
+                );
+            }
+        }
         log::info!("{}: {} buildings ({chain})", model_path.display(), bs.len());
         let dropped = stats.degenerate_faces + dropped_here;
         out.degenerate_faces += dropped;
@@ -632,6 +694,7 @@ fn read_sources(
             degenerate_faces: dropped,
             attribution: cfg.attribution.clone(),
             heights,
+            appearance,
         });
         out.buildings.append(&mut bs);
     }
@@ -645,6 +708,27 @@ fn read_sources(
     out.proj = geoid.proj;
     out.missing_grids = geoid.missing_grids;
     Ok(out)
+}
+
+/// What the manifest records of a source's appearances (`None` when it has none).
+fn appearance_entry(
+    app: &lod::ModelAppearance,
+    missing: &[(PathBuf, String)],
+) -> Option<artifact::AppearanceEntry> {
+    if app.themes.is_empty() && app.images.is_empty() {
+        return None;
+    }
+    Some(artifact::AppearanceEntry {
+        themes: app.themes.clone(),
+        texture_theme: app.texture_theme.clone(),
+        material_theme: app.material_theme.clone(),
+        textured_faces: app.textured_faces,
+        coloured_faces: app.coloured_faces,
+        images: app.images.len() as u64,
+        missing_images: missing.len() as u64,
+        missing_examples: missing.iter().take(5).map(|(p, why)| format!("{} ({why})", p.display())).collect(),
+        unusable_targets: app.unusable_targets,
+    })
 }
 
 /// The area origin: the scene file's, else the centre of the buildings' latitude/longitude bounds; its
@@ -700,6 +784,7 @@ struct Merged {
     measured_height_m: Option<f64>,
     positions: Vec<[f64; 3]>,
     triangles: Vec<[u32; 3]>,
+    appearance: Option<VertexAppearance>,
 }
 
 /// Converts the buildings to ENU, drops those whose centre lies outside `area_polygon`, and merges
@@ -732,8 +817,25 @@ fn merge_by_source_id(
             measured_height_m: b.measured_height_m,
             positions: Vec::new(),
             triangles: Vec::new(),
+            appearance: None,
         });
         let base = m.positions.len() as u32;
+        // Parts with and without appearance: the ones without get appearance 0.
+        match (&mut m.appearance, b.appearance) {
+            (Some(a), Some(part)) => {
+                a.uvs.extend(part.uvs);
+                a.ids.extend(part.ids);
+            }
+            (Some(a), None) => a.pad(positions.len()),
+            (None, Some(part)) => {
+                let mut a = VertexAppearance::default();
+                a.pad(m.positions.len());
+                a.uvs.extend(part.uvs);
+                a.ids.extend(part.ids);
+                m.appearance = Some(a);
+            }
+            (None, None) => {}
+        }
         m.positions.extend_from_slice(&positions);
         m.triangles.extend(b.triangles.iter().map(|t| t.map(|i| i + base)));
         if m.measured_height_m.is_none() {
@@ -748,9 +850,14 @@ fn merge_by_source_id(
 ///
 /// # Panics
 /// When there are more buildings than 24-bit IDs (the caller checks first).
-fn mesh_and_table(merged: BTreeMap<String, Merged>, enu: &EnuFrame) -> (SceneMesh, Vec<BuildingRecord>) {
+fn mesh_and_table(
+    merged: BTreeMap<String, Merged>,
+    enu: &EnuFrame,
+) -> (SceneMesh, Vec<BuildingRecord>, Option<VertexAppearance>) {
     let mut mesh = SceneMesh::default();
     let mut records = Vec::with_capacity(merged.len());
+    let mut appearance: Option<VertexAppearance> =
+        merged.values().any(|m| m.appearance.is_some()).then(VertexAppearance::default);
     for (k, (source_id, m)) in merged.into_iter().enumerate() {
         let id = BuildingId::from_index(k).expect("the count was checked against the ID space");
         let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
@@ -766,6 +873,14 @@ fn mesh_and_table(merged: BTreeMap<String, Merged>, enu: &EnuFrame) -> (SceneMes
         mesh.positions_m.extend(m.positions.iter().map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]));
         mesh.building_ids.extend(std::iter::repeat_n(id, m.positions.len()));
         mesh.indices.extend(m.triangles.iter().flat_map(|t| t.map(|i| i + base)));
+        match (&mut appearance, m.appearance) {
+            (Some(a), Some(part)) => {
+                a.uvs.extend(part.uvs);
+                a.ids.extend(part.ids);
+            }
+            (Some(a), None) => a.pad(m.positions.len()),
+            (None, _) => {}
+        }
         records.push(BuildingRecord {
             id,
             source_id,
@@ -781,7 +896,7 @@ fn mesh_and_table(merged: BTreeMap<String, Merged>, enu: &EnuFrame) -> (SceneMes
             triangles: m.triangles.len() as u64,
         });
     }
-    (mesh, records)
+    (mesh, records, appearance)
 }
 
 /// What the manifest records of the geoid used.
@@ -821,7 +936,10 @@ fn geoid_used(sources: &Sources, origin: Geodetic) -> GeoidUsed {
 
 /// Instances the sources: the area origin and ENU frame, the area filter, one ID per source ID, the
 /// mesh, the building table and the manifest.
-fn instance(cfg: &SceneConfig, sources: Sources) -> Result<PreparedScene, SceneError> {
+fn instance(
+    cfg: &SceneConfig,
+    sources: Sources,
+) -> Result<(PreparedScene, Option<SceneAppearance>), SceneError> {
     let origin = area_origin(cfg, &sources.buildings);
     let geoid = geoid_used(&sources, origin);
     let enu = EnuFrame::new(origin);
@@ -838,7 +956,9 @@ fn instance(cfg: &SceneConfig, sources: Sources) -> Result<PreparedScene, SceneE
     }
     BuildingId::from_index(merged.len() - 1)
         .map_err(|source| SceneError::Ids { area: cfg.name.clone(), source })?;
-    let (mesh, records) = mesh_and_table(merged, &enu);
+    let (mesh, records, vertex_appearance) = mesh_and_table(merged, &enu);
+    let appearance = vertex_appearance
+        .map(|vertices| SceneAppearance { vertices, materials: sources.appearance.materials.clone() });
     let bases: Vec<f64> = records.iter().map(|r| r.bbox_min_enu_m[2]).collect();
     let ground_enu_m = util::median(&bases).unwrap_or(0.0);
     let area_polygon_enu_m = area_polygon.unwrap_or_else(|| {
@@ -865,15 +985,37 @@ fn instance(cfg: &SceneConfig, sources: Sources) -> Result<PreparedScene, SceneE
         degenerate_faces: sources.degenerate_faces,
         attributions: cfg.attribution.iter().cloned().collect(),
     };
-    Ok(PreparedScene { manifest, buildings: records, mesh })
+    Ok((PreparedScene { manifest, buildings: records, mesh }, appearance))
+}
+
+/// The scene's appearances: per vertex, and the distinct images and colours they number.
+struct SceneAppearance {
+    vertices: VertexAppearance,
+    materials: Vec<super::appearance::AppearanceMaterial>,
 }
 
 /// Writes the artifact: GLB and building table first, the manifest last (its presence marks a complete
 /// artifact).
-fn write_artifact(out_dir: &Path, scene: &PreparedScene) -> Result<(), SceneError> {
+fn write_artifact(
+    out_dir: &Path,
+    scene: &PreparedScene,
+    appearance: Option<&SceneAppearance>,
+) -> Result<(), SceneError> {
     util::create_dir_all(out_dir)?;
-    super::glb::write_glb(&out_dir.join(artifact::GLB_FILE), &scene.mesh, &scene.buildings)
-        .map_err(|source| SceneError::ArtifactGlb { source })?;
+    let glb_appearance = match appearance {
+        Some(a) => {
+            super::appearance::copy_images(&a.materials, out_dir)?;
+            Some(super::glb::GlbAppearance { vertices: &a.vertices, materials: &a.materials })
+        }
+        None => None,
+    };
+    super::glb::write_glb_with_appearance(
+        &out_dir.join(artifact::GLB_FILE),
+        &scene.mesh,
+        &scene.buildings,
+        glb_appearance.as_ref(),
+    )
+    .map_err(|source| SceneError::ArtifactGlb { source })?;
     util::write_json_atomic(&out_dir.join(artifact::BUILDINGS_FILE), &scene.buildings)?;
     util::write_json_atomic(&out_dir.join(artifact::MANIFEST_FILE), &scene.manifest)?;
     Ok(())
