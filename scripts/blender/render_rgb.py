@@ -12,8 +12,10 @@ this script is generated: every value comes from the job. The script
 2. imports every model (glTF/GLB) of the job and places it in the area's ENU frame: the glTF importer
    converts y-up to Blender's z-up, Blender (x, y, z) = glTF (x, -z, y); the job gives ENU_from_glTF per
    model, so each imported model is parented to an empty whose matrix is ENU_from_glTF @ inverse(Y2Z);
-3. builds the look: in "rgb" mode procedural facade/roof materials varied per building (LoD models), the
-   models' own materials shown as emission (photogrammetry), a textured ground plane, a sky texture and a
+3. builds the look: in "rgb" mode procedural facade/roof materials varied per building (LoD models) —
+   except faces that carry a source appearance (scene.glb's _APPEARANCE attribute and
+   asset.extras.appearance_materials: textures from textures/ next to the GLB, X3D/CityJSON colours),
+   which show it, lit the same way —, the models' own materials shown as emission (photogrammetry), a textured ground plane, a sky texture and a
    sun, lit as the job's `lighting` says ("direct": Lambertian surfaces, a point-like sun, the sky as a
    non-sampled ambient and glass-reflection emission, no bounces, so nothing but anti-aliasing is noisy;
    "path": Principled BSDFs, the sky as an environment light, bounces); in "ids" mode one flat emission

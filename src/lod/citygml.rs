@@ -24,7 +24,15 @@
 //! - `xlink:href="#id"` references to surfaces defined elsewhere *in the same building* (PLATEAU
 //!   `lod2Solid`s reference their `boundedBy` polygons): resolved at the end of the building, and
 //!   each polygon is emitted once however often it is referenced;
-//! - `bldg:measuredHeight` of the building (metres).
+//! - `bldg:measuredHeight` of the building (metres);
+//! - appearances (`app:Appearance`, at the city-model level as PLATEAU writes them or inside a
+//!   building): `app:ParameterizedTexture` (`imageURI`; `target uri="#polygon"` with `TexCoordList/
+//!   textureCoordinates ring="#ring"`, matched to the ring's gml:id, else by position) and
+//!   `app:X3DMaterial` (`diffuseColor`, `target` text). Theme: [`ReadOptions::theme`], else the first
+//!   `app:theme` of each kind in document order; texture coordinates follow the ring clean-up below
+//!   ([`super::clean_ring_indices`]). A texture wins over a colour on the same face. Targets that name
+//!   no read polygon, or whose coordinates do not cover its ring, are counted
+//!   ([`super::ModelAppearance::unusable_targets`]); `TexCoordGen` and `GeoreferencedTexture` are not read.
 //!
 //! LoD choice: [`ReadOptions::lod`] `"1"` or `"2"` forces one; by default a building gets the highest
 //! LoD ≤ 2 it has. A building part that lacks the chosen LoD contributes its best lower LoD instead,
@@ -161,13 +169,16 @@ struct PolyMeta {
     rings: Vec<(Option<String>, Vec<usize>)>,
 }
 
+/// The texture coordinates of one ring: the `ring` it names (gml:id) and the (u, v) pairs.
+type RingCoords = (Option<String>, Vec<[f64; 2]>);
+
 /// One `app:ParameterizedTexture` of the chosen or any theme, as read.
 #[derive(Debug, Default)]
 struct TextureAcc {
     theme: String,
     image_uri: String,
     /// (polygon gml:id, [(ring gml:id, coordinates)]).
-    targets: Vec<(String, Vec<(Option<String>, Vec<[f64; 2]>)>)>,
+    targets: Vec<(String, Vec<RingCoords>)>,
 }
 
 /// One `app:X3DMaterial`, as read.
@@ -632,7 +643,13 @@ impl<'p> Parser<'p> {
 
     /// A start tag inside `app:Appearance` (CityGML 2.0 appearance module): theme, textures with
     /// their targets and coordinates, X3D materials with their colour and targets.
-    fn appearance_start(&mut self, e: &BytesStart, name: &str, parent: Role, open: &mut Open) -> Result<(), LodError> {
+    fn appearance_start(
+        &mut self,
+        e: &BytesStart,
+        name: &str,
+        parent: Role,
+        open: &mut Open,
+    ) -> Result<(), LodError> {
         match name {
             "Appearance" if self.appearance.is_none() => {
                 self.appearance = Some(AppearanceAcc::default());
@@ -704,7 +721,8 @@ impl<'p> Parser<'p> {
                 }
             }
             Role::AppTexCoords => {
-                let uv: Vec<f64> = text.split_ascii_whitespace().map(|t| t.parse().unwrap_or(f64::NAN)).collect();
+                let uv: Vec<f64> =
+                    text.split_ascii_whitespace().map(|t| t.parse().unwrap_or(f64::NAN)).collect();
                 let coords: Vec<[f64; 2]> = uv.chunks_exact(2).map(|c| [c[0], c[1]]).collect();
                 if let Some((_, rings)) = a.texture.as_mut().and_then(|t| t.targets.last_mut()) {
                     rings.push((self.tex_ring.take(), coords));
@@ -743,11 +761,14 @@ impl<'p> Parser<'p> {
             Some(w) => Some(w.clone()),
             None => first(self.materials.iter().map(|t| &t.theme).collect()),
         };
-        let mut faces: Vec<Vec<Option<FaceAppearance>>> =
-            self.buildings.iter().map(|b| match &b.geometry {
+        let mut faces: Vec<Vec<Option<FaceAppearance>>> = self
+            .buildings
+            .iter()
+            .map(|b| match &b.geometry {
                 Geometry::Polygons(p) => vec![None; p.len()],
                 Geometry::Mesh(_) => Vec::new(),
-            }).collect();
+            })
+            .collect();
         // Materials first, so that a texture on the same face wins.
         for m in self.materials.iter().filter(|m| Some(&m.theme) == out.material_theme.as_ref()) {
             let Some(rgb) = m.rgb else { continue };
@@ -781,7 +802,9 @@ impl<'p> Parser<'p> {
                 let pick = |k: usize| -> Option<Vec<[f64; 2]>> {
                     let (id, keep) = &meta.rings[k];
                     let c = coords_of(k, id)?;
-                    keep.iter().map(|&i| c.get(i).copied().filter(|uv| uv.iter().all(|v| v.is_finite()))).collect()
+                    keep.iter()
+                        .map(|&i| c.get(i).copied().filter(|uv| uv.iter().all(|v| v.is_finite())))
+                        .collect()
                 };
                 let Some(uv_exterior) = pick(0) else {
                     out.unusable_targets += 1;
@@ -1033,7 +1056,8 @@ impl<'p> Parser<'p> {
             (Some(xy), _) => Err(Dropped::OutsideEnvelope(xy)),
             (None, None) => Err(Dropped::Degenerate),
             (None, Some(keep)) => {
-                let pick = |ring: &[[f64; 3]], keep: &[usize]| keep.iter().map(|&i| ring[i]).collect::<Vec<_>>();
+                let pick =
+                    |ring: &[[f64; 3]], keep: &[usize]| keep.iter().map(|&i| ring[i]).collect::<Vec<_>>();
                 let ext = acc.exterior.as_deref().unwrap_or(&[]);
                 let mut rings = vec![(acc.exterior_id, keep.clone())];
                 let mut interiors = Vec::new();

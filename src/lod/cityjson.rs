@@ -21,7 +21,14 @@
 //!   `transformationMatrix` and placed at its reference point); points and lines are ignored;
 //! - `transform` (`scale`, `translate`) turns the quantised vertices into coordinates;
 //!   `metadata.referenceSystem` is kept verbatim as the frame name (absent → `None`);
-//! - `attributes.measuredHeight` of the Building (metres).
+//! - `attributes.measuredHeight` of the Building (metres);
+//! - `appearance` of a document or CityJSONSeq header (`textures` → the model's images, resolved
+//!   against the file's folder; `materials[].diffuseColor`; `vertices-texture`) and each geometry's
+//!   `texture` / `material` values (nested like the boundaries; `value` for all surfaces). Theme:
+//!   [`ReadOptions::theme`], else the first theme of each kind in file order. Texture coordinates follow
+//!   the ring clean-up ([`super::clean_ring_indices`]); a texture value that does not fit its ring is
+//!   counted ([`super::ModelAppearance::unusable_targets`]). Appearances of geometry templates and of
+//!   individual CityJSONSeq features are not read.
 //!
 //! LoD choice: [`ReadOptions::lod`] forces one (exact match, `"2"` equals `"2.0"`; a building lacking
 //! it counts as without geometry). By default each building gets the highest LoD in [1, 2.2] it has
@@ -523,9 +530,10 @@ struct GeomAppearance<'a> {
 /// a texture index or null), found at any depth (MultiSurface, Solid, MultiSolid nesting).
 fn texture_surfaces<'a>(v: &'a serde_json::Value, out: &mut Vec<&'a serde_json::Value>) {
     let Some(items) = v.as_array() else { return };
-    let is_surface = items.first().and_then(|r| r.as_array()).is_some_and(|ring| {
-        ring.first().is_none_or(|x| x.is_number() || x.is_null())
-    });
+    let is_surface = items
+        .first()
+        .and_then(|r| r.as_array())
+        .is_some_and(|ring| ring.first().is_none_or(|x| x.is_number() || x.is_null()));
     if is_surface || items.is_empty() {
         out.push(v);
     } else {
@@ -657,7 +665,8 @@ impl<'p> Reader<'p> {
                 let picked = idx.iter().map(|&k| uv.get(k).copied()).collect::<Option<Vec<_>>>()?;
                 Some((tex, picked))
             };
-            let has_texture = surf.first().and_then(|r| r.as_array()).and_then(|r| r.first()).is_some_and(|t| t.is_u64());
+            let has_texture =
+                surf.first().and_then(|r| r.as_array()).and_then(|r| r.first()).is_some_and(|t| t.is_u64());
             if has_texture {
                 let ext = keep.first().and_then(|(r, idx)| ring_uv(*r, idx));
                 match ext {
@@ -665,7 +674,9 @@ impl<'p> Reader<'p> {
                         let uv_interiors = keep[1..]
                             .iter()
                             .map(|(r, idx)| {
-                                ring_uv(*r, idx).map(|(_, uv)| uv).unwrap_or_else(|| vec![uv_exterior[0]; idx.len()])
+                                ring_uv(*r, idx)
+                                    .map(|(_, uv)| uv)
+                                    .unwrap_or_else(|| vec![uv_exterior[0]; idx.len()])
                             })
                             .collect();
                         return Some(FaceAppearance::Texture { image, uv_exterior, uv_interiors });
@@ -1199,14 +1210,17 @@ impl<'p> Reader<'p> {
                 let keep: Vec<(usize, Vec<usize>)> = match rings.first().and_then(|r| clean_ring_indices(r)) {
                     Some(ext) => std::iter::once((0, ext))
                         .chain(
-                            rings.iter().enumerate().skip(1).filter_map(|(r, ring)| {
-                                clean_ring_indices(ring).map(|k| (r, k))
-                            }),
+                            rings
+                                .iter()
+                                .enumerate()
+                                .skip(1)
+                                .filter_map(|(r, ring)| clean_ring_indices(ring).map(|k| (r, k))),
                         )
                         .collect(),
                     None => Vec::new(),
                 };
-                let ring_of = |(r, idx): &(usize, Vec<usize>)| idx.iter().map(|&i| rings[*r][i]).collect::<Vec<_>>();
+                let ring_of =
+                    |(r, idx): &(usize, Vec<usize>)| idx.iter().map(|&i| rings[*r][i]).collect::<Vec<_>>();
                 let surface = out.0.len();
                 match keep.first() {
                     Some(ext) => {

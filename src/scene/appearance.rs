@@ -88,6 +88,11 @@ impl AppearanceTable {
         id
     }
 
+    /// How many distinct image paths faces have asked for so far (usable or not).
+    pub fn images_asked(&self) -> usize {
+        self.images.len()
+    }
+
     /// The number of a colour (linear RGB 0..=1, clamped).
     pub fn colour(&mut self, rgb: [f64; 3]) -> u32 {
         let rgb = rgb.map(|c| c.clamp(0.0, 1.0));
@@ -168,6 +173,9 @@ mod tests {
             AppearanceMaterial::Texture { source: png.clone(), file_name: "0002_a_b.png".into() }
         );
         copy_images(&t.materials, dir.path()).unwrap();
-        assert_eq!(std::fs::read(dir.path().join("textures/0002_a_b.png")).unwrap(), std::fs::read(&png).unwrap());
+        assert_eq!(
+            std::fs::read(dir.path().join("textures/0002_a_b.png")).unwrap(),
+            std::fs::read(&png).unwrap()
+        );
     }
 }

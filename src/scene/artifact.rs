@@ -90,7 +90,7 @@ pub struct AppearanceEntry {
     /// Faces of the read buildings with a texture / a colour in the chosen themes.
     pub textured_faces: u64,
     pub coloured_faces: u64,
-    /// Distinct images the chosen texture theme refers to.
+    /// Distinct images the textured faces of the read buildings use.
     pub images: u64,
     /// Of those, missing or unreadable: their faces keep the procedural look.
     pub missing_images: u64,

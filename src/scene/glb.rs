@@ -522,13 +522,20 @@ fn document_json(
 
 /// Adds the appearance attributes, images, textures and materials to the document (see the module
 /// doc); `first_view` is the TEXCOORD_0 view, the `_APPEARANCE` view follows it.
-fn add_appearance_json(doc: &mut Value, materials: &[AppearanceMaterial], first_view: usize, n_vertices: u64) {
+fn add_appearance_json(
+    doc: &mut Value,
+    materials: &[AppearanceMaterial],
+    first_view: usize,
+    n_vertices: u64,
+) {
     let accessors = doc["accessors"].as_array().map_or(0, Vec::len);
     if let Some(list) = doc["accessors"].as_array_mut() {
         list.push(json!({"bufferView": first_view, "componentType": COMPONENT_FLOAT, "count": n_vertices,
                          "type": "VEC2"}));
-        list.push(json!({"bufferView": first_view + 1, "componentType": COMPONENT_FLOAT, "count": n_vertices,
-                         "type": "SCALAR"}));
+        list.push(
+            json!({"bufferView": first_view + 1, "componentType": COMPONENT_FLOAT, "count": n_vertices,
+                         "type": "SCALAR"}),
+        );
     }
     let attributes = &mut doc["meshes"][0]["primitives"][0]["attributes"];
     attributes["TEXCOORD_0"] = json!(accessors);

@@ -396,7 +396,10 @@ fn georeference(
                     // Degenerate polygons (collinear, zero area) are dropped and counted.
                     let before = pos.len();
                     let ok = match (va.as_mut(), b.appearance.get(k).and_then(Option::as_ref)) {
-                        (Some(va), Some(lod::FaceAppearance::Texture { image, uv_exterior, uv_interiors })) => {
+                        (
+                            Some(va),
+                            Some(lod::FaceAppearance::Texture { image, uv_exterior, uv_interiors }),
+                        ) => {
                             let ok = triangulate_polygon_uv(
                                 &ext,
                                 &holes,
@@ -423,7 +426,9 @@ fn georeference(
                         }
                         (None, _) => triangulate_polygon(&ext, &holes, &mut pos, &mut tris),
                     };
-                    debug_assert!(va.as_ref().is_none_or(|v| v.uvs.len() == pos.len()) || pos.len() == before);
+                    debug_assert!(
+                        va.as_ref().is_none_or(|v| v.uvs.len() == pos.len()) || pos.len() == before
+                    );
                     if !ok {
                         dropped += 1;
                     }
@@ -667,9 +672,14 @@ fn read_sources(
         let heights = heights_note(src, &model)?;
         let model_appearance = model.appearance.clone();
         let missing_before = out.appearance.missing.len();
+        let asked_before = out.appearance.images_asked();
         let (mut bs, chain, dropped_here) =
             georeference(scene_file, src, model, &label, &mut geoid, &mut out.appearance, progress)?;
-        let appearance = appearance_entry(&model_appearance, &out.appearance.missing[missing_before..]);
+        let appearance = appearance_entry(
+            &model_appearance,
+            (out.appearance.images_asked() - asked_before) as u64,
+            &out.appearance.missing[missing_before..],
+        );
         if let Some(a) = &appearance {
             if a.missing_images > 0 {
                 log::warn!(
@@ -713,6 +723,7 @@ fn read_sources(
 /// What the manifest records of a source's appearances (`None` when it has none).
 fn appearance_entry(
     app: &lod::ModelAppearance,
+    images_used: u64,
     missing: &[(PathBuf, String)],
 ) -> Option<artifact::AppearanceEntry> {
     if app.themes.is_empty() && app.images.is_empty() {
@@ -724,7 +735,7 @@ fn appearance_entry(
         material_theme: app.material_theme.clone(),
         textured_faces: app.textured_faces,
         coloured_faces: app.coloured_faces,
-        images: app.images.len() as u64,
+        images: images_used,
         missing_images: missing.len() as u64,
         missing_examples: missing.iter().take(5).map(|(p, why)| format!("{} ({why})", p.display())).collect(),
         unusable_targets: app.unusable_targets,

@@ -171,7 +171,10 @@ mod prepared {
         assert_schema("manifest.schema.json", &manifest);
         // The image is copied next to the GLB, which names it.
         let copied = out.join("textures/0001_quadrants_2x2.png");
-        assert_eq!(std::fs::read(&copied).unwrap(), std::fs::read(fixture_path("quadrants_2x2.png")).unwrap());
+        assert_eq!(
+            std::fs::read(&copied).unwrap(),
+            std::fs::read(fixture_path("quadrants_2x2.png")).unwrap()
+        );
         let glb = std::fs::read(out.join("scene.glb")).unwrap();
         let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
         let doc: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
@@ -182,10 +185,44 @@ mod prepared {
         assert_eq!(doc["images"][0]["uri"], "textures/0001_quadrants_2x2.png");
         let attrs = &doc["meshes"][0]["primitives"][0]["attributes"];
         assert!(attrs.get("TEXCOORD_0").is_some() && attrs.get("_APPEARANCE").is_some(), "{attrs}");
+        // `export-tiles` takes the images along.
+        let tiles = dir.path().join("tiles");
+        insgen::scene::tiles::write_scene_tileset(&out, &tiles).unwrap();
+        assert!(tiles.join("textures/0001_quadrants_2x2.png").is_file());
         // Same inputs → same bytes.
         let dir2 = tempfile::tempdir().unwrap();
         let (out2, _) = prepare(dir2.path(), &fixture_path("textured_boxes_epsg_7415.city.json"), "");
         assert!(util::tree(&out) == util::tree(&out2), "a second prepare wrote different files");
+    }
+
+    /// The Khronos validator accepts the textured GLB (images resolved next to it): no errors, no
+    /// warnings (infos only: unsupported EXT_ extensions, URIs in a GLB, the appearance materials that
+    /// no primitive references).
+    #[test]
+    fn khronos_validator_accepts_the_textured_scene() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let have_node =
+            std::process::Command::new("node").arg("--version").output().is_ok_and(|o| o.status.success());
+        if !have_node || !root.join("node_modules/gltf-validator").exists() {
+            assert!(!util::under_ci(), "CI: node or node_modules/gltf-validator is missing (run `npm ci`)");
+            eprintln!("skipping: node or node_modules/gltf-validator is missing (run `npm ci`)");
+            return;
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let (out, _) = prepare(dir.path(), &fixture_path("textured_boxes_epsg_7415.city.json"), "");
+        let run = std::process::Command::new("node")
+            .arg(root.join("scripts/validate_gltf.js"))
+            .arg(out.join("scene.glb"))
+            .output()
+            .unwrap();
+        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+        let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+        let issues = &report["issues"];
+        assert_eq!(
+            (issues["numErrors"].as_u64(), issues["numWarnings"].as_u64()),
+            (Some(0), Some(0)),
+            "{issues:#}"
+        );
     }
 
     /// Appearances change no building, triangle or mask: the scene prepared with them and with
@@ -364,7 +401,10 @@ mod real_data {
     fn den_haag_materials_are_read() {
         let Some(src) = util::shared_data("nl_denhaag_lod2/DenHaag_01.city.json") else { return };
         let model = lod::read_source(&src, None, &ReadOptions::default()).unwrap();
-        eprintln!("Den Haag: themes {:?}, {} coloured faces", model.appearance.themes, model.appearance.coloured_faces);
+        eprintln!(
+            "Den Haag: themes {:?}, {} coloured faces",
+            model.appearance.themes, model.appearance.coloured_faces
+        );
         assert_eq!(model.appearance.material_theme.as_deref(), Some(""));
         assert!(model.appearance.coloured_faces > 1000, "{:?}", model.appearance);
     }
