@@ -440,3 +440,30 @@ pub fn clean_ring(mut points: Vec<[f64; 3]>) -> Option<Vec<[f64; 3]>> {
     }
     Some(points)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `clean_ring_indices` keeps exactly the points `clean_ring` keeps (closing vertex, consecutive
+    /// duplicates, wrap-around duplicates), so per-vertex data can follow them.
+    #[test]
+    fn clean_ring_indices_agree_with_clean_ring() {
+        let a = [0.0, 0.0, 0.0];
+        let b = [1.0, 0.0, 0.0];
+        let c = [1.0, 1.0, 0.0];
+        let d = [0.0, 1.0, 0.0];
+        let cases: Vec<Vec<[f64; 3]>> = vec![
+            vec![a, b, c, d, a],
+            vec![a, a, b, b, c, d, d, a, a],
+            vec![a, b, c, d],
+            vec![a, b, a],
+            vec![a, b, [2.0, 0.0, 0.0], a],
+        ];
+        for ring in cases {
+            let by_index = clean_ring_indices(&ring).map(|k| k.iter().map(|&i| ring[i]).collect::<Vec<_>>());
+            assert_eq!(by_index, clean_ring(ring.clone()), "{ring:?}");
+        }
+        assert_eq!(clean_ring_indices(&[a, a, b, b, c, d, d, a, a]), Some(vec![0, 2, 4, 5]));
+    }
+}

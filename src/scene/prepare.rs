@@ -394,7 +394,6 @@ fn georeference(
                         .map(|r| r.iter().map(|&p| to_ecef(p)).collect::<Result<Vec<_>, _>>())
                         .collect::<Result<Vec<_>, _>>()?;
                     // Degenerate polygons (collinear, zero area) are dropped and counted.
-                    let before = pos.len();
                     let ok = match (va.as_mut(), b.appearance.get(k).and_then(Option::as_ref)) {
                         (
                             Some(va),
@@ -426,9 +425,9 @@ fn georeference(
                         }
                         (None, _) => triangulate_polygon(&ext, &holes, &mut pos, &mut tris),
                     };
-                    debug_assert!(
-                        va.as_ref().is_none_or(|v| v.uvs.len() == pos.len()) || pos.len() == before
-                    );
+                    debug_assert!(va
+                        .as_ref()
+                        .is_none_or(|v| v.uvs.len() == pos.len() && v.ids.len() == pos.len()));
                     if !ok {
                         dropped += 1;
                     }
@@ -671,6 +670,19 @@ fn read_sources(
         let model_path = model.path.clone();
         let heights = heights_note(src, &model)?;
         let model_appearance = model.appearance.clone();
+        if let Some(theme) = &src.theme {
+            if !model_appearance.themes.contains(theme) {
+                log::warn!(
+                    "{}: theme {theme:?} is not in the file (its themes: {}); no face gets a texture or colour",
+                    model_path.display(),
+                    if model_appearance.themes.is_empty() {
+                        "none".to_string()
+                    } else {
+                        model_appearance.themes.iter().map(|t| format!("{t:?}")).collect::<Vec<_>>().join(", ")
+                    }
+                );
+            }
+        }
         let missing_before = out.appearance.missing.len();
         let asked_before = out.appearance.images_asked();
         let (mut bs, chain, dropped_here) =

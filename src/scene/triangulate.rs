@@ -107,9 +107,7 @@ pub fn triangulate_polygon(
 /// `exterior`, `uv_interiors[k]` parallel to `interiors[k]`. On success the vertices' coordinates are
 /// appended to `uvs` in the order their positions are appended to `positions` (holes that are
 /// dropped as degenerate take their coordinates with them), so `uvs` stays parallel to `positions`.
-///
-/// # Panics
-/// When a coordinate list is shorter than its ring (the readers build them parallel).
+/// A coordinate list shorter than its ring (the readers build them parallel) is padded with (0, 0).
 pub fn triangulate_polygon_uv(
     exterior: &[[f64; 3]],
     interiors: &[Vec<[f64; 3]>],
@@ -122,12 +120,17 @@ pub fn triangulate_polygon_uv(
     if !triangulate_polygon(exterior, interiors, positions, triangles) {
         return false;
     }
-    let f32s = |uv: &[f64; 2]| [uv[0] as f32, uv[1] as f32];
-    uvs.extend(uv_exterior[..exterior.len()].iter().map(f32s));
+    let ring_uvs = |ring: &[[f64; 3]], uv: &[[f64; 2]], uvs: &mut Vec<[f32; 2]>| {
+        for k in 0..ring.len() {
+            let c = uv.get(k).copied().unwrap_or([0.0, 0.0]);
+            uvs.push([c[0] as f32, c[1] as f32]);
+        }
+    };
+    ring_uvs(exterior, uv_exterior, uvs);
     // The same holes `triangulate_polygon` kept, in the same order.
-    for (ring, uv) in interiors.iter().zip(uv_interiors) {
+    for (k, ring) in interiors.iter().enumerate() {
         if usable_ring(ring) {
-            uvs.extend(uv[..ring.len()].iter().map(f32s));
+            ring_uvs(ring, uv_interiors.get(k).map_or(&[][..], Vec::as_slice), uvs);
         }
     }
     true
