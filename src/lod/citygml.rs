@@ -94,6 +94,7 @@ pub fn read(path: &Path, opts: &ReadOptions) -> Result<SourceModel, LodError> {
     let mut parser = Parser::new(path, forced_lod);
     parser.wanted_theme = opts.theme.clone();
     parser.no_appearance = opts.no_appearance;
+    parser.no_materials = opts.no_materials;
     parser.file_len = file.metadata().ok().map(|m| m.len());
     parser.run(BufReader::with_capacity(1 << 16, file))?;
     parser.finish()
@@ -328,6 +329,7 @@ struct Parser<'p> {
     /// `ReadOptions::theme` / `no_appearance`.
     wanted_theme: Option<String>,
     no_appearance: bool,
+    no_materials: bool,
     /// The appearance being read, and all read so far.
     appearance: Option<AppearanceAcc>,
     textures: Vec<TextureAcc>,
@@ -368,6 +370,7 @@ impl<'p> Parser<'p> {
             first_bad_unused: None,
             wanted_theme: None,
             no_appearance: false,
+            no_materials: false,
             appearance: None,
             textures: Vec::new(),
             materials: Vec::new(),
@@ -770,7 +773,10 @@ impl<'p> Parser<'p> {
             })
             .collect();
         // Materials first, so that a texture on the same face wins.
-        for m in self.materials.iter().filter(|m| Some(&m.theme) == out.material_theme.as_ref()) {
+        let no_materials = self.no_materials;
+        for m in
+            self.materials.iter().filter(|m| !no_materials && Some(&m.theme) == out.material_theme.as_ref())
+        {
             let Some(rgb) = m.rgb else { continue };
             for t in &m.targets {
                 match self.poly_refs.get(t) {

@@ -568,6 +568,7 @@ struct Reader<'p> {
     appearance: ModelAppearance,
     wanted_theme: Option<String>,
     no_appearance: bool,
+    no_materials: bool,
     /// Texture values that do not fit their surface (counted while walking, which borrows `self`).
     unusable_targets: std::cell::Cell<u64>,
 }
@@ -590,6 +591,7 @@ impl<'p> Reader<'p> {
             appearance: ModelAppearance::default(),
             wanted_theme: opts.theme.clone(),
             no_appearance: opts.no_appearance,
+            no_materials: opts.no_materials,
             unusable_targets: std::cell::Cell::new(0),
         }
     }
@@ -634,7 +636,8 @@ impl<'p> Reader<'p> {
             texture_surfaces(v, &mut s);
             out.textures = Some(s);
         }
-        if let Some(m) = pick(&geom.material, &self.appearance.material_theme) {
+        if let Some(m) = pick(&geom.material, &self.appearance.material_theme).filter(|_| !self.no_materials)
+        {
             out.all_material = m.value;
             if let Some(v) = &m.values {
                 let mut leaves = Vec::new();

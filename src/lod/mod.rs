@@ -275,6 +275,8 @@ pub struct ReadOptions {
     pub theme: Option<String>,
     /// Skip appearances altogether (faces get no texture or colour).
     pub no_appearance: bool,
+    /// Skip materials (flat colours) but keep textures.
+    pub no_materials: bool,
 }
 
 impl ReadOptions {

@@ -123,6 +123,11 @@ pub struct SourceConfig {
     /// `false` ignores the source's textures and materials (default `true`).
     #[serde(default)]
     pub appearance: Option<bool>,
+    /// `false` ignores the source's materials (flat colours: X3DMaterial, CityJSON `materials`) but
+    /// keeps its textures (default `true`). Some models colour faces by their class only (red roofs,
+    /// white walls); the procedural look is then closer to a photograph.
+    #[serde(default)]
+    pub materials: Option<bool>,
 }
 
 /// What a source's heights are measured from.

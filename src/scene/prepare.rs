@@ -184,6 +184,7 @@ fn read_one(
         weld_tolerance_m: src.weld_tolerance_m,
         theme: src.theme.clone(),
         no_appearance: !src.appearance.unwrap_or(true),
+        no_materials: !src.materials.unwrap_or(true),
     };
     let model = lod::read_source(&path, format, &opts)?;
     let fmt = format

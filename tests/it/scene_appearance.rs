@@ -133,6 +133,13 @@ mod readers {
         assert_eq!(roof(&m, "tex").1, Some(FaceAppearance::Colour { rgb: [0.9, 0.9, 0.9] }));
         let m = read("textured_boxes_epsg_7415.gml", Some("no such theme"));
         assert!(m.buildings.iter().all(|b| b.appearance.is_empty()));
+        // `materials = false`: the textures stay, the colours go.
+        for name in ["textured_boxes_epsg_7415.gml", "textured_boxes_epsg_7415.city.json"] {
+            let opts = ReadOptions { no_materials: true, ..ReadOptions::default() };
+            let m = lod::read_source(&fixture_path(name), None, &opts).unwrap();
+            assert_eq!((m.appearance.textured_faces, m.appearance.coloured_faces), (2, 0), "{name}");
+            assert_eq!(roof(&m, "col").1, None, "{name}");
+        }
     }
 }
 
