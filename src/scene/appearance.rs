@@ -107,12 +107,33 @@ impl AppearanceTable {
     }
 }
 
-/// Copies the images of `materials` into `dir/`[`TEXTURES_DIR`] (atomically, each file).
+/// Copies the images of `materials` into `dir/`[`TEXTURES_DIR`] (atomically, each file) and removes
+/// the files a previous `prepare` left there that are not among them (the folder itself when there
+/// are no images), so a re-prepared scene holds exactly what its GLB names.
 ///
 /// # Errors
 /// [`FileError`] naming the image or the copy that failed.
 pub fn copy_images(materials: &[AppearanceMaterial], dir: &Path) -> Result<(), FileError> {
     let out = dir.join(TEXTURES_DIR);
+    let wanted: std::collections::HashSet<&str> = materials
+        .iter()
+        .filter_map(|m| match m {
+            AppearanceMaterial::Texture { file_name, .. } => Some(file_name.as_str()),
+            AppearanceMaterial::Colour { .. } => None,
+        })
+        .collect();
+    if let Ok(entries) = std::fs::read_dir(&out) {
+        for e in entries.flatten() {
+            let name = e.file_name();
+            if !wanted.contains(name.to_string_lossy().as_ref()) && e.path().is_file() {
+                std::fs::remove_file(e.path()).map_err(|err| FileError::new("removing", &e.path(), err))?;
+            }
+        }
+        if wanted.is_empty() {
+            // Only fails when something else is in the folder: then it stays.
+            let _ = std::fs::remove_dir(&out);
+        }
+    }
     let mut made = false;
     for m in materials {
         if let AppearanceMaterial::Texture { source, file_name } = m {
@@ -172,10 +193,15 @@ mod tests {
             t.materials[1],
             AppearanceMaterial::Texture { source: png.clone(), file_name: "0002_a_b.png".into() }
         );
+        std::fs::create_dir_all(dir.path().join("textures")).unwrap();
+        std::fs::write(dir.path().join("textures/0001_stale.png"), b"old").unwrap();
         copy_images(&t.materials, dir.path()).unwrap();
         assert_eq!(
             std::fs::read(dir.path().join("textures/0002_a_b.png")).unwrap(),
             std::fs::read(&png).unwrap()
         );
+        assert!(!dir.path().join("textures/0001_stale.png").exists(), "a stale image was left");
+        copy_images(&[], dir.path()).unwrap();
+        assert!(!dir.path().join("textures").exists());
     }
 }

@@ -1026,13 +1026,9 @@ fn write_artifact(
     appearance: Option<&SceneAppearance>,
 ) -> Result<(), SceneError> {
     util::create_dir_all(out_dir)?;
-    let glb_appearance = match appearance {
-        Some(a) => {
-            super::appearance::copy_images(&a.materials, out_dir)?;
-            Some(super::glb::GlbAppearance { vertices: &a.vertices, materials: &a.materials })
-        }
-        None => None,
-    };
+    super::appearance::copy_images(appearance.map_or(&[][..], |a| &a.materials[..]), out_dir)?;
+    let glb_appearance =
+        appearance.map(|a| super::glb::GlbAppearance { vertices: &a.vertices, materials: &a.materials });
     super::glb::write_glb_with_appearance(
         &out_dir.join(artifact::GLB_FILE),
         &scene.mesh,
