@@ -12,8 +12,10 @@ this script is generated: every value comes from the job. The script
 2. imports every model (glTF/GLB) of the job and places it in the area's ENU frame: the glTF importer
    converts y-up to Blender's z-up, Blender (x, y, z) = glTF (x, -z, y); the job gives ENU_from_glTF per
    model, so each imported model is parented to an empty whose matrix is ENU_from_glTF @ inverse(Y2Z);
-3. builds the look: in "rgb" mode procedural facade/roof materials varied per building (LoD models), the
-   models' own materials shown as emission (photogrammetry), a textured ground plane, a sky texture and a
+3. builds the look: in "rgb" mode procedural facade/roof materials varied per building (LoD models) —
+   except faces that carry a source appearance (scene.glb's _APPEARANCE attribute and
+   asset.extras.appearance_materials: textures from textures/ next to the GLB, X3D/CityJSON colours),
+   which show it, lit the same way —, the models' own materials shown as emission (photogrammetry), a textured ground plane, a sky texture and a
    sun, lit as the job's `lighting` says ("direct": Lambertian surfaces, a point-like sun, the sky as a
    non-sampled ambient and glass-reflection emission, no bounces, so nothing but anti-aliasing is noisy;
    "path": Principled BSDFs, the sky as an environment light, bounces); in "ids" mode one flat emission
@@ -34,6 +36,7 @@ Everything else on stdout/stderr is Blender's own logging.
 
 import json
 import math
+import os
 import sys
 import time
 import traceback
@@ -45,6 +48,9 @@ JOB_VERSION = 4
 # interpolation can perturb the value: every pixel of a face reads the exact float).
 FACE_ID_ATTRIBUTE = "insgen_building_id"
 FEATURE_ID_ATTRIBUTE = "_FEATURE_ID_0"
+# Per-vertex appearance number of a scene.glb with textured LoD models (0 = none: the procedural look;
+# k = asset.extras.appearance_materials[k - 1]); see src/scene/glb.rs.
+APPEARANCE_ATTRIBUTE = "_APPEARANCE"
 
 
 def emit(obj):
@@ -704,6 +710,89 @@ def emission_from_base_color(bpy, mat):
     mat.cycles.emission_sampling = "NONE"
 
 
+def glb_appearance_materials(path):
+    """The `asset.extras.appearance_materials` list of a scene.glb written by insgen ([] when absent or
+    when the file is not a GLB): one {"texture": uri} or {"colour": [r, g, b]} per appearance number."""
+    with open(path, "rb") as f:
+        head = f.read(20)
+        if len(head) < 20 or head[:4] != b"glTF" or head[16:20] != b"JSON":
+            return []
+        doc = json.loads(f.read(int.from_bytes(head[12:16], "little")))
+    return doc.get("asset", {}).get("extras", {}).get("appearance_materials", [])
+
+
+def appearance_material(bpy, entry, base_dir, look, lighting, number):
+    """One source appearance lit like the procedural surfaces: its image through the mesh's UV map, or
+    its flat colour. None when the image cannot be loaded (the faces keep the procedural look)."""
+    mat, nt = new_material(bpy, f"insgen_appearance_{number}")
+    out = node(nt, "ShaderNodeOutputMaterial")
+    if "texture" in entry:
+        path = os.path.join(base_dir, entry["texture"])
+        try:
+            image = bpy.data.images.load(path, check_existing=True)
+        except RuntimeError as e:
+            print(f"insgen: texture {path} cannot be loaded ({e}); its faces keep the procedural look",
+                  file=sys.stderr)
+            bpy.data.materials.remove(mat)
+            return None
+        tex = node(nt, "ShaderNodeTexImage", interpolation="Linear", extension="REPEAT")
+        tex.image = image
+        uv = node(nt, "ShaderNodeUVMap")
+        nt.links.new(uv.outputs["UV"], tex.inputs["Vector"])
+        color = tex.outputs["Color"]
+    else:
+        rgb = node(nt, "ShaderNodeRGB")
+        rgb.outputs[0].default_value = (*[float(c) for c in entry["colour"]], 1.0)
+        color = rgb.outputs[0]
+    if lighting == "direct":
+        shader = direct_shader(nt, color, look)
+        mat.cycles.emission_sampling = "NONE"
+    else:
+        shader = principled_shader(nt, color, 0.85, 0.3)
+    nt.links.new(shader, out.inputs["Surface"])
+    return mat
+
+
+def apply_appearances(bpy, meshes, glb_path, look, lighting):
+    """Textured and coloured faces of a LoD model show their source appearance: one material slot per
+    appearance after the procedural slot 0, chosen per face from the _APPEARANCE attribute (its first
+    corner's vertex, as for the building ID). Faces with appearance 0 keep the procedural look."""
+    entries = glb_appearance_materials(glb_path)
+    if not entries:
+        return
+    base_dir = os.path.dirname(os.path.abspath(glb_path))
+    mats = [appearance_material(bpy, e, base_dir, look, lighting, k + 1) for k, e in enumerate(entries)]
+    for obj in meshes:
+        mesh = obj.data
+        src = mesh.attributes.get(APPEARANCE_ATTRIBUTE)
+        n_faces = len(mesh.polygons)
+        if src is None or not n_faces:
+            continue
+        values = [0.0] * len(src.data)
+        src.data.foreach_get("value", values)
+        starts = [0] * n_faces
+        mesh.polygons.foreach_get("loop_start", starts)
+        if src.domain == "POINT":
+            corner_verts = [0] * len(mesh.loops)
+            mesh.loops.foreach_get("vertex_index", corner_verts)
+            numbers = [int(round(values[corner_verts[s]])) for s in starts]
+        elif src.domain == "CORNER":
+            numbers = [int(round(values[s])) for s in starts]
+        else:
+            numbers = [int(round(v)) for v in values]
+        # Slot k + 1 holds appearance k + 1; a material that could not be built maps to slot 0.
+        slot_of = [0]
+        for m in mats:
+            if m is None:
+                slot_of.append(0)
+            else:
+                mesh.materials.append(m)
+                slot_of.append(len(mesh.materials) - 1)
+        indices = [slot_of[k] if 0 <= k < len(slot_of) else 0 for k in numbers]
+        mesh.polygons.foreach_set("material_index", indices)
+        mesh.update()
+
+
 def assign_material(meshes, mat):
     for obj in meshes:
         obj.data.materials.clear()
@@ -1012,6 +1101,7 @@ def build_look(bpy, scene, job, placed):
     for _root, meshes, model in placed:
         if model["kind"] == "lod":
             assign_material(meshes, bmat)
+            apply_appearances(bpy, meshes, model["glb"], look, lighting)
         else:
             for obj in meshes:
                 for slot in obj.material_slots:

@@ -97,7 +97,7 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         return Ok(());
     }
     let file = args.file.as_ref().expect("clap requires FILE or --area");
-    let opts = ReadOptions { lod: args.lod.clone(), weld_tolerance_m: None };
+    let opts = ReadOptions { lod: args.lod.clone(), ..ReadOptions::default() };
     let m = lod::read_source(file, None, &opts).with_context(|| format!("inspecting {}", file.display()))?;
     // Resolve the CRS as `prepare` does, so that an unknown code fails here too (exit 1).
     let frame = match &m.frame {

@@ -73,6 +73,18 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
             report.out_dir.display(),
             report.seconds
         ));
+        let apps: Vec<_> = m.sources.iter().filter_map(|s| s.appearance.as_ref()).collect();
+        if !apps.is_empty() {
+            let sum = |f: fn(&&scene::artifact::AppearanceEntry) -> u64| apps.iter().map(f).sum::<u64>();
+            let missing = sum(|a| a.missing_images);
+            printer.summary(format!(
+                "{area}: appearances: {}, {}, {missing} of {} missing{}",
+                counted(sum(|a| a.textured_faces), "textured face", "textured faces"),
+                counted(sum(|a| a.coloured_faces), "coloured face", "coloured faces"),
+                counted(sum(|a| a.images), "image", "images"),
+                if missing > 0 { " (their faces keep the procedural look)" } else { "" }
+            ));
+        }
     }
     Ok(())
 }

@@ -24,7 +24,15 @@
 //! - `xlink:href="#id"` references to surfaces defined elsewhere *in the same building* (PLATEAU
 //!   `lod2Solid`s reference their `boundedBy` polygons): resolved at the end of the building, and
 //!   each polygon is emitted once however often it is referenced;
-//! - `bldg:measuredHeight` of the building (metres).
+//! - `bldg:measuredHeight` of the building (metres);
+//! - appearances (`app:Appearance`, at the city-model level as PLATEAU writes them or inside a
+//!   building): `app:ParameterizedTexture` (`imageURI`; `target uri="#polygon"` with `TexCoordList/
+//!   textureCoordinates ring="#ring"`, matched to the ring's gml:id, else by position) and
+//!   `app:X3DMaterial` (`diffuseColor`, `target` text). Theme: [`ReadOptions::theme`], else the first
+//!   `app:theme` of each kind in document order; texture coordinates follow the ring clean-up below
+//!   ([`super::clean_ring_indices`]). A texture wins over a colour on the same face. Targets that name
+//!   no read polygon, or whose coordinates do not cover its ring, are counted
+//!   ([`super::ModelAppearance::unusable_targets`]); `TexCoordGen` and `GeoreferencedTexture` are not read.
 //!
 //! LoD choice: [`ReadOptions::lod`] `"1"` or `"2"` forces one; by default a building gets the highest
 //! LoD ≤ 2 it has. A building part that lacks the chosen LoD contributes its best lower LoD instead,
@@ -48,8 +56,8 @@ use quick_xml::events::{BytesStart, Event};
 use quick_xml::Reader;
 
 use super::{
-    clean_ring, AxisConvention, Frame, Geometry, LodError, Polygon, ReadOptions, ReadStats, SourceBuilding,
-    SourceModel, MAX_ABS_COORDINATE,
+    clean_ring_indices, AxisConvention, FaceAppearance, Frame, Geometry, LodError, ModelAppearance, Polygon,
+    ReadOptions, ReadStats, SourceBuilding, SourceModel, MAX_ABS_COORDINATE,
 };
 use crate::util::FileError;
 
@@ -84,6 +92,9 @@ pub fn read(path: &Path, opts: &ReadOptions) -> Result<SourceModel, LodError> {
     };
     let file = File::open(path).map_err(|e| FileError::new("opening", path, e))?;
     let mut parser = Parser::new(path, forced_lod);
+    parser.wanted_theme = opts.theme.clone();
+    parser.no_appearance = opts.no_appearance;
+    parser.no_materials = opts.no_materials;
     parser.file_len = file.metadata().ok().map(|m| m.len());
     parser.run(BufReader::with_capacity(1 << 16, file))?;
     parser.finish()
@@ -122,6 +133,8 @@ struct Building {
     /// Index into `components` of the part being read (innermost last; `[0]` = the building).
     component_stack: Vec<usize>,
     polygons: Vec<Result<Polygon, Dropped>>,
+    /// Per polygon of `polygons`: its ring ids and kept vertex indices, for texture coordinates.
+    poly_meta: Vec<Option<PolyMeta>>,
     /// `gml:id` → range of `polygons` defined inside that element.
     id_ranges: HashMap<String, (usize, usize)>,
     /// LoD index of the geometry property being read, if any.
@@ -134,14 +147,56 @@ struct Building {
 struct PolygonAcc {
     id: Option<String>,
     exterior: Option<Vec<[f64; 3]>>,
+    exterior_id: Option<String>,
     interiors: Vec<Vec<[f64; 3]>>,
+    interior_ids: Vec<Option<String>>,
     outlier: Option<[f64; 2]>,
 }
 
 #[derive(Debug)]
 struct RingAcc {
     exterior: bool,
+    /// The `LinearRing`'s gml:id (what `textureCoordinates/@ring` names).
+    id: Option<String>,
     points: Vec<[f64; 3]>,
+}
+
+/// What texture coordinates need of an emitted polygon: per kept ring (exterior first), its gml:id and
+/// the indices of the points kept by the clean-up.
+#[derive(Debug, Clone)]
+struct PolyMeta {
+    /// The polygon's gml:id.
+    id: String,
+    rings: Vec<(Option<String>, Vec<usize>)>,
+}
+
+/// The texture coordinates of one ring: the `ring` it names (gml:id) and the (u, v) pairs.
+type RingCoords = (Option<String>, Vec<[f64; 2]>);
+
+/// One `app:ParameterizedTexture` of the chosen or any theme, as read.
+#[derive(Debug, Default)]
+struct TextureAcc {
+    theme: String,
+    image_uri: String,
+    /// (polygon gml:id, [(ring gml:id, coordinates)]).
+    targets: Vec<(String, Vec<RingCoords>)>,
+}
+
+/// One `app:X3DMaterial`, as read.
+#[derive(Debug, Default)]
+struct MaterialAcc {
+    theme: String,
+    rgb: Option<[f64; 3]>,
+    /// Polygon gml:ids.
+    targets: Vec<String>,
+}
+
+/// The `app:Appearance` being read.
+#[derive(Debug, Default)]
+struct AppearanceAcc {
+    theme: String,
+    texture: Option<TextureAcc>,
+    material: Option<MaterialAcc>,
 }
 
 /// What an open element means to the reader.
@@ -167,6 +222,16 @@ enum Role {
     Coordinates,
     /// A `posList`/`pos`/`coordinates` outside any building (roads, relief, …): only checked.
     SkippedCoords,
+    /// `app:Appearance` and the elements inside it.
+    Appearance,
+    AppTheme,
+    AppImageUri,
+    AppDiffuse,
+    /// `app:target` of an X3DMaterial (the polygon's URI is the text).
+    AppTargetText,
+    /// `app:target uri="…"` of a ParameterizedTexture (coordinates inside).
+    AppTarget,
+    AppTexCoords,
 }
 
 /// One open element.
@@ -261,6 +326,21 @@ struct Parser<'p> {
     root_seen: bool,
     /// Where the first unusable coordinate outside any building is (for the warning).
     first_bad_unused: Option<String>,
+    /// `ReadOptions::theme` / `no_appearance`.
+    wanted_theme: Option<String>,
+    no_appearance: bool,
+    no_materials: bool,
+    /// The appearance being read, and all read so far.
+    appearance: Option<AppearanceAcc>,
+    textures: Vec<TextureAcc>,
+    materials: Vec<MaterialAcc>,
+    /// Themes in document order.
+    themes: Vec<String>,
+    /// `ring` attribute of the `textureCoordinates` being read.
+    tex_ring: Option<String>,
+    /// Emitted polygons by gml:id: (index in `buildings`, polygon index), and their ring data.
+    poly_refs: HashMap<String, (usize, usize)>,
+    poly_meta: Vec<Vec<Option<PolyMeta>>>,
 }
 
 fn local(name: &str) -> &str {
@@ -288,6 +368,16 @@ impl<'p> Parser<'p> {
             file_len: None,
             root_seen: false,
             first_bad_unused: None,
+            wanted_theme: None,
+            no_appearance: false,
+            no_materials: false,
+            appearance: None,
+            textures: Vec::new(),
+            materials: Vec::new(),
+            themes: Vec::new(),
+            tex_ring: None,
+            poly_refs: HashMap::new(),
+            poly_meta: Vec::new(),
         }
     }
 
@@ -415,7 +505,9 @@ impl<'p> Parser<'p> {
         let parent = self.open.last().map_or(Role::Other, |o| o.role);
         let mut open = Open { role: Role::Other, id_scope: None, srs_dim: None };
 
-        if self.building.is_none() {
+        if name == "Appearance" && !self.no_appearance || self.appearance.is_some() {
+            self.appearance_start(e, name, parent, &mut open)?;
+        } else if self.building.is_none() {
             match name {
                 "Building" | "BuildingPart" => {
                     self.dropping.buildings_seen += 1;
@@ -441,6 +533,7 @@ impl<'p> Parser<'p> {
                         components: vec![Component::default()],
                         component_stack: vec![0],
                         polygons: Vec::new(),
+                        poly_meta: Vec::new(),
                         id_ranges: HashMap::new(),
                         geom_lod: None,
                         polygon: None,
@@ -539,7 +632,8 @@ impl<'p> Parser<'p> {
             }
             "LinearRing" if matches!(parent, Role::Exterior | Role::Interior) => {
                 let exterior = parent == Role::Exterior;
-                self.building_mut().ring = Some(RingAcc { exterior, points: Vec::new() });
+                let id = self.attr(e, "id")?;
+                self.building_mut().ring = Some(RingAcc { exterior, id, points: Vec::new() });
                 open.role = Role::Ring;
             }
             "posList" if parent == Role::Ring => open.role = Role::PosList,
@@ -550,6 +644,196 @@ impl<'p> Parser<'p> {
         Ok(())
     }
 
+    /// A start tag inside `app:Appearance` (CityGML 2.0 appearance module): theme, textures with
+    /// their targets and coordinates, X3D materials with their colour and targets.
+    fn appearance_start(
+        &mut self,
+        e: &BytesStart,
+        name: &str,
+        parent: Role,
+        open: &mut Open,
+    ) -> Result<(), LodError> {
+        match name {
+            "Appearance" if self.appearance.is_none() => {
+                self.appearance = Some(AppearanceAcc::default());
+                open.role = Role::Appearance;
+            }
+            "theme" if parent == Role::Appearance => open.role = Role::AppTheme,
+            "ParameterizedTexture" => {
+                let theme = self.appearance.as_ref().map(|a| a.theme.clone()).unwrap_or_default();
+                if let Some(a) = self.appearance.as_mut() {
+                    a.texture = Some(TextureAcc { theme, ..TextureAcc::default() });
+                }
+            }
+            "X3DMaterial" => {
+                let theme = self.appearance.as_ref().map(|a| a.theme.clone()).unwrap_or_default();
+                if let Some(a) = self.appearance.as_mut() {
+                    a.material = Some(MaterialAcc { theme, ..MaterialAcc::default() });
+                }
+            }
+            "imageURI" => open.role = Role::AppImageUri,
+            "diffuseColor" => open.role = Role::AppDiffuse,
+            "target" => {
+                let in_texture = self.appearance.as_ref().is_some_and(|a| a.texture.is_some());
+                if in_texture {
+                    let uri = self.attr(e, "uri")?.unwrap_or_default();
+                    let id = uri.strip_prefix('#').unwrap_or(&uri).to_string();
+                    if let Some(t) = self.appearance.as_mut().and_then(|a| a.texture.as_mut()) {
+                        t.targets.push((id, Vec::new()));
+                    }
+                    open.role = Role::AppTarget;
+                } else {
+                    open.role = Role::AppTargetText;
+                }
+            }
+            "textureCoordinates" => {
+                let ring = self.attr(e, "ring")?;
+                self.tex_ring = ring.map(|r| r.strip_prefix('#').unwrap_or(&r).to_string());
+                open.role = Role::AppTexCoords;
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// An end tag inside `app:Appearance`.
+    fn appearance_end(&mut self, role: Role) {
+        let text = self.text.trim().to_string();
+        let Some(a) = self.appearance.as_mut() else { return };
+        match role {
+            Role::AppTheme => {
+                if !self.themes.contains(&text) {
+                    self.themes.push(text.clone());
+                }
+                a.theme = text;
+            }
+            Role::AppImageUri => {
+                if let Some(t) = a.texture.as_mut() {
+                    t.image_uri = text;
+                }
+            }
+            Role::AppDiffuse => {
+                let v: Vec<f64> = text.split_ascii_whitespace().filter_map(|t| t.parse().ok()).collect();
+                if let (Some(m), [r, g, b]) = (a.material.as_mut(), v.as_slice()) {
+                    m.rgb = Some([*r, *g, *b]).filter(|c| c.iter().all(|v| v.is_finite()));
+                }
+            }
+            Role::AppTargetText => {
+                if let Some(m) = a.material.as_mut() {
+                    m.targets.push(text.strip_prefix('#').unwrap_or(&text).to_string());
+                }
+            }
+            Role::AppTexCoords => {
+                let uv: Vec<f64> =
+                    text.split_ascii_whitespace().map(|t| t.parse().unwrap_or(f64::NAN)).collect();
+                let coords: Vec<[f64; 2]> = uv.chunks_exact(2).map(|c| [c[0], c[1]]).collect();
+                if let Some((_, rings)) = a.texture.as_mut().and_then(|t| t.targets.last_mut()) {
+                    rings.push((self.tex_ring.take(), coords));
+                }
+            }
+            Role::Appearance => {
+                // Themes of appearances without an app:theme are "" (as in CityJSON).
+                if a.theme.is_empty() && !self.themes.iter().any(String::is_empty) {
+                    self.themes.push(String::new());
+                }
+                self.appearance = None;
+            }
+            _ => {}
+        }
+    }
+
+    /// The end of a ParameterizedTexture or X3DMaterial element: keeps what was read.
+    fn appearance_surface_end(&mut self, name: &str) {
+        let Some(a) = self.appearance.as_mut() else { return };
+        match name {
+            "ParameterizedTexture" => self.textures.extend(a.texture.take()),
+            "X3DMaterial" => self.materials.extend(a.material.take()),
+            _ => {}
+        }
+    }
+
+    /// Applies the chosen themes' textures and materials to the emitted buildings.
+    fn resolve_appearances(&mut self) -> ModelAppearance {
+        let mut out = ModelAppearance { themes: self.themes.clone(), ..ModelAppearance::default() };
+        let first = |list: Vec<&String>| list.first().map(|s| s.to_string());
+        out.texture_theme = match &self.wanted_theme {
+            Some(w) => Some(w.clone()),
+            None => first(self.textures.iter().map(|t| &t.theme).collect()),
+        };
+        out.material_theme = match &self.wanted_theme {
+            Some(w) => Some(w.clone()),
+            None => first(self.materials.iter().map(|t| &t.theme).collect()),
+        };
+        let mut faces: Vec<Vec<Option<FaceAppearance>>> = self
+            .buildings
+            .iter()
+            .map(|b| match &b.geometry {
+                Geometry::Polygons(p) => vec![None; p.len()],
+                Geometry::Mesh(_) => Vec::new(),
+            })
+            .collect();
+        // Materials first, so that a texture on the same face wins.
+        let no_materials = self.no_materials;
+        for m in
+            self.materials.iter().filter(|m| !no_materials && Some(&m.theme) == out.material_theme.as_ref())
+        {
+            let Some(rgb) = m.rgb else { continue };
+            for t in &m.targets {
+                match self.poly_refs.get(t) {
+                    Some(&(b, p)) => faces[b][p] = Some(FaceAppearance::Colour { rgb }),
+                    None => out.unusable_targets += 1,
+                }
+            }
+        }
+        let dir = self.path.parent().unwrap_or(Path::new("."));
+        let mut image_index: HashMap<String, usize> = HashMap::new();
+        for t in self.textures.iter().filter(|t| Some(&t.theme) == out.texture_theme.as_ref()) {
+            let image = *image_index.entry(t.image_uri.clone()).or_insert_with(|| {
+                out.images.push(dir.join(&t.image_uri));
+                out.images.len() - 1
+            });
+            for (poly, rings) in &t.targets {
+                let Some(&(b, p)) = self.poly_refs.get(poly) else {
+                    out.unusable_targets += 1;
+                    continue;
+                };
+                let Some(meta) = self.poly_meta[b][p].as_ref() else { continue };
+                // Coordinates of a ring: by its gml:id, else by position.
+                let coords_of = |k: usize, id: &Option<String>| {
+                    id.as_ref()
+                        .and_then(|id| rings.iter().find(|(r, _)| r.as_ref() == Some(id)))
+                        .or_else(|| if id.is_none() { rings.get(k) } else { None })
+                        .map(|(_, c)| c)
+                };
+                let pick = |k: usize| -> Option<Vec<[f64; 2]>> {
+                    let (id, keep) = &meta.rings[k];
+                    let c = coords_of(k, id)?;
+                    keep.iter()
+                        .map(|&i| c.get(i).copied().filter(|uv| uv.iter().all(|v| v.is_finite())))
+                        .collect()
+                };
+                let Some(uv_exterior) = pick(0) else {
+                    out.unusable_targets += 1;
+                    continue;
+                };
+                let uv_interiors = (1..meta.rings.len())
+                    .map(|k| pick(k).unwrap_or_else(|| vec![uv_exterior[0]; meta.rings[k].1.len()]))
+                    .collect();
+                faces[b][p] = Some(FaceAppearance::Texture { image, uv_exterior, uv_interiors });
+            }
+        }
+        for (b, f) in self.buildings.iter_mut().zip(faces) {
+            for a in f.iter().flatten() {
+                match a {
+                    FaceAppearance::Texture { .. } => out.textured_faces += 1,
+                    FaceAppearance::Colour { .. } => out.coloured_faces += 1,
+                }
+            }
+            b.appearance = if f.iter().any(Option::is_some) { f } else { Vec::new() };
+        }
+        out
+    }
+
     /// Handles an end tag (also the end half of an empty element).
     fn end(&mut self) -> Result<(), LodError> {
         let Some(open) = self.open.pop() else {
@@ -557,6 +841,13 @@ impl<'p> Parser<'p> {
         };
         if open.role.is_capture() {
             self.capturing = false;
+        }
+        if self.appearance.is_some() {
+            let name = self.names.get(self.names.len() - 1);
+            let name = local(name).to_string();
+            self.appearance_surface_end(&name);
+            self.appearance_end(open.role);
+            return Ok(());
         }
         match open.role {
             Role::Building => self.finish_building(),
@@ -600,8 +891,10 @@ impl<'p> Parser<'p> {
                 if let (Some(ring), Some(poly)) = (b.ring.take(), b.polygon.as_mut()) {
                     if ring.exterior && poly.exterior.is_none() {
                         poly.exterior = Some(ring.points);
+                        poly.exterior_id = ring.id;
                     } else {
                         poly.interiors.push(ring.points);
+                        poly.interior_ids.push(ring.id);
                     }
                 }
             }
@@ -760,18 +1053,37 @@ impl<'p> Parser<'p> {
     }
 
     fn finish_polygon(&mut self) {
+        let no_appearance = self.no_appearance;
         let b = self.building_mut();
         let Some(acc) = b.polygon.take() else { return };
-        let slot = match (acc.outlier, acc.exterior.and_then(clean_ring)) {
+        let keep_ext = acc.exterior.as_deref().and_then(clean_ring_indices);
+        let mut meta = None;
+        let slot = match (acc.outlier, keep_ext) {
             (Some(xy), _) => Err(Dropped::OutsideEnvelope(xy)),
             (None, None) => Err(Dropped::Degenerate),
-            (None, Some(exterior)) => {
-                let interiors = acc.interiors.into_iter().filter_map(clean_ring).collect();
-                Ok(Polygon { exterior, interiors })
+            (None, Some(keep)) => {
+                let pick =
+                    |ring: &[[f64; 3]], keep: &[usize]| keep.iter().map(|&i| ring[i]).collect::<Vec<_>>();
+                let ext = acc.exterior.as_deref().unwrap_or(&[]);
+                let mut rings = vec![(acc.exterior_id, keep.clone())];
+                let mut interiors = Vec::new();
+                for (ring, id) in acc.interiors.iter().zip(acc.interior_ids) {
+                    if let Some(k) = clean_ring_indices(ring) {
+                        interiors.push(pick(ring, &k));
+                        rings.push((id, k));
+                    }
+                }
+                meta = Some(PolyMeta { id: String::new(), rings });
+                Ok(Polygon { exterior: pick(ext, &keep), interiors })
             }
         };
         let index = b.polygons.len();
         b.polygons.push(slot);
+        // Only polygons with a gml:id can be the target of an appearance.
+        b.poly_meta.push(match (acc.id, meta, no_appearance) {
+            (Some(id), Some(m), false) => Some(PolyMeta { id, rings: m.rings }),
+            _ => None,
+        });
         if let Some(lod) = b.geom_lod {
             let comp = *b.component_stack.last().unwrap_or(&0);
             b.components[comp].entries[lod].push(Entry::Inline(index));
@@ -845,11 +1157,18 @@ impl<'p> Parser<'p> {
             }
         }
         let mut polygons = Vec::new();
+        let mut metas = Vec::new();
         let mut degenerate = 0u64;
         for &(c, l) in &picks {
             for &i in &lists[l][c] {
                 match std::mem::replace(&mut b.polygons[i], Err(Dropped::Degenerate)) {
-                    Ok(p) => polygons.push(p),
+                    Ok(p) => {
+                        if let Some(m) = &b.poly_meta[i] {
+                            self.poly_refs.insert(m.id.clone(), (self.buildings.len(), polygons.len()));
+                        }
+                        polygons.push(p);
+                        metas.push(b.poly_meta[i].take());
+                    }
                     Err(Dropped::Degenerate) => degenerate += 1,
                     Err(Dropped::OutsideEnvelope(xy)) => {
                         degenerate += 1;
@@ -890,16 +1209,18 @@ impl<'p> Parser<'p> {
         }
         self.stats.faces += polygons.len() as u64;
         let lod = chosen.map_or("", |l| LOD_NAMES[l]).to_string();
+        self.poly_meta.push(metas);
         self.buildings.push(SourceBuilding {
             source_id: b.id,
             lod,
             measured_height_m: b.measured_height_m,
             ground_heights_m: Vec::new(),
             geometry: Geometry::Polygons(polygons),
+            appearance: Vec::new(),
         });
     }
 
-    fn finish(self) -> Result<SourceModel, LodError> {
+    fn finish(mut self) -> Result<SourceModel, LodError> {
         if self.buildings.is_empty() {
             let d = &self.dropping;
             let lod = match self.forced_lod {
@@ -945,12 +1266,14 @@ impl<'p> Parser<'p> {
                 self.dropping.unresolved_refs
             );
         }
+        let appearance = self.resolve_appearances();
         let name = self.envelope.srs_name.or(self.first_srs_name);
         Ok(SourceModel {
             path: self.path.to_path_buf(),
             frame: Frame::Crs { name, axes: AxisConvention::Authority },
             buildings: self.buildings,
             stats: self.stats,
+            appearance,
         })
     }
 
@@ -987,6 +1310,11 @@ impl Role {
                 | Role::Pos
                 | Role::Coordinates
                 | Role::SkippedCoords
+                | Role::AppTheme
+                | Role::AppImageUri
+                | Role::AppDiffuse
+                | Role::AppTargetText
+                | Role::AppTexCoords
         )
     }
 }

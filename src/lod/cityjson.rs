@@ -21,7 +21,14 @@
 //!   `transformationMatrix` and placed at its reference point); points and lines are ignored;
 //! - `transform` (`scale`, `translate`) turns the quantised vertices into coordinates;
 //!   `metadata.referenceSystem` is kept verbatim as the frame name (absent → `None`);
-//! - `attributes.measuredHeight` of the Building (metres).
+//! - `attributes.measuredHeight` of the Building (metres);
+//! - `appearance` of a document or CityJSONSeq header (`textures` → the model's images, resolved
+//!   against the file's folder; `materials[].diffuseColor`; `vertices-texture`) and each geometry's
+//!   `texture` / `material` values (nested like the boundaries; `value` for all surfaces). Theme:
+//!   [`ReadOptions::theme`], else the first theme of each kind in file order. Texture coordinates follow
+//!   the ring clean-up ([`super::clean_ring_indices`]); a texture value that does not fit its ring is
+//!   counted ([`super::ModelAppearance::unusable_targets`]). Appearances of geometry templates and of
+//!   individual CityJSONSeq features are not read.
 //!
 //! LoD choice: [`ReadOptions::lod`] forces one (exact match, `"2"` equals `"2.0"`; a building lacking
 //! it counts as without geometry). By default each building gets the highest LoD in [1, 2.2] it has
@@ -48,8 +55,8 @@ use serde::de::{self, DeserializeSeed, Deserializer, MapAccess, SeqAccess, Visit
 use serde::Deserialize;
 
 use super::{
-    clean_ring, AxisConvention, Frame, Geometry, LodError, Polygon, ReadOptions, ReadStats, SourceBuilding,
-    SourceModel, MAX_ABS_COORDINATE,
+    clean_ring_indices, AxisConvention, FaceAppearance, Frame, Geometry, LodError, ModelAppearance, Polygon,
+    ReadOptions, ReadStats, SourceBuilding, SourceModel, MAX_ABS_COORDINATE,
 };
 use crate::util::FileError;
 
@@ -118,6 +125,67 @@ struct Document {
     vertices: Vec<[f64; 3]>,
     #[serde(rename = "geometry-templates")]
     geometry_templates: Option<Templates>,
+    /// Materials, textures and texture coordinates the geometries' `material`/`texture` refer to.
+    appearance: Option<CjAppearance>,
+}
+
+/// `appearance`: the shared lists the geometries index into.
+#[derive(Debug, Default, Deserialize)]
+struct CjAppearance {
+    #[serde(default)]
+    materials: Vec<CjMaterial>,
+    #[serde(default)]
+    textures: Vec<CjTexture>,
+    /// (u, v) pairs, indexed by the texture values of the geometries.
+    #[serde(rename = "vertices-texture", default)]
+    vertices_texture: Vec<[f64; 2]>,
+}
+
+/// One X3D-like material (only the colour is used).
+#[derive(Debug, Deserialize)]
+struct CjMaterial {
+    /// Linear RGB in 0..=1.
+    #[serde(rename = "diffuseColor")]
+    diffuse_color: Option<[f64; 3]>,
+}
+
+/// One texture: an image file (relative to the CityJSON file, or a URL).
+#[derive(Debug, Deserialize)]
+struct CjTexture {
+    image: String,
+}
+
+/// A geometry's `material` or `texture` member: theme name → values, in file order.
+#[derive(Debug, Default)]
+struct Themed(Vec<(String, ThemeValues)>);
+
+/// One theme of a geometry: `values` (nested like the boundaries) or one `value` for every surface.
+#[derive(Debug, Deserialize)]
+struct ThemeValues {
+    #[serde(default)]
+    values: Option<serde_json::Value>,
+    #[serde(default)]
+    value: Option<u64>,
+}
+
+impl<'de> Deserialize<'de> for Themed {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = Themed;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("an object of themes")
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Themed, A::Error> {
+                let mut out = Vec::new();
+                while let Some((k, v)) = map.next_entry::<String, ThemeValues>()? {
+                    out.push((k, v));
+                }
+                Ok(Themed(out))
+            }
+        }
+        d.deserialize_map(V)
+    }
 }
 
 /// `transform`: real coordinate = `vertex[i] · scale[i] + translate[i]`.
@@ -184,6 +252,12 @@ struct CjGeometry {
     /// `GeometryInstance`: 4×4 row-major matrix applied to the template vertices.
     #[serde(rename = "transformationMatrix")]
     transformation_matrix: Option<Vec<f64>>,
+    /// Material per surface, per theme.
+    #[serde(default)]
+    material: Themed,
+    /// Texture and texture coordinates per ring, per theme.
+    #[serde(default)]
+    texture: Themed,
 }
 
 /// A `lod` value, kept as the file spells it.
@@ -438,6 +512,41 @@ impl VertexSource<'_> {
 struct Converted {
     lod: LodValue,
     polygons: Vec<Result<Polygon, ()>>,
+    /// The appearance of each polygon in the chosen themes (parallel to `polygons`).
+    appearance: Vec<Option<FaceAppearance>>,
+}
+
+/// The chosen themes' values of one geometry, flattened to one entry per surface (document order).
+#[derive(Default)]
+struct GeomAppearance<'a> {
+    /// Per surface: its rings' `[texture index, uv index, …]` arrays.
+    textures: Option<Vec<&'a serde_json::Value>>,
+    /// Per surface: the material index (`value` gives one for all).
+    materials: Option<Vec<Option<u64>>>,
+    all_material: Option<u64>,
+}
+
+/// The surfaces of a texture `values` array: arrays whose elements are rings (arrays starting with
+/// a texture index or null), found at any depth (MultiSurface, Solid, MultiSolid nesting).
+fn texture_surfaces<'a>(v: &'a serde_json::Value, out: &mut Vec<&'a serde_json::Value>) {
+    let Some(items) = v.as_array() else { return };
+    let is_surface = items
+        .first()
+        .and_then(|r| r.as_array())
+        .is_some_and(|ring| ring.first().is_none_or(|x| x.is_number() || x.is_null()));
+    if is_surface || items.is_empty() {
+        out.push(v);
+    } else {
+        items.iter().for_each(|i| texture_surfaces(i, out));
+    }
+}
+
+/// The leaves (material indices or null) of a material `values` array, in document order.
+fn material_leaves(v: &serde_json::Value, out: &mut Vec<Option<u64>>) {
+    match v {
+        serde_json::Value::Array(items) => items.iter().for_each(|i| material_leaves(i, out)),
+        other => out.push(other.as_u64()),
+    }
 }
 
 struct Reader<'p> {
@@ -453,6 +562,15 @@ struct Reader<'p> {
     buildings_degenerate: u64,
     /// The first unusable coordinate that no building uses: (where, value).
     first_bad_unused: Option<(String, [f64; 3])>,
+    /// The document's (or CityJSONSeq header's) `appearance`.
+    app_lists: Option<CjAppearance>,
+    /// Themes found and chosen, images, counts.
+    appearance: ModelAppearance,
+    wanted_theme: Option<String>,
+    no_appearance: bool,
+    no_materials: bool,
+    /// Texture values that do not fit their surface (counted while walking, which borrows `self`).
+    unusable_targets: std::cell::Cell<u64>,
 }
 
 impl<'p> Reader<'p> {
@@ -469,7 +587,113 @@ impl<'p> Reader<'p> {
             buildings_empty: 0,
             buildings_degenerate: 0,
             first_bad_unused: None,
+            app_lists: None,
+            appearance: ModelAppearance::default(),
+            wanted_theme: opts.theme.clone(),
+            no_appearance: opts.no_appearance,
+            no_materials: opts.no_materials,
+            unusable_targets: std::cell::Cell::new(0),
         }
+    }
+
+    /// Takes a document's `appearance`: its textures become the model's images (same indices),
+    /// resolved against the file's folder.
+    fn take_appearance(&mut self, app: Option<CjAppearance>) {
+        let Some(app) = app else { return };
+        if self.no_appearance {
+            return;
+        }
+        let dir = self.path.parent().unwrap_or(Path::new("."));
+        self.appearance.images = app.textures.iter().map(|t| dir.join(&t.image)).collect();
+        self.app_lists = Some(app);
+    }
+
+    /// Records the themes of a geometry and picks the values of the chosen ones (the first theme seen,
+    /// or the wanted one).
+    fn geometry_appearance<'g>(&mut self, geom: &'g CjGeometry) -> GeomAppearance<'g> {
+        let mut out = GeomAppearance::default();
+        if self.no_appearance || self.app_lists.is_none() {
+            return out;
+        }
+        for (name, _) in geom.texture.0.iter().chain(geom.material.0.iter()) {
+            if !self.appearance.themes.contains(name) {
+                self.appearance.themes.push(name.clone());
+            }
+        }
+        if self.appearance.texture_theme.is_none() {
+            let first = geom.texture.0.first().map(|(n, _)| n.clone());
+            self.appearance.texture_theme = self.wanted_theme.clone().or(first);
+        }
+        if self.appearance.material_theme.is_none() {
+            let first = geom.material.0.first().map(|(n, _)| n.clone());
+            self.appearance.material_theme = self.wanted_theme.clone().or(first);
+        }
+        let pick = |themed: &'g Themed, theme: &Option<String>| {
+            theme.as_ref().and_then(|t| themed.0.iter().find(|(n, _)| n == t).map(|(_, v)| v))
+        };
+        if let Some(v) = pick(&geom.texture, &self.appearance.texture_theme).and_then(|t| t.values.as_ref()) {
+            let mut s = Vec::new();
+            texture_surfaces(v, &mut s);
+            out.textures = Some(s);
+        }
+        if let Some(m) = pick(&geom.material, &self.appearance.material_theme).filter(|_| !self.no_materials)
+        {
+            out.all_material = m.value;
+            if let Some(v) = &m.values {
+                let mut leaves = Vec::new();
+                material_leaves(v, &mut leaves);
+                out.materials = Some(leaves);
+            }
+        }
+        out
+    }
+
+    /// The appearance of surface `s` of a geometry whose rings (as read, before clean-up) are `rings`
+    /// and cleaned to `keep` (kept indices per kept ring: exterior first).
+    fn face_appearance(
+        &self,
+        app: &GeomAppearance,
+        s: usize,
+        keep: &[(usize, Vec<usize>)],
+    ) -> Option<FaceAppearance> {
+        let lists = self.app_lists.as_ref()?;
+        if let Some(surf) = app.textures.as_ref().and_then(|t| t.get(s)).and_then(|v| v.as_array()) {
+            let ring_uv = |r: usize, idx: &[usize]| -> Option<(usize, Vec<[f64; 2]>)> {
+                let ring = surf.get(r)?.as_array()?;
+                let tex = ring.first()?.as_u64()? as usize;
+                let uv: Vec<[f64; 2]> = ring[1..]
+                    .iter()
+                    .map(|i| i.as_u64().and_then(|i| lists.vertices_texture.get(i as usize).copied()))
+                    .collect::<Option<_>>()?;
+                let picked = idx.iter().map(|&k| uv.get(k).copied()).collect::<Option<Vec<_>>>()?;
+                Some((tex, picked))
+            };
+            let has_texture =
+                surf.first().and_then(|r| r.as_array()).and_then(|r| r.first()).is_some_and(|t| t.is_u64());
+            if has_texture {
+                let ext = keep.first().and_then(|(r, idx)| ring_uv(*r, idx));
+                match ext {
+                    Some((image, uv_exterior)) if image < lists.textures.len() => {
+                        let uv_interiors = keep[1..]
+                            .iter()
+                            .map(|(r, idx)| {
+                                ring_uv(*r, idx)
+                                    .map(|(_, uv)| uv)
+                                    .unwrap_or_else(|| vec![uv_exterior[0]; idx.len()])
+                            })
+                            .collect();
+                        return Some(FaceAppearance::Texture { image, uv_exterior, uv_interiors });
+                    }
+                    _ => self.unusable_targets.set(self.unusable_targets.get() + 1),
+                }
+            }
+        }
+        let m = match &app.materials {
+            Some(leaves) => leaves.get(s).copied().flatten(),
+            None => app.all_material,
+        }?;
+        let rgb = lists.materials.get(m as usize)?.diffuse_color?;
+        rgb.iter().all(|c| c.is_finite()).then_some(FaceAppearance::Colour { rgb })
     }
 
     /// Checks `type`/`version` and takes `transform`, `metadata` and `geometry-templates`.
@@ -508,6 +732,7 @@ impl<'p> Reader<'p> {
         self.transform = doc.transform;
         self.frame_name = doc.metadata.take().and_then(|m| m.reference_system);
         self.templates = doc.geometry_templates.take();
+        self.take_appearance(doc.appearance.take());
         Ok(())
     }
 
@@ -677,7 +902,8 @@ impl<'p> Reader<'p> {
             let mut converted = Vec::new();
             for (g, geom) in obj.geometry.iter().enumerate() {
                 let gpath = format!("{at}CityObjects[{mkey:?}].geometry[{g}]");
-                if let Some(c) = self.convert(geom, source, &gpath)? {
+                let app = self.geometry_appearance(geom);
+                if let Some(c) = self.convert(geom, source, &gpath, &app)? {
                     converted.push(c);
                 }
             }
@@ -706,6 +932,7 @@ impl<'p> Reader<'p> {
             }
         };
         let mut polygons = Vec::new();
+        let mut appearance: Vec<Option<FaceAppearance>> = Vec::new();
         let mut degenerate = 0u64;
         // The LoD as the file spells it (a forced "2.0" may match the file's "2").
         let mut lod_name: Option<String> = None;
@@ -736,9 +963,12 @@ impl<'p> Reader<'p> {
                     if lod_name.is_none() && c.lod.matches(&top.0) {
                         lod_name = Some(c.lod.0.clone());
                     }
-                    for p in c.polygons {
+                    for (p, a) in c.polygons.into_iter().zip(c.appearance) {
                         match p {
-                            Ok(p) => polygons.push(p),
+                            Ok(p) => {
+                                polygons.push(p);
+                                appearance.push(a);
+                            }
                             Err(()) => degenerate += 1,
                         }
                     }
@@ -779,12 +1009,22 @@ impl<'p> Reader<'p> {
                 h.filter(|h| h.is_finite() && h.abs() < 1e4).map(|h| (k.clone(), h))
             })
             .collect();
+        for a in appearance.iter().flatten() {
+            match a {
+                FaceAppearance::Texture { .. } => self.appearance.textured_faces += 1,
+                FaceAppearance::Colour { .. } => self.appearance.coloured_faces += 1,
+            }
+        }
+        if appearance.iter().all(Option::is_none) {
+            appearance.clear();
+        }
         self.buildings.push(SourceBuilding {
             source_id: key.clone(),
             ground_heights_m,
             lod: lod_name.or(top.map(|t| t.0)).unwrap_or_default(),
             measured_height_m,
             geometry: Geometry::Polygons(polygons),
+            appearance,
         });
         Ok(())
     }
@@ -795,6 +1035,7 @@ impl<'p> Reader<'p> {
         geom: &CjGeometry,
         source: &VertexSource,
         gpath: &str,
+        app: &GeomAppearance,
     ) -> Result<Option<Converted>, LodError> {
         if geom.kind == "GeometryInstance" {
             return self.convert_instance(geom, source, gpath).map(Some);
@@ -822,11 +1063,11 @@ impl<'p> Reader<'p> {
                 format!("{} geometry without \"lod\"", geom.kind),
             ));
         };
-        let polygons = match &geom.boundaries {
-            Some(b) => self.surfaces(b, depth, &geom.kind, source, gpath, &|p| p)?,
-            None => Vec::new(),
+        let (polygons, appearance) = match &geom.boundaries {
+            Some(b) => self.surfaces(b, depth, &geom.kind, source, gpath, &|p| p, app)?,
+            None => (Vec::new(), Vec::new()),
         };
-        Ok(Some(Converted { lod, polygons }))
+        Ok(Some(Converted { lod, polygons, appearance }))
     }
 
     /// A `GeometryInstance`: the template's polygons, transformed and placed at the reference point.
@@ -895,14 +1136,19 @@ impl<'p> Reader<'p> {
             let z = m[8] * p[0] + m[9] * p[1] + m[10] * p[2] + m[11];
             [x + r[0], y + r[1], z + r[2]]
         };
-        let polygons = match (&template.boundaries, depth) {
-            (Some(b), 2..=4) => self.surfaces(b, depth, &template.kind, &tsource, &tpath, &place)?,
-            _ => Vec::new(),
+        // Appearances of templates are not read (the instance's faces keep the procedural look).
+        let (polygons, appearance) = match (&template.boundaries, depth) {
+            (Some(b), 2..=4) => {
+                self.surfaces(b, depth, &template.kind, &tsource, &tpath, &place, &GeomAppearance::default())?
+            }
+            _ => (Vec::new(), Vec::new()),
         };
-        Ok(Converted { lod, polygons })
+        Ok(Converted { lod, polygons, appearance })
     }
 
-    /// Walks a surface-based boundaries array (`depth` = depth of the arrays holding indices).
+    /// Walks a surface-based boundaries array (`depth` = depth of the arrays holding indices); returns
+    /// the polygons and their appearances.
+    #[allow(clippy::too_many_arguments, clippy::type_complexity)]
     fn surfaces(
         &self,
         b: &Boundaries,
@@ -911,7 +1157,8 @@ impl<'p> Reader<'p> {
         source: &VertexSource,
         gpath: &str,
         place: &dyn Fn([f64; 3]) -> [f64; 3],
-    ) -> Result<Vec<Result<Polygon, ()>>, LodError> {
+        app: &GeomAppearance,
+    ) -> Result<(Vec<Result<Polygon, ()>>, Vec<Option<FaceAppearance>>), LodError> {
         if b.leaf_depth.is_some_and(|d| d != depth) || b.counts.len() > depth + 1 {
             let found = b.leaf_depth.unwrap_or(b.counts.len().saturating_sub(1));
             return Err(LodError::invalid(
@@ -924,10 +1171,10 @@ impl<'p> Reader<'p> {
                 ),
             ));
         }
-        let mut out = Vec::new();
+        let mut out = (Vec::new(), Vec::new());
         let mut walker = Walker::new(b);
         let mut path = Vec::with_capacity(depth + 1);
-        self.walk(&mut walker, 0, depth, &mut path, source, gpath, place, &mut out)?;
+        self.walk(&mut walker, 0, depth, &mut path, source, gpath, place, app, &mut out)?;
         Ok(out)
     }
 
@@ -941,7 +1188,8 @@ impl<'p> Reader<'p> {
         source: &VertexSource,
         gpath: &str,
         place: &dyn Fn([f64; 3]) -> [f64; 3],
-        out: &mut Vec<Result<Polygon, ()>>,
+        app: &GeomAppearance,
+        out: &mut (Vec<Result<Polygon, ()>>, Vec<Option<FaceAppearance>>),
     ) -> Result<(), LodError> {
         let n = w.take(depth);
         if depth + 2 == leaf_depth {
@@ -961,19 +1209,40 @@ impl<'p> Reader<'p> {
                     rings.push(ring);
                 }
                 path.pop();
-                let mut rings = rings.into_iter();
-                let polygon = match rings.next().and_then(clean_ring) {
-                    Some(exterior) => {
-                        Ok(Polygon { exterior, interiors: rings.filter_map(clean_ring).collect() })
-                    }
-                    None => Err(()),
+                // Clean-up as indices, so that texture coordinates follow the kept vertices.
+                let keep: Vec<(usize, Vec<usize>)> = match rings.first().and_then(|r| clean_ring_indices(r)) {
+                    Some(ext) => std::iter::once((0, ext))
+                        .chain(
+                            rings
+                                .iter()
+                                .enumerate()
+                                .skip(1)
+                                .filter_map(|(r, ring)| clean_ring_indices(ring).map(|k| (r, k))),
+                        )
+                        .collect(),
+                    None => Vec::new(),
                 };
-                out.push(polygon);
+                let ring_of =
+                    |(r, idx): &(usize, Vec<usize>)| idx.iter().map(|&i| rings[*r][i]).collect::<Vec<_>>();
+                let surface = out.0.len();
+                match keep.first() {
+                    Some(ext) => {
+                        out.0.push(Ok(Polygon {
+                            exterior: ring_of(ext),
+                            interiors: keep[1..].iter().map(ring_of).collect(),
+                        }));
+                        out.1.push(self.face_appearance(app, surface, &keep));
+                    }
+                    None => {
+                        out.0.push(Err(()));
+                        out.1.push(None);
+                    }
+                }
             }
         } else {
             for i in 0..n {
                 path.push(i);
-                self.walk(w, depth + 1, leaf_depth, path, source, gpath, place, out)?;
+                self.walk(w, depth + 1, leaf_depth, path, source, gpath, place, app, out)?;
                 path.pop();
             }
         }
@@ -1053,6 +1322,7 @@ impl<'p> Reader<'p> {
             frame: Frame::Crs { name: self.frame_name, axes: AxisConvention::EastNorth },
             buildings: self.buildings,
             stats: self.stats,
+            appearance: ModelAppearance { unusable_targets: self.unusable_targets.get(), ..self.appearance },
         })
     }
 }

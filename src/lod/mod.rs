@@ -65,6 +65,57 @@ pub struct SourceBuilding {
     /// `heights = "above_ground"` adds back; see [`relative_heights`].
     pub ground_heights_m: Vec<(String, f64)>,
     pub geometry: Geometry,
+    /// The appearance of each polygon of [`Geometry::Polygons`] in the chosen theme (parallel to the
+    /// polygon list; `None` = the source gives none for that face). Empty when the building has no
+    /// appearance at all (and always for meshes).
+    pub appearance: Vec<Option<FaceAppearance>>,
+}
+
+/// How one face looks in the source: a texture with per-vertex coordinates, or a flat colour.
+///
+/// From CityGML `app:ParameterizedTexture` (`textureCoordinates` per ring) and `app:X3DMaterial`
+/// (`diffuseColor`), or CityJSON `appearance` (`textures` + `vertices-texture`, `materials`).
+#[derive(Debug, Clone, PartialEq)]
+pub enum FaceAppearance {
+    /// A texture: `image` indexes [`ModelAppearance::images`]; one (u, v) per vertex of the polygon's
+    /// exterior and of each of its interiors, parallel to [`Polygon::exterior`] / [`Polygon::interiors`]
+    /// after the ring clean-up. Texture space as the sources define it: (0, 0) is the image's
+    /// lower-left corner, v up.
+    Texture { image: usize, uv_exterior: Vec<[f64; 2]>, uv_interiors: Vec<Vec<[f64; 2]>> },
+    /// A flat diffuse colour, linear RGB in 0..=1 (X3D `diffuseColor`).
+    Colour { rgb: [f64; 3] },
+}
+
+/// A model's appearances: the themes found, the ones chosen, and the images faces refer to.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct ModelAppearance {
+    /// Every theme that holds a texture or a material, in the order the file first names them
+    /// (CityJSON's unnamed theme is `""`).
+    pub themes: Vec<String>,
+    /// The theme textures were taken from ([`ReadOptions::theme`], else the first texture theme).
+    pub texture_theme: Option<String>,
+    /// The theme materials were taken from ([`ReadOptions::theme`], else the first material theme).
+    pub material_theme: Option<String>,
+    /// Image files, resolved against the model file's folder (they may not exist: the scene stage
+    /// checks them, counts the missing ones and lets their faces keep the procedural look).
+    pub images: Vec<std::path::PathBuf>,
+    /// Faces of the emitted buildings with a texture / with a colour.
+    pub textured_faces: u64,
+    pub coloured_faces: u64,
+    /// Texture targets dropped because their coordinates do not fit the ring (count mismatch) or
+    /// point at no emitted face of the chosen geometry.
+    pub unusable_targets: u64,
+}
+
+impl ModelAppearance {
+    /// Chooses the theme of one kind: the wanted one when given (even if absent: then none), else the
+    /// first of `available`.
+    pub fn choose(wanted: Option<&str>, available: &[String]) -> Option<String> {
+        match wanted {
+            Some(w) => available.iter().find(|t| t.as_str() == w).cloned(),
+            None => available.first().cloned(),
+        }
+    }
 }
 
 /// Attribute names of a building's ground height in the wild: `TerrainHeight` (Dutch municipal
@@ -173,6 +224,8 @@ pub struct SourceModel {
     pub frame: Frame,
     pub buildings: Vec<SourceBuilding>,
     pub stats: ReadStats,
+    /// Appearances (themes, images) the buildings' [`SourceBuilding::appearance`] refer to.
+    pub appearance: ModelAppearance,
 }
 
 /// The formats insgen reads.
@@ -217,6 +270,13 @@ pub struct ReadOptions {
     /// LoD to take (e.g. "2", "1.2"); `None` picks the format's default (the highest available LoD
     /// that is ≤ 2.2 for CityJSON; LoD2 then LoD1 for CityGML).
     pub lod: Option<String>,
+    /// Appearance theme to take textures and materials from (CityGML `app:theme`, CityJSON theme
+    /// name); `None` takes the first theme the file names for each kind.
+    pub theme: Option<String>,
+    /// Skip appearances altogether (faces get no texture or colour).
+    pub no_appearance: bool,
+    /// Skip materials (flat colours) but keep textures.
+    pub no_materials: bool,
 }
 
 impl ReadOptions {
@@ -326,6 +386,23 @@ pub(crate) fn head_of(path: &Path, n: usize) -> Vec<u8> {
 /// beyond is a corrupt value (e.g. `1e300`), not a place on Earth.
 pub const MAX_ABS_COORDINATE: f64 = 1e9;
 
+/// [`clean_ring`] as indices: which points of `points` the cleaned ring keeps, in order (so that
+/// per-vertex data such as texture coordinates can follow), or `None` when the ring is degenerate.
+/// `clean_ring(points)` equals the points at these indices.
+pub fn clean_ring_indices(points: &[[f64; 3]]) -> Option<Vec<usize>> {
+    let mut keep: Vec<usize> = Vec::with_capacity(points.len());
+    for (i, p) in points.iter().enumerate() {
+        if keep.last().is_none_or(|&k| points[k] != *p) {
+            keep.push(i);
+        }
+    }
+    while keep.len() > 1 && points[keep[0]] == points[keep[keep.len() - 1]] {
+        keep.pop();
+    }
+    clean_ring(keep.iter().map(|&i| points[i]).collect())?;
+    Some(keep)
+}
+
 /// Cleans one ring as read from a file: removes the closing vertex (equal to the first) and
 /// consecutive duplicates (exact equality, wrap-around included).
 ///
@@ -364,4 +441,31 @@ pub fn clean_ring(mut points: Vec<[f64; 3]>) -> Option<Vec<[f64; 3]>> {
         return None;
     }
     Some(points)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `clean_ring_indices` keeps exactly the points `clean_ring` keeps (closing vertex, consecutive
+    /// duplicates, wrap-around duplicates), so per-vertex data can follow them.
+    #[test]
+    fn clean_ring_indices_agree_with_clean_ring() {
+        let a = [0.0, 0.0, 0.0];
+        let b = [1.0, 0.0, 0.0];
+        let c = [1.0, 1.0, 0.0];
+        let d = [0.0, 1.0, 0.0];
+        let cases: Vec<Vec<[f64; 3]>> = vec![
+            vec![a, b, c, d, a],
+            vec![a, a, b, b, c, d, d, a, a],
+            vec![a, b, c, d],
+            vec![a, b, a],
+            vec![a, b, [2.0, 0.0, 0.0], a],
+        ];
+        for ring in cases {
+            let by_index = clean_ring_indices(&ring).map(|k| k.iter().map(|&i| ring[i]).collect::<Vec<_>>());
+            assert_eq!(by_index, clean_ring(ring.clone()), "{ring:?}");
+        }
+        assert_eq!(clean_ring_indices(&[a, a, b, b, c, d, d, a, a]), Some(vec![0, 2, 4, 5]));
+    }
 }

@@ -141,6 +141,7 @@ pub fn read_with_sidecar(
             measured_height_m: None,
             ground_heights_m: Vec::new(),
             geometry: Geometry::Mesh(part),
+            appearance: Vec::new(),
         })
         .collect();
     Ok(SourceModel {
@@ -148,6 +149,7 @@ pub fn read_with_sidecar(
         frame: Frame::Crs { name: sidecar.crs.clone(), axes: AxisConvention::EastNorth },
         buildings,
         stats,
+        appearance: Default::default(),
     })
 }
 

@@ -79,6 +79,31 @@ pub struct SourceEntry {
     /// building (120 buildings)"` or `"above_ground: + 2.5 m"`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub heights: Option<String>,
+    /// Textures and materials the source has (absent when it has none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub appearance: Option<AppearanceEntry>,
+}
+
+/// A source's appearances as `prepare` used them.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct AppearanceEntry {
+    /// Every theme the file names (CityGML `app:theme`, CityJSON theme keys; unnamed = `""`).
+    pub themes: Vec<String>,
+    /// The theme textures / materials were taken from (the scene file's `theme`, else the first).
+    pub texture_theme: Option<String>,
+    pub material_theme: Option<String>,
+    /// Faces of the read buildings with a texture / a colour in the chosen themes.
+    pub textured_faces: u64,
+    pub coloured_faces: u64,
+    /// Distinct images the textured faces of the read buildings use.
+    pub images: u64,
+    /// Of those, missing or unreadable: their faces keep the procedural look.
+    pub missing_images: u64,
+    /// The first few missing images, with why.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub missing_examples: Vec<String>,
+    /// Appearance targets that fit no read face (unknown polygon, coordinate count mismatch).
+    pub unusable_targets: u64,
 }
 
 /// The geoid used to turn orthometric heights into ellipsoidal ones.

@@ -128,6 +128,18 @@ pub struct SourceConfig {
     /// an attribute).
     #[serde(default)]
     pub ground_height_m: Option<f64>,
+    /// Appearance theme for textures and materials (CityGML `app:theme`, CityJSON theme name);
+    /// default: the first theme the file names. Recorded in the manifest.
+    #[serde(default)]
+    pub theme: Option<String>,
+    /// `false` ignores the source's textures and materials (default `true`).
+    #[serde(default)]
+    pub appearance: Option<bool>,
+    /// `false` ignores the source's materials (flat colours: X3DMaterial, CityJSON `materials`) but
+    /// keeps its textures (default `true`). Some models colour faces by their class only (red roofs,
+    /// white walls); the procedural look is then closer to a photograph.
+    #[serde(default)]
+    pub materials: Option<bool>,
 }
 
 /// What a source's heights are measured from.

@@ -24,6 +24,19 @@
 //!   ([`building_colour`]), with an unlit (`KHR_materials_unlit`), double-sided material, so any glTF
 //!   viewer shows the instances.
 //!
+//! With appearances ([`write_glb_with_appearance`], LoD sources with textures or materials), the
+//! same primitive (same vertices, triangles and order, so the IDs and masks do not change) also has
+//! - `TEXCOORD_0` (VEC2 FLOAT): the face's texture coordinates, flipped to glTF's convention
+//!   (`v_gltf = 1 − v`; CityGML/CityJSON put (0, 0) at the image's lower left, glTF at its upper left);
+//! - `_APPEARANCE` (SCALAR FLOAT, integers): the face's appearance number, 0 = none (procedural look),
+//!   k = `materials[k]`;
+//! - `materials[1..]`: one per distinct image (`baseColorTexture` → `textures` → `images` whose `uri`
+//!   is `textures/NNNN_<name>` next to the GLB) or colour (`baseColorFactor`), in appearance order;
+//!   `asset.extras.appearance_materials` repeats that list for renderers (`{"texture": uri}` or
+//!   `{"colour": [r, g, b]}`, linear). The primitive itself keeps material 0: core glTF has one
+//!   material per primitive, and splitting the primitive would reorder the triangles the mask
+//!   renderer draws.
+//!
 //! [`add_layers`] then appends the clutter layers as further nodes/meshes named `insgen_clutter_<layer>`
 //! (POSITION, COLOR_0, indices; no feature IDs); [`read_glb`] skips them and [`read_layers`] reads them.
 //!
@@ -41,6 +54,7 @@ use std::path::{Path, PathBuf};
 
 use serde_json::{json, Value};
 
+use super::appearance::{AppearanceMaterial, VertexAppearance};
 use super::artifact::BuildingRecord;
 use super::ids::{BuildingId, MAX_BUILDING_ID};
 use super::mesh::SceneMesh;
@@ -183,6 +197,17 @@ fn check_input(path: &Path, mesh: &SceneMesh, buildings: &[BuildingRecord]) -> R
     Ok(())
 }
 
+/// Appearances to write with the mesh: per-vertex data parallel to the mesh's vertices, and the
+/// materials it numbers (appearance k = `materials[k − 1]`).
+#[derive(Debug, Clone, Copy)]
+pub struct GlbAppearance<'a> {
+    pub vertices: &'a VertexAppearance,
+    pub materials: &'a [AppearanceMaterial],
+}
+
+/// Name of the per-vertex appearance attribute (a glTF application-specific attribute).
+pub const APPEARANCE_ATTRIBUTE: &str = "_APPEARANCE";
+
 /// Writes the instanced scene mesh as `scene.glb` (atomically).
 ///
 /// `buildings` is the building table: every ID in `mesh.building_ids` must be in it; it fills the
@@ -197,7 +222,39 @@ fn check_input(path: &Path, mesh: &SceneMesh, buildings: &[BuildingRecord]) -> R
 /// [`GlbError::TooLarge`] past the 4 GiB GLB limit; [`GlbError::File`] on I/O failure (then `path` is
 /// left as it was).
 pub fn write_glb(path: &Path, mesh: &SceneMesh, buildings: &[BuildingRecord]) -> Result<(), GlbError> {
+    write_glb_with_appearance(path, mesh, buildings, None)
+}
+
+/// [`write_glb`] with textures and colours (see the module doc): without `appearance` the file is
+/// byte for byte what [`write_glb`] writes.
+///
+/// # Errors
+/// As [`write_glb`], and [`GlbError::BadInput`] when the appearance data is not parallel to the
+/// vertices or numbers a material that does not exist.
+pub fn write_glb_with_appearance(
+    path: &Path,
+    mesh: &SceneMesh,
+    buildings: &[BuildingRecord],
+    appearance: Option<&GlbAppearance>,
+) -> Result<(), GlbError> {
     check_input(path, mesh, buildings)?;
+    if let Some(a) = appearance {
+        let n = mesh.positions_m.len();
+        let bad = |what: String| GlbError::BadInput { path: path.to_path_buf(), what };
+        if a.vertices.uvs.len() != n || a.vertices.ids.len() != n {
+            return Err(bad(format!(
+                "{n} vertices but {} texture coordinates and {} appearance numbers",
+                a.vertices.uvs.len(),
+                a.vertices.ids.len()
+            )));
+        }
+        if let Some(&k) = a.vertices.ids.iter().find(|&&k| k as usize > a.materials.len()) {
+            return Err(bad(format!("appearance {k}, but there are {} materials", a.materials.len())));
+        }
+        if let Some(uv) = a.vertices.uvs.iter().find(|uv| !uv.iter().all(|c| c.is_finite())) {
+            return Err(bad(format!("non-finite texture coordinate {uv:?}")));
+        }
+    }
     let n_vertices = mesh.positions_m.len() as u64;
     let n_indices = mesh.indices.len() as u64;
 
@@ -230,6 +287,13 @@ pub fn write_glb(path: &Path, mesh: &SceneMesh, buildings: &[BuildingRecord]) ->
         view_specs.push((string_bytes, None)); // 4: source_id string values
         view_specs.push(((rows + 1) * 4, None)); // 5: source_id string offsets (UINT32)
     }
+    // Appearance views come last, so the others keep their indices.
+    let appearance_views = appearance.map(|_| {
+        let first = view_specs.len();
+        view_specs.push((n_vertices * 8, Some(TARGET_ARRAY_BUFFER))); // TEXCOORD_0
+        view_specs.push((n_vertices * 4, Some(TARGET_ARRAY_BUFFER))); // _APPEARANCE
+        first
+    });
     let (views, bin_len) = plan_views(&view_specs);
 
     // Bounds in the glTF frame, as the validator recomputes them from the stored f32 values.
@@ -241,7 +305,10 @@ pub fn write_glb(path: &Path, mesh: &SceneMesh, buildings: &[BuildingRecord]) ->
             hi[k] = hi[k].max(g[k]);
         }
     }
-    let json = document_json(&views, bin_len, n_vertices, n_indices, table_rows, feature_count, lo, hi);
+    let mut json = document_json(&views, bin_len, n_vertices, n_indices, table_rows, feature_count, lo, hi);
+    if let (Some(a), Some(first)) = (appearance, appearance_views) {
+        add_appearance_json(&mut json, a.materials, first, n_vertices);
+    }
     let mut json_bytes =
         serde_json::to_vec(&json).map_err(|e| FileError::new("serialising glTF JSON for", path, e.into()))?;
     while json_bytes.len() % 4 != 0 {
@@ -309,6 +376,21 @@ pub fn write_glb(path: &Path, mesh: &SceneMesh, buildings: &[BuildingRecord]) ->
                 w.write_all(&offset.to_le_bytes()).map_err(io)?;
             }
             written += views[5].length;
+        }
+        if let (Some(a), Some(first)) = (appearance, appearance_views) {
+            pad_to(w, &mut written, views[first].offset).map_err(io)?;
+            for uv in &a.vertices.uvs {
+                // glTF puts (0, 0) at the image's upper-left corner, the LoD sources at its lower left.
+                w.write_all(&uv[0].to_le_bytes()).map_err(io)?;
+                w.write_all(&(1.0 - uv[1]).to_le_bytes()).map_err(io)?;
+            }
+            written += views[first].length;
+            pad_to(w, &mut written, views[first + 1].offset).map_err(io)?;
+            for &k in &a.vertices.ids {
+                // Exact: appearance numbers stay far below 2^24.
+                w.write_all(&(k as f32).to_le_bytes()).map_err(io)?;
+            }
+            written += views[first + 1].length;
         }
         pad_to(w, &mut written, bin_len).map_err(io)?;
         Ok(())
@@ -439,6 +521,59 @@ fn document_json(
         }
     }
     doc
+}
+
+/// Adds the appearance attributes, images, textures and materials to the document (see the module
+/// doc); `first_view` is the TEXCOORD_0 view, the `_APPEARANCE` view follows it.
+fn add_appearance_json(
+    doc: &mut Value,
+    materials: &[AppearanceMaterial],
+    first_view: usize,
+    n_vertices: u64,
+) {
+    let accessors = doc["accessors"].as_array().map_or(0, Vec::len);
+    if let Some(list) = doc["accessors"].as_array_mut() {
+        list.push(json!({"bufferView": first_view, "componentType": COMPONENT_FLOAT, "count": n_vertices,
+                         "type": "VEC2"}));
+        list.push(
+            json!({"bufferView": first_view + 1, "componentType": COMPONENT_FLOAT, "count": n_vertices,
+                         "type": "SCALAR"}),
+        );
+    }
+    let attributes = &mut doc["meshes"][0]["primitives"][0]["attributes"];
+    attributes["TEXCOORD_0"] = json!(accessors);
+    attributes[APPEARANCE_ATTRIBUTE] = json!(accessors + 1);
+    let (mut images, mut textures, mut mats, mut extras) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for (k, m) in materials.iter().enumerate() {
+        let name = format!("appearance_{}", k + 1);
+        match m {
+            AppearanceMaterial::Texture { file_name, .. } => {
+                let uri = format!("{}/{file_name}", super::appearance::TEXTURES_DIR);
+                textures.push(json!({"source": images.len(), "sampler": 0}));
+                images.push(json!({"uri": uri}));
+                mats.push(json!({"name": name, "doubleSided": true,
+                    "pbrMetallicRoughness": {"baseColorTexture": {"index": textures.len() - 1},
+                                             "metallicFactor": 0.0, "roughnessFactor": 1.0}}));
+                extras.push(json!({"texture": uri}));
+            }
+            AppearanceMaterial::Colour { rgb } => {
+                mats.push(json!({"name": name, "doubleSided": true,
+                    "pbrMetallicRoughness": {"baseColorFactor": [rgb[0], rgb[1], rgb[2], 1.0],
+                                             "metallicFactor": 0.0, "roughnessFactor": 1.0}}));
+                extras.push(json!({"colour": rgb}));
+            }
+        }
+    }
+    if let Some(list) = doc["materials"].as_array_mut() {
+        list.extend(mats);
+    }
+    if !images.is_empty() {
+        doc["images"] = json!(images);
+        doc["textures"] = json!(textures);
+        // REPEAT wrapping and linear filtering (glTF sampler codes 10497, 9729).
+        doc["samplers"] = json!([{"wrapS": 10497, "wrapT": 10497, "magFilter": 9729, "minFilter": 9729}]);
+    }
+    doc["asset"]["extras"]["appearance_materials"] = json!(extras);
 }
 
 /// The part of a primitive's JSON that the `gltf` crate does not keep (extensions it does not know).

@@ -1,6 +1,7 @@
 //! Scenes: area definitions, triangulation, instancing, and the prepared scene artifact.
 //!
 //! - [`config`] — `scenes/<area>.toml`;
+//! - [`appearance`] — textures and colours of LoD faces, carried into the scene GLB;
 //! - [`triangulate`] — planar polygons with holes → triangles;
 //! - [`prepare`] — the `prepare` stage (read → geo-reference → triangulate → instance → write);
 //! - [`artifact`] — the files it writes and [`PreparedScene::load`] for later stages;
@@ -13,6 +14,7 @@
 //! - [`clutter`] — streets, ground cover, trees, cars and rooftop units around the buildings (seeded).
 
 pub mod align;
+pub mod appearance;
 pub mod artifact;
 pub mod clutter;
 pub mod config;

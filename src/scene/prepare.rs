@@ -26,11 +26,12 @@ use crate::geo::{self, AxisConvention, Crs, EnuFrame, Geodetic, Geoid, HeightKin
 use crate::lod::{self, Format, Frame, Geometry, ReadOptions, SourceModel};
 use crate::util::{self, Progress};
 
+use super::appearance::{AppearanceTable, VertexAppearance};
 use super::artifact::{self, BuildingRecord, GeoidUsed, Manifest, Origin, PreparedScene, SourceEntry};
 use super::config::{GeoidModel, Heights, SceneConfig, SourceConfig};
 use super::ids::BuildingId;
 use super::mesh::SceneMesh;
-use super::triangulate::triangulate_polygon;
+use super::triangulate::{triangulate_polygon, triangulate_polygon_uv};
 use super::SceneError;
 
 /// A building after geo-referencing: triangles in ECEF (f64), before the ENU frame is known.
@@ -41,6 +42,8 @@ struct EcefBuilding {
     measured_height_m: Option<f64>,
     positions_ecef: Vec<[f64; 3]>,
     triangles: Vec<[u32; 3]>,
+    /// Texture coordinates and appearance per vertex, when a face of the building has one.
+    appearance: Option<VertexAppearance>,
     /// Lowest ellipsoidal height of the building (its base), metres.
     base_h_m: f64,
     lat_range: [f64; 2],
@@ -176,7 +179,13 @@ fn read_one(
         Some("3dtiles") => Some(Format::Tiles3d),
         _ => None,
     };
-    let opts = ReadOptions { lod: src.lod.clone(), weld_tolerance_m: src.weld_tolerance_m };
+    let opts = ReadOptions {
+        lod: src.lod.clone(),
+        weld_tolerance_m: src.weld_tolerance_m,
+        theme: src.theme.clone(),
+        no_appearance: !src.appearance.unwrap_or(true),
+        no_materials: !src.materials.unwrap_or(true),
+    };
     let model = lod::read_source(&path, format, &opts)?;
     let fmt = format
         .or_else(|| Format::from_path(&path))
@@ -210,8 +219,10 @@ fn georeference(
     model: SourceModel,
     source_label: &str,
     geoid: &mut GeoidSlot,
+    appearance: &mut AppearanceTable,
     progress: &dyn Progress,
 ) -> Result<(Vec<EcefBuilding>, String, u64), SceneError> {
+    let images = model.appearance.images.clone();
     let path = model.path.clone();
     let mut dropped = 0u64;
     let georef_err =
@@ -354,6 +365,7 @@ fn georeference(
                 }
             }
         };
+        let mut vertex_app: Option<VertexAppearance> = None;
         let (positions_ecef, triangles) = match b.geometry {
             Geometry::Mesh(m) => {
                 let pos = m.positions.iter().map(|&p| to_ecef(p)).collect::<Result<Vec<_>, _>>()?;
@@ -374,7 +386,8 @@ fn georeference(
                 // polygon's first vertex, so magnitudes do not cost precision).
                 let mut pos = Vec::new();
                 let mut tris = Vec::new();
-                for poly in &polys {
+                let mut va = (!b.appearance.is_empty()).then(VertexAppearance::default);
+                for (k, poly) in polys.iter().enumerate() {
                     let ext = poly.exterior.iter().map(|&p| to_ecef(p)).collect::<Result<Vec<_>, _>>()?;
                     let holes = poly
                         .interiors
@@ -382,10 +395,45 @@ fn georeference(
                         .map(|r| r.iter().map(|&p| to_ecef(p)).collect::<Result<Vec<_>, _>>())
                         .collect::<Result<Vec<_>, _>>()?;
                     // Degenerate polygons (collinear, zero area) are dropped and counted.
-                    if !triangulate_polygon(&ext, &holes, &mut pos, &mut tris) {
+                    let ok = match (va.as_mut(), b.appearance.get(k).and_then(Option::as_ref)) {
+                        (
+                            Some(va),
+                            Some(lod::FaceAppearance::Texture { image, uv_exterior, uv_interiors }),
+                        ) => {
+                            let ok = triangulate_polygon_uv(
+                                &ext,
+                                &holes,
+                                uv_exterior,
+                                uv_interiors,
+                                &mut pos,
+                                &mut va.uvs,
+                                &mut tris,
+                            );
+                            // A missing or unreadable image: the face keeps the procedural look.
+                            let id = images.get(*image).map_or(0, |p| appearance.texture(p));
+                            va.ids.resize(pos.len(), id);
+                            ok
+                        }
+                        (Some(va), face) => {
+                            let ok = triangulate_polygon(&ext, &holes, &mut pos, &mut tris);
+                            let id = match face {
+                                Some(lod::FaceAppearance::Colour { rgb }) => appearance.colour(*rgb),
+                                _ => 0,
+                            };
+                            va.uvs.resize(pos.len(), [0.0, 0.0]);
+                            va.ids.resize(pos.len(), id);
+                            ok
+                        }
+                        (None, _) => triangulate_polygon(&ext, &holes, &mut pos, &mut tris),
+                    };
+                    debug_assert!(va
+                        .as_ref()
+                        .is_none_or(|v| v.uvs.len() == pos.len() && v.ids.len() == pos.len()));
+                    if !ok {
                         dropped += 1;
                     }
                 }
+                vertex_app = va.filter(|v| v.ids.iter().any(|&i| i != 0));
                 (pos, tris)
             }
         };
@@ -409,6 +457,7 @@ fn georeference(
             measured_height_m: b.measured_height_m,
             positions_ecef,
             triangles,
+            appearance: vertex_app,
             base_h_m,
             lat_range,
             lon_range,
@@ -596,7 +645,7 @@ pub fn prepare_with(
     let started = Instant::now();
     let cfg = SceneConfig::load(scene_file)?;
     let sources = read_sources(scene_file, &cfg, progress)?;
-    let mut scene = instance(&cfg, sources)?;
+    let (mut scene, appearance) = instance(&cfg, sources)?;
     if let Some(spec) = &options.clutter {
         let t0 = Instant::now();
         let (clutter, summary) = super::clutter::generate(
@@ -615,7 +664,7 @@ pub fn prepare_with(
         scene.clutter = clutter;
         scene.manifest.clutter = Some(summary);
     }
-    write_artifact(out_dir, &scene)?;
+    write_artifact(out_dir, &scene, appearance.as_ref())?;
     Ok(PrepareReport { scene, out_dir: out_dir.to_path_buf(), seconds: started.elapsed().as_secs_f64() })
 }
 
@@ -630,6 +679,8 @@ struct Sources {
     proj: Option<ProjHeights>,
     /// `[geoid] model = "proj"`: grids PROJ wanted but did not find.
     missing_grids: Vec<String>,
+    /// The distinct textures and colours of all sources.
+    appearance: AppearanceTable,
 }
 
 /// Reads and geo-references the sources of `cfg` in order; at least one building.
@@ -647,6 +698,7 @@ fn read_sources(
         geoid: None,
         proj: None,
         missing_grids: Vec::new(),
+        appearance: AppearanceTable::default(),
     };
     for src in &cfg.sources {
         let (model, fmt) = read_one(scene_file, cfg, src)?;
@@ -661,8 +713,41 @@ fn read_sources(
         let stats = model.stats.clone();
         let model_path = model.path.clone();
         let heights = heights_note(src, &model)?;
+        let model_appearance = model.appearance.clone();
+        if let Some(theme) = &src.theme {
+            if !model_appearance.themes.contains(theme) {
+                log::warn!(
+                    "{}: theme {theme:?} is not in the file (its themes: {}); no face gets a texture or colour",
+                    model_path.display(),
+                    if model_appearance.themes.is_empty() {
+                        "none".to_string()
+                    } else {
+                        model_appearance.themes.iter().map(|t| format!("{t:?}")).collect::<Vec<_>>().join(", ")
+                    }
+                );
+            }
+        }
+        let missing_before = out.appearance.missing.len();
+        let asked_before = out.appearance.images_asked();
         let (mut bs, chain, dropped_here) =
-            georeference(scene_file, src, model, &label, &mut geoid, progress)?;
+            georeference(scene_file, src, model, &label, &mut geoid, &mut out.appearance, progress)?;
+        let appearance = appearance_entry(
+            &model_appearance,
+            (out.appearance.images_asked() - asked_before) as u64,
+            &out.appearance.missing[missing_before..],
+        );
+        if let Some(a) = &appearance {
+            if a.missing_images > 0 {
+                log::warn!(
+                    "{}: {} of {} texture image(s) are missing or unreadable (first: {}); their faces keep the \
+                     procedural look",
+                    model_path.display(),
+                    a.missing_images,
+                    a.images,
+                    a.missing_examples.first().map_or("", String::as_str)
+                );
+            }
+        }
         log::info!("{}: {} buildings ({chain})", model_path.display(), bs.len());
         let dropped = stats.degenerate_faces + dropped_here;
         out.degenerate_faces += dropped;
@@ -675,6 +760,7 @@ fn read_sources(
             degenerate_faces: dropped,
             attribution: cfg.attribution.clone(),
             heights,
+            appearance,
         });
         out.buildings.append(&mut bs);
     }
@@ -688,6 +774,28 @@ fn read_sources(
     out.proj = geoid.proj;
     out.missing_grids = geoid.missing_grids;
     Ok(out)
+}
+
+/// What the manifest records of a source's appearances (`None` when it has none).
+fn appearance_entry(
+    app: &lod::ModelAppearance,
+    images_used: u64,
+    missing: &[(PathBuf, String)],
+) -> Option<artifact::AppearanceEntry> {
+    if app.themes.is_empty() && app.images.is_empty() {
+        return None;
+    }
+    Some(artifact::AppearanceEntry {
+        themes: app.themes.clone(),
+        texture_theme: app.texture_theme.clone(),
+        material_theme: app.material_theme.clone(),
+        textured_faces: app.textured_faces,
+        coloured_faces: app.coloured_faces,
+        images: images_used,
+        missing_images: missing.len() as u64,
+        missing_examples: missing.iter().take(5).map(|(p, why)| format!("{} ({why})", p.display())).collect(),
+        unusable_targets: app.unusable_targets,
+    })
 }
 
 /// The area origin: the scene file's, else the centre of the buildings' latitude/longitude bounds; its
@@ -743,6 +851,7 @@ struct Merged {
     measured_height_m: Option<f64>,
     positions: Vec<[f64; 3]>,
     triangles: Vec<[u32; 3]>,
+    appearance: Option<VertexAppearance>,
 }
 
 /// Converts the buildings to ENU, drops those whose centre lies outside `area_polygon`, and merges
@@ -775,8 +884,25 @@ fn merge_by_source_id(
             measured_height_m: b.measured_height_m,
             positions: Vec::new(),
             triangles: Vec::new(),
+            appearance: None,
         });
         let base = m.positions.len() as u32;
+        // Parts with and without appearance: the ones without get appearance 0.
+        match (&mut m.appearance, b.appearance) {
+            (Some(a), Some(part)) => {
+                a.uvs.extend(part.uvs);
+                a.ids.extend(part.ids);
+            }
+            (Some(a), None) => a.pad(positions.len()),
+            (None, Some(part)) => {
+                let mut a = VertexAppearance::default();
+                a.pad(m.positions.len());
+                a.uvs.extend(part.uvs);
+                a.ids.extend(part.ids);
+                m.appearance = Some(a);
+            }
+            (None, None) => {}
+        }
         m.positions.extend_from_slice(&positions);
         m.triangles.extend(b.triangles.iter().map(|t| t.map(|i| i + base)));
         if m.measured_height_m.is_none() {
@@ -791,9 +917,14 @@ fn merge_by_source_id(
 ///
 /// # Panics
 /// When there are more buildings than 24-bit IDs (the caller checks first).
-fn mesh_and_table(merged: BTreeMap<String, Merged>, enu: &EnuFrame) -> (SceneMesh, Vec<BuildingRecord>) {
+fn mesh_and_table(
+    merged: BTreeMap<String, Merged>,
+    enu: &EnuFrame,
+) -> (SceneMesh, Vec<BuildingRecord>, Option<VertexAppearance>) {
     let mut mesh = SceneMesh::default();
     let mut records = Vec::with_capacity(merged.len());
+    let mut appearance: Option<VertexAppearance> =
+        merged.values().any(|m| m.appearance.is_some()).then(VertexAppearance::default);
     for (k, (source_id, m)) in merged.into_iter().enumerate() {
         let id = BuildingId::from_index(k).expect("the count was checked against the ID space");
         let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
@@ -809,6 +940,14 @@ fn mesh_and_table(merged: BTreeMap<String, Merged>, enu: &EnuFrame) -> (SceneMes
         mesh.positions_m.extend(m.positions.iter().map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]));
         mesh.building_ids.extend(std::iter::repeat_n(id, m.positions.len()));
         mesh.indices.extend(m.triangles.iter().flat_map(|t| t.map(|i| i + base)));
+        match (&mut appearance, m.appearance) {
+            (Some(a), Some(part)) => {
+                a.uvs.extend(part.uvs);
+                a.ids.extend(part.ids);
+            }
+            (Some(a), None) => a.pad(m.positions.len()),
+            (None, _) => {}
+        }
         records.push(BuildingRecord {
             id,
             source_id,
@@ -824,7 +963,7 @@ fn mesh_and_table(merged: BTreeMap<String, Merged>, enu: &EnuFrame) -> (SceneMes
             triangles: m.triangles.len() as u64,
         });
     }
-    (mesh, records)
+    (mesh, records, appearance)
 }
 
 /// What the manifest records of the geoid used.
@@ -864,7 +1003,10 @@ fn geoid_used(sources: &Sources, origin: Geodetic) -> GeoidUsed {
 
 /// Instances the sources: the area origin and ENU frame, the area filter, one ID per source ID, the
 /// mesh, the building table and the manifest.
-fn instance(cfg: &SceneConfig, sources: Sources) -> Result<PreparedScene, SceneError> {
+fn instance(
+    cfg: &SceneConfig,
+    sources: Sources,
+) -> Result<(PreparedScene, Option<SceneAppearance>), SceneError> {
     let origin = area_origin(cfg, &sources.buildings);
     let geoid = geoid_used(&sources, origin);
     let enu = EnuFrame::new(origin);
@@ -881,7 +1023,9 @@ fn instance(cfg: &SceneConfig, sources: Sources) -> Result<PreparedScene, SceneE
     }
     BuildingId::from_index(merged.len() - 1)
         .map_err(|source| SceneError::Ids { area: cfg.name.clone(), source })?;
-    let (mesh, records) = mesh_and_table(merged, &enu);
+    let (mesh, records, vertex_appearance) = mesh_and_table(merged, &enu);
+    let appearance = vertex_appearance
+        .map(|vertices| SceneAppearance { vertices, materials: sources.appearance.materials.clone() });
     let bases: Vec<f64> = records.iter().map(|r| r.bbox_min_enu_m[2]).collect();
     let ground_enu_m = util::median(&bases).unwrap_or(0.0);
     let area_polygon_enu_m = area_polygon.unwrap_or_else(|| {
@@ -913,15 +1057,33 @@ fn instance(cfg: &SceneConfig, sources: Sources) -> Result<PreparedScene, SceneE
             AlignmentRecord::new(CorrectionSource::SceneConfig, c, enu.ecef_from_enu())
         }),
     };
-    Ok(PreparedScene { manifest, buildings: records, mesh, clutter: Default::default() })
+    Ok((PreparedScene { manifest, buildings: records, mesh, clutter: Default::default() }, appearance))
+}
+
+/// The scene's appearances: per vertex, and the distinct images and colours they number.
+struct SceneAppearance {
+    vertices: VertexAppearance,
+    materials: Vec<super::appearance::AppearanceMaterial>,
 }
 
 /// Writes the artifact: GLB and building table first, the manifest last (its presence marks a complete
 /// artifact).
-fn write_artifact(out_dir: &Path, scene: &PreparedScene) -> Result<(), SceneError> {
+fn write_artifact(
+    out_dir: &Path,
+    scene: &PreparedScene,
+    appearance: Option<&SceneAppearance>,
+) -> Result<(), SceneError> {
     util::create_dir_all(out_dir)?;
-    super::glb::write_glb(&out_dir.join(artifact::GLB_FILE), &scene.mesh, &scene.buildings)
-        .map_err(|source| SceneError::ArtifactGlb { source })?;
+    super::appearance::copy_images(appearance.map_or(&[][..], |a| &a.materials[..]), out_dir)?;
+    let glb_appearance =
+        appearance.map(|a| super::glb::GlbAppearance { vertices: &a.vertices, materials: &a.materials });
+    super::glb::write_glb_with_appearance(
+        &out_dir.join(artifact::GLB_FILE),
+        &scene.mesh,
+        &scene.buildings,
+        glb_appearance.as_ref(),
+    )
+    .map_err(|source| SceneError::ArtifactGlb { source })?;
     super::glb::add_layers(&out_dir.join(artifact::GLB_FILE), &scene.clutter)
         .map_err(|source| SceneError::ArtifactGlb { source })?;
     util::write_json_atomic(&out_dir.join(artifact::BUILDINGS_FILE), &scene.buildings)?;

@@ -677,6 +677,7 @@ pub fn generate(spec: &ProceduralSpec, origin: PlaneOrigin) -> Result<SourceMode
                 measured_height_m: Some(lot.height_m),
                 ground_heights_m: Vec::new(),
                 geometry: Geometry::Polygons(polygons),
+                appearance: Vec::new(),
             }
         })
         .collect();
@@ -686,6 +687,7 @@ pub fn generate(spec: &ProceduralSpec, origin: PlaneOrigin) -> Result<SourceMode
         frame: Frame::Crs { name: Some(DEMO_CRS.to_string()), axes: AxisConvention::EastNorth },
         buildings,
         stats,
+        appearance: Default::default(),
     })
 }
 

@@ -121,6 +121,7 @@ pub fn write_scene_tileset(scene_dir: &Path, out_dir: &Path) -> Result<TilesetSu
     });
     let content = out_dir.join(GLB_FILE);
     crate::util::write_bytes_atomic(&content, &glb)?;
+    copy_textures(scene_dir, out_dir)?;
     let path = out_dir.join(TILESET_FILE);
     crate::util::write_json_atomic(&path, &tileset)?;
     Ok(TilesetSummary {
@@ -129,6 +130,26 @@ pub fn write_scene_tileset(scene_dir: &Path, out_dir: &Path) -> Result<TilesetSu
         centre_enu_m: centre.to_array(),
         half_size_m: half.to_array(),
     })
+}
+
+/// Copies the scene's texture images (`textures/`, written by `prepare` for textured LoD models and
+/// named by `scene.glb`) next to the exported GLB, sorted by name.
+fn copy_textures(scene_dir: &Path, out_dir: &Path) -> Result<(), crate::util::FileError> {
+    use crate::scene::appearance::TEXTURES_DIR;
+    let from = scene_dir.join(TEXTURES_DIR);
+    let Ok(entries) = std::fs::read_dir(&from) else { return Ok(()) };
+    let mut files: Vec<std::path::PathBuf> =
+        entries.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_file()).collect();
+    files.sort();
+    let to = out_dir.join(TEXTURES_DIR);
+    crate::util::create_dir_all(&to)?;
+    for f in files {
+        let bytes = crate::util::read_file(&f)?;
+        if let Some(name) = f.file_name() {
+            crate::util::write_bytes_atomic(&to.join(name), &bytes)?;
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

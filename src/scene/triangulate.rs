@@ -103,6 +103,39 @@ pub fn triangulate_polygon(
     true
 }
 
+/// [`triangulate_polygon`] carrying one texture coordinate per vertex: `uv_exterior` parallel to
+/// `exterior`, `uv_interiors[k]` parallel to `interiors[k]`. On success the vertices' coordinates are
+/// appended to `uvs` in the order their positions are appended to `positions` (holes that are
+/// dropped as degenerate take their coordinates with them), so `uvs` stays parallel to `positions`.
+/// A coordinate list shorter than its ring (the readers build them parallel) is padded with (0, 0).
+pub fn triangulate_polygon_uv(
+    exterior: &[[f64; 3]],
+    interiors: &[Vec<[f64; 3]>],
+    uv_exterior: &[[f64; 2]],
+    uv_interiors: &[Vec<[f64; 2]>],
+    positions: &mut Vec<[f64; 3]>,
+    uvs: &mut Vec<[f32; 2]>,
+    triangles: &mut Vec<[u32; 3]>,
+) -> bool {
+    if !triangulate_polygon(exterior, interiors, positions, triangles) {
+        return false;
+    }
+    let ring_uvs = |ring: &[[f64; 3]], uv: &[[f64; 2]], uvs: &mut Vec<[f32; 2]>| {
+        for k in 0..ring.len() {
+            let c = uv.get(k).copied().unwrap_or([0.0, 0.0]);
+            uvs.push([c[0] as f32, c[1] as f32]);
+        }
+    };
+    ring_uvs(exterior, uv_exterior, uvs);
+    // The same holes `triangulate_polygon` kept, in the same order.
+    for (k, ring) in interiors.iter().enumerate() {
+        if usable_ring(ring) {
+            ring_uvs(ring, uv_interiors.get(k).map_or(&[][..], Vec::as_slice), uvs);
+        }
+    }
+    true
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -143,6 +176,32 @@ mod tests {
         assert!(triangulate_polygon(&sq(30.0, 0.0), &[sq(10.0, 10.0)], &mut p, &mut t));
         let area: f64 = t.iter().map(|&tr| tri_area(&p, tr)).sum();
         assert!((area - 800.0).abs() < 1e-6, "{area}");
+    }
+
+    #[test]
+    fn uvs_follow_vertices_and_skip_dropped_holes() {
+        // A 10 m × 10 m roof (z = 3) with texture coordinates u = x / 10, v = y / 10, one usable hole
+        // and one degenerate (collinear) hole: every output vertex keeps its own (u, v).
+        let ext = vec![[0.0, 0.0, 3.0], [10.0, 0.0, 3.0], [10.0, 10.0, 3.0], [0.0, 10.0, 3.0]];
+        let hole = vec![[2.0, 2.0, 3.0], [2.0, 4.0, 3.0], [4.0, 4.0, 3.0], [4.0, 2.0, 3.0]];
+        let flat = vec![[6.0, 6.0, 3.0], [7.0, 6.0, 3.0], [8.0, 6.0, 3.0]];
+        let uv_of = |r: &[[f64; 3]]| r.iter().map(|p| [p[0] / 10.0, p[1] / 10.0]).collect::<Vec<_>>();
+        let (mut p, mut uv, mut t) = (Vec::new(), Vec::new(), Vec::new());
+        let holes = [hole.clone(), flat.clone()];
+        assert!(triangulate_polygon_uv(
+            &ext,
+            &holes,
+            &uv_of(&ext),
+            &[uv_of(&hole), uv_of(&flat)],
+            &mut p,
+            &mut uv,
+            &mut t
+        ));
+        assert_eq!(p.len(), 8, "exterior + the usable hole");
+        assert_eq!(uv.len(), p.len());
+        for (q, c) in p.iter().zip(&uv) {
+            assert_eq!(*c, [(q[0] / 10.0) as f32, (q[1] / 10.0) as f32], "{q:?}");
+        }
     }
 
     #[test]

@@ -146,6 +146,7 @@ fn write_area(workdir: &Path, spec: &AreaSpec) {
             degenerate_faces: 0,
             attribution: Some("3D city model (Project PLATEAU), MLIT, CC BY 4.0".into()),
             heights: None,
+            appearance: None,
         }],
         buildings: BUILDINGS as u64,
         triangles: 0,

@@ -206,7 +206,8 @@ fn read_lod(p: &Path) {
 }
 
 fn read_lod_welded(p: &Path) {
-    let _ = lod::read_source(p, None, &ReadOptions { weld_tolerance_m: Some(0.01), lod: None });
+    let _ =
+        lod::read_source(p, None, &ReadOptions { weld_tolerance_m: Some(0.01), ..ReadOptions::default() });
 }
 
 const READERS: &[Reader] = &[

@@ -39,6 +39,7 @@ mod render_depth_coverage;
 mod render_determinism;
 mod render_masks_stage;
 mod render_shibuya;
+mod scene_appearance;
 mod scene_clutter;
 mod scene_glb;
 mod scene_prepare;

@@ -224,6 +224,7 @@ pub fn read_with_report(path: &Path, opts: &ReadOptions) -> Result<(SourceModel,
                         measured_height_m: f.measured_height_m,
                         ground_heights_m: Vec::new(),
                         geometry: Geometry::Mesh(f.mesh),
+                        appearance: Vec::new(),
                     });
                 }
             }
@@ -239,6 +240,7 @@ pub fn read_with_report(path: &Path, opts: &ReadOptions) -> Result<(SourceModel,
                     measured_height_m: None,
                     ground_heights_m: Vec::new(),
                     geometry: Geometry::Mesh(part),
+                    appearance: Vec::new(),
                 });
             }
         }
@@ -254,6 +256,12 @@ pub fn read_with_report(path: &Path, opts: &ReadOptions) -> Result<(SourceModel,
         faces: counters.triangles,
         ..Default::default()
     };
-    let model = SourceModel { path: path.to_path_buf(), frame: Frame::Ecef, buildings, stats };
+    let model = SourceModel {
+        path: path.to_path_buf(),
+        frame: Frame::Ecef,
+        buildings,
+        stats,
+        appearance: Default::default(),
+    };
     Ok((model, report))
 }
