@@ -387,7 +387,12 @@ fn varied_look_is_drawn_per_frame_recorded_and_reproducible() {
     .unwrap();
     let meta_schema = jsonschema::validator_for(&meta_schema).unwrap();
     let render = |name: &str, ranges: LookRanges| {
-        let mut p = plan(&py, &dir.path().join(name), Mode::Rgb, SceneSource::Lod { glb: glb.clone(), enu_from_gltf: ENU_FROM_SCENE_GLTF });
+        let mut p = plan(
+            &py,
+            &dir.path().join(name),
+            Mode::Rgb,
+            SceneSource::Lod { glb: glb.clone(), enu_from_gltf: ENU_FROM_SCENE_GLTF },
+        );
         p.look = ranges;
         p.force = true;
         render_frames(&p, std::slice::from_ref(&frame), &NoProgress).unwrap();
