@@ -338,6 +338,31 @@ mod tests {
         }
 
         #[test]
+        fn tileset() {
+            let c = parse(&[
+                "--tileset",
+                "t/tileset.json",
+                "--occlusion",
+                "ignore",
+                "--occlusion-threshold-m",
+                "2",
+            ])
+            .unwrap();
+            let (p, _) = plan(&c.args, &c.global).unwrap();
+            let t = p.tileset.unwrap();
+            assert_eq!(t.path, PathBuf::from("t/tileset.json"));
+            assert_eq!((t.mode, t.threshold_m), (OcclusionMode::Ignore, 2.0));
+            let (p, _) = plan(&parse(&[]).unwrap().args, &parse(&[]).unwrap().global).unwrap();
+            assert_eq!(p.tileset, None);
+            let c = parse(&["--tileset", "t.json"]).unwrap();
+            let t = plan(&c.args, &c.global).unwrap().0.tileset.unwrap();
+            assert_eq!((t.mode, t.threshold_m), (OcclusionMode::Remove, DEFAULT_OCCLUSION_THRESHOLD_M));
+            assert!(parse(&["--occlusion", "ignore"]).is_err(), "--occlusion needs --tileset");
+            let c = parse(&["--tileset", "t.json", "--occlusion-threshold-m", "NaN"]).unwrap();
+            assert!(plan(&c.args, &c.global).unwrap_err().to_string().contains("--occlusion-threshold-m"));
+        }
+
+        #[test]
         fn near_far() {
             let c = parse(&["--near", "1", "--far", "500"]).unwrap();
             let (p, scene) = plan(&c.args, &c.global).unwrap();

@@ -590,6 +590,16 @@ mod tests {
     }
 
     #[test]
+    fn consistency_bins_mean_median() {
+        assert_eq!(ConsistencyStats::of(&[]), None);
+        let c = ConsistencyStats::of(&[1.0, 0.95, 0.05, 0.5]).unwrap();
+        assert_eq!(c.images, 4);
+        assert_eq!(c.bins, vec![1, 0, 0, 0, 0, 1, 0, 0, 0, 2]);
+        assert!((c.mean - 0.625).abs() < 1e-12);
+        assert_eq!((c.min, c.median), (0.05, 0.95));
+    }
+
+    #[test]
     fn picks_spread_over_splits() {
         let ds = dataset(&[]);
         let picks = pick_images(&[(Split::Train, &ds), (Split::Val, &ds)], 4);

@@ -215,6 +215,20 @@ mod tests {
     }
 
     #[test]
+    fn the_record_flags_buildings_that_are_mostly_seen_through() {
+        // b1: 2 of 3 pixels see past it; b2: 1 of 2 (not more than half).
+        let ids = map(&[1, 1, 1, 2, 2]);
+        let lod = [50.0; 5];
+        let tiles = [0.0, 90.0, 50.0, 0.0, 50.0];
+        let f = occlude(&ids, &lod, &tiles, 1.5, OcclusionMode::Remove).unwrap().2;
+        let r = OcclusionRecord::new("abc", OcclusionMode::Remove, 1.5, &f);
+        assert_eq!((r.behind_px, r.agree_px, r.occluded_px), (3, 2, 0));
+        assert_eq!(r.buildings.iter().map(|b| b.see_through).collect::<Vec<_>>(), [true, false]);
+        let back: OcclusionRecord = serde_json::from_value(serde_json::to_value(&r).unwrap()).unwrap();
+        assert_eq!(back, r);
+    }
+
+    #[test]
     fn bad_sizes_and_thresholds_are_errors() {
         let ids = map(&[1, 1]);
         assert!(occlude(&ids, &[1.0], &[1.0, 1.0], 1.0, OcclusionMode::Remove).is_err());
