@@ -437,27 +437,16 @@ pub fn render_masks(
             ),
         });
     }
-    // The tileset, uploaded once (its triangles all carry ID 1: only its depth is used).
-    let tiles = match &plan.tileset {
-        None => None,
-        Some(t) => {
-            let tileset_err = |source: Box<dyn std::error::Error + Send + Sync>| StageError::Tileset {
-                path: t.path.clone(),
-                source,
-            };
-            let sha = crate::util::sha256_file(&t.path).map_err(|e| tileset_err(Box::new(e)))?;
-            let o = scene.manifest.origin;
-            let enu = crate::geo::EnuFrame::new(crate::geo::Geodetic::new(o.lat_deg, o.lon_deg, o.h_m));
-            let mesh = crate::scene::align::tileset_scene_mesh(&t.path, &enu, BuildingId::new(1)?)
-                .map_err(|e| tileset_err(Box::new(e)))?;
-            if mesh.indices.is_empty() {
-                return Err(tileset_err("it holds no triangles".into()));
-            }
-            log::info!("tileset {}: {} triangles", t.path.display(), mesh.triangle_count());
-            Some((renderer.upload(&mesh)?, sha))
-        }
+    // The tileset's digest (part of every frame's fingerprint).
+    let tileset_err = |path: &Path, source: Box<dyn std::error::Error + Send + Sync>| StageError::Tileset {
+        path: path.to_path_buf(),
+        source,
     };
-    let tileset_sha256 = tiles.as_ref().map(|(_, sha)| sha.as_str());
+    let tileset_sha256 = match &plan.tileset {
+        None => None,
+        Some(t) => Some(crate::util::sha256_file(&t.path).map_err(|e| tileset_err(&t.path, Box::new(e)))?),
+    };
+    let tileset_sha256 = tileset_sha256.as_deref();
     // Verifying reads every existing PNG header and JSON: spread it over the pool.
     let todo: Vec<usize> = {
         selected
@@ -470,6 +459,22 @@ pub fn render_masks(
     if skipped > 0 {
         log::info!("{skipped} frames already rendered (use --force to redo them)");
     }
+    // The tileset, read and uploaded once when some frame needs it (its triangles all carry ID 1:
+    // only its depth is used).
+    let tiles = match &plan.tileset {
+        Some(t) if !todo.is_empty() => {
+            let o = scene.manifest.origin;
+            let enu = crate::geo::EnuFrame::new(crate::geo::Geodetic::new(o.lat_deg, o.lon_deg, o.h_m));
+            let mesh = crate::scene::align::tileset_scene_mesh(&t.path, &enu, BuildingId::new(1)?)
+                .map_err(|e| tileset_err(&t.path, Box::new(e)))?;
+            if mesh.indices.is_empty() {
+                return Err(tileset_err(&t.path, "it holds no triangles".into()));
+            }
+            log::info!("tileset {}: {} triangles", t.path.display(), mesh.triangle_count());
+            Some(renderer.upload(&mesh)?)
+        }
+        _ => None,
+    };
     crate::util::create_dir_all(&plan.masks_dir())?;
     // A killed run's temporary files (a live shard's are locked and stay).
     crate::util::remove_stale_temps(&plan.masks_dir(), false, &|_| false)?;
@@ -521,7 +526,7 @@ pub fn render_masks(
                     None
                 };
                 let tiles_depth_m = match &tiles {
-                    Some((gpu, _)) => renderer.render(gpu, &views[k], &tiles_options)?.depth_m,
+                    Some(gpu) => renderer.render(gpu, &views[k], &tiles_options)?.depth_m,
                     None => None,
                 };
                 // The writer only stops receiving if it panicked; the join below reports that.

@@ -240,4 +240,20 @@ fn bad_tileset_inputs_are_clear_errors() {
         ],
     );
     assert!(!o.status.success(), "{}", stderr(&o));
+    // A broken tileset.json: an error naming it, and no frame written.
+    run(d, &["prepare", "--area", "demo"]);
+    std::fs::write(
+        d.join("tiny.toml"),
+        "name = \"tiny\"\nwidth_px = 160\nheight_px = 90\nsensor_width_mm = 6.4\nsensor_height_mm = 3.6\n\
+         hfov_deg = 40.0\nstrategy = \"grid\"\n",
+    )
+    .unwrap();
+    run(d, &["sample", "--area", "demo", "--camera", "tiny.toml", "--count", "2"]);
+    std::fs::write(d.join("broken.json"), "{\"asset\": {\"version\": \"1.0\"}, \"root\": 7").unwrap();
+    let o = insgen(d, &["render-masks", "--area", "demo", "--camera", "tiny", "--tileset", "broken.json"]);
+    let err = stderr(&o);
+    assert!(!o.status.success() && err.contains("broken.json") && !err.contains("panicked"), "{err}");
+    let masks = d.join("runs/demo/tiny/masks");
+    let written = std::fs::read_dir(&masks).map(|r| r.count()).unwrap_or(0);
+    assert_eq!(written, 0, "a failed run writes no frame");
 }
