@@ -95,7 +95,7 @@ pub enum StageError {
     #[error(transparent)]
     Interrupted(#[from] crate::util::interrupt::Interrupted),
     /// The tileset of [`MaskPlan::tileset`] could not be read.
-    #[error("tileset {}", path.display())]
+    #[error("reading the photogrammetry tileset ({})", path.display())]
     Tileset {
         path: PathBuf,
         #[source]

@@ -61,8 +61,9 @@ fn frames(dir: &Path) -> BTreeMap<String, (IdMap, FrameInstances)> {
     for e in std::fs::read_dir(&masks).unwrap() {
         let name = e.unwrap().file_name().to_string_lossy().into_owned();
         if let Some(frame) = name.strip_suffix(".instances.json") {
-            let fi: FrameInstances =
-                serde_json::from_slice(&std::fs::read(masks.join(&name)).unwrap()).unwrap();
+            let bytes = std::fs::read(masks.join(&name)).unwrap();
+            assert_schema("frame_instances.schema.json", &serde_json::from_slice(&bytes).unwrap());
+            let fi: FrameInstances = serde_json::from_slice(&bytes).unwrap();
             let map = IdMap::read_png(&masks.join(format!("{frame}.png"))).unwrap();
             out.insert(frame.to_string(), (map, fi));
         }
