@@ -68,6 +68,12 @@ pub struct Args {
     /// Needs instance files written by `insgen render-masks --visible-fraction`.
     #[arg(long, value_name = "FRACTION", value_parser = parse_fraction)]
     pub min_visible_fraction: Option<f64>,
+    /// Leave out frames whose LoD/tileset consistency score is below this (0–1).
+    ///
+    /// Needs instance files written by `insgen render-masks --tileset`; the score is the fraction of
+    /// a frame's LoD building pixels the tileset confirms.
+    #[arg(long, value_name = "SCORE", value_parser = parse_fraction)]
+    pub min_consistency: Option<f64>,
     /// Instances touching the image border: keep, flag (iscrowd = 1) or drop.
     #[arg(long, value_enum, value_name = "POLICY", default_value_t = TruncatedArg::Keep)]
     pub truncated: TruncatedArg,
@@ -120,6 +126,7 @@ impl Args {
                 min_visible_fraction: self.min_visible_fraction,
                 truncated: self.truncated.into(),
                 keep_empty_images: !self.drop_empty_images,
+                min_consistency: self.min_consistency,
             },
             shard: crate::util::Shard::default(),
         }
@@ -222,6 +229,13 @@ pub(crate) fn log_export(plan: &ExportPlan, ex: &crate::coco::export::Export) {
             d.empty_images
         );
     }
+    if d.low_consistency_images > 0 {
+        log::warn!(
+            "{} frame(s) scored below --min-consistency {} (LoD model vs tileset) and were left out",
+            d.low_consistency_images,
+            plan.filters.min_consistency.unwrap_or(0.0)
+        );
+    }
     for (split, ds) in &ex.datasets {
         log::info!("{split}: {} images, {} annotations", ds.images.len(), ds.annotations.len());
     }
@@ -274,7 +288,8 @@ mod tests {
                 min_area_px: 64,
                 min_visible_fraction: Some(0.25),
                 truncated: TruncatedPolicy::Flag,
-                keep_empty_images: false
+                keep_empty_images: false,
+                min_consistency: None,
             }
         );
     }

@@ -4,7 +4,10 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 
-use crate::label::stage::{self, MaskPlan, DEFAULT_MIN_AREA_PX};
+use crate::label::occlusion::OcclusionMode;
+use crate::label::stage::{
+    self, MaskPlan, TilesetOcclusion, DEFAULT_MIN_AREA_PX, DEFAULT_OCCLUSION_THRESHOLD_M,
+};
 use crate::label::Connectivity;
 use crate::scene::clutter::ClutterLayer;
 
@@ -115,6 +118,43 @@ pub struct Args {
     /// --check-alignment compares like with like.
     #[arg(long, value_name = "LAYERS", default_value = "trees,cars,rooftop", value_parser = parse_occluders)]
     pub occluders: LayerList,
+
+    /// Photogrammetry tileset (tileset.json) whose surface hides LoD buildings.
+    ///
+    /// Its finest level is read into the area's ENU frame, uploaded once, and its depth rendered at
+    /// every frame. Building pixels where the tileset lies in front of the LoD surface by more than
+    /// --occlusion-threshold-m (trees, cranes, unmodelled structures) leave the instance before
+    /// instances are computed; each <frame>.instances.json records an `occlusion` block with the
+    /// occluded / behind / agreeing pixel counts, the consistency score and per-building counts.
+    #[arg(long, value_name = "FILE")]
+    pub tileset: Option<PathBuf>,
+
+    /// What happens to occluded pixels: removed, or removed and listed in <frame>.ignore.png.
+    #[arg(long, value_name = "remove|ignore", value_enum, default_value = "remove", requires = "tileset")]
+    pub occlusion: OcclusionArg,
+
+    /// How far in front of the LoD surface the tileset must be for a pixel to count as occluded.
+    #[arg(long, value_name = "METERS", default_value_t = DEFAULT_OCCLUSION_THRESHOLD_M, requires = "tileset")]
+    pub occlusion_threshold_m: f32,
+}
+
+/// `--occlusion`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum OcclusionArg {
+    /// Occluded pixels become background.
+    #[default]
+    Remove,
+    /// Occluded pixels become background and are written to masks/<frame>.ignore.png (255 = ignore).
+    Ignore,
+}
+
+impl From<OcclusionArg> for OcclusionMode {
+    fn from(a: OcclusionArg) -> Self {
+        match a {
+            OcclusionArg::Remove => OcclusionMode::Remove,
+            OcclusionArg::Ignore => OcclusionMode::Ignore,
+        }
+    }
 }
 
 /// A comma-separated list of clutter layers, as one command-line value.
@@ -143,6 +183,14 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<(MaskPlan, PathBu
     plan.limit = args.limit;
     plan.range = DepthRange { near_m: args.near, far_m: args.far };
     plan.occluders = args.occluders.0.clone();
+    if let Some(path) = &args.tileset {
+        let t = args.occlusion_threshold_m;
+        if !(t.is_finite() && (0.0..=100.0).contains(&t)) {
+            bail!("--occlusion-threshold-m {t}: expected 0 to 100 metres");
+        }
+        plan.tileset =
+            Some(TilesetOcclusion { path: path.clone(), mode: args.occlusion.into(), threshold_m: t });
+    }
     Ok((plan, area_dir.join("scene")))
 }
 
@@ -153,6 +201,14 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<(MaskPlan, PathBu
 /// written — the list of frames that failed.
 pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     let (plan, scene_dir) = plan(args, global)?;
+    if let Some(t) = &args.tileset {
+        if !t.is_file() {
+            bail!(
+                "{}: no such tileset file (give the tileset.json of the photogrammetry model)",
+                t.display()
+            );
+        }
+    }
     if !scene_dir.is_dir() {
         bail!(
             "no prepared scene at {}; run `insgen prepare --area {}` first",
@@ -279,6 +335,31 @@ mod tests {
             assert_eq!(parse(&["--occluders", "all"]).unwrap().args.occluders.0.len(), 7);
             let e = parse(&["--occluders", "bushes"]).unwrap_err().to_string();
             assert!(e.contains("unknown clutter layer \"bushes\""), "{e}");
+        }
+
+        #[test]
+        fn tileset() {
+            let c = parse(&[
+                "--tileset",
+                "t/tileset.json",
+                "--occlusion",
+                "ignore",
+                "--occlusion-threshold-m",
+                "2",
+            ])
+            .unwrap();
+            let (p, _) = plan(&c.args, &c.global).unwrap();
+            let t = p.tileset.unwrap();
+            assert_eq!(t.path, PathBuf::from("t/tileset.json"));
+            assert_eq!((t.mode, t.threshold_m), (OcclusionMode::Ignore, 2.0));
+            let (p, _) = plan(&parse(&[]).unwrap().args, &parse(&[]).unwrap().global).unwrap();
+            assert_eq!(p.tileset, None);
+            let c = parse(&["--tileset", "t.json"]).unwrap();
+            let t = plan(&c.args, &c.global).unwrap().0.tileset.unwrap();
+            assert_eq!((t.mode, t.threshold_m), (OcclusionMode::Remove, DEFAULT_OCCLUSION_THRESHOLD_M));
+            assert!(parse(&["--occlusion", "ignore"]).is_err(), "--occlusion needs --tileset");
+            let c = parse(&["--tileset", "t.json", "--occlusion-threshold-m", "NaN"]).unwrap();
+            assert!(plan(&c.args, &c.global).unwrap_err().to_string().contains("--occlusion-threshold-m"));
         }
 
         #[test]

@@ -107,6 +107,9 @@ pub struct DropCounts {
     pub truncated: u64,
     /// Images left without annotations under `--drop-empty-images`.
     pub empty_images: u64,
+    /// Images whose consistency score is below `--min-consistency`.
+    #[serde(default)]
+    pub low_consistency_images: u64,
 }
 
 impl DropCounts {
@@ -115,6 +118,7 @@ impl DropCounts {
         self.low_visibility += o.low_visibility;
         self.truncated += o.truncated;
         self.empty_images += o.empty_images;
+        self.low_consistency_images += o.low_consistency_images;
     }
 }
 
@@ -290,6 +294,8 @@ enum Outcome {
     NoRgb {
         broken: bool,
     },
+    /// Left out: its consistency score is below `--min-consistency`.
+    LowConsistency,
 }
 
 /// Whether `frame`'s RGB image exists, decodes, and has the frame's size: `Some(false)` missing,
@@ -321,6 +327,21 @@ fn process_frame(
         }
     }
     let inst: FrameInstances = read_json(&frame.instances)?;
+    if let Some(min) = plan.filters.min_consistency {
+        let Some(o) = &inst.occlusion else {
+            return Err(CocoError::MissingData {
+                path: frame.instances.clone(),
+                reason: format!(
+                    "it has no consistency score, which --min-consistency needs; rerun `insgen render-masks \
+                     --area {} --camera {} --tileset FILE`",
+                    area.name, camera.name
+                ),
+            });
+        };
+        if o.consistency < min {
+            return Ok(Outcome::LowConsistency);
+        }
+    }
     let map = IdMap::read_png(&frame.mask)?;
     let (lab, kept) = verified_components(area, camera, frame, plan, &inst, &map)?;
     let drafts = drafts(plan.unit, frame, &inst, &lab, &kept)?;
@@ -570,6 +591,12 @@ fn image_record(
         view: pose.view,
         geo: pose.geo,
         look: frame_look(&frame.rgb),
+        consistency: inst.occlusion.as_ref().map(|o| o.consistency),
+        ignore_file: inst
+            .occlusion
+            .as_ref()
+            .filter(|o| o.mode == crate::label::occlusion::OcclusionMode::Ignore)
+            .map(|_| format!("{base}/masks/{}.ignore.png", pose.name)),
     }
 }
 
@@ -739,6 +766,10 @@ pub fn build(plan: &ExportPlan, image_root: &str, progress: &dyn Progress) -> Re
                         if broken && missing.broken.len() < 5 {
                             missing.broken.push(frame.rgb.clone());
                         }
+                        continue;
+                    }
+                    Outcome::LowConsistency => {
+                        dropped.low_consistency_images += 1;
                         continue;
                     }
                 };

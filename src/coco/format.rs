@@ -111,6 +111,10 @@ pub struct Filters {
     pub truncated: TruncatedPolicy,
     /// Whether images without any annotation stay in the file (as negatives).
     pub keep_empty_images: bool,
+    /// Frames whose LoD/tileset consistency score (`render-masks --tileset`) is below this are left
+    /// out (`--min-consistency`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub min_consistency: Option<f64>,
 }
 
 impl Default for Filters {
@@ -120,6 +124,7 @@ impl Default for Filters {
             min_visible_fraction: None,
             truncated: TruncatedPolicy::Keep,
             keep_empty_images: true,
+            min_consistency: None,
         }
     }
 }
@@ -172,6 +177,14 @@ pub struct Image {
     /// `rgb/<frame>.render.json`, when the RGB frame has one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub look: Option<serde_json::Value>,
+    /// Extension: the frame's LoD/tileset consistency score (`render-masks --tileset`, 0–1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub consistency: Option<f64>,
+    /// Extension: the frame's ignore mask (`render-masks --tileset … --occlusion ignore`), relative
+    /// to `info.image_root`: 8-bit grey, 255 where the tileset hides a LoD building. Pixels to
+    /// exclude from the loss and from evaluation (neither building nor background).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ignore_file: Option<String>,
 }
 
 /// `annotations[]`: one building instance in one image.

@@ -61,6 +61,47 @@ pub struct SplitStats {
     pub sizes: SizeCounts,
     /// Median annotation area, px (0 without annotations).
     pub median_area_px: u64,
+    /// LoD/tileset consistency scores of the images that carry one (`render-masks --tileset`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub consistency: Option<ConsistencyStats>,
+}
+
+/// Bins of [`ConsistencyStats::bins`]: `[0, 0.1), [0.1, 0.2), …, [0.9, 1.0]`.
+pub const CONSISTENCY_BINS: usize = 10;
+
+/// The distribution of the images' consistency scores in one split.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ConsistencyStats {
+    /// Images with a score.
+    pub images: u64,
+    pub mean: f64,
+    pub min: f64,
+    pub median: f64,
+    /// Images per tenth of the score ([`CONSISTENCY_BINS`] bins, 1.0 in the last).
+    pub bins: Vec<u64>,
+}
+
+impl ConsistencyStats {
+    /// The statistics of `scores` (`None` when empty).
+    pub fn of(scores: &[f64]) -> Option<ConsistencyStats> {
+        if scores.is_empty() {
+            return None;
+        }
+        let mut sorted = scores.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        let mut bins = vec![0u64; CONSISTENCY_BINS];
+        for &c in scores {
+            let b = ((c.clamp(0.0, 1.0) * CONSISTENCY_BINS as f64) as usize).min(CONSISTENCY_BINS - 1);
+            bins[b] += 1;
+        }
+        Some(ConsistencyStats {
+            images: scores.len() as u64,
+            mean: scores.iter().sum::<f64>() / scores.len() as f64,
+            min: sorted[0],
+            median: sorted[sorted.len() / 2],
+            bins,
+        })
+    }
 }
 
 /// Statistics of one area.
@@ -129,6 +170,9 @@ pub fn compute(datasets: &[(Split, &Dataset)]) -> Stats {
                 .collect(),
             sizes,
             median_area_px: area_values.get(area_values.len() / 2).copied().unwrap_or(0),
+            consistency: ConsistencyStats::of(
+                &ds.images.iter().filter_map(|im| im.consistency).collect::<Vec<f64>>(),
+            ),
         });
         for info in &ds.info.areas {
             let images = ds.images.iter().filter(|im| im.area_name == info.name).count() as u64;
@@ -226,6 +270,28 @@ pub fn write_report(
     bar_chart("instances by size (px)", &size_cats, &size_series).save(&p)?;
     written.push(p);
 
+    // Consistency scores (render-masks --tileset), when any image has one.
+    if stats.splits.iter().any(|s| s.consistency.is_some()) {
+        let cats: Vec<String> =
+            (0..CONSISTENCY_BINS).map(|b| format!("{:.1}", b as f64 / CONSISTENCY_BINS as f64)).collect();
+        let series: Vec<Series> = stats
+            .splits
+            .iter()
+            .enumerate()
+            .filter_map(|(i, s)| {
+                let c = s.consistency.as_ref()?;
+                Some(Series {
+                    name: s.split.clone(),
+                    colour: SPLIT_COLOURS[i % 3],
+                    values: c.bins.iter().map(|&n| n as f64).collect(),
+                })
+            })
+            .collect();
+        let p = out_dir.join("hist_consistency.png");
+        bar_chart("images by LoD/tileset consistency score (bins of 0.1)", &cats, &series).save(&p)?;
+        written.push(p);
+    }
+
     let sheet = opts.contact_sheet_images > 0;
     if sheet {
         let p = out_dir.join("contact_sheet.png");
@@ -272,6 +338,20 @@ fn markdown(stats: &Stats, sheet: bool) -> String {
         s,
         "\nSize classes: small < 32² px, medium < 96² px, large ≥ 96² px (area = mask pixel count).\n"
     );
+    if stats.splits.iter().any(|sp| sp.consistency.is_some()) {
+        let _ = writeln!(s, "## LoD/tileset consistency\n\n| split | images scored | mean | median | min |");
+        let _ = writeln!(s, "|---|---:|---:|---:|---:|");
+        for sp in &stats.splits {
+            if let Some(c) = &sp.consistency {
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {:.3} | {:.3} | {:.3} |",
+                    sp.split, c.images, c.mean, c.median, c.min
+                );
+            }
+        }
+        let _ = writeln!(s, "\n![consistency](hist_consistency.png)\n");
+    }
     let _ = writeln!(s, "## Instances per image\n");
     let _ = writeln!(s, "| split | instances: images |\n|---|---|");
     for sp in &stats.splits {
@@ -457,6 +537,8 @@ mod tests {
                 view: pose.view,
                 geo: pose.geo,
                 look: None,
+                consistency: None,
+                ignore_file: None,
             })
             .collect();
         let annotations = anns
@@ -505,6 +587,16 @@ mod tests {
         let a = &st.areas[0];
         assert_eq!((a.buildings_seen, a.buildings_total, a.images, a.annotations), (3, 10, 3, 4));
         assert!((a.coverage - 0.3).abs() < 1e-12);
+    }
+
+    #[test]
+    fn consistency_bins_mean_median() {
+        assert_eq!(ConsistencyStats::of(&[]), None);
+        let c = ConsistencyStats::of(&[1.0, 0.95, 0.05, 0.5]).unwrap();
+        assert_eq!(c.images, 4);
+        assert_eq!(c.bins, vec![1, 0, 0, 0, 0, 1, 0, 0, 0, 2]);
+        assert!((c.mean - 0.625).abs() < 1e-12);
+        assert_eq!((c.min, c.median), (0.05, 0.95));
     }
 
     #[test]

@@ -25,6 +25,15 @@ pub struct InstanceEntry {
     /// Visible pixels / pixels of the building rendered alone (amodal), when computed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub visible_fraction: Option<f64>,
+    /// With `render-masks --tileset`: the building's pixels removed because the tileset shows
+    /// something in front, its pixels where the tileset sees past it, and whether most of its LoD
+    /// pixels do (demolished or misplaced; see [`super::occlusion::BuildingRecord`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub occluded_px: Option<u64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub behind_px: Option<u64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub see_through: Option<bool>,
 }
 
 /// `<frame>.instances.json`.
@@ -45,4 +54,7 @@ pub struct FrameInstances {
     /// The clutter layers drawn as occluders (background) in this frame's ID map; absent when none.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub occluders: Vec<crate::scene::clutter::ClutterLayer>,
+    /// With `render-masks --tileset`: how the LoD model and the tileset compared in this frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub occlusion: Option<super::occlusion::OcclusionRecord>,
 }

@@ -15,18 +15,17 @@
 //! every LoD pixel, lower when the LoD model is shifted (its silhouette lands on ground or other
 //! buildings at other depths) or occluded.
 //!
-//! Status: this is the per-frame computation and its test (`tests/it/label_occlusion.rs`); wiring it
-//! into `render-masks --tileset` (rendering the tileset per frame, writing the counts into the
-//! frame metadata and COCO, `stats` histogram) is not done yet.
+//! `render-masks --tileset` applies it to every frame before instances are computed (see
+//! [`crate::label::stage`]) and records an [`OcclusionRecord`] in each frame's instance list.
 
 use std::collections::BTreeMap;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::scene::{BuildingId, IdError, IdMap};
 
 /// What happens to occluded pixels.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum OcclusionMode {
     /// Removed from the instance (background).
@@ -56,6 +55,67 @@ pub struct FrameOcclusion {
     /// `agree_px / LoD building pixels` (1 for a frame without buildings).
     pub consistency: f64,
     pub buildings: BTreeMap<BuildingId, BuildingOcclusion>,
+}
+
+/// A building counts as [`BuildingRecord::see_through`] when more than this fraction of its LoD
+/// pixels see past it (the tileset shows ground or something far behind): demolished or misplaced.
+pub const SEE_THROUGH_FRACTION: f64 = 0.5;
+
+/// Per-building counts as recorded in a frame's instance list.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct BuildingRecord {
+    pub building_id: BuildingId,
+    /// LoD pixels before the comparison, pixels removed as occluded, pixels where the tileset sees
+    /// past the building.
+    pub lod_px: u64,
+    pub occluded_px: u64,
+    pub behind_px: u64,
+    /// More than [`SEE_THROUGH_FRACTION`] of the LoD pixels see past the building.
+    pub see_through: bool,
+}
+
+/// What `render-masks --tileset` records per frame (`occlusion` in `<frame>.instances.json`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OcclusionRecord {
+    /// SHA-256 (hex) of the tileset.json the depth came from, the mode and the threshold: part of
+    /// the frame's fingerprint (a resumed run re-renders frames made with other settings).
+    pub tileset_sha256: String,
+    pub mode: OcclusionMode,
+    pub threshold_m: f32,
+    /// Totals over the frame's LoD building pixels (see the module doc).
+    pub occluded_px: u64,
+    pub behind_px: u64,
+    pub agree_px: u64,
+    /// `agree_px / LoD building pixels`, 1 without buildings.
+    pub consistency: f64,
+    /// Every LoD building of the frame, by ID (also the ones the tileset hides entirely).
+    pub buildings: Vec<BuildingRecord>,
+}
+
+impl OcclusionRecord {
+    /// The record of one frame's [`FrameOcclusion`].
+    pub fn new(tileset_sha256: &str, mode: OcclusionMode, threshold_m: f32, f: &FrameOcclusion) -> Self {
+        OcclusionRecord {
+            tileset_sha256: tileset_sha256.to_string(),
+            mode,
+            threshold_m,
+            occluded_px: f.occluded_px,
+            behind_px: f.behind_px,
+            agree_px: f.agree_px,
+            consistency: f.consistency,
+            buildings: f
+                .buildings
+                .iter()
+                .map(|(&building_id, b)| BuildingRecord {
+                    building_id,
+                    lod_px: b.lod_px,
+                    occluded_px: b.occluded_px,
+                    behind_px: b.behind_px,
+                    see_through: b.lod_px > 0 && b.behind_px as f64 > SEE_THROUGH_FRACTION * b.lod_px as f64,
+                })
+                .collect(),
+        }
+    }
 }
 
 /// Errors of [`occlude`].
@@ -152,6 +212,20 @@ mod tests {
         assert_eq!(f.consistency, 2.0 / 5.0);
         let b1 = f.buildings[&BuildingId::new(1).unwrap()];
         assert_eq!((b1.lod_px, b1.occluded_px, b1.behind_px), (3, 1, 1));
+    }
+
+    #[test]
+    fn the_record_flags_buildings_that_are_mostly_seen_through() {
+        // b1: 2 of 3 pixels see past it; b2: 1 of 2 (not more than half).
+        let ids = map(&[1, 1, 1, 2, 2]);
+        let lod = [50.0; 5];
+        let tiles = [0.0, 90.0, 50.0, 0.0, 50.0];
+        let f = occlude(&ids, &lod, &tiles, 1.5, OcclusionMode::Remove).unwrap().2;
+        let r = OcclusionRecord::new("abc", OcclusionMode::Remove, 1.5, &f);
+        assert_eq!((r.behind_px, r.agree_px, r.occluded_px), (3, 2, 0));
+        assert_eq!(r.buildings.iter().map(|b| b.see_through).collect::<Vec<_>>(), [true, false]);
+        let back: OcclusionRecord = serde_json::from_value(serde_json::to_value(&r).unwrap()).unwrap();
+        assert_eq!(back, r);
     }
 
     #[test]

@@ -7,6 +7,9 @@
 //! - `masks/<frame>.depth.exr` (with `depth`): float32 channel `Z`, metres along the optical axis,
 //!   0 where no building was hit;
 //!
+//! - `masks/<frame>.ignore.png` (with a tileset in [`OcclusionMode::Ignore`]): 8-bit grey, 255 where a
+//!   LoD building pixel was removed because the tileset shows something in front of it, 0 elsewhere;
+//!
 //! and, with `preview = K`, contact sheets `masks/preview_XX.png` of K frames ([`super::overlay`]).
 //!
 //! # Instances
@@ -19,6 +22,15 @@
 //! dropped fragment. `building_visible_px` counts every visible pixel of the building, dropped
 //! fragments included. `visible_fraction` (optional, one extra render per visible building) is
 //! `building_visible_px` divided by the pixels the building covers in the frame when rendered alone.
+//!
+//! # Masks that respect a tileset
+//! With [`MaskPlan::tileset`], the tileset's surface (finest level, in the area's ENU frame) is
+//! uploaded once and its linear depth rendered at every frame by the same renderer; the LoD depth is
+//! the mask render's own. [`occlude`] then removes (or marks as ignore) the building pixels where the
+//! tileset shows something in front, *before* components are labelled, so the PNG, the instances,
+//! `visible_fraction` and everything downstream follow the final masks. The counts and the
+//! consistency score go into the instance list ([`OcclusionRecord`]); the tileset's SHA-256, the mode
+//! and the threshold are part of the frame fingerprint.
 //!
 //! # Throughput and resumption
 //! Rendering runs on the calling thread with several frames in flight; labelling, PNG encoding and
@@ -35,6 +47,7 @@ use std::time::Instant;
 
 use rayon::iter::{IntoParallelRefIterator, ParallelBridge, ParallelIterator};
 
+use super::occlusion::{occlude, OcclusionError, OcclusionMode, OcclusionRecord};
 use super::overlay::{self, OverlayError};
 use super::{label_components, Connectivity, FrameInstances, InstanceEntry};
 use crate::camera::record::read_jsonl;
@@ -81,6 +94,15 @@ pub enum StageError {
     /// Stopped by Ctrl-C; the frames written so far are complete.
     #[error(transparent)]
     Interrupted(#[from] crate::util::interrupt::Interrupted),
+    /// The tileset of [`MaskPlan::tileset`] could not be read.
+    #[error("reading the photogrammetry tileset ({})", path.display())]
+    Tileset {
+        path: PathBuf,
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+    #[error(transparent)]
+    Occlusion(#[from] OcclusionError),
     /// Writing the depth EXR failed.
     #[error("{}: writing the depth EXR failed", path.display())]
     Exr {
@@ -116,6 +138,23 @@ pub struct MaskPlan {
     /// Clutter layers drawn as occluders (ID 0) when the scene has them
     /// (default [`ClutterLayer::DEFAULT_OCCLUDERS`]: trees, cars, rooftop units).
     pub occluders: Vec<ClutterLayer>,
+    /// Compare every frame with a photogrammetry tileset's depth (see the module doc).
+    pub tileset: Option<TilesetOcclusion>,
+}
+
+/// Default `--occlusion-threshold-m`: how far in front of a LoD surface the tileset must be for the
+/// pixel to count as occluded (absorbs photogrammetry noise and the residual misalignment).
+pub const DEFAULT_OCCLUSION_THRESHOLD_M: f32 = 1.5;
+
+/// The tileset masks are compared with.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TilesetOcclusion {
+    /// Its tileset.json.
+    pub path: PathBuf,
+    /// Remove occluded pixels, or also mark them in `<frame>.ignore.png`.
+    pub mode: OcclusionMode,
+    /// See [`DEFAULT_OCCLUSION_THRESHOLD_M`].
+    pub threshold_m: f32,
 }
 
 impl MaskPlan {
@@ -133,6 +172,7 @@ impl MaskPlan {
             limit: None,
             range: DepthRange::default(),
             occluders: ClutterLayer::DEFAULT_OCCLUDERS.to_vec(),
+            tileset: None,
         }
     }
 
@@ -159,6 +199,11 @@ impl MaskPlan {
     /// `masks/<frame>.depth.exr`.
     pub fn depth_path(&self, frame: &str) -> PathBuf {
         self.masks_dir().join(format!("{frame}.depth.exr"))
+    }
+
+    /// `masks/<frame>.ignore.png` (with a tileset in ignore mode).
+    pub fn ignore_path(&self, frame: &str) -> PathBuf {
+        self.masks_dir().join(format!("{frame}.ignore.png"))
     }
 
     /// `rgb/<frame>.png` (written by the RGB stage, used as the preview backdrop).
@@ -210,7 +255,12 @@ pub fn pose_digest(rec: &PoseRecord) -> String {
 
 /// Whether a frame's outputs exist and match what this plan would write (same pose, size and
 /// settings).
-fn outputs_verify(plan: &MaskPlan, rec: &PoseRecord, occluders: &[ClutterLayer]) -> bool {
+fn outputs_verify(
+    plan: &MaskPlan,
+    rec: &PoseRecord,
+    occluders: &[ClutterLayer],
+    tileset_sha256: Option<&str>,
+) -> bool {
     let k = &rec.view.intrinsics;
     match IdMap::read_png_size(&plan.png_path(&rec.name)) {
         Ok(size) if size == (k.width_px, k.height_px) => {}
@@ -224,6 +274,15 @@ fn outputs_verify(plan: &MaskPlan, rec: &PoseRecord, occluders: &[ClutterLayer])
         && fi.connectivity == plan.connectivity
         && fi.min_component_area_px == plan.min_area_px
         && fi.occluders == occluders
+        && match (&plan.tileset, tileset_sha256, &fi.occlusion) {
+            (None, _, None) => true,
+            (Some(t), Some(sha), Some(o)) => {
+                o.tileset_sha256 == sha && o.mode == t.mode && o.threshold_m == t.threshold_m
+            }
+            _ => false,
+        }
+        && (plan.tileset.as_ref().is_none_or(|t| t.mode != OcclusionMode::Ignore)
+            || plan.ignore_path(&rec.name).is_file())
         && (!plan.visible_fraction || fi.instances.iter().all(|e| e.visible_fraction.is_some()));
     if !settings_match {
         return false;
@@ -296,6 +355,9 @@ pub fn frame_instances(
                 bbox_px: c.bbox_px,
                 truncated: c.touches_border,
                 building_visible_px,
+                occluded_px: None,
+                behind_px: None,
+                see_through: None,
                 visible_fraction: amodal_px.map(|m| match m.get(&c.building_id) {
                     Some(&a) if a > 0 => building_visible_px as f64 / a as f64,
                     _ => 1.0,
@@ -312,6 +374,7 @@ pub fn frame_instances(
         instances,
         pose_sha256: None,
         occluders: Vec::new(),
+        occlusion: None,
     }
 }
 
@@ -339,6 +402,8 @@ fn occluders_used(scene: &PreparedScene, occluders: &[ClutterLayer]) -> Vec<Clut
 struct Job {
     record: usize,
     image: RenderedFrame,
+    /// The tileset's linear depth at the frame (with a tileset).
+    tiles_depth_m: Option<Vec<f32>>,
     amodal_px: Option<BTreeMap<BuildingId, u64>>,
 }
 
@@ -372,18 +437,44 @@ pub fn render_masks(
             ),
         });
     }
+    // The tileset's digest (part of every frame's fingerprint).
+    let tileset_err = |path: &Path, source: Box<dyn std::error::Error + Send + Sync>| StageError::Tileset {
+        path: path.to_path_buf(),
+        source,
+    };
+    let tileset_sha256 = match &plan.tileset {
+        None => None,
+        Some(t) => Some(crate::util::sha256_file(&t.path).map_err(|e| tileset_err(&t.path, Box::new(e)))?),
+    };
+    let tileset_sha256 = tileset_sha256.as_deref();
     // Verifying reads every existing PNG header and JSON: spread it over the pool.
     let todo: Vec<usize> = {
         selected
             .par_iter()
             .copied()
-            .filter(|&i| plan.force || !outputs_verify(plan, &records[i], &occluders))
+            .filter(|&i| plan.force || !outputs_verify(plan, &records[i], &occluders, tileset_sha256))
             .collect()
     };
     let skipped = selected.len() - todo.len();
     if skipped > 0 {
         log::info!("{skipped} frames already rendered (use --force to redo them)");
     }
+    // The tileset, read and uploaded once when some frame needs it (its triangles all carry ID 1:
+    // only its depth is used).
+    let tiles = match &plan.tileset {
+        Some(t) if !todo.is_empty() => {
+            let o = scene.manifest.origin;
+            let enu = crate::geo::EnuFrame::new(crate::geo::Geodetic::new(o.lat_deg, o.lon_deg, o.h_m));
+            let mesh = crate::scene::align::tileset_scene_mesh(&t.path, &enu, BuildingId::new(1)?)
+                .map_err(|e| tileset_err(&t.path, Box::new(e)))?;
+            if mesh.indices.is_empty() {
+                return Err(tileset_err(&t.path, "it holds no triangles".into()));
+            }
+            log::info!("tileset {}: {} triangles", t.path.display(), mesh.triangle_count());
+            Some(renderer.upload(&mesh)?)
+        }
+        _ => None,
+    };
     crate::util::create_dir_all(&plan.masks_dir())?;
     // A killed run's temporary files (a live shard's are locked and stay).
     crate::util::remove_stale_temps(&plan.masks_dir(), false, &|_| false)?;
@@ -391,7 +482,8 @@ pub fn render_masks(
         .iter()
         .map(|&i| View { intrinsics: records[i].view.intrinsics, pose: records[i].pose() })
         .collect();
-    let options = RenderOptions { range: plan.range, linear_depth: plan.depth };
+    let options = RenderOptions { range: plan.range, linear_depth: plan.depth || tiles.is_some() };
+    let tiles_options = RenderOptions { range: plan.range, linear_depth: true };
 
     progress.start(todo.len() as u64, "frames");
     let failures: Mutex<Vec<FrameFailure>> = Mutex::new(Vec::new());
@@ -403,7 +495,7 @@ pub fn render_masks(
         let writer = s.spawn(|| {
             rx.into_iter().par_bridge().for_each(|job| {
                 let rec = &records[job.record];
-                match write_frame(plan, rec, &job, &source_ids, &occluders) {
+                match write_frame(plan, rec, job, &source_ids, &occluders, tileset_sha256) {
                     Ok(n) => {
                         instance_count.fetch_add(n, std::sync::atomic::Ordering::Relaxed);
                     }
@@ -433,8 +525,12 @@ pub fn render_masks(
                 } else {
                     None
                 };
+                let tiles_depth_m = match &tiles {
+                    Some(gpu) => renderer.render(gpu, &views[k], &tiles_options)?.depth_m,
+                    None => None,
+                };
                 // The writer only stops receiving if it panicked; the join below reports that.
-                let _ = tx.send(Job { record: todo[k], image, amodal_px });
+                let _ = tx.send(Job { record: todo[k], image, tiles_depth_m, amodal_px });
                 Ok(())
             });
         drop(tx);
@@ -476,10 +572,28 @@ pub fn render_masks(
 fn write_frame(
     plan: &MaskPlan,
     rec: &PoseRecord,
-    job: &Job,
+    mut job: Job,
     source_ids: &BTreeMap<BuildingId, String>,
     occluders: &[ClutterLayer],
+    tileset_sha256: Option<&str>,
 ) -> Result<u64, StageError> {
+    let mut occlusion = None;
+    if let (Some(t), Some(sha)) = (&plan.tileset, tileset_sha256) {
+        let empty = Vec::new();
+        let lod_depth = job.image.depth_m.as_ref().unwrap_or(&empty);
+        let tiles_depth = job.tiles_depth_m.as_ref().unwrap_or(&empty);
+        let (ids, ignore, counts) = occlude(&job.image.ids, lod_depth, tiles_depth, t.threshold_m, t.mode)?;
+        job.image.ids = ids;
+        if let Some(mask) = ignore {
+            write_ignore_png(
+                &plan.ignore_path(&rec.name),
+                &mask,
+                job.image.ids.width(),
+                job.image.ids.height(),
+            )?;
+        }
+        occlusion = Some(OcclusionRecord::new(sha, t.mode, t.threshold_m, &counts));
+    }
     let image = &job.image;
     let mut instances = frame_instances(
         &rec.name,
@@ -491,12 +605,46 @@ fn write_frame(
     );
     instances.pose_sha256 = Some(pose_digest(rec));
     instances.occluders = occluders.to_vec();
-    if let Some(depth) = &image.depth_m {
+    if let Some(o) = &occlusion {
+        let by_id: BTreeMap<BuildingId, &super::occlusion::BuildingRecord> =
+            o.buildings.iter().map(|b| (b.building_id, b)).collect();
+        for e in &mut instances.instances {
+            if let Some(b) = by_id.get(&e.building_id) {
+                e.occluded_px = Some(b.occluded_px);
+                e.behind_px = Some(b.behind_px);
+                e.see_through = Some(b.see_through);
+            }
+        }
+    }
+    instances.occlusion = occlusion;
+    if let (true, Some(depth)) = (plan.depth, &image.depth_m) {
         write_depth_exr(&plan.depth_path(&rec.name), depth, image.ids.width(), image.ids.height())?;
     }
     image.ids.write_png(&plan.png_path(&rec.name))?;
     crate::util::write_json_atomic(&plan.instances_path(&rec.name), &instances)?;
     Ok(instances.instances.len() as u64)
+}
+
+/// Writes an ignore mask as an 8-bit greyscale PNG (255 = ignore) atomically.
+///
+/// # Errors
+/// [`StageError::File`] naming `path`; encoding a well-sized buffer does not fail otherwise.
+pub fn write_ignore_png(path: &Path, mask: &[bool], width: u32, height: u32) -> Result<(), StageError> {
+    let mut bytes = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut bytes, width, height);
+        enc.set_color(png::ColorType::Grayscale);
+        enc.set_depth(png::BitDepth::Eight);
+        let encode_err = |e: png::EncodingError| {
+            StageError::File(crate::util::FileError::new("encoding", path, std::io::Error::other(e)))
+        };
+        let mut w = enc.write_header().map_err(encode_err)?;
+        let px: Vec<u8> = mask.iter().map(|&m| if m { 255 } else { 0 }).collect();
+        w.write_image_data(&px).map_err(encode_err)?;
+        w.finish().map_err(encode_err)?;
+    }
+    crate::util::write_bytes_atomic(path, &bytes)?;
+    Ok(())
 }
 
 /// Picks `k` of `n` items evenly (first and last included when k ≥ 2).

@@ -136,6 +136,25 @@ pub fn tileset_surface(
     Ok(out)
 }
 
+/// A tileset's whole surface (every content of the finest level, see [`tileset_surface`]) in the ENU
+/// frame `enu` as a renderable [`super::SceneMesh`] whose triangles all carry `id` (render-masks
+/// `--tileset` renders its depth at every frame).
+///
+/// # Errors
+/// The reader's [`crate::lod::LodError`], naming the file and what is wrong.
+pub fn tileset_scene_mesh(
+    path: &std::path::Path,
+    enu: &crate::geo::EnuFrame,
+    id: super::BuildingId,
+) -> Result<super::SceneMesh, crate::lod::LodError> {
+    let all = tileset_surface(path, enu, [f64::NEG_INFINITY; 2], [f64::INFINITY; 2])?;
+    Ok(super::SceneMesh {
+        positions_m: all.positions.iter().map(|p| p.map(|v| v as f32)).collect(),
+        building_ids: vec![id; all.positions.len()],
+        indices: all.triangles.iter().flatten().copied().collect(),
+    })
+}
+
 /// Horizontal bounds of a mesh, metres (`None` when empty).
 pub fn bounds_2d(mesh: &TriMesh) -> Option<([f64; 2], [f64; 2])> {
     let mut lo = [f64::INFINITY; 2];

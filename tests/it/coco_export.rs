@@ -224,6 +224,9 @@ fn write_area(workdir: &Path, spec: &AreaSpec) {
                 visible_fraction: spec
                     .visible_fraction
                     .then(|| (c.building_id.get() as f64 * 0.37).fract().max(0.05)),
+                occluded_px: None,
+                behind_px: None,
+                see_through: None,
             })
             .collect();
         let fi = FrameInstances {
@@ -235,6 +238,7 @@ fn write_area(workdir: &Path, spec: &AreaSpec) {
             instances,
             pose_sha256: None,
             occluders: Vec::new(),
+            occlusion: None,
         };
         write_json(&cam.join(format!("masks/{name}.instances.json")), &fi);
         if i < spec.rgb_frames {
