@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # RGB quality bench (issue 14): seconds per frame of `insgen render-rgb` at its defaults, and PSNR/SSIM
 # against a converged reference, for the procedural look on the demo and on Shibuya and for an unlit
-# photogrammetry tileset. The procedural cases are measured for both looks: the default direct lighting
+# photogrammetry tileset, at render-rgb's defaults (the varied per-frame look, the clutter layers prepare
+# writes, insgen's camera effects). The procedural cases are measured for both lightings: the default direct
 # and `--lighting path` (the path-traced look, the previous defaults); the settings render-rgb used before
 # issue 14 (16 samples, OIDN HIGH, 4 bounces, path-traced) are measured on the same crops. Writes
 # bench/rgb_quality.md.
@@ -37,15 +38,22 @@ render() {
   local cam="$W/$area/cam2" out="$W/results/$case"
   rm -rf "$out/$setting"; mkdir -p "$out/$setting"
   echo "== $case/$setting: render-rgb $* ($FRAMES frame(s), 1920x1080)"
-  local line
+  local line t0 t1
+  t0=$(date +%s.%N)
   line=$(ig render-rgb --area "$area" --camera cam2 --limit "$FRAMES" --force "$@" 2>&1 | tee /dev/stderr | grep "frame(s) rendered")
+  t1=$(date +%s.%N)
   # "(12.34 s/frame, 23.45 CPU s/frame in Blender; median 11.00 s, 22.00 CPU s)"
   local nums
   nums=$(sed -E 's/.*\(([0-9.]+) s\/frame, ([0-9.]+) CPU s\/frame in Blender; median ([0-9.]+) s, ([0-9.]+) CPU s\).*/\1 \2 \3 \4/' <<<"$line")
-  printf "%s\t%s\t%s\n" "$case" "$setting" "$(tr ' ' '\t' <<<"$nums")" >> "$TIMES"
-  cp "$cam"/rgb/*.png "$out/$setting/"
+  # The whole command (Blender start, scene build, every frame, insgen's camera effects and PNG writing).
+  printf "%s\t%s\t%s\t%s\n" "$case" "$setting" "$(tr ' ' '\t' <<<"$nums")" "$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.2f", b - a }')" >> "$TIMES"
   local job
   job=$(ls -t "$cam"/blender/job-rgb-*.json | head -1)
+  # Quality is judged on Blender's frames as render-rgb got them, before insgen's camera effects (white
+  # balance, vignetting, blur, sensor noise: deliberate, not a rendering error): the same job re-rendered.
+  mkdir -p "$out/$setting-final"
+  cp "$cam"/rgb/*.png "$out/$setting-final/"
+  "$BPY" scripts/bench/rgb_reference.py "$job" "$out/$setting" job 0 0 0 "$FRAMES" 2>&1 | grep -c '^REF' >/dev/null
   for mode in $modes; do
     local spp=$REF_SPP tag="$mode"; [ "$mode" = old ] && spp=16
     [ "$mode" = reference ] && [ "$setting" != new ] && tag="$setting-reference"

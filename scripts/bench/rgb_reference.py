@@ -11,8 +11,11 @@ job's look; a path-traced look gets the richest light transport insgen ever used
 render-rgb used before issue 14 (MODE "old", path-traced jobs only: 4 bounces, OpenImageDenoise at HIGH
 quality with the ACCURATE prefilter), restricted to the centred CROP_W x CROP_H pixel window of the frame
 (Cycles' render border: each pixel's samples do not depend on the border, so the crop equals the same
-window of a full render). Writes OUT_DIR/<frame>.png (8-bit sRGB, the crop) and prints one line per
-frame: "REF <frame> <wall seconds> <cpu seconds>".
+window of a full render). MODE "job" renders the whole frame with the job's own settings (SAMPLES, CROP_W
+and CROP_H are ignored): Blender's frame as render-rgb gets it, before insgen applies the camera effects
+(white balance, vignetting, blur, noise), which are deliberate and not a rendering error. Every mode sets
+each frame's drawn look (sun, sky, haze, exposure) as render-rgb does. Writes OUT_DIR/<frame>.png (8-bit
+sRGB) and prints one line per frame: "REF <frame> <wall seconds> <cpu seconds>".
 """
 
 import os
@@ -27,8 +30,8 @@ def main(argv):
     job_path, out_dir, mode = argv[1], argv[2], argv[3]
     samples, crop_w, crop_h = int(argv[4]), int(argv[5]), int(argv[6])
     limit = int(argv[7]) if len(argv) > 7 else None
-    if mode not in ("reference", "old"):
-        raise SystemExit(f"MODE must be reference or old, not {mode!r}")
+    if mode not in ("reference", "old", "job"):
+        raise SystemExit(f"MODE must be reference, old or job, not {mode!r}")
     import bpy
 
     job = R.load_job(job_path)
@@ -40,6 +43,11 @@ def main(argv):
     R.build_look(bpy, scene, job, placed)
     cam = R.make_camera(bpy, scene)
     c = scene.cycles
+    os.makedirs(out_dir, exist_ok=True)
+    if mode == "job":
+        for frame in job["frames"][:limit]:
+            render_frame(bpy, scene, cam, placed, job, frame, out_dir)
+        return
     c.samples = samples
     c.use_adaptive_sampling = False
     c.use_denoising = mode == "old"
@@ -54,11 +62,8 @@ def main(argv):
         c.glossy_bounces = 2
         c.transmission_bounces = 2
         c.transparent_max_bounces = 4
-    os.makedirs(out_dir, exist_ok=True)
     r = scene.render
     for frame in job["frames"][:limit]:
-        R.apply_camera(scene, cam, frame)
-        R.set_visibility(placed, frame)
         w, h = r.resolution_x, r.resolution_y
         x0, y0 = (w - crop_w) // 2, (h - crop_h) // 2
         r.use_border = True
@@ -66,13 +71,22 @@ def main(argv):
         # Border fractions are measured from the bottom-left corner.
         r.border_min_x, r.border_max_x = x0 / w, (x0 + crop_w) / w
         r.border_min_y, r.border_max_y = (h - y0 - crop_h) / h, (h - y0) / h
-        t0, c0 = time.time(), time.process_time()
-        bpy.ops.render.render(write_still=False)
-        out = dict(frame)
-        out["png"] = os.path.join(out_dir, frame["name"] + ".png")
-        out["exr"] = None
-        R.save(bpy, scene, out, "rgb")
-        print(f"REF {frame['name']} {time.time() - t0:.2f} {time.process_time() - c0:.2f}", flush=True)
+        render_frame(bpy, scene, cam, placed, job, frame, out_dir)
+
+
+def render_frame(bpy, scene, cam, placed, job, frame, out_dir):
+    """Renders one frame as render_rgb.main does (camera, visibility, the frame's look) into OUT_DIR."""
+    R.apply_camera(scene, cam, frame)
+    R.set_visibility(placed, frame)
+    if job["engine"] == "cycles" and "look" in frame:
+        R.apply_frame_look(scene, job, frame["look"])
+    t0, c0 = time.time(), time.process_time()
+    bpy.ops.render.render(write_still=False)
+    out = dict(frame)
+    out["png"] = os.path.join(out_dir, frame["name"] + ".png")
+    out["exr"] = None
+    R.save(bpy, scene, out, "rgb")
+    print(f"REF {frame['name']} {time.time() - t0:.2f} {time.process_time() - c0:.2f}", flush=True)
 
 
 if __name__ == "__main__":
