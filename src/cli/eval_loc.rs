@@ -201,9 +201,14 @@ pub struct Args {
     /// the same [origin]); the queries' poses and masks stay those of --area.
     #[arg(long, value_name = "NAME")]
     pub map_area: Option<String>,
-    /// Map perturbation: coarsen LoD2 to LoD1 (each building's footprint extruded to its top).
+    /// Map perturbation: coarsen LoD2 to LoD1 (each building's footprint extruded to its top, or to
+    /// --map-lod1-percentile).
     #[arg(long)]
     pub map_lod1: bool,
+    /// With --map-lod1: the LoD1 block stands at this percentile (0–100) of the building's roof
+    /// heights, weighted by area (70: 3DBAG's LoD1.2) instead of its highest point.
+    #[arg(long, value_name = "P", requires = "map_lod1")]
+    pub map_lod1_percentile: Option<f64>,
     /// Map perturbation: σ of each building's height error, metres.
     #[arg(long, value_name = "M", default_value_t = 0.0)]
     pub map_height_sigma: f64,
@@ -318,8 +323,15 @@ fn load_map(
     ] {
         anyhow::ensure!(v.is_finite() && v >= 0.0, "{name} {v}: a standard deviation is ≥ 0");
     }
+    if let Some(pct) = args.map_lod1_percentile {
+        anyhow::ensure!(
+            (0.0..=100.0).contains(&pct),
+            "--map-lod1-percentile {pct}: a percentile lies in [0, 100]"
+        );
+    }
     let perturbation = MapPerturbation {
         lod1: args.map_lod1,
+        lod1_roof_percentile: args.map_lod1_percentile,
         height_sigma_m: args.map_height_sigma,
         shift_sigma_m: args.map_shift_sigma,
         scale_sigma: args.map_scale_sigma,

@@ -8,9 +8,12 @@
 //!
 //! Per building (in the order of the building table, each drawing the same random numbers whatever
 //! is enabled, so turning one perturbation on does not change another's draws):
-//! 1. LoD2 → LoD1 ([`MapPerturbation::lod1`]): the footprint extruded to the roof height — every
-//!    vertex more than [`LOD1_GROUND_BAND_M`] above the building's bottom moves to its top, so walls
-//!    reach the top and the roof becomes flat over the footprint;
+//! 1. LoD2 → LoD1 ([`MapPerturbation::lod1`]): the footprint extruded to one roof height — every
+//!    vertex more than [`LOD1_GROUND_BAND_M`] above the building's bottom moves to that height, so
+//!    walls reach it and the roof becomes flat over the footprint. The height is the building's top
+//!    (its highest vertex), or with [`MapPerturbation::lod1_roof_percentile`] a percentile of its roof
+//!    surface heights weighted by horizontal area, as LoD1 products derived from point clouds use
+//!    (3DBAG's LoD1.2 blocks stand at the 70th percentile);
 //! 2. height error: the building's extent above its bottom scaled so that its top moves by
 //!    N(0, `height_sigma_m`) metres (the building keeps at least 1 m);
 //! 3. footprint scale by 1 + N(0, `scale_sigma`) about the centre of its box, then a shift by
@@ -40,8 +43,12 @@ const MIN_HEIGHT_M: f64 = 1.0;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 #[serde(default)]
 pub struct MapPerturbation {
-    /// Coarsen LoD2 to LoD1: footprint extruded to the building's top.
+    /// Coarsen LoD2 to LoD1: footprint extruded to the building's top, or to the given percentile
+    /// (0–100) of its roof heights.
     pub lod1: bool,
+    /// With `lod1`: the percentile (0–100) of the building's roof surface heights, weighted by
+    /// horizontal area, its LoD1 block stands at; `None`: its highest vertex.
+    pub lod1_roof_percentile: Option<f64>,
     /// σ of the per-building error of the top's height above the bottom, metres.
     pub height_sigma_m: f64,
     /// σ of the per-building horizontal footprint shift, metres (east and north independently).
@@ -94,6 +101,54 @@ pub fn perturb(scene: &PreparedScene, p: &MapPerturbation) -> (PreparedScene, Pe
     )
 }
 
+/// The LoD1 roof height of every building (indexed like `lo`/`hi`): the `percentile` (0–100) of the
+/// heights of its roof surface, each upward-facing triangle above the ground band weighted by its
+/// horizontal area (its centroid's height standing for it). A building without such triangles keeps
+/// its top; no height falls below the ground band.
+fn lod1_roof_heights(
+    positions: &[[f64; 3]],
+    mesh: &SceneMesh,
+    slot: &[usize],
+    lo: &[[f64; 3]],
+    hi: &[[f64; 3]],
+    percentile: f64,
+) -> Vec<f64> {
+    // Steeper faces than this (normal's up component below it) are walls, not roof.
+    const MIN_ROOF_NORMAL_UP: f64 = 0.3;
+    let mut samples: Vec<Vec<(f64, f64)>> = vec![Vec::new(); lo.len()];
+    for t in mesh.indices.chunks_exact(3) {
+        let i = slot.get(mesh.building_ids[t[0] as usize].get() as usize).copied().unwrap_or(usize::MAX);
+        if i == usize::MAX {
+            continue;
+        }
+        let [a, b, c] = [t[0], t[1], t[2]].map(|k| glam::DVec3::from_array(positions[k as usize]));
+        let n = (b - a).cross(c - a);
+        let len = n.length();
+        let z = (a.z + b.z + c.z) / 3.0;
+        if len > 0.0 && n.z / len >= MIN_ROOF_NORMAL_UP && z > lo[i][2] + LOD1_GROUND_BAND_M {
+            samples[i].push((z, n.z / 2.0));
+        }
+    }
+    samples
+        .into_iter()
+        .enumerate()
+        .map(|(i, mut s)| {
+            if s.is_empty() {
+                return hi[i][2];
+            }
+            s.sort_by(|x, y| x.0.total_cmp(&y.0));
+            let total: f64 = s.iter().map(|x| x.1).sum();
+            let want = total * (percentile / 100.0).clamp(0.0, 1.0);
+            let mut acc = 0.0;
+            let h = s.iter().find(|x| {
+                acc += x.1;
+                acc >= want
+            });
+            h.map_or(hi[i][2], |x| x.0).max(lo[i][2] + LOD1_GROUND_BAND_M)
+        })
+        .collect()
+}
+
 /// [`perturb`] on a mesh and its building records (every vertex's ID must have a record).
 pub fn perturb_mesh(
     scene_mesh: &SceneMesh,
@@ -137,14 +192,20 @@ pub fn perturb_mesh(
         (lo, hi)
     };
     let (lo, hi) = bounds(&positions);
+    // Each building's top: its highest vertex, or its LoD1 roof height.
+    let tops: Vec<f64> = match (p.lod1, p.lod1_roof_percentile) {
+        (true, Some(pct)) => lod1_roof_heights(&positions, scene_mesh, &slot, &lo, &hi, pct),
+        _ => hi.iter().map(|h| h[2]).collect(),
+    };
     for (v, id) in positions.iter_mut().zip(&scene_mesh.building_ids) {
         let i = slot[id.get() as usize];
         let (l, h, d) = (lo[i], hi[i], &draws[i]);
+        let top = tops[i];
         if p.lod1 && v[2] > l[2] + LOD1_GROUND_BAND_M {
-            v[2] = h[2];
+            v[2] = top;
         }
         if p.height_sigma_m > 0.0 {
-            let height = h[2] - l[2];
+            let height = top - l[2];
             if height > 0.0 {
                 let new_height = (height + p.height_sigma_m * d.height_m).max(MIN_HEIGHT_M.min(height));
                 v[2] = l[2] + (v[2] - l[2]) * new_height / height;
@@ -405,6 +466,25 @@ mod tests {
             r.iter().map(|b| (b.bbox_min_enu_m, b.bbox_max_enu_m)).collect::<Vec<_>>(),
             records.iter().map(|b| (b.bbox_min_enu_m, b.bbox_max_enu_m)).collect::<Vec<_>>()
         );
+    }
+
+    #[test]
+    fn lod1_at_a_roof_percentile_stands_between_eaves_and_ridge() {
+        let (mesh, records) = town();
+        let at = |pct: f64| {
+            let p = MapPerturbation { lod1: true, lod1_roof_percentile: Some(pct), ..Default::default() };
+            let (m, _, _) = perturb_mesh(&mesh, &records, &p);
+            let mut heights: Vec<f32> = m.positions_m.iter().map(|v| v[2]).filter(|&z| z != 0.0).collect();
+            heights.dedup();
+            heights
+        };
+        // The roof planes rise evenly from the eaves (6 m) to the ridge (9 m), each as two triangles
+        // whose centroids stand at 7 m and 8 m: half the roof area below 7.5 m, half above.
+        assert_eq!(at(30.0), vec![7.0], "30th percentile: the lower triangles");
+        assert_eq!(at(70.0), vec![8.0], "70th percentile: the upper triangles");
+        assert_eq!(at(100.0), vec![8.0], "the highest roof sample, not the ridge vertex");
+        // Percentile 0 still keeps a block above the ground band.
+        assert!(at(0.0).iter().all(|&z| z > LOD1_GROUND_BAND_M as f32));
     }
 
     #[test]
