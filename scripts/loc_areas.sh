@@ -1,14 +1,16 @@
 #!/usr/bin/env bash
 # Issue 15's recall table on every area: grid (cam2) and sequence (cam3) queries, oracle masks, default
-# priors and search, the instance cost (the default blend with the semantic IoU) against the semantic IoU,
-# and the LoD2-query vs LoD1-map tables (the map coarsened at its top and at the 70th roof percentile).
-# Writes bench/loc_areas.md.
+# priors and search, the instance cost (the default blend with the semantic IoU) against the semantic IoU;
+# the LoD2-query vs LoD1-map tables (the map coarsened at its top and at the 70th roof percentile); and on
+# PERTURB_AREA each map perturbation alone, all of them together, and degraded query masks. Writes
+# bench/loc_areas.md.
 #
 #   scripts/loc_areas.sh [WORKDIR]
-#   (env: COUNT=40 AREAS="demo niiza denhaag delft tokyo" LOD1_AREAS="niiza denhaag tokyo" LOD1_LIMIT=20)
+#   (env: COUNT=40 AREAS="demo niiza denhaag delft tokyo" LOD1_AREAS="denhaag tokyo" LOD1_LIMIT=20
+#    PERTURB_AREA=denhaag; REPORT_ONLY=1 rewrites the report from the runs already in WORKDIR)
 #
-# The LoD1 tables run on the areas with LoD2 models (LOD1_AREAS; Delft is LoD1 already, the demo's
-# roofs are flat), on the first LOD1_LIMIT grid queries.
+# The LoD1 tables run on the areas with LoD2 models (LOD1_AREAS; Niiza and Delft are LoD1 already, the
+# demo's roofs are flat), on the first LOD1_LIMIT grid queries.
 #
 # Areas whose data is absent under ../shared/data are skipped with a printed reason. An area too small
 # for COUNT views with the sampler's minimum of visible buildings is sampled with what it holds (the
@@ -18,14 +20,30 @@ cd "$(dirname "$0")/.."
 W="${1:-target/loc-areas}"
 COUNT=${COUNT:-40}
 AREAS=${AREAS:-"demo niiza denhaag delft tokyo"}
-LOD1_AREAS=${LOD1_AREAS:-"niiza denhaag tokyo"}
+LOD1_AREAS=${LOD1_AREAS:-"denhaag tokyo"}
 LOD1_LIMIT=${LOD1_LIMIT:-20}
+PERTURB_AREA=${PERTURB_AREA:-denhaag}
+# tag|eval-loc options: each perturbation of the map alone, all together, and degraded query masks.
+PERTURBATIONS=(
+  "height|--map-height-sigma 1"
+  "shift|--map-shift-sigma 0.5"
+  "scale|--map-scale-sigma 0.03"
+  "drop|--map-drop 0.05"
+  "merge|--map-merge 0.05"
+  "offset|--map-offset 0.5,-0.5,0"
+  "all|--map-height-sigma 1 --map-shift-sigma 0.5 --map-scale-sigma 0.03 --map-drop 0.05 --map-merge 0.05 --map-offset 0.5,-0.5,0"
+  "masks|--erode 2 --drop 0.1 --merge 0.1"
+)
 cargo build --release --quiet --bin insgen
 IG="target/release/insgen --no-progress -q --workdir $W"
 E="eval-loc --oracle --overlays 0 --cost instance --cost semantic"
 mkdir -p "$W"
 RUNS="$W/runs.tsv"
-: > "$RUNS"
+if [ "${REPORT_ONLY:-0}" = 1 ]; then
+  AREAS=""   # only the report, from the runs already in WORKDIR
+else
+  : > "$RUNS"
+fi
 
 # sample_views AREA CAMERA: COUNT views, or as many as the area holds (halving until the sampler accepts).
 sample_views() {
@@ -58,11 +76,19 @@ for a in $AREAS; do
   done
 done
 
+if [[ " $AREAS " == *" $PERTURB_AREA "* ]]; then
+  for p in "${PERTURBATIONS[@]}"; do
+    # shellcheck disable=SC2086  # the options are words
+    $IG $E --area "$PERTURB_AREA" --camera cam2 --limit "$LOD1_LIMIT" ${p#*|} --tag "perturb-${p%%|*}"
+  done
+fi
+printf '%s\n' "${PERTURBATIONS[@]}" > "$W/perturbations.txt"
+
 OUT=bench/loc_areas.md
 TMP="$W/loc_areas.md.tmp"
-.venv/bin/python - "$W" "$RUNS" > "$TMP" <<'EOF'
-import json, os, sys
-w, runs = sys.argv[1], sys.argv[2]
+.venv/bin/python - "$W" "$RUNS" "$PERTURB_AREA" "$LOD1_AREAS" > "$TMP" <<'EOF'
+import json, os, statistics, sys
+w, runs, perturb_area, lod1_areas = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4].split()
 def summary(area, cam, tag):
     p = os.path.join(w, area, cam, "loc", tag, "results.jsonl")
     if not os.path.exists(p):
@@ -72,8 +98,8 @@ def summary(area, cam, tag):
     for cost in sorted({r["cost"] for r in rows}):
         rs = [r for r in rows if r["cost"] == cost]
         ok = [r for r in rs if r["translation_error_m"] <= 2 and r["rotation_error_deg"] <= 2]
-        med = lambda k: sorted(r[k] for r in rs)[len(rs) // 2]
-        secs = sorted(r["seconds"] for r in rs)[len(rs) // 2]
+        med = lambda k: statistics.median(r[k] for r in rs)
+        secs = med("seconds")
         out[cost] = (len(rs), 100 * len(ok) / len(rs), med("translation_error_m"), med("rotation_error_deg"), secs)
     return out
 print("# eval-loc on every area: grid and sequence queries, and LoD1 maps (issue 15)\n")
@@ -99,11 +125,21 @@ print("The query masks are rendered from the area's LoD2 model, the map is the s
       "`--map-lod1-percentile 70`, how 3DBAG's LoD1.2 blocks stand). cam2 grid queries.\n")
 print("| area | map | cost | queries | 2m-2° (%) | median T.e. (m) | median R.e. (°) |")
 print("|---|---|---|---:|---:|---:|---:|")
-for a in areas:
+for a in [a for a in areas if a in lod1_areas]:
     for tag, label in (("lod1-top", "LoD1 top"), ("lod1-p70", "LoD1 p70")):
         s = summary(a, "cam2", tag)
         for cost, (n, rec, te, re_, _) in (s or {}).items():
             print(f"| {a} | {label} | {cost} | {n} | {rec:.1f} | {te:.2f} | {re_:.3f} |")
+print(f"\n## Perturbed maps and degraded masks ({perturb_area}, cam2 grid)\n")
+print("Each perturbation of the map alone, all of them together (seeded by `--seed`, default 0), and "
+      "degraded query masks (oracle erosion, dropped and merged instances) against the plain map.\n")
+print("| perturbation | eval-loc options | cost | queries | 2m-2° (%) | median T.e. (m) | median R.e. (°) |")
+print("|---|---|---|---:|---:|---:|---:|")
+for line in open(os.path.join(w, "perturbations.txt")):
+    tag, opts = line.rstrip("\n").split("|", 1)
+    s = summary(perturb_area, "cam2", "perturb-" + tag)
+    for cost, (n, rec, te, re_, _) in (s or {}).items():
+        print(f"| {tag} | `{opts}` | {cost} | {n} | {rec:.1f} | {te:.2f} | {re_:.3f} |")
 EOF
 mv "$TMP" "$OUT"
 echo "written $OUT"

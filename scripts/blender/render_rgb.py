@@ -1202,6 +1202,7 @@ def main(argv):
         ready["bounds"] = model_bounds(placed)
     emit({"ready": ready})
     current = None
+    applied_look = None
     try:
         for frame in job["frames"]:
             current = frame["name"]
@@ -1210,7 +1211,11 @@ def main(argv):
             apply_camera(scene, cam, frame)
             set_visibility(placed, frame)
             if job["mode"] == "rgb" and job["engine"] == "cycles" and "look" in frame:
-                apply_frame_look(scene, job, frame["look"])
+                # Setting even unchanged values makes Cycles rebuild its BVH: a look repeated from the
+                # previous frame (--look plain) is not set again.
+                if frame["look"] != applied_look:
+                    apply_frame_look(scene, job, frame["look"])
+                    applied_look = frame["look"]
             bpy.ops.render.render(write_still=False)
             save(bpy, scene, frame, job["mode"])
             emit({"done": current, "seconds": round(time.time() - t0, 3),
