@@ -263,6 +263,22 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
         "{e}"
     );
     ok(cwd, &["prepare", "--area", "demo-test-copy"]);
+    let out = insgen(
+        cwd,
+        &[
+            "eval-loc",
+            "--area",
+            "demo-test",
+            "--camera",
+            "cam2",
+            "--oracle",
+            "--map-lod1",
+            "--map-lod1-percentile",
+            "120",
+        ],
+    );
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("--map-lod1-percentile 120"), "{}", stderr(&out));
     ok(
         cwd,
         &[
@@ -275,6 +291,8 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
             "--map-area",
             "demo-test-copy",
             "--map-lod1",
+            "--map-lod1-percentile",
+            "70",
             "--map-offset",
             "0.5,-0.5,0",
             "--limit",
@@ -290,5 +308,6 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
     assert_schema("loc_summary.schema.json", &summary);
     assert_eq!(summary["map"]["area"], "demo-test-copy");
     assert_eq!(summary["map"]["perturbation"]["lod1"], true);
+    assert_eq!(summary["map"]["perturbation"]["lod1_roof_percentile"], 70.0);
     assert_eq!(summary["map"]["perturbation"]["offset_enu_m"], serde_json::json!([0.5, -0.5, 0.0]));
 }
