@@ -121,7 +121,7 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     let (before, after) = agreements(&lod, &tiles, (lo, hi), args.cell_m, &est.correction);
     let agreement_s = t2.elapsed().as_secs_f64();
 
-    let tileset_sha256 = crate::util::sha256_file(&args.tileset)?;
+    let tileset_sha256 = crate::lod::tiles3d::fingerprint(&args.tileset)?;
     let tileset = absolute(&args.tileset).display().to_string();
     let pinned = scene.manifest.alignment.as_ref().is_some_and(|r| r.source == CorrectionSource::SceneConfig);
     let written = !args.dry_run && !pinned;

@@ -77,8 +77,9 @@ pub struct BuildingRecord {
 /// What `render-masks --tileset` records per frame (`occlusion` in `<frame>.instances.json`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct OcclusionRecord {
-    /// SHA-256 (hex) of the tileset.json the depth came from, the mode and the threshold: part of
-    /// the frame's fingerprint (a resumed run re-renders frames made with other settings).
+    /// The tileset the depth came from ([`crate::lod::tiles3d::fingerprint`]: a SHA-256 over its JSON
+    /// files and its contents' names and sizes), the mode and the threshold: part of the frame's
+    /// fingerprint (a resumed run re-renders frames made with other settings or another tileset).
     pub tileset_sha256: String,
     pub mode: OcclusionMode,
     pub threshold_m: f32,

@@ -437,14 +437,17 @@ pub fn render_masks(
             ),
         });
     }
-    // The tileset's digest (part of every frame's fingerprint).
+    // The tileset's digest: its JSON files and its contents' names and sizes (part of every frame's
+    // fingerprint).
     let tileset_err = |path: &Path, source: Box<dyn std::error::Error + Send + Sync>| StageError::Tileset {
         path: path.to_path_buf(),
         source,
     };
     let tileset_sha256 = match &plan.tileset {
         None => None,
-        Some(t) => Some(crate::util::sha256_file(&t.path).map_err(|e| tileset_err(&t.path, Box::new(e)))?),
+        Some(t) => {
+            Some(crate::lod::tiles3d::fingerprint(&t.path).map_err(|e| tileset_err(&t.path, Box::new(e)))?)
+        }
     };
     let tileset_sha256 = tileset_sha256.as_deref();
     // Verifying reads every existing PNG header and JSON: spread it over the pool.

@@ -194,7 +194,8 @@ pub struct AlignmentRecord {
     /// One-sigma uncertainty (estimated corrections only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sigma: Option<CorrectionSigma>,
-    /// The reference tileset (estimated corrections only) and the SHA-256 of its root JSON.
+    /// The reference tileset (estimated corrections only) and its fingerprint
+    /// ([`crate::lod::tiles3d::fingerprint`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tileset: Option<String>,
     #[serde(default, skip_serializing_if = "Option::is_none")]

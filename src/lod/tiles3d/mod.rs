@@ -152,6 +152,43 @@ pub fn read(path: &Path, opts: &ReadOptions) -> Result<SourceModel, LodError> {
     Ok(model)
 }
 
+/// A SHA-256 (hex) naming a tileset as insgen reads it, for the fingerprints of outputs made from it
+/// (occlusion-aware masks, `align` records): the bytes of every tileset JSON that references a content
+/// insgen reads, then each such content's path (relative to the root tileset's folder) and byte size,
+/// in traversal order. No content is read, so it stays cheap on large tilesets; a tile replaced by
+/// another of exactly the same size goes unnoticed. A single content file (`.b3dm`, `.glb`, …) is
+/// hashed whole.
+///
+/// # Errors
+/// As the traversal of [`read`]: the tileset (or an external one) is unreadable or invalid, or a
+/// content file is missing ([`LodError`] naming it).
+pub fn fingerprint(path: &Path) -> Result<String, LodError> {
+    use sha2::{Digest, Sha256};
+    if !path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json")) {
+        return crate::util::sha256_file(path).map_err(LodError::from);
+    }
+    let t = tileset::traverse(path)?;
+    let mut h = Sha256::new();
+    let mut jsons: Vec<&Path> = vec![path];
+    for job in &t.jobs {
+        if let Some(by) = &job.referenced_by {
+            if !jsons.contains(&by.tileset.as_path()) {
+                jsons.push(&by.tileset);
+            }
+        }
+    }
+    for json in jsons {
+        h.update(crate::util::read_file(json)?);
+    }
+    for job in &t.jobs {
+        let size = std::fs::metadata(&job.file)
+            .map_err(|e| LodError::File(crate::util::FileError::new("reading the size of", &job.file, e)))?
+            .len();
+        h.update(format!("{}\0{size}\n", job.label).as_bytes());
+    }
+    Ok(hex::encode(h.finalize()))
+}
+
 /// As [`read`], also returning the [`TilesReport`].
 ///
 /// # Errors
@@ -264,4 +301,56 @@ pub fn read_with_report(path: &Path, opts: &ReadOptions) -> Result<(SourceModel,
         appearance: Default::default(),
     };
     Ok((model, report))
+}
+
+#[cfg(test)]
+mod fingerprint_tests {
+    use super::*;
+
+    fn write(dir: &Path, name: &str, bytes: &[u8]) {
+        std::fs::write(dir.join(name), bytes).unwrap();
+    }
+
+    /// A root tileset with one content and an external tileset with another, contents not decodable
+    /// (the fingerprint never reads them).
+    fn tileset(dir: &Path) -> std::path::PathBuf {
+        let tile = |uri: &str| {
+            format!(
+                r#"{{"asset":{{"version":"1.1"}},"geometricError":10,"root":{{"boundingVolume":{{"sphere":[0,0,0,100]}},
+                "geometricError":0,"refine":"ADD","content":{{"uri":"{uri}"}},"children":[]}}}}"#
+            )
+        };
+        write(dir, "sub.json", tile("b.glb").as_bytes());
+        let root = r#"{"asset":{"version":"1.1"},"geometricError":10,"root":{"boundingVolume":{"sphere":[0,0,0,100]},
+            "geometricError":5,"refine":"ADD","content":{"uri":"a.b3dm"},
+            "children":[{"boundingVolume":{"sphere":[0,0,0,50]},"geometricError":0,"content":{"uri":"sub.json"}}]}}"#;
+        write(dir, "tileset.json", root.as_bytes());
+        write(dir, "a.b3dm", b"b3dm-not-decoded");
+        write(dir, "b.glb", b"glTF-not-decoded");
+        dir.join("tileset.json")
+    }
+
+    #[test]
+    fn fingerprint_follows_the_jsons_and_the_contents_names_and_sizes() {
+        let d = tempfile::tempdir().unwrap();
+        let path = tileset(d.path());
+        let base = fingerprint(&path).unwrap();
+        assert_eq!(base.len(), 64);
+        assert_eq!(fingerprint(&path).unwrap(), base, "same files, same fingerprint");
+        // Same size, other bytes: not seen (documented limit).
+        write(d.path(), "b.glb", b"glTF-NOT-decoded");
+        assert_eq!(fingerprint(&path).unwrap(), base);
+        // A content of another size, inside the external tileset.
+        write(d.path(), "b.glb", b"glTF-not-decoded, longer");
+        let changed = fingerprint(&path).unwrap();
+        assert_ne!(changed, base);
+        // The external tileset's JSON itself.
+        let sub = std::fs::read_to_string(d.path().join("sub.json")).unwrap();
+        write(d.path(), "sub.json", sub.replace("\"geometricError\":0", "\"geometricError\":0.5").as_bytes());
+        assert_ne!(fingerprint(&path).unwrap(), changed);
+        // A missing content is an error naming it.
+        std::fs::remove_file(d.path().join("a.b3dm")).unwrap();
+        let e = crate::util::error_chain(&fingerprint(&path).unwrap_err());
+        assert!(e.contains("a.b3dm"), "{e}");
+    }
 }
