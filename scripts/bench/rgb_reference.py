@@ -76,10 +76,7 @@ def main(argv):
 
 def render_frame(bpy, scene, cam, placed, job, frame, out_dir):
     """Renders one frame as render_rgb.main does (camera, visibility, the frame's look) into OUT_DIR."""
-    R.apply_camera(scene, cam, frame)
-    R.set_visibility(placed, frame)
-    if job["engine"] == "cycles" and "look" in frame:
-        R.apply_frame_look(scene, job, frame["look"])
+    R.prepare_frame(scene, cam, placed, job, frame, None)
     t0, c0 = time.time(), time.process_time()
     bpy.ops.render.render(write_still=False)
     out = dict(frame)

@@ -602,6 +602,15 @@ def principled_shader(nt, color, roughness, specular):
     return bsdf.outputs["BSDF"]
 
 
+def plain_surface(nt, mat, color, look, lighting, roughness, specular):
+    """The surface of a material without glass (ground, appearances, clutter): the direct look's shader,
+    whose emission Cycles must never sample, or the path-traced look's Principled BSDF."""
+    if lighting == "direct":
+        mat.cycles.emission_sampling = "NONE"
+        return direct_shader(nt, color, look)
+    return principled_shader(nt, color, roughness, specular)
+
+
 # Direct lighting: the sky's contribution as constant colours (linear RGB per unit of sky strength). The
 # ambient is what an overcast-free sky adds to every surface (bluish); the reflection is the sky seen in
 # glass at grazing angles.
@@ -668,12 +677,7 @@ def ground_material(bpy, look, lighting):
     asphalt = mix_color(nt, fine.outputs["Fac"], (0.05, 0.05, 0.05, 1.0), (0.16, 0.16, 0.15, 1.0))
     green = mix_color(nt, fine.outputs["Fac"], (0.03, 0.08, 0.02, 1.0), (0.10, 0.18, 0.05, 1.0))
     color = mix_color(nt, grass, asphalt, green)
-    if lighting == "direct":
-        shader = direct_shader(nt, color, look)
-        mat.cycles.emission_sampling = "NONE"
-    else:
-        shader = principled_shader(nt, color, 0.95, 0.5)
-    nt.links.new(shader, out.inputs["Surface"])
+    nt.links.new(plain_surface(nt, mat, color, look, lighting, 0.95, 0.5), out.inputs["Surface"])
     return mat
 
 
@@ -744,12 +748,7 @@ def appearance_material(bpy, entry, base_dir, look, lighting, number):
         rgb = node(nt, "ShaderNodeRGB")
         rgb.outputs[0].default_value = (*[float(c) for c in entry["colour"]], 1.0)
         color = rgb.outputs[0]
-    if lighting == "direct":
-        shader = direct_shader(nt, color, look)
-        mat.cycles.emission_sampling = "NONE"
-    else:
-        shader = principled_shader(nt, color, 0.85, 0.3)
-    nt.links.new(shader, out.inputs["Surface"])
+    nt.links.new(plain_surface(nt, mat, color, look, lighting, 0.85, 0.3), out.inputs["Surface"])
     return mat
 
 
@@ -1042,12 +1041,7 @@ def clutter_material(bpy, layer, look, lighting, color_attribute):
             nt.links.new(fac, combine.inputs[ch])
         nt.links.new(combine.outputs["Color"], socket(scale.inputs, "B_Color"))
         color = socket(scale.outputs, "Result_Color")
-    if lighting == "direct":
-        shader = direct_shader(nt, color, look)
-        mat.cycles.emission_sampling = "NONE"
-    else:
-        shader = principled_shader(nt, color, roughness, 0.5)
-    nt.links.new(shader, out.inputs["Surface"])
+    nt.links.new(plain_surface(nt, mat, color, look, lighting, roughness, 0.5), out.inputs["Surface"])
     return mat
 
 
@@ -1164,6 +1158,19 @@ def set_visibility(placed, frame):
                 obj.hide_render = hide
 
 
+def prepare_frame(scene, cam, placed, job, frame, applied_look):
+    """Sets the camera, the visible models and (RGB) the frame's drawn look; returns the look now set.
+    Setting even unchanged values makes Cycles rebuild its BVH, so a look equal to `applied_look` (the
+    previous frame's, e.g. --look plain) is not set again."""
+    apply_camera(scene, cam, frame)
+    set_visibility(placed, frame)
+    if job["mode"] == "rgb" and job["engine"] == "cycles" and "look" in frame:
+        if frame["look"] != applied_look:
+            apply_frame_look(scene, job, frame["look"])
+        return frame["look"]
+    return applied_look
+
+
 def save(bpy, scene, frame, mode):
     img = bpy.data.images["Render Result"]
     s = scene.render.image_settings
@@ -1208,14 +1215,7 @@ def main(argv):
             current = frame["name"]
             t0 = time.time()
             c0 = time.process_time()
-            apply_camera(scene, cam, frame)
-            set_visibility(placed, frame)
-            if job["mode"] == "rgb" and job["engine"] == "cycles" and "look" in frame:
-                # Setting even unchanged values makes Cycles rebuild its BVH: a look repeated from the
-                # previous frame (--look plain) is not set again.
-                if frame["look"] != applied_look:
-                    apply_frame_look(scene, job, frame["look"])
-                    applied_look = frame["look"]
+            applied_look = prepare_frame(scene, cam, placed, job, frame, applied_look)
             bpy.ops.render.render(write_still=False)
             save(bpy, scene, frame, job["mode"])
             emit({"done": current, "seconds": round(time.time() - t0, 3),
