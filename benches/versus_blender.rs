@@ -226,6 +226,7 @@ fn bench_area(
                     // The paper's pure instance cost: this bench times the raster, not the blend.
                     semantic_weight: 0.0,
                     k_max: kept.len() as u32,
+                    silhouette_offset_px: 0,
                     // Distinct centres, as in the particle filter: one render per hypothesis.
                     yaw_fan: false,
                 };

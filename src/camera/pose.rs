@@ -120,6 +120,16 @@ impl Pose {
     pub fn translation_error_m(&self, other: &Pose) -> f64 {
         self.centre_m.distance(other.centre_m)
     }
+
+    /// `other`'s centre relative to this pose split along this camera's viewing direction (signed:
+    /// positive is in front, i.e. closer to what the camera sees) and across it, in metres. A narrow
+    /// field of view observes the first far less than the second: moving along the axis by d at a
+    /// range R changes the image scale by only d/R.
+    pub fn axial_lateral_error_m(&self, other: &Pose) -> (f64, f64) {
+        let d = other.centre_m - self.centre_m;
+        let axial = d.dot(self.forward());
+        (axial, (d - axial * self.forward()).length())
+    }
 }
 
 /// The unit quaternion of a rotation matrix by Shepperd's method (the branch on the largest diagonal

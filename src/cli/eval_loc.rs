@@ -10,7 +10,7 @@ use crate::loc::eval::{self, EvalOptions, QueryPoses};
 use crate::loc::map::{MapPerturbation, MapSummary};
 use crate::loc::oracle::Degradation;
 use crate::loc::query::{load_predictions, QuerySource};
-use crate::loc::search::{BeamMode, CoarseParams, FineParams, Prune, SearchOptions, Stages};
+use crate::loc::search::{BeamMode, CoarseParams, FineParams, PolishCost, Prune, SearchOptions, Stages};
 use crate::scene::PreparedScene;
 
 /// `--weighting`: how per-instance Dice scores are combined ([`Weighting`]).
@@ -145,6 +145,18 @@ pub struct Args {
     /// Skip the local pattern search after the particle filter.
     #[arg(long)]
     pub no_polish: bool,
+    /// Weight of the semantic IoU in the instance cost during the polish's second pass, after a first
+    /// pass in the filter's cost: within the basin the instances chose, the union's outline does not
+    /// depend on the map's occlusion order, which a coarse map gets wrong [default: 1]. Setting it to
+    /// --semantic-weight (and --silhouette-offset 0) leaves one pass.
+    #[arg(long, value_name = "W", value_parser = parse_unit_fraction)]
+    pub polish_semantic_weight: Option<f64>,
+    /// Largest silhouette offset in pixels fitted before the polish's second pass: the rendered
+    /// buildings eroded or dilated by up to N px so that masks uniformly thinner or fatter than the
+    /// buildings (a segmenter's boundary bias) do not move the camera along its axis; 0: none
+    /// [default: 2].
+    #[arg(long, value_name = "N")]
+    pub silhouette_offset: Option<u32>,
     /// The paper's search exactly: its coarse grid, rendered at 320 px, and particle filter (40
     /// iterations, 2 beams × (2 kept + 2 × 12 perturbations) ranked jointly across beams), no
     /// distinct basins, no polish. Other search flags given with it still apply.
@@ -468,6 +480,14 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
                     lowres_iterations: args.lowres_iterations,
                     polish: base.polish && !args.no_polish,
                     beams_mode,
+                    polish_cost: PolishCost {
+                        semantic_weight: args
+                            .polish_semantic_weight
+                            .unwrap_or(base.polish_cost.semantic_weight),
+                        max_silhouette_offset_px: args
+                            .silhouette_offset
+                            .unwrap_or(base.polish_cost.max_silhouette_offset_px),
+                    },
                     ..base
                 }
             },

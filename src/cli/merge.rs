@@ -33,8 +33,8 @@ pub struct Args {
 
 /// A report combined from its parts, ready to write.
 enum Combined {
-    Coco(crate::coco::parts::Combined),
-    Loc { out_dir: PathBuf, outputs: crate::loc::eval::Outputs },
+    Coco(Box<crate::coco::parts::Combined>),
+    Loc { out_dir: PathBuf, outputs: Box<crate::loc::eval::Outputs> },
 }
 
 pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
@@ -54,7 +54,7 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
                 let c = crate::coco::parts::combine(&rp.parts, dest, &out_dir)
                     .with_context(|| format!("combining the COCO parts of {}", out_dir.display()))?;
                 let files = coco_bytes(&c, &rp.report)?;
-                (Combined::Coco(c), files)
+                (Combined::Coco(Box::new(c)), files)
             }
             crate::loc::eval::PART_KIND => {
                 let outputs = crate::loc::eval::combine_parts(&rp.parts, &out_dir)
@@ -66,7 +66,7 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
                 files.extend(
                     outputs.est_poses.iter().map(|(n, t)| (PathBuf::from(n), t.clone().into_bytes())),
                 );
-                (Combined::Loc { out_dir: out_dir.clone(), outputs }, files)
+                (Combined::Loc { out_dir: out_dir.clone(), outputs: Box::new(outputs) }, files)
             }
             other => anyhow::bail!(
                 "{}: parts of kind {other:?}, which this insgen cannot combine (a newer version wrote them?)",

@@ -28,9 +28,10 @@ use serde::{Deserialize, Serialize};
 use super::cost::{CostKind, Query, Scorer, Weighting};
 use super::map::MapSummary;
 use super::metrics::{self, Row};
+use super::morph::morph_into;
 use super::oracle::Degradation;
 use super::query::{QueryError, QuerySource};
-use super::search::{self, Evaluate, Hypothesis, SearchOptions, SearchResult};
+use super::search::{self, Evaluate, Hypothesis, PolishCost, SearchOptions, SearchResult};
 use crate::camera::colmap::{self, ColmapCamera};
 use crate::camera::record::read_jsonl;
 use crate::camera::{Intrinsics, Pose, PoseRecord, Trajectory};
@@ -112,6 +113,16 @@ pub struct QueryResult {
     pub prior_rotation_error_deg: f64,
     pub translation_error_m: f64,
     pub rotation_error_deg: f64,
+    /// The translation error along the ground truth's viewing direction (signed, positive: the estimate
+    /// is in front of the ground truth) and across it, metres ([`Pose::axial_lateral_error_m`]).
+    #[serde(default)]
+    pub axial_error_m: f64,
+    #[serde(default)]
+    pub lateral_error_m: f64,
+    /// The silhouette offset the polish fitted (pixels at the render width; > 0: the rendered buildings
+    /// dilated to match fatter query masks, < 0: eroded), 0 without one (search::PolishCost).
+    #[serde(default)]
+    pub silhouette_offset_px: i32,
     pub best_cost: f64,
     /// The cost of the ground-truth pose (at the fine resolution): how well the query can be explained
     /// at all. A best cost above it with a large error means the cost is ambiguous; below it, the search
@@ -148,6 +159,9 @@ pub struct Summary {
     /// Recall at (2 m, 2°) per bucket of query instance counts, per cost (every query in one bucket).
     #[serde(default)]
     pub instance_buckets: Vec<metrics::BucketRow>,
+    /// Per cost, the translation errors split along and across the camera's axis.
+    #[serde(default)]
+    pub axis_rows: Vec<metrics::AxisRow>,
     /// The search that ran (stages, coarse grid, particle filter, beams).
     pub search: SearchOptions,
     /// The map: its area and perturbation.
@@ -226,6 +240,11 @@ pub struct CpuEvaluator<'a> {
     /// Weight of the semantic IoU in [`CostKind::Instance`] (see [`EvalOptions::semantic_weight`]).
     pub semantic_weight: f64,
     pub k_max: u32,
+    /// Applied to every rendered image before scoring: dilate (> 0) or erode (< 0) each building by
+    /// this many pixels ([`morph_into`]), so that query masks systematically fatter or thinner than the
+    /// buildings' silhouettes (a segmenter's boundary bias) are not explained by a camera moved along
+    /// its axis. 0 until [`Evaluate::enter_polish`] fits it.
+    pub silhouette_offset_px: i32,
     /// Runs of at least [`MIN_FAN`] consecutive hypotheses at one centre (the coarse grid's yaws) are
     /// rendered once, wide, and warped per yaw ([`RotationFan`]).
     pub yaw_fan: bool,
@@ -234,44 +253,64 @@ pub struct CpuEvaluator<'a> {
 /// The shortest run of same-centre hypotheses worth a wide render.
 pub const MIN_FAN: usize = 3;
 
+/// One thread's buffers for [`CpuEvaluator`]: the render, the scorer, the yaw fan's warp and the
+/// silhouette offset's morphology.
+#[derive(Default)]
+struct Workspace {
+    frame: Frame,
+    scorer: Scorer,
+    warped: Vec<u32>,
+    morphed: Vec<u32>,
+    scratch: Vec<u32>,
+}
+
 impl CpuEvaluator<'_> {
     /// The cost of a full pose (any pitch and roll), e.g. the ground truth.
     pub fn cost_of_pose(&self, pose: &Pose) -> f64 {
-        let mut frame = Frame::default();
-        raster::render_ids(self.scene, pose, &self.k, &mut frame);
-        self.score(&mut Scorer::default(), &frame.ids)
+        let mut ws = Workspace::default();
+        raster::render_ids(self.scene, pose, &self.k, &mut ws.frame);
+        let ids = std::mem::take(&mut ws.frame.ids);
+        self.score(&mut ws, &ids)
     }
 
-    fn score(&self, scorer: &mut Scorer, ids: &[u32]) -> f64 {
-        scorer.cost(self.kind, self.query, ids, self.k_max, self.weighting, self.semantic_weight)
+    /// Scores a rendered dense-ID image of the evaluator's intrinsics, after the silhouette offset.
+    fn score(&self, ws: &mut Workspace, ids: &[u32]) -> f64 {
+        let ids = if self.silhouette_offset_px != 0 {
+            let (w, h) = (self.k.width_px as usize, self.k.height_px as usize);
+            morph_into(ids, w, h, self.silhouette_offset_px, &mut ws.scratch, &mut ws.morphed);
+            &ws.morphed[..]
+        } else {
+            ids
+        };
+        ws.scorer.cost(self.kind, self.query, ids, self.k_max, self.weighting, self.semantic_weight)
     }
 
     /// Scores one run of hypotheses sharing a centre: through a rotation fan when it is long enough and
     /// the fan fits, else one render each.
-    fn score_run(
-        &self,
-        run: &[Hypothesis],
-        frame: &mut Frame,
-        scorer: &mut Scorer,
-        warped: &mut Vec<u32>,
-    ) -> Vec<f64> {
+    fn score_run(&self, run: &[Hypothesis], ws: &mut Workspace) -> Vec<f64> {
         let poses: Vec<Pose> = run.iter().map(|h| h.pose(self.pitch_deg, self.roll_deg)).collect();
         if self.yaw_fan && run.len() >= MIN_FAN {
             if let Some(fan) = RotationFan::new(&poses, &self.k) {
-                raster::render_ids(self.scene, &fan.pose, &fan.intrinsics, frame);
-                return (0..fan.len())
+                raster::render_ids(self.scene, &fan.pose, &fan.intrinsics, &mut ws.frame);
+                let mut warped = std::mem::take(&mut ws.warped);
+                let scores = (0..fan.len())
                     .map(|i| {
-                        fan.warp(i, &frame.ids, warped);
-                        self.score(scorer, warped)
+                        fan.warp(i, &ws.frame.ids, &mut warped);
+                        self.score(ws, &warped)
                     })
                     .collect();
+                ws.warped = warped;
+                return scores;
             }
         }
         poses
             .iter()
             .map(|pose| {
-                raster::render_ids(self.scene, pose, &self.k, frame);
-                self.score(scorer, &frame.ids)
+                raster::render_ids(self.scene, pose, &self.k, &mut ws.frame);
+                let ids = std::mem::take(&mut ws.frame.ids);
+                let score = self.score(ws, &ids);
+                ws.frame.ids = ids;
+                score
             })
             .collect()
     }
@@ -279,6 +318,30 @@ impl CpuEvaluator<'_> {
 
 impl Evaluate for CpuEvaluator<'_> {
     type Error = std::convert::Infallible;
+
+    /// Takes the polish's semantic weight (the instance cost only: the semantic baseline is its own
+    /// cost, the merged ablation stays the paper's) and fits the silhouette offset at `at`: every offset
+    /// in ±`max_silhouette_offset_px` is scored there and the best kept, the smallest |offset| on ties.
+    fn enter_polish(&mut self, at: &Hypothesis, cost: &PolishCost) -> Result<(u64, bool), Self::Error> {
+        let before = (self.semantic_weight, self.silhouette_offset_px);
+        if self.kind == CostKind::Instance {
+            self.semantic_weight = cost.semantic_weight;
+        }
+        let max = cost.max_silhouette_offset_px as i32;
+        let mut offsets: Vec<i32> = (-max..=max).collect();
+        offsets.sort_by_key(|b| (b.abs(), *b));
+        let mut best = (f64::NEG_INFINITY, 0);
+        for &b in &offsets {
+            self.silhouette_offset_px = b;
+            let score = self.evaluate(std::slice::from_ref(at))?[0];
+            if score > best.0 {
+                best = (score, b);
+            }
+        }
+        self.silhouette_offset_px = best.1;
+        Ok((offsets.len() as u64, (self.semantic_weight, self.silhouette_offset_px) != before))
+    }
+
     fn evaluate(&mut self, hyps: &[Hypothesis]) -> Result<Vec<f64>, Self::Error> {
         // Runs of consecutive hypotheses with the same centre (bit for bit); without the fan every
         // hypothesis is its own run.
@@ -293,10 +356,7 @@ impl Evaluate for CpuEvaluator<'_> {
         let this = &*self;
         Ok(runs
             .par_iter()
-            .map_init(
-                || (Frame::default(), Scorer::default(), Vec::new()),
-                |(frame, scorer, warped), run| this.score_run(run, frame, scorer, warped),
-            )
+            .map_init(Workspace::default, |ws, run| this.score_run(run, ws))
             .flatten_iter()
             .collect())
     }
@@ -800,6 +860,7 @@ impl<'q> QuerySetup<'q> {
             weighting: opts.weighting,
             semantic_weight: opts.semantic_weight,
             k_max: self.buildings as u32,
+            silhouette_offset_px: 0,
             yaw_fan,
         };
         let mut fine_eval = evaluator(self.k_fine, &qf, false);
@@ -831,6 +892,7 @@ impl<'q> QuerySetup<'q> {
         let (q, gt) = (self.query, &self.query.gt);
         let est = r.best.pose(self.pitch_deg, self.roll_deg);
         let coarse_est = r.coarse_best.pose(self.pitch_deg, self.roll_deg);
+        let (axial, lateral) = gt.axial_lateral_error_m(&est);
         let result = QueryResult {
             name: q.name.clone(),
             cost: kind,
@@ -840,6 +902,9 @@ impl<'q> QuerySetup<'q> {
             prior_rotation_error_deg: gt.rotation_error_deg(&q.prior),
             translation_error_m: gt.translation_error_m(&est),
             rotation_error_deg: gt.rotation_error_deg(&est),
+            axial_error_m: axial,
+            lateral_error_m: lateral,
+            silhouette_offset_px: fine_eval.silhouette_offset_px,
             best_cost: r.best_score,
             cost_at_gt: fine_eval.cost_of_pose(gt),
             coarse_translation_error_m: gt.translation_error_m(&coarse_est),
@@ -883,6 +948,7 @@ pub fn summarise(
         g
     };
     let mut instance_buckets = Vec::new();
+    let mut axis_rows = Vec::new();
     let mut push_rows = |method: &str, errs: &[(f64, f64, &str)]| {
         for g in &groups {
             let e: Vec<(f64, f64)> = errs.iter().filter(|e| e.2 == *g).map(|e| (e.0, e.1)).collect();
@@ -919,6 +985,12 @@ pub fn summarise(
             .map(|r| (r.query_instances, r.translation_error_m, r.rotation_error_deg))
             .collect();
         instance_buckets.extend(metrics::bucket_rows(&name, &counted));
+        let split: Vec<(f64, f64, f64, f64)> = results
+            .iter()
+            .filter(|r| r.cost == kind)
+            .map(|r| (r.axial_error_m, r.lateral_error_m, r.translation_error_m, r.rotation_error_deg))
+            .collect();
+        axis_rows.push(metrics::axis_row(&name, &split));
     }
     let secs: Vec<f64> = results.iter().map(|r| r.seconds).collect();
     // One setup per query, shared by its costs.
@@ -932,6 +1004,7 @@ pub fn summarise(
         median_setup_seconds: metrics::median_or_nan(&setup_times),
         hypotheses_per_second: if total_s > 0.0 { total_hyp as f64 / total_s } else { 0.0 },
         instance_buckets,
+        axis_rows,
         search: search.clone(),
         map: map.clone(),
     }
@@ -976,14 +1049,15 @@ pub fn write_outputs(out_dir: &Path, outputs: &Outputs) -> Result<(), EvalError>
     util::write_json_atomic(&out_dir.join("summary.json"), summary)?;
     let md = format!(
         "# Localization on {}\n\n{} queries; median {:.2} s per query (search; the query's setup takes {:.2} s \
-         more); {:.0} hypotheses/s.\n\n{}\nRecall at (2 m, 2°) by the number of query instances:\n\n{}",
+         more); {:.0} hypotheses/s.\n\n{}\nRecall at (2 m, 2°) by the number of query instances:\n\n{}\n         Translation errors along the ground truth's viewing direction (axial) and across it (lateral):\n\n{}",
         out_dir.display(),
         summary.queries,
         summary.median_seconds_per_query,
         summary.median_setup_seconds,
         summary.hypotheses_per_second,
         metrics::markdown(&summary.rows),
-        metrics::bucket_markdown(&summary.instance_buckets)
+        metrics::bucket_markdown(&summary.instance_buckets),
+        metrics::axis_markdown(&summary.axis_rows)
     );
     util::write_bytes_atomic(&out_dir.join("summary.md"), md.as_bytes())?;
     Ok(())

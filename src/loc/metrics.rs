@@ -94,6 +94,55 @@ pub fn bucket_rows(method: &str, errors: &[(usize, f64, f64)]) -> Vec<BucketRow>
         .collect()
 }
 
+/// Where one method's translation errors lie: along the camera's axis or across it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AxisRow {
+    pub method: String,
+    pub queries: usize,
+    /// Median |error along the ground truth's viewing direction|, metres (NaN/null without queries).
+    pub median_abs_axial_m: f64,
+    /// Median error across it, metres.
+    pub median_lateral_m: f64,
+    /// Queries outside (2 m, 2°).
+    pub failures: usize,
+    /// Of those, the ones within 2 m across the axis and 2° in rotation: only the depth along the
+    /// axis, which a narrow view constrains least, is off.
+    pub failures_along_axis_only: usize,
+}
+
+/// The [`AxisRow`] of one method from (axial m, lateral m, translation m, rotation °) errors.
+pub fn axis_row(method: &str, errors: &[(f64, f64, f64, f64)]) -> AxisRow {
+    let (t, r) = THRESHOLDS[0];
+    let failed: Vec<&(f64, f64, f64, f64)> = errors.iter().filter(|e| !(e.2 < t && e.3 < r)).collect();
+    AxisRow {
+        method: method.to_string(),
+        queries: errors.len(),
+        median_abs_axial_m: median_or_nan(&errors.iter().map(|e| e.0.abs()).collect::<Vec<_>>()),
+        median_lateral_m: median_or_nan(&errors.iter().map(|e| e.1).collect::<Vec<_>>()),
+        failures: failed.len(),
+        failures_along_axis_only: failed.iter().filter(|e| e.1 < t && e.3 < r).count(),
+    }
+}
+
+/// The axis rows as Markdown.
+pub fn axis_markdown(rows: &[AxisRow]) -> String {
+    let mut s = String::from(
+        "| method | queries | median axial, absolute (m) | median lateral (m) | failures at (2 m, 2°) | of which along the axis only |\n|---|---:|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        s.push_str(&format!(
+            "| {} | {} | {:.2} | {:.2} | {} | {} |\n",
+            r.method,
+            r.queries,
+            r.median_abs_axial_m,
+            r.median_lateral_m,
+            r.failures,
+            r.failures_along_axis_only
+        ));
+    }
+    s
+}
+
 /// The bucket rows as Markdown (empty buckets left out).
 pub fn bucket_markdown(rows: &[BucketRow]) -> String {
     let mut s = String::from("| method | query instances | queries | 2m-2° |\n|---|---|---|---|\n");
@@ -131,6 +180,7 @@ pub fn markdown(rows: &[Row]) -> String {
 mod tests {
     use super::*;
     use crate::camera::Pose;
+    use glam::DVec3;
 
     #[test]
     fn recall_is_strict_and_joint() {
@@ -157,11 +207,38 @@ mod tests {
     }
 
     #[test]
+    fn axis_rows_tell_depth_only_failures_apart() {
+        // (axial, lateral, translation, rotation): a success, a depth-only failure, a lateral failure
+        // and a rotation failure.
+        let e =
+            [(0.1, 0.1, 0.14, 0.01), (-3.0, 0.5, 3.04, 0.02), (0.5, 2.5, 2.55, 0.02), (0.1, 0.1, 0.14, 2.5)];
+        let r = axis_row("m", &e);
+        assert_eq!((r.queries, r.failures, r.failures_along_axis_only), (4, 3, 1));
+        assert!((r.median_abs_axial_m - 0.3).abs() < 1e-12, "{}", r.median_abs_axial_m);
+        assert!((r.median_lateral_m - 0.3).abs() < 1e-12);
+        assert!(axis_markdown(&[r]).contains("| m | 4 | 0.30 | 0.30 | 3 | 1 |"));
+    }
+
+    #[test]
     fn errors_match_hand_computation() {
         let gt = Pose::from_ypr_deg(30.0, 45.0, 0.0, [0.0, 0.0, 300.0]);
         let est = Pose::from_ypr_deg(31.5, 45.0, 0.0, [3.0, 4.0, 300.0]);
         assert!((gt.translation_error_m(&est) - 5.0).abs() < 1e-12);
         // A pure yaw difference about the vertical: the rotation angle is the yaw difference.
         assert!((gt.rotation_error_deg(&est) - 1.5).abs() < 1e-9);
+    }
+
+    #[test]
+    fn axial_and_lateral_errors_split_the_translation() {
+        // Looking 45° down towards +y (yaw 0): forward is (0, 1, −1)/√2.
+        let gt = Pose::from_ypr_deg(0.0, 45.0, 0.0, [0.0, 0.0, 300.0]);
+        let f = gt.forward();
+        let side = DVec3::new(1.0, 0.0, 0.0);
+        assert!(f.dot(side).abs() < 1e-12, "{f}");
+        let est = Pose::from_ypr_deg(0.0, 45.0, 0.0, gt.centre_m - 3.0 * f + 0.5 * side);
+        let (axial, lateral) = gt.axial_lateral_error_m(&est);
+        assert!((axial + 3.0).abs() < 1e-9, "{axial}");
+        assert!((lateral - 0.5).abs() < 1e-9, "{lateral}");
+        assert!((axial.hypot(lateral) - gt.translation_error_m(&est)).abs() < 1e-9);
     }
 }

@@ -11,6 +11,7 @@ pub mod cost;
 pub mod eval;
 pub mod map;
 pub mod metrics;
+pub mod morph;
 pub mod oracle;
 pub mod query;
 pub mod search;

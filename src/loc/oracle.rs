@@ -36,66 +36,11 @@ impl Degradation {
     }
 }
 
-/// 0/1 morphology of each instance separately (instances never grow into each other's pixels when
-/// dilating: the first label to claim a background pixel keeps it, scanning labels in order).
-fn morph(labels: &[u32], w: usize, h: usize, k: i32) -> Vec<u32> {
-    if k == 0 {
-        return labels.to_vec();
-    }
-    let r = k.unsigned_abs() as i64;
-    let mut out = if k > 0 { labels.to_vec() } else { vec![0; labels.len()] };
-    for y in 0..h as i64 {
-        for x in 0..w as i64 {
-            let i = (y as usize) * w + x as usize;
-            let l = labels[i];
-            if k < 0 {
-                if l == 0 {
-                    continue;
-                }
-                // Erode: keep when the whole (2r+1)² window (clipped to the image) has the same label.
-                let mut keep = true;
-                'win: for dy in -r..=r {
-                    for dx in -r..=r {
-                        let (xx, yy) = (x + dx, y + dy);
-                        if xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
-                            continue;
-                        }
-                        if labels[yy as usize * w + xx as usize] != l {
-                            keep = false;
-                            break 'win;
-                        }
-                    }
-                }
-                if keep {
-                    out[i] = l;
-                }
-            } else if l == 0 {
-                // Dilate: take the smallest label in the window.
-                let mut best = 0u32;
-                for dy in -r..=r {
-                    for dx in -r..=r {
-                        let (xx, yy) = (x + dx, y + dy);
-                        if xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
-                            continue;
-                        }
-                        let n = labels[yy as usize * w + xx as usize];
-                        if n != 0 && (best == 0 || n < best) {
-                            best = n;
-                        }
-                    }
-                }
-                out[i] = best;
-            }
-        }
-    }
-    out
-}
-
 /// Applies `d` to a ground-truth label image with `n` instances, seeded.
 pub fn degrade(width: u32, height: u32, labels: &[u32], n: u32, d: &Degradation, seed: u64) -> Query {
     let (w, h) = (width as usize, height as usize);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let mut lab = morph(labels, w, h, d.morph_px);
+    let mut lab = super::morph::morph(labels, w, h, d.morph_px);
     let mut n = n;
 
     // Merge: relabel a chosen instance to a touching neighbour's label.

@@ -33,6 +33,17 @@ impl Hypothesis {
 pub trait Evaluate {
     type Error;
     fn evaluate(&mut self, hyps: &[Hypothesis]) -> Result<Vec<f64>, Self::Error>;
+
+    /// Called once the polish has refined the particle filter's best pose `at` in the filter's cost:
+    /// the evaluator takes the polish's `cost` and fits there what it fits (the silhouette offset).
+    /// Returns the hypotheses it scored doing so, and whether its scores changed (then the polish runs
+    /// again from `at` in the new terms). The default keeps the cost as it is.
+    ///
+    /// # Errors
+    /// Whatever scoring returns.
+    fn enter_polish(&mut self, _at: &Hypothesis, _cost: &PolishCost) -> Result<(u64, bool), Self::Error> {
+        Ok((0, false))
+    }
 }
 
 /// The coarse grid, centred on the prior: ± range in steps (both ends included).
@@ -84,6 +95,35 @@ pub struct FineParams {
     pub polish: bool,
     /// How the kept poses are grouped into beams.
     pub beams_mode: BeamMode,
+    /// The cost the polish refines with.
+    pub polish_cost: PolishCost,
+}
+
+/// The cost of the polish, which refines the particle filter's best pose within its basin (issue 15).
+///
+/// The instance cost's identities choose the basin: which building is which, where outlines repeat.
+/// Within the basin, the boundaries between buildings depend on the map's occlusion order, which a
+/// map coarser than the query gets wrong (an LoD1 block at the tower's height hides what the LoD2
+/// podium lets the camera see), and the instance Dice then pulls the camera back along its axis to
+/// shrink the too-large blocks; the outline of the union (the semantic IoU) does not depend on that
+/// order. And a segmenter's masks may be uniformly thinner or fatter than the silhouettes, which the
+/// costs also explain by moving the camera along its axis (a depth the narrow cam2 view hardly
+/// observes otherwise); a silhouette offset fitted once, before the polish, absorbs it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct PolishCost {
+    /// Weight of the semantic IoU in the blended instance cost during the polish (1: the union's
+    /// outline alone; the filter's weight is `eval-loc --semantic-weight`).
+    pub semantic_weight: f64,
+    /// Silhouette offsets tried at the polish's start, from −N to +N pixels (erode to dilate every
+    /// rendered building); 0: none.
+    pub max_silhouette_offset_px: u32,
+}
+
+impl Default for PolishCost {
+    fn default() -> Self {
+        PolishCost { semantic_weight: 1.0, max_silhouette_offset_px: 2 }
+    }
 }
 
 /// How the particle filter's kept poses are grouped.
@@ -144,6 +184,7 @@ impl Default for FineParams {
             lowres_iterations: None,
             polish: true,
             beams_mode: BeamMode::Basins { count: 4, survivors: 1, prune: Some(DEFAULT_PRUNE) },
+            polish_cost: PolishCost::default(),
         }
     }
 }
@@ -415,8 +456,19 @@ pub fn search<E: Evaluate>(
     };
     if fine.polish {
         let started = Instant::now();
-        let (b, sc, n) = polish(eval, best, best_score, pivot_m)?;
+        // First to the optimum of the filter's cost, then, if the polish's cost differs, to its
+        // optimum from there (the first pass makes the fit of the silhouette offset and the second
+        // start as good as the filter's cost can).
+        let (b, sc, mut n) = polish(eval, best, best_score, pivot_m)?;
         (best, best_score) = (b, sc);
+        let (fitted, changed) = eval.enter_polish(&best, &fine.polish_cost)?;
+        n += fitted;
+        if changed {
+            best_score = eval.evaluate(&[best])?[0];
+            let (b, sc, n2) = polish(eval, best, best_score, pivot_m)?;
+            (best, best_score) = (b, sc);
+            n += n2 + 1;
+        }
         counter.charge(Stage::Polish, n, started.elapsed().as_secs_f64());
     }
     Ok(SearchResult {
