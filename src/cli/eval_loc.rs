@@ -274,6 +274,15 @@ fn semantic_weight(args: &Args) -> f64 {
 }
 
 /// `--semantic-weight`: a number in [0, 1].
+/// The polish's cost: the defaults ([`PolishCost::default`]) where no flag is given.
+fn polish_cost(args: &Args) -> PolishCost {
+    let d = PolishCost::default();
+    PolishCost {
+        semantic_weight: args.polish_semantic_weight.unwrap_or(d.semantic_weight),
+        max_silhouette_offset_px: args.silhouette_offset.unwrap_or(d.max_silhouette_offset_px),
+    }
+}
+
 fn parse_unit_fraction(s: &str) -> Result<f64, String> {
     let w: f64 = s.trim().parse().map_err(|_| format!("expected a number in [0, 1], got {s:?}"))?;
     if (0.0..=1.0).contains(&w) {
@@ -480,14 +489,7 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
                     lowres_iterations: args.lowres_iterations,
                     polish: base.polish && !args.no_polish,
                     beams_mode,
-                    polish_cost: PolishCost {
-                        semantic_weight: args
-                            .polish_semantic_weight
-                            .unwrap_or(base.polish_cost.semantic_weight),
-                        max_silhouette_offset_px: args
-                            .silhouette_offset
-                            .unwrap_or(base.polish_cost.max_silhouette_offset_px),
-                    },
+                    polish_cost: polish_cost(args),
                     ..base
                 }
             },
@@ -548,6 +550,15 @@ mod tests {
         let mut argv = vec!["eval-loc", "--area", "denhaag", "--camera", "cam2", "--oracle"];
         argv.extend_from_slice(extra);
         Cli::try_parse_from(argv).map(|c| c.args)
+    }
+
+    #[test]
+    fn polish_cost_defaults_and_flags() {
+        assert_eq!(polish_cost(&parse(&[]).unwrap()), PolishCost::default());
+        let a = parse(&["--polish-semantic-weight", "0.5", "--silhouette-offset", "0"]).unwrap();
+        assert_eq!(polish_cost(&a), PolishCost { semantic_weight: 0.5, max_silhouette_offset_px: 0 });
+        let e = parse(&["--polish-semantic-weight", "2"]).unwrap_err().to_string();
+        assert!(e.contains("expected a number in [0, 1]"), "{e}");
     }
 
     mod semantic_weight {

@@ -1144,4 +1144,73 @@ mod tests {
         assert_eq!(sub.triangle_count(), 2);
         assert_eq!(sub.building_ids, ids(&[1, 1, 1, 2, 2, 2]));
     }
+
+    /// A 3 × 3 block of closed boxes (IDs 1..=9, 10 m wide, 4 m apart, 10–18 m tall).
+    fn block_scene() -> SceneMesh {
+        let mut m = SceneMesh::default();
+        let faces = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+        for id in 1..=9u32 {
+            let (i, j) = ((id - 1) % 3, (id - 1) / 3);
+            let lo = [14.0 * i as f32, 14.0 * j as f32, 0.0];
+            let hi = [lo[0] + 10.0, lo[1] + 10.0, 10.0 + id as f32];
+            let p = |c: usize| {
+                [
+                    if c & 1 == 0 { lo[0] } else { hi[0] },
+                    if c & 2 == 0 { lo[1] } else { hi[1] },
+                    if c & 4 == 0 { lo[2] } else { hi[2] },
+                ]
+            };
+            for q in faces {
+                for t in [[q[0], q[1], q[2]], [q[0], q[2], q[3]]] {
+                    let base = m.positions_m.len() as u32;
+                    for c in t {
+                        m.positions_m.push(p(c));
+                        m.building_ids.push(BuildingId::new(id).unwrap());
+                    }
+                    m.indices.extend([base, base + 1, base + 2]);
+                }
+            }
+        }
+        m
+    }
+
+    #[test]
+    fn the_polish_fits_the_silhouette_offset_of_thinned_masks() {
+        let scene = CpuScene::new(&block_scene(), [0.0; 3]);
+        let k = Intrinsics::from_hfov(320, 240, 40.0);
+        let (pitch_deg, roll_deg) = (20.0, 0.0);
+        let at = Hypothesis { centre_m: DVec3::new(17.0, -30.0, 150.0), yaw_deg: 0.0 };
+        let mut frame = Frame::default();
+        raster::render_ids(&scene, &at.pose(pitch_deg, roll_deg), &k, &mut frame);
+        let seen: std::collections::BTreeSet<u32> = frame.ids.iter().copied().filter(|&i| i != 0).collect();
+        assert_eq!(seen.len(), 9, "every box in view");
+        let fit = |offset_px: i32, cost: PolishCost| {
+            let labels = crate::loc::morph::morph(&frame.ids, 320, 240, offset_px);
+            let query = Query::from_labels(320, 240, &labels, &[1.0; 9]);
+            let mut ev = CpuEvaluator {
+                scene: &scene,
+                k,
+                pitch_deg,
+                roll_deg,
+                query: &query,
+                kind: CostKind::Instance,
+                weighting: Weighting::Area,
+                semantic_weight: 0.5,
+                k_max: 9,
+                silhouette_offset_px: 0,
+                yaw_fan: false,
+            };
+            let (scored, changed) = ev.enter_polish(&at, &cost).unwrap();
+            (ev.silhouette_offset_px, scored, changed, ev.semantic_weight)
+        };
+        // Masks 2 px thinner or 1 px fatter than the silhouettes: the offset found is theirs.
+        assert_eq!(fit(-2, PolishCost::default()), (-2, 5, true, 1.0));
+        assert_eq!(fit(1, PolishCost::default()), (1, 5, true, 1.0));
+        // Exact masks, and the filter's weight: nothing changes, so no second pass.
+        let same = PolishCost { semantic_weight: 0.5, max_silhouette_offset_px: 2 };
+        assert_eq!(fit(0, same), (0, 5, false, 0.5));
+        // No offsets allowed: only the weight changes.
+        let none = PolishCost { semantic_weight: 1.0, max_silhouette_offset_px: 0 };
+        assert_eq!(fit(-2, none), (0, 1, true, 1.0));
+    }
 }

@@ -893,6 +893,59 @@ mod tests {
         assert_eq!(coarse.calls + bowl.calls, r.hypotheses_scored);
     }
 
+    /// A bowl whose optimum moves to `polish_target` when the polish's cost is entered: the bias of the
+    /// filter's cost that the polish's cost does not share.
+    struct ShiftingBowl {
+        bowl: Bowl,
+        polish_target: Hypothesis,
+        entered_at: Option<Hypothesis>,
+    }
+
+    impl Evaluate for ShiftingBowl {
+        type Error = std::convert::Infallible;
+        fn evaluate(&mut self, hyps: &[Hypothesis]) -> Result<Vec<f64>, Self::Error> {
+            self.bowl.evaluate(hyps)
+        }
+        fn enter_polish(&mut self, at: &Hypothesis, cost: &PolishCost) -> Result<(u64, bool), Self::Error> {
+            self.entered_at = Some(*at);
+            self.bowl.target = self.polish_target;
+            Ok((3, cost.semantic_weight == 1.0))
+        }
+    }
+
+    #[test]
+    fn the_polish_refines_again_in_its_own_cost_from_the_filters_optimum() {
+        let target = Hypothesis { centre_m: DVec3::new(10.0, -5.0, 300.0), yaw_deg: 45.0 };
+        // 3 m along a diagonal: the axial bias of a coarse map's instance cost.
+        let polish_target = Hypothesis { centre_m: DVec3::new(10.0, -3.0, 302.0), yaw_deg: 45.0 };
+        let prior = Hypothesis { centre_m: DVec3::new(16.0, 0.0, 303.0), yaw_deg: 47.0 };
+        let run = |polish_cost: PolishCost| {
+            let mut coarse =
+                ShiftingBowl { bowl: Bowl { target, calls: 0 }, polish_target, entered_at: None };
+            let mut fine = ShiftingBowl { bowl: Bowl { target, calls: 0 }, polish_target, entered_at: None };
+            let opts = SearchOptions {
+                fine: FineParams { polish_cost, ..FineParams::default() },
+                ..Default::default()
+            };
+            let r = search(&mut coarse, &mut fine, prior, &opts, 3, None).unwrap();
+            assert_eq!(
+                coarse.bowl.calls + fine.bowl.calls + 3,
+                r.hypotheses_scored,
+                "the fit's 3 are counted"
+            );
+            assert!(coarse.entered_at.is_none(), "the coarse evaluator never polishes");
+            (r.best, fine.entered_at.expect("the polish's cost was entered"))
+        };
+        let dist = |a: &Hypothesis, b: &Hypothesis| a.centre_m.distance(b.centre_m);
+        // Changed cost: entered at the filter's optimum (after the first pass), ends at the new one.
+        let (best, entered) = run(PolishCost::default());
+        assert!(dist(&entered, &target) < 0.1, "entered {:?}", entered.centre_m);
+        assert!(dist(&best, &polish_target) < 0.1, "ended {:?}", best.centre_m);
+        // Unchanged cost (the evaluator says so): one pass, the filter's optimum stands.
+        let (best, _) = run(PolishCost { semantic_weight: 0.5, max_silhouette_offset_px: 0 });
+        assert!(dist(&best, &target) < 0.1, "ended {:?}", best.centre_m);
+    }
+
     #[test]
     fn deterministic_for_a_seed() {
         let target = Hypothesis { centre_m: DVec3::new(0.0, 0.0, 200.0), yaw_deg: 0.0 };
