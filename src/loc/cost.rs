@@ -303,7 +303,8 @@ impl Scorer {
     }
 
     /// The blended instance cost (1 − `semantic_weight`)·instance + `semantic_weight`·semantic IoU, in
-    /// [0, 1]; `semantic_weight` = 0 is the paper's pure instance cost (and skips the semantic pass).
+    /// [0, 1]; `semantic_weight` = 0 is the paper's pure instance cost (and skips the semantic pass), 1 the
+    /// semantic IoU alone (and skips the instance pass).
     pub fn blended_cost(
         &mut self,
         q: &Query,
@@ -312,6 +313,10 @@ impl Scorer {
         weighting: Weighting,
         semantic_weight: f64,
     ) -> f64 {
+        if semantic_weight == 1.0 {
+            // The union's outline alone (the polish's second pass by default): no instance pass.
+            return self.semantic_iou(q, rendered);
+        }
         let instance = self.instance_cost(q, rendered, k_max, weighting);
         if semantic_weight == 0.0 {
             return instance;
@@ -504,6 +509,12 @@ mod tests {
             assert_eq!(s.semantic_iou(&q, &SHIFTED), 1.0);
             let blended = s.blended_cost(&q, &SHIFTED, 2, Weighting::Area, 0.5);
             assert!((blended - (0.5 * instance + 0.5)).abs() < 1e-12, "{blended}");
+            // The ends: the pure instance cost and the semantic IoU alone.
+            assert_eq!(
+                s.blended_cost(&q, &SHIFTED, 2, Weighting::Area, 0.0),
+                s.instance_cost(&q, &SHIFTED, 2, Weighting::Area)
+            );
+            assert_eq!(s.blended_cost(&q, &SHIFTED, 2, Weighting::Area, 1.0), 1.0);
         }
 
         #[test]
