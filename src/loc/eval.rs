@@ -1148,28 +1148,11 @@ mod tests {
     /// A 3 × 3 block of closed boxes (IDs 1..=9, 10 m wide, 4 m apart, 10–18 m tall).
     fn block_scene() -> SceneMesh {
         let mut m = SceneMesh::default();
-        let faces = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
         for id in 1..=9u32 {
             let (i, j) = ((id - 1) % 3, (id - 1) / 3);
             let lo = [14.0 * i as f32, 14.0 * j as f32, 0.0];
             let hi = [lo[0] + 10.0, lo[1] + 10.0, 10.0 + id as f32];
-            let p = |c: usize| {
-                [
-                    if c & 1 == 0 { lo[0] } else { hi[0] },
-                    if c & 2 == 0 { lo[1] } else { hi[1] },
-                    if c & 4 == 0 { lo[2] } else { hi[2] },
-                ]
-            };
-            for q in faces {
-                for t in [[q[0], q[1], q[2]], [q[0], q[2], q[3]]] {
-                    let base = m.positions_m.len() as u32;
-                    for c in t {
-                        m.positions_m.push(p(c));
-                        m.building_ids.push(BuildingId::new(id).unwrap());
-                    }
-                    m.indices.extend([base, base + 1, base + 2]);
-                }
-            }
+            crate::render::cpu::tests::closed_box(&mut m, lo, hi, id, false, true);
         }
         m
     }

@@ -358,7 +358,7 @@ impl Frustum {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::scene::BuildingId;
 
@@ -391,7 +391,14 @@ mod tests {
 
     /// A closed box, triangles counter-clockwise seen from outside (`flip` reverses them), corners
     /// repeated per face as in glTF tiles; optionally without its floor (open).
-    fn closed_box(m: &mut SceneMesh, lo: [f32; 3], hi: [f32; 3], id: u32, flip: bool, floor: bool) {
+    pub(crate) fn closed_box(
+        m: &mut SceneMesh,
+        lo: [f32; 3],
+        hi: [f32; 3],
+        id: u32,
+        flip: bool,
+        floor: bool,
+    ) {
         let p = |i: usize| {
             [
                 if i & 1 == 0 { lo[0] } else { hi[0] },
