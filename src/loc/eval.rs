@@ -123,9 +123,11 @@ pub struct QueryResult {
     /// dilated to match fatter query masks, < 0: eroded), 0 without one (search::PolishCost).
     #[serde(default)]
     pub silhouette_offset_px: i32,
+    /// The estimate's cost in the terms of the search's last stage: with the polish's second pass, its
+    /// semantic weight and fitted silhouette offset (search::PolishCost).
     pub best_cost: f64,
-    /// The cost of the ground-truth pose (at the fine resolution): how well the query can be explained
-    /// at all. A best cost above it with a large error means the cost is ambiguous; below it, the search
+    /// The cost of the ground-truth pose (at the fine resolution, in the same terms as `best_cost`): how
+    /// well the query can be explained at all. A best cost above it with a large error means the cost is ambiguous; below it, the search
     /// missed.
     pub cost_at_gt: f64,
     /// Errors of the coarse stage's best hypothesis.
