@@ -323,7 +323,8 @@ impl Evaluate for CpuEvaluator<'_> {
 
     /// Takes the polish's semantic weight (the instance cost only: the semantic baseline is its own
     /// cost, the merged ablation stays the paper's) and fits the silhouette offset at `at`: every offset
-    /// in ±`max_silhouette_offset_px` is scored there and the best kept, the smallest |offset| on ties.
+    /// in ±`max_silhouette_offset_px` is scored on one render there and the best kept, the smallest
+    /// |offset| on ties.
     fn enter_polish(&mut self, at: &Hypothesis, cost: &PolishCost) -> Result<(u64, bool), Self::Error> {
         let before = (self.semantic_weight, self.silhouette_offset_px);
         if self.kind == CostKind::Instance {
@@ -332,10 +333,14 @@ impl Evaluate for CpuEvaluator<'_> {
         let max = cost.max_silhouette_offset_px as i32;
         let mut offsets: Vec<i32> = (-max..=max).collect();
         offsets.sort_by_key(|b| (b.abs(), *b));
+        // One render at `at`, scored under every offset.
+        let mut ws = Workspace::default();
+        raster::render_ids(self.scene, &at.pose(self.pitch_deg, self.roll_deg), &self.k, &mut ws.frame);
+        let ids = std::mem::take(&mut ws.frame.ids);
         let mut best = (f64::NEG_INFINITY, 0);
         for &b in &offsets {
             self.silhouette_offset_px = b;
-            let score = self.evaluate(std::slice::from_ref(at))?[0];
+            let score = self.score(&mut ws, &ids);
             if score > best.0 {
                 best = (score, b);
             }

@@ -18,6 +18,11 @@ fn ok(cwd: &Path, args: &[&str]) {
     assert!(out.status.success(), "insgen {}: {}", args.join(" "), stderr(&out));
 }
 
+/// `eval-loc --area demo-test --camera cam2` followed by `extra`.
+fn eval_loc<'a>(extra: &[&'a str]) -> Vec<&'a str> {
+    [&["eval-loc", "--area", "demo-test", "--camera", "cam2"][..], extra].concat()
+}
+
 fn results(path: &Path) -> Vec<Value> {
     std::fs::read_to_string(path)
         .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
@@ -131,20 +136,7 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
         .collect();
     let preds_path = cwd.join("preds.json");
     std::fs::write(&preds_path, serde_json::to_vec(&preds).unwrap()).unwrap();
-    ok(
-        cwd,
-        &[
-            "eval-loc",
-            "--area",
-            "demo-test",
-            "--camera",
-            "cam2",
-            "--predictions",
-            "preds.json",
-            "--overlays",
-            "0",
-        ],
-    );
+    ok(cwd, &eval_loc(&["--predictions", "preds.json", "--overlays", "0"]));
     let predicted = results(&cam.join("loc/predictions/results.jsonl"));
     for (p, o) in predicted.iter().zip(&oracle) {
         assert_eq!(p["name"], o["name"]);
@@ -195,12 +187,7 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
     std::fs::write(cwd.join("prior.txt"), prior).unwrap();
     ok(
         cwd,
-        &[
-            "eval-loc",
-            "--area",
-            "demo-test",
-            "--camera",
-            "cam2",
+        &eval_loc(&[
             "--oracle",
             "--query-list",
             "queries.txt",
@@ -212,7 +199,7 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
             "colmap-loc",
             "--overlays",
             "0",
-        ],
+        ]),
     );
     let colmap = results(&cwd.join("colmap-loc/results.jsonl"));
     assert_eq!(colmap[0]["group"], "query");
@@ -230,20 +217,7 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
         r#"[{"image_id": 999, "category_id": 1, "segmentation": {"size": [4, 4], "counts": "52203"}, "score": 0.9}]"#,
     )
     .unwrap();
-    let out = insgen(
-        cwd,
-        &[
-            "eval-loc",
-            "--area",
-            "demo-test",
-            "--camera",
-            "cam2",
-            "--predictions",
-            "other.json",
-            "--tag",
-            "bad",
-        ],
-    );
+    let out = insgen(cwd, &eval_loc(&["--predictions", "other.json", "--tag", "bad"]));
     assert!(!out.status.success());
     let e = stderr(&out);
     assert!(e.contains("other.json") && e.contains("none of its image ids"), "{e}");
@@ -252,10 +226,7 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
     // 5. Map ≠ query: another area in another ENU frame is refused, naming both; the same district
     //    prepared under another name (same frame) is accepted, coarsened to LoD1, and recorded.
     ok(cwd, &["prepare", "--area", "demo-test-moved"]);
-    let out = insgen(
-        cwd,
-        &["eval-loc", "--area", "demo-test", "--camera", "cam2", "--oracle", "--map-area", "demo-test-moved"],
-    );
+    let out = insgen(cwd, &eval_loc(&["--oracle", "--map-area", "demo-test-moved"]));
     assert!(!out.status.success());
     let e = stderr(&out);
     assert!(
@@ -263,30 +234,12 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
         "{e}"
     );
     ok(cwd, &["prepare", "--area", "demo-test-copy"]);
-    let out = insgen(
-        cwd,
-        &[
-            "eval-loc",
-            "--area",
-            "demo-test",
-            "--camera",
-            "cam2",
-            "--oracle",
-            "--map-lod1",
-            "--map-lod1-percentile",
-            "120",
-        ],
-    );
+    let out = insgen(cwd, &eval_loc(&["--oracle", "--map-lod1", "--map-lod1-percentile", "120"]));
     assert!(!out.status.success());
     assert!(stderr(&out).contains("--map-lod1-percentile 120"), "{}", stderr(&out));
     ok(
         cwd,
-        &[
-            "eval-loc",
-            "--area",
-            "demo-test",
-            "--camera",
-            "cam2",
+        &eval_loc(&[
             "--oracle",
             "--map-area",
             "demo-test-copy",
@@ -301,7 +254,7 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
             "0",
             "--tag",
             "lod1",
-        ],
+        ]),
     );
     let summary: Value =
         serde_json::from_slice(&std::fs::read(cam.join("loc/lod1/summary.json")).unwrap()).unwrap();
