@@ -9,8 +9,8 @@
 //! [sampling]
 //! clearance_m = 50.0             # above the tallest building near the camera
 //! clearance_radius_m = 40.0      # "near": building boxes within this horizontal distance
-//! min_building_fraction = 0.15   # share of the coarse ray grid that must hit a building box
-//! min_visible_buildings = 3      # distinct building boxes first hit by some ray of that grid
+//! min_building_fraction = 0.15   # share of the coarse ray grid that must hit a building
+//! min_visible_buildings = 3      # distinct buildings first hit by some ray of that grid
 //! visibility_rays = [16, 12]     # coarse ray grid (columns, rows)
 //! max_attempts_per_pose = 30
 //!
@@ -68,10 +68,11 @@ pub struct SamplingConfig {
     pub clearance_m: f64,
     /// Horizontal radius around the camera in which buildings count as "under" it, metres.
     pub clearance_radius_m: f64,
-    /// Minimum share (0..1) of the coarse ray grid that must hit a building bounding box.
+    /// Minimum share (0..1) of the coarse ray grid that must hit a building (its triangles: an
+    /// estimate of the share of building pixels).
     pub min_building_fraction: f64,
-    /// Minimum number of distinct buildings a view must show: building boxes that are the first hit
-    /// of at least one ray of the visibility grid. Silhouettes of one or two buildings leave the pose
+    /// Minimum number of distinct buildings a view must show: buildings that are the first hit of at
+    /// least one ray of the visibility grid. Silhouettes of one or two buildings leave the pose
     /// ambiguous (issue 15).
     pub min_visible_buildings: u32,
     /// Coarse ray grid for the visibility test: [columns, rows] of rays through pixel centres of an

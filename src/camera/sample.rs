@@ -14,7 +14,7 @@
 //! - is at least `clearance_m` above the top of every building box within `clearance_radius_m`
 //!   (horizontally) of it;
 //! - sees the city: at least `min_building_fraction` of a coarse grid of viewing rays hits a building
-//!   box, and at least `min_visible_buildings` distinct boxes are the first hit of some ray
+//!   (its triangles), and at least `min_visible_buildings` distinct buildings are the first hit of some ray
 //!   ([`BuildingIndex::view_census`]): a view of one or two buildings cannot be localized from
 //!   silhouettes. Each pose records its count (`visible_buildings` in `poses.jsonl`).
 //!
@@ -314,7 +314,7 @@ pub fn sample_area(
     let ctx = Ctx {
         area,
         poly,
-        index: BuildingIndex::new(&scene.buildings),
+        index: BuildingIndex::with_mesh(&scene.buildings, &scene.mesh),
         ground_m: m.ground_enu_m,
         camera,
         cfg,

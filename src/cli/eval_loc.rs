@@ -173,7 +173,7 @@ pub struct Args {
     /// Judge the basins at the render width after AFTER coarse-width iterations as well and go on
     /// with the best KEEP, or `off` [default: 5/2; --paper: off].
     #[arg(long, value_name = "AFTER/KEEP|off", value_parser = parse_prune)]
-    pub prune: Option<Option<Prune>>,
+    pub prune: Option<PruneFlag>,
     /// Width of the fine-stage renders in pixels.
     #[arg(long, value_name = "PX", default_value_t = 640)]
     pub render_width: u32,
@@ -292,9 +292,13 @@ fn parse_unit_fraction(s: &str) -> Result<f64, String> {
     }
 }
 
-fn parse_prune(s: &str) -> Result<Option<Prune>, String> {
+/// The value of `--prune`: an early judgement, or none (`off`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PruneFlag(pub Option<Prune>);
+
+fn parse_prune(s: &str) -> Result<PruneFlag, String> {
     if s.trim() == "off" {
-        return Ok(None);
+        return Ok(PruneFlag(None));
     }
     let (a, k) = s.split_once('/').ok_or_else(|| format!("{s:?}: expected AFTER/KEEP (e.g. 5/2) or off"))?;
     let after_iterations: u32 =
@@ -303,7 +307,54 @@ fn parse_prune(s: &str) -> Result<Option<Prune>, String> {
     if keep == 0 {
         return Err(format!("{s:?}: KEEP must be at least 1"));
     }
-    Ok(Some(Prune { after_iterations, keep }))
+    Ok(PruneFlag(Some(Prune { after_iterations, keep })))
+}
+
+/// The search's stages and parameters from the flags: the defaults, or the paper's with `--paper`,
+/// with each given flag applied on top.
+fn search_options(args: &Args) -> SearchOptions {
+    SearchOptions {
+        coarse: {
+            let d = CoarseParams::default();
+            let (xy_range_m, xy_step_m) = args.coarse_xy.unwrap_or((d.xy_range_m, d.xy_step_m));
+            let (z_range_m, z_step_m) = args.coarse_z.unwrap_or((d.z_range_m, d.z_step_m));
+            let (yaw_range_deg, yaw_step_deg) = args.coarse_yaw.unwrap_or((d.yaw_range_deg, d.yaw_step_deg));
+            CoarseParams { xy_range_m, xy_step_m, z_range_m, z_step_m, yaw_range_deg, yaw_step_deg }
+        },
+        fine: {
+            let base = if args.paper { FineParams::paper() } else { FineParams::default() };
+            let beams_mode = match (base.beams_mode, args.basins, args.survivors, args.prune) {
+                (BeamMode::Basins { count, survivors, prune }, b, s, p) => BeamMode::Basins {
+                    count: b.unwrap_or(count),
+                    survivors: s.unwrap_or(survivors),
+                    prune: p.map_or(prune, |PruneFlag(p)| p),
+                },
+                (BeamMode::Joint, None, None, None) => BeamMode::Joint,
+                // --paper with basin flags: the paper's filter, beams as asked (no early judgement
+                // unless asked).
+                (BeamMode::Joint, b, s, p) => BeamMode::Basins {
+                    count: b.unwrap_or(4),
+                    survivors: s.unwrap_or(1),
+                    prune: p.and_then(|PruneFlag(p)| p),
+                },
+            };
+            FineParams {
+                iterations: args.iterations.unwrap_or(base.iterations),
+                lowres_iterations: args.lowres_iterations,
+                polish: base.polish && !args.no_polish,
+                beams_mode,
+                polish_cost: polish_cost(args),
+                ..base
+            }
+        },
+        stages: match (args.no_select, args.no_refine) {
+            (false, false) => Stages::CoarseAndFine,
+            (false, true) => Stages::CoarseOnly,
+            (true, false) => Stages::FineOnly,
+            // Both off: nothing but the prior is scored (the coarse stage over the prior alone).
+            (true, true) => Stages::PriorOnly,
+        },
+    }
 }
 
 /// Parses `E,N,U` metres.
@@ -458,49 +509,7 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         weighting: args.weighting.into(),
         semantic_weight: semantic_weight(args),
         source,
-        search: SearchOptions {
-            coarse: {
-                let d = CoarseParams::default();
-                let (xy_range_m, xy_step_m) = args.coarse_xy.unwrap_or((d.xy_range_m, d.xy_step_m));
-                let (z_range_m, z_step_m) = args.coarse_z.unwrap_or((d.z_range_m, d.z_step_m));
-                let (yaw_range_deg, yaw_step_deg) =
-                    args.coarse_yaw.unwrap_or((d.yaw_range_deg, d.yaw_step_deg));
-                CoarseParams { xy_range_m, xy_step_m, z_range_m, z_step_m, yaw_range_deg, yaw_step_deg }
-            },
-            fine: {
-                let base = if args.paper { FineParams::paper() } else { FineParams::default() };
-                let beams_mode = match (base.beams_mode, args.basins, args.survivors, args.prune) {
-                    (BeamMode::Basins { count, survivors, prune }, b, s, p) => BeamMode::Basins {
-                        count: b.unwrap_or(count),
-                        survivors: s.unwrap_or(survivors),
-                        prune: p.unwrap_or(prune),
-                    },
-                    (BeamMode::Joint, None, None, None) => BeamMode::Joint,
-                    // --paper with basin flags: the paper's filter, beams as asked (no early judgement
-                    // unless asked).
-                    (BeamMode::Joint, b, s, p) => BeamMode::Basins {
-                        count: b.unwrap_or(4),
-                        survivors: s.unwrap_or(1),
-                        prune: p.flatten(),
-                    },
-                };
-                FineParams {
-                    iterations: args.iterations.unwrap_or(base.iterations),
-                    lowres_iterations: args.lowres_iterations,
-                    polish: base.polish && !args.no_polish,
-                    beams_mode,
-                    polish_cost: polish_cost(args),
-                    ..base
-                }
-            },
-            stages: match (args.no_select, args.no_refine) {
-                (false, false) => Stages::CoarseAndFine,
-                (false, true) => Stages::CoarseOnly,
-                (true, false) => Stages::FineOnly,
-                // Both off: nothing but the prior is scored (the coarse stage over the prior alone).
-                (true, true) => Stages::PriorOnly,
-            },
-        },
+        search: search_options(args),
         seed: args.seed,
         render_width_px: args.render_width,
         coarse_width_px: args.coarse_width.unwrap_or(if args.paper { 320 } else { 160 }),
@@ -559,6 +568,33 @@ mod tests {
         assert_eq!(polish_cost(&a), PolishCost { semantic_weight: 0.5, max_silhouette_offset_px: 0 });
         let e = parse(&["--polish-semantic-weight", "2"]).unwrap_err().to_string();
         assert!(e.contains("expected a number in [0, 1]"), "{e}");
+    }
+
+    #[test]
+    fn beam_flags_apply_over_defaults_and_paper() {
+        let beams = |extra: &[&str]| search_options(&parse(extra).unwrap()).fine.beams_mode;
+        assert_eq!(beams(&[]), FineParams::default().beams_mode);
+        assert_eq!(
+            beams(&["--basins", "6", "--prune", "5/3"]),
+            BeamMode::Basins { count: 6, survivors: 1, prune: Some(Prune { after_iterations: 5, keep: 3 }) }
+        );
+        assert_eq!(
+            beams(&["--prune", "off", "--survivors", "2"]),
+            BeamMode::Basins { count: 4, survivors: 2, prune: None }
+        );
+        assert_eq!(beams(&["--paper"]), BeamMode::Joint);
+        assert_eq!(
+            beams(&["--paper", "--basins", "3"]),
+            BeamMode::Basins { count: 3, survivors: 1, prune: None }
+        );
+        assert_eq!(
+            beams(&["--paper", "--prune", "4/2"]),
+            BeamMode::Basins { count: 4, survivors: 1, prune: Some(Prune { after_iterations: 4, keep: 2 }) }
+        );
+        for bad in ["5", "5/0", "x/2", "on"] {
+            let e = parse(&["--prune", bad]).unwrap_err().to_string();
+            assert!(e.contains("--prune"), "{bad}: {e}");
+        }
     }
 
     mod semantic_weight {
