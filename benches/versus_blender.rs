@@ -24,7 +24,7 @@ use std::time::Instant;
 use insgen::blender::{render_frames, Engine, FrameRequest, Launcher, Mode, RenderPlan, SceneSource};
 use insgen::camera::{Intrinsics, PoseRecord};
 use insgen::label::stage::{self, MaskPlan};
-use insgen::loc::cost::{CostKind, Weighting};
+use insgen::loc::cost::{Blend, CostKind, Weighting};
 use insgen::loc::eval::{at_width, cull, dense_subscene, CpuEvaluator};
 use insgen::loc::metrics::median_or_nan;
 use insgen::loc::oracle::Degradation;
@@ -224,7 +224,7 @@ fn bench_area(
                     kind: CostKind::Instance,
                     weighting: Weighting::Conf,
                     // The paper's pure instance cost: this bench times the raster, not the blend.
-                    semantic_weight: 0.0,
+                    blend: Blend::semantic(0.0),
                     k_max: kept.len() as u32,
                     silhouette_offset_px: 0,
                     // Distinct centres, as in the particle filter: one render per hypothesis.

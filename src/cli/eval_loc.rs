@@ -157,6 +157,12 @@ pub struct Args {
     /// [default: 2].
     #[arg(long, value_name = "N")]
     pub silhouette_offset: Option<u32>,
+    /// Weight λ of the rendered building pixels outside the query's outline in the polish's second
+    /// pass, |Q ∩ R| / (|Q| + λ·|R \ Q|): an LoD map generalises buildings outwards (blocks filled up
+    /// to the eaves or the ridge), so its render spilling over the query's outline is weaker evidence
+    /// than a query pixel it leaves uncovered; 1 is the IoU [default: 0.3].
+    #[arg(long, value_name = "λ", value_parser = parse_unit_fraction)]
+    pub polish_spill_weight: Option<f64>,
     /// The paper's search exactly: its coarse grid, rendered at 320 px, and particle filter (40
     /// iterations, 2 beams × (2 kept + 2 × 12 perturbations) ranked jointly across beams), no
     /// distinct basins, no polish. Other search flags given with it still apply.
@@ -273,16 +279,17 @@ fn semantic_weight(args: &Args) -> f64 {
     args.semantic_weight.unwrap_or(if args.paper { 0.0 } else { DEFAULT_SEMANTIC_WEIGHT })
 }
 
-/// `--semantic-weight`: a number in [0, 1].
 /// The polish's cost: the defaults ([`PolishCost::default`]) where no flag is given.
 fn polish_cost(args: &Args) -> PolishCost {
     let d = PolishCost::default();
     PolishCost {
         semantic_weight: args.polish_semantic_weight.unwrap_or(d.semantic_weight),
         max_silhouette_offset_px: args.silhouette_offset.unwrap_or(d.max_silhouette_offset_px),
+        spill_weight: args.polish_spill_weight.unwrap_or(d.spill_weight),
     }
 }
 
+/// A weight in [0, 1] (`--semantic-weight` and the polish's weights).
 fn parse_unit_fraction(s: &str) -> Result<f64, String> {
     let w: f64 = s.trim().parse().map_err(|_| format!("expected a number in [0, 1], got {s:?}"))?;
     if (0.0..=1.0).contains(&w) {
@@ -547,6 +554,7 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::loc::search::DEFAULT_SPILL_WEIGHT;
     use clap::Parser;
 
     #[derive(Debug, Parser)]
@@ -565,9 +573,20 @@ mod tests {
     fn polish_cost_defaults_and_flags() {
         assert_eq!(polish_cost(&parse(&[]).unwrap()), PolishCost::default());
         let a = parse(&["--polish-semantic-weight", "0.5", "--silhouette-offset", "0"]).unwrap();
-        assert_eq!(polish_cost(&a), PolishCost { semantic_weight: 0.5, max_silhouette_offset_px: 0 });
-        let e = parse(&["--polish-semantic-weight", "2"]).unwrap_err().to_string();
-        assert!(e.contains("expected a number in [0, 1]"), "{e}");
+        assert_eq!(
+            polish_cost(&a),
+            PolishCost {
+                semantic_weight: 0.5,
+                max_silhouette_offset_px: 0,
+                spill_weight: DEFAULT_SPILL_WEIGHT
+            }
+        );
+        let a = parse(&["--polish-spill-weight", "1"]).unwrap();
+        assert_eq!(polish_cost(&a), PolishCost { spill_weight: 1.0, ..PolishCost::default() });
+        for bad in [["--polish-semantic-weight", "2"], ["--polish-spill-weight", "1.5"]] {
+            let e = parse(&bad).unwrap_err().to_string();
+            assert!(e.contains("expected a number in [0, 1]"), "{e}");
+        }
     }
 
     #[test]

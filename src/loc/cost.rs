@@ -10,7 +10,10 @@
 //! - the blended instance cost (1 − w)·c + w·IoU_sem (w = [`DEFAULT_SEMANTIC_WEIGHT`] by default, 0 with
 //!   `--paper`): against a map coarser than the query's buildings (an LoD1 map for LoD2 queries), taller
 //!   blocks hide more of the buildings behind them, so the per-instance boundaries move while the union's
-//!   outline (the skyline) stays; the semantic term anchors the optimum to that outline (issue 15).
+//!   outline (the skyline) stays; the semantic term anchors the optimum to that outline (issue 15);
+//! - in the semantic term, rendered building pixels outside the query's union may count less than query
+//!   pixels left uncovered, |Q ∩ R| / (|Q| + λ·|R \ Q|) (λ = 1: the IoU; a Tversky index), which the
+//!   polish uses ([`Blend::spill_weight`]).
 //!
 //! All intersections come from one pass over the query pixels, accumulating a joint histogram of
 //! (query instance, rendered instance). Rendered IDs must be *dense* (1..=K, 0 = background): the
@@ -29,6 +32,23 @@ pub const DICE_EPS: f64 = 1e-6;
 /// with an LoD1 map, recall at (2 m, 2°) rises from 80 % to the semantic baseline's level; see
 /// bench/loc_issue15.md).
 pub const DEFAULT_SEMANTIC_WEIGHT: f64 = 0.5;
+
+/// The terms of the blended instance cost ([`Scorer::blended_cost`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Blend {
+    /// Weight w of the semantic term: (1 − w)·instance + w·semantic.
+    pub semantic_weight: f64,
+    /// Weight λ of the rendered building pixels outside the query's union in the semantic term,
+    /// |Q ∩ R| / (|Q| + λ·|R \ Q|) ([`Scorer::semantic_overlap`]); 1 is the IoU.
+    pub spill_weight: f64,
+}
+
+impl Blend {
+    /// Weight `w` of the semantic IoU (spill weight 1).
+    pub fn semantic(w: f64) -> Blend {
+        Blend { semantic_weight: w, spill_weight: 1.0 }
+    }
+}
 
 /// How per-instance Dice scores are combined.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -288,45 +308,56 @@ impl Scorer {
     /// Semantic IoU of the union of the query masks with the union of rendered buildings; 0 when both
     /// are empty.
     pub fn semantic_iou(&mut self, q: &Query, rendered: &[u32]) -> f64 {
+        self.semantic_overlap(q, rendered, 1.0)
+    }
+
+    /// Overlap of the union Q of the query masks with the union R of the rendered buildings, with the
+    /// rendered pixels outside Q weighted by `spill_weight` λ: |Q ∩ R| / (|Q| + λ·|R \ Q|), in [0, 1];
+    /// 0 when the denominator is. λ = 1 is the IoU; λ < 1 counts a render larger than the query less
+    /// than one that leaves query pixels uncovered (the same render at the exact outline scores 1
+    /// either way).
+    pub fn semantic_overlap(&mut self, q: &Query, rendered: &[u32], spill_weight: f64) -> f64 {
         let covered = |ids: &[u32]| ids.iter().map(|&r| (r != 0) as u64).sum::<u64>();
         let (mut query_px, mut inter) = (0u64, 0u64);
         for &[a, b] in &q.union {
             query_px += (b - a) as u64;
             inter += covered(&rendered[a as usize..b as usize]);
         }
-        let uni = query_px + covered(rendered) - inter;
-        if uni == 0 {
+        let denominator = query_px as f64 + spill_weight * (covered(rendered) - inter) as f64;
+        if denominator <= 0.0 {
             0.0
         } else {
-            inter as f64 / uni as f64
+            inter as f64 / denominator
         }
     }
 
-    /// The blended instance cost (1 − `semantic_weight`)·instance + `semantic_weight`·semantic IoU, in
-    /// [0, 1]; `semantic_weight` = 0 is the paper's pure instance cost (and skips the semantic pass), 1 the
-    /// semantic IoU alone (and skips the instance pass).
+    /// The blended instance cost (1 − w)·instance + w·semantic, in [0, 1], with w and the semantic
+    /// term's spill weight from `blend` ([`Scorer::semantic_overlap`]); w = 0 is the paper's pure
+    /// instance cost (and skips the semantic pass), 1 the semantic term alone (and skips the instance
+    /// pass).
     pub fn blended_cost(
         &mut self,
         q: &Query,
         rendered: &[u32],
         k_max: u32,
         weighting: Weighting,
-        semantic_weight: f64,
+        blend: Blend,
     ) -> f64 {
-        if semantic_weight == 1.0 {
+        let w = blend.semantic_weight;
+        if w == 1.0 {
             // The union's outline alone (the polish's second pass by default): no instance pass.
-            return self.semantic_iou(q, rendered);
+            return self.semantic_overlap(q, rendered, blend.spill_weight);
         }
         let instance = self.instance_cost(q, rendered, k_max, weighting);
-        if semantic_weight == 0.0 {
+        if w == 0.0 {
             return instance;
         }
-        (1.0 - semantic_weight) * instance + semantic_weight * self.semantic_iou(q, rendered)
+        (1.0 - w) * instance + w * self.semantic_overlap(q, rendered, blend.spill_weight)
     }
 
     /// The cost of `kind` (the merged ablation expects `q` already merged with [`Query::merged`]).
-    /// `semantic_weight` blends the semantic IoU into [`CostKind::Instance`] only
-    /// ([`Scorer::blended_cost`]); the merged ablation stays the paper's.
+    /// `blend` applies to [`CostKind::Instance`] ([`Scorer::blended_cost`]) and its spill weight to
+    /// [`CostKind::Semantic`] (1, the IoU, but in the polish); the merged ablation stays the paper's.
     pub fn cost(
         &mut self,
         kind: CostKind,
@@ -334,12 +365,12 @@ impl Scorer {
         rendered: &[u32],
         k_max: u32,
         weighting: Weighting,
-        semantic_weight: f64,
+        blend: Blend,
     ) -> f64 {
         match kind {
-            CostKind::Instance => self.blended_cost(q, rendered, k_max, weighting, semantic_weight),
+            CostKind::Instance => self.blended_cost(q, rendered, k_max, weighting, blend),
             CostKind::Merged => self.instance_cost(q, rendered, k_max, weighting),
-            CostKind::Semantic => self.semantic_iou(q, rendered),
+            CostKind::Semantic => self.semantic_overlap(q, rendered, blend.spill_weight),
         }
     }
 }
@@ -494,8 +525,11 @@ mod tests {
             let mut s = Scorer::default();
             for r in [SHIFTED, [1, 2, 2, 2, 2, 2], [0, 1, 1, 1, 2, 2]] {
                 let pure = s.instance_cost(&q, &r, 2, Weighting::Area);
-                assert_eq!(s.blended_cost(&q, &r, 2, Weighting::Area, 0.0), pure);
-                assert_eq!(s.cost(CostKind::Instance, &q, &r, 2, Weighting::Area, 0.0), pure);
+                assert_eq!(s.blended_cost(&q, &r, 2, Weighting::Area, Blend::semantic(0.0)), pure);
+                assert_eq!(
+                    s.cost(CostKind::Instance, &q, &r, 2, Weighting::Area, Blend::semantic(0.0)),
+                    pure
+                );
             }
         }
 
@@ -507,14 +541,14 @@ mod tests {
             // 2 → d = 4/5; equal box areas (3×1). Semantic IoU = 1 (same union).
             let instance = 0.5 * (6.0 / (7.0 + DICE_EPS) + 4.0 / (5.0 + DICE_EPS));
             assert_eq!(s.semantic_iou(&q, &SHIFTED), 1.0);
-            let blended = s.blended_cost(&q, &SHIFTED, 2, Weighting::Area, 0.5);
+            let blended = s.blended_cost(&q, &SHIFTED, 2, Weighting::Area, Blend::semantic(0.5));
             assert!((blended - (0.5 * instance + 0.5)).abs() < 1e-12, "{blended}");
             // The ends: the pure instance cost and the semantic IoU alone.
             assert_eq!(
-                s.blended_cost(&q, &SHIFTED, 2, Weighting::Area, 0.0),
+                s.blended_cost(&q, &SHIFTED, 2, Weighting::Area, Blend::semantic(0.0)),
                 s.instance_cost(&q, &SHIFTED, 2, Weighting::Area)
             );
-            assert_eq!(s.blended_cost(&q, &SHIFTED, 2, Weighting::Area, 1.0), 1.0);
+            assert_eq!(s.blended_cost(&q, &SHIFTED, 2, Weighting::Area, Blend::semantic(1.0)), 1.0);
         }
 
         #[test]
@@ -524,7 +558,7 @@ mod tests {
             let q = query();
             let mut s = Scorer::default();
             let pure = s.instance_cost(&q, &SHIFTED, 2, Weighting::Area);
-            let blended = s.blended_cost(&q, &SHIFTED, 2, Weighting::Area, 0.5);
+            let blended = s.blended_cost(&q, &SHIFTED, 2, Weighting::Area, Blend::semantic(0.5));
             assert!(pure < 0.84, "{pure}");
             assert!(((1.0 - blended) - 0.5 * (1.0 - pure)).abs() < 1e-12, "{pure} {blended}");
         }
@@ -542,12 +576,44 @@ mod tests {
             let truth = [1, 1, 1, 1, 1, 2];
             let wrong = [0, 1, 1, 1, 2, 2];
             let pure = |s: &mut Scorer, r: &[u32]| s.instance_cost(&q, r, 2, Weighting::Area);
-            let blend = |s: &mut Scorer, r: &[u32]| s.blended_cost(&q, r, 2, Weighting::Area, 0.5);
+            let blend =
+                |s: &mut Scorer, r: &[u32]| s.blended_cost(&q, r, 2, Weighting::Area, Blend::semantic(0.5));
             assert!((pure(&mut s, &truth) - 0.625).abs() < 1e-6);
             assert!((pure(&mut s, &wrong) - 0.5 * (4.0 / 6.0 + 0.8)).abs() < 1e-6);
             assert!(pure(&mut s, &wrong) > pure(&mut s, &truth) + 0.1);
             assert!((blend(&mut s, &truth) - 0.8125).abs() < 1e-6);
             assert!(blend(&mut s, &truth) > blend(&mut s, &wrong) + 0.025);
+        }
+
+        #[test]
+        fn spill_weight_counts_a_larger_render_less_than_a_smaller_one() {
+            // Query union 3 px (A = 0..3). A render one pixel larger (0..4) and one pixel smaller
+            // (0..2): the IoU ranks them 3/4 and 2/3; with λ = 0.3 the larger scores 3/3.3, the smaller
+            // still 2/3; the exact outline scores 1 for every λ. Semantic-only blends use it, w = 0
+            // does not.
+            let q = Query::from_labels(6, 1, &[1, 1, 1, 0, 0, 0], &[1.0]);
+            let (larger, smaller, exact) = ([1, 1, 1, 1, 0, 0], [1, 1, 0, 0, 0, 0], [1, 1, 1, 0, 0, 0]);
+            let mut s = Scorer::default();
+            assert!((s.semantic_overlap(&q, &larger, 1.0) - 0.75).abs() < 1e-12);
+            assert_eq!(s.semantic_overlap(&q, &larger, 1.0), s.semantic_iou(&q, &larger));
+            assert!((s.semantic_overlap(&q, &larger, 0.3) - 3.0 / 3.3).abs() < 1e-12);
+            for lambda in [1.0, 0.3, 0.0] {
+                assert!((s.semantic_overlap(&q, &smaller, lambda) - 2.0 / 3.0).abs() < 1e-12);
+                assert_eq!(s.semantic_overlap(&q, &exact, lambda), 1.0);
+            }
+            let tversky = Blend { semantic_weight: 1.0, spill_weight: 0.3 };
+            assert_eq!(
+                s.blended_cost(&q, &larger, 1, Weighting::Area, tversky),
+                s.semantic_overlap(&q, &larger, 0.3)
+            );
+            assert_eq!(s.cost(CostKind::Semantic, &q, &larger, 1, Weighting::Area, tversky), 3.0 / 3.3);
+            let pure = Blend { semantic_weight: 0.0, spill_weight: 0.3 };
+            assert_eq!(
+                s.blended_cost(&q, &larger, 1, Weighting::Area, pure),
+                s.instance_cost(&q, &larger, 1, Weighting::Area)
+            );
+            // Nothing rendered and nothing queried: 0.
+            assert_eq!(s.semantic_overlap(&Query::new(6, 1, Vec::new()), &[0; 6], 0.3), 0.0);
         }
 
         #[test]
@@ -557,10 +623,13 @@ mod tests {
             let m = q.merged();
             let r = [0, 1, 1, 1, 1, 0];
             assert_eq!(
-                s.cost(CostKind::Merged, &m, &r, 1, Weighting::Area, 0.5),
+                s.cost(CostKind::Merged, &m, &r, 1, Weighting::Area, Blend::semantic(0.5)),
                 s.instance_cost(&m, &r, 1, Weighting::Area)
             );
-            assert_eq!(s.cost(CostKind::Semantic, &q, &r, 1, Weighting::Area, 0.5), s.semantic_iou(&q, &r));
+            assert_eq!(
+                s.cost(CostKind::Semantic, &q, &r, 1, Weighting::Area, Blend::semantic(0.5)),
+                s.semantic_iou(&q, &r)
+            );
         }
     }
 }

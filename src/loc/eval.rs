@@ -25,7 +25,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::cost::{CostKind, Query, Scorer, Weighting};
+use super::cost::{Blend, CostKind, Query, Scorer, Weighting};
 use super::map::MapSummary;
 use super::metrics::{self, Row};
 use super::morph::morph_into;
@@ -239,8 +239,9 @@ pub struct CpuEvaluator<'a> {
     pub query: &'a Query,
     pub kind: CostKind,
     pub weighting: Weighting,
-    /// Weight of the semantic IoU in [`CostKind::Instance`] (see [`EvalOptions::semantic_weight`]).
-    pub semantic_weight: f64,
+    /// The terms of [`CostKind::Instance`]: the semantic weight (see [`EvalOptions::semantic_weight`])
+    /// and the semantic term's spill weight (1 until [`Evaluate::enter_polish`] sets the polish's).
+    pub blend: Blend,
     pub k_max: u32,
     /// Applied to every rendered image before scoring: dilate (> 0) or erode (< 0) each building by
     /// this many pixels ([`morph_into`]), so that query masks systematically fatter or thinner than the
@@ -284,7 +285,7 @@ impl CpuEvaluator<'_> {
         } else {
             ids
         };
-        ws.scorer.cost(self.kind, self.query, ids, self.k_max, self.weighting, self.semantic_weight)
+        ws.scorer.cost(self.kind, self.query, ids, self.k_max, self.weighting, self.blend)
     }
 
     /// Scores one run of hypotheses sharing a centre: through a rotation fan when it is long enough and
@@ -323,12 +324,14 @@ impl Evaluate for CpuEvaluator<'_> {
 
     /// Takes the polish's semantic weight (the instance cost only: the semantic baseline is its own
     /// cost, the merged ablation stays the paper's) and fits the silhouette offset at `at`: every offset
-    /// in ±`max_silhouette_offset_px` is scored on one render there and the best kept, the smallest
-    /// |offset| on ties.
+    /// in ±`max_silhouette_offset_px` is scored on one render there with the symmetric IoU (spill
+    /// weight 1: a boundary bias of the masks is measured without the preference for larger renders)
+    /// and the best kept, the smallest |offset| on ties. Then takes the polish's spill weight (both
+    /// the instance and the semantic cost).
     fn enter_polish(&mut self, at: &Hypothesis, cost: &PolishCost) -> Result<(u64, bool), Self::Error> {
-        let before = (self.semantic_weight, self.silhouette_offset_px);
+        let before = (self.blend, self.silhouette_offset_px);
         if self.kind == CostKind::Instance {
-            self.semantic_weight = cost.semantic_weight;
+            self.blend.semantic_weight = cost.semantic_weight;
         }
         let max = cost.max_silhouette_offset_px as i32;
         let mut offsets: Vec<i32> = (-max..=max).collect();
@@ -338,6 +341,7 @@ impl Evaluate for CpuEvaluator<'_> {
         raster::render_ids(self.scene, &at.pose(self.pitch_deg, self.roll_deg), &self.k, &mut ws.frame);
         let ids = std::mem::take(&mut ws.frame.ids);
         let mut best = (f64::NEG_INFINITY, 0);
+        self.blend.spill_weight = 1.0;
         for &b in &offsets {
             self.silhouette_offset_px = b;
             let score = self.score(&mut ws, &ids);
@@ -346,7 +350,10 @@ impl Evaluate for CpuEvaluator<'_> {
             }
         }
         self.silhouette_offset_px = best.1;
-        Ok((offsets.len() as u64, (self.semantic_weight, self.silhouette_offset_px) != before))
+        if self.kind != CostKind::Merged {
+            self.blend.spill_weight = cost.spill_weight;
+        }
+        Ok((offsets.len() as u64, (self.blend, self.silhouette_offset_px) != before))
     }
 
     fn evaluate(&mut self, hyps: &[Hypothesis]) -> Result<Vec<f64>, Self::Error> {
@@ -865,7 +872,7 @@ impl<'q> QuerySetup<'q> {
             query,
             kind,
             weighting: opts.weighting,
-            semantic_weight: opts.semantic_weight,
+            blend: Blend::semantic(opts.semantic_weight),
             k_max: self.buildings as u32,
             silhouette_offset_px: 0,
             yaw_fan,
@@ -1185,22 +1192,24 @@ mod tests {
                 query: &query,
                 kind: CostKind::Instance,
                 weighting: Weighting::Area,
-                semantic_weight: 0.5,
+                blend: Blend::semantic(0.5),
                 k_max: 9,
                 silhouette_offset_px: 0,
                 yaw_fan: false,
             };
             let (scored, changed) = ev.enter_polish(&at, &cost).unwrap();
-            (ev.silhouette_offset_px, scored, changed, ev.semantic_weight)
+            (ev.silhouette_offset_px, scored, changed, ev.blend)
         };
-        // Masks 2 px thinner or 1 px fatter than the silhouettes: the offset found is theirs.
-        assert_eq!(fit(-2, PolishCost::default()), (-2, 5, true, 1.0));
-        assert_eq!(fit(1, PolishCost::default()), (1, 5, true, 1.0));
-        // Exact masks, and the filter's weight: nothing changes, so no second pass.
-        let same = PolishCost { semantic_weight: 0.5, max_silhouette_offset_px: 2 };
-        assert_eq!(fit(0, same), (0, 5, false, 0.5));
-        // No offsets allowed: only the weight changes.
-        let none = PolishCost { semantic_weight: 1.0, max_silhouette_offset_px: 0 };
-        assert_eq!(fit(-2, none), (0, 1, true, 1.0));
+        let polish = Blend { semantic_weight: 1.0, spill_weight: search::DEFAULT_SPILL_WEIGHT };
+        // Masks 2 px thinner or 1 px fatter than the silhouettes: the offset found is theirs (fitted
+        // with the IoU: with the default spill weight, dilating the render would look cheaper).
+        assert_eq!(fit(-2, PolishCost::default()), (-2, 5, true, polish));
+        assert_eq!(fit(1, PolishCost::default()), (1, 5, true, polish));
+        // Exact masks, and the filter's terms: nothing changes, so no second pass.
+        let same = PolishCost { semantic_weight: 0.5, max_silhouette_offset_px: 2, spill_weight: 1.0 };
+        assert_eq!(fit(0, same), (0, 5, false, Blend::semantic(0.5)));
+        // No offsets allowed: only the terms change.
+        let none = PolishCost { max_silhouette_offset_px: 0, ..PolishCost::default() };
+        assert_eq!(fit(-2, none), (0, 1, true, polish));
     }
 }
