@@ -22,9 +22,9 @@ use crate::scene::{BuildingRecord, SceneMesh};
 #[derive(Debug, Clone)]
 pub struct BuildingIndex {
     boxes: Vec<([f64; 3], [f64; 3])>,
-    /// Per box, its building's triangles (ENU metres); `None`, or a building without triangles: the
-    /// box itself stands for the building.
-    triangles: Option<Vec<Vec<[[f64; 3]; 3]>>>,
+    /// Per box, its building's triangles (ENU metres, in the mesh's precision); `None`, or a building
+    /// without triangles: the box itself stands for the building.
+    triangles: Option<Vec<Vec<[[f32; 3]; 3]>>>,
     /// South-west corner of the grid, ENU metres.
     grid_origin_m: [f64; 2],
     cell_m: f64,
@@ -57,7 +57,7 @@ impl BuildingIndex {
         let slot: std::collections::HashMap<u32, usize> =
             valid.iter().enumerate().map(|(i, b)| (b.id.get(), i)).collect();
         let mut triangles = vec![Vec::new(); valid.len()];
-        let vertex = |i: u32| mesh.positions_m[i as usize].map(f64::from);
+        let vertex = |i: u32| mesh.positions_m[i as usize];
         for t in mesh.indices.chunks_exact(3) {
             if let Some(&i) = slot.get(&mesh.building_ids[t[0] as usize].get()) {
                 triangles[i].push([vertex(t[0]), vertex(t[1]), vertex(t[2])]);
@@ -338,13 +338,14 @@ fn valid_boxes(buildings: &[BuildingRecord]) -> impl Iterator<Item = &BuildingRe
 
 /// The smallest t in [0, t_max] at which `o + t·d` crosses one of `triangles` (either side), if any
 /// (Möller–Trumbore).
-fn first_triangle_hit(o: [f64; 3], d: [f64; 3], triangles: &[[[f64; 3]; 3]], t_max: f64) -> Option<f64> {
+fn first_triangle_hit(o: [f64; 3], d: [f64; 3], triangles: &[[[f32; 3]; 3]], t_max: f64) -> Option<f64> {
     use glam::DVec3;
     let (o, d) = (DVec3::from(o), DVec3::from(d));
+    let v = |p: &[f32; 3]| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
     let mut best: Option<f64> = None;
     for [a, b, c] in triangles {
-        let a = DVec3::from(*a);
-        let (e1, e2) = (DVec3::from(*b) - a, DVec3::from(*c) - a);
+        let a = v(a);
+        let (e1, e2) = (v(b) - a, v(c) - a);
         let p = d.cross(e2);
         let det = e1.dot(p);
         if det.abs() < 1e-12 * e1.length() * e2.length() * d.length() {

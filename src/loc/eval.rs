@@ -124,7 +124,7 @@ pub struct QueryResult {
     #[serde(default)]
     pub silhouette_offset_px: i32,
     /// The estimate's cost in the terms of the search's last stage: with the polish's second pass, its
-    /// semantic weight and fitted silhouette offset (search::PolishCost).
+    /// semantic weight, spill weight and fitted silhouette offset (search::PolishCost).
     pub best_cost: f64,
     /// The cost of the ground-truth pose (at the fine resolution, in the same terms as `best_cost`): how
     /// well the query can be explained at all. A best cost above it with a large error means the cost is ambiguous; below it, the search

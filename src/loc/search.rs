@@ -116,7 +116,7 @@ pub struct PolishCost {
     /// outline alone; the filter's weight is `eval-loc --semantic-weight`).
     pub semantic_weight: f64,
     /// Silhouette offsets tried at the polish's start, from −N to +N pixels (erode to dilate every
-    /// rendered building), scored with the symmetric IoU; 0: none.
+    /// rendered building), scored with spill weight 1 (the symmetric IoU); 0: none.
     pub max_silhouette_offset_px: u32,
     /// Weight λ of the rendered building pixels outside the query's union in the semantic term during
     /// the polish, |Q ∩ R| / (|Q| + λ·|R \ Q|) (1: the IoU). An LoD map generalises a building
