@@ -182,14 +182,14 @@ impl BuildingIndex {
     /// Whether the ray `o + t·d` (t ≥ 0, ENU metres) hits any building (its triangles, or its box
     /// without them) before it falls below the lowest box bottom.
     pub fn ray_hits_building(&self, o: [f64; 3], d: [f64; 3]) -> bool {
-        self.first_box_hit(o, d).is_some()
+        self.first_building_hit(o, d).is_some()
     }
 
     /// The building the ray `o + t·d` (t ≥ 0, ENU metres) hits first before it falls below the lowest
     /// box bottom: its index among the indexed boxes (in the order given to [`BuildingIndex::new`],
     /// records with invalid boxes skipped). With triangles, the first building whose triangles it
     /// hits; without, the first box it enters.
-    pub fn first_box_hit(&self, o: [f64; 3], d: [f64; 3]) -> Option<u32> {
+    pub fn first_building_hit(&self, o: [f64; 3], d: [f64; 3]) -> Option<u32> {
         if self.is_empty() {
             return None;
         }
@@ -283,7 +283,9 @@ impl BuildingIndex {
             for i in 0..nx {
                 let u = (i as f64 + 0.5) * k.width_px as f64 / nx as f64;
                 let v = (j as f64 + 0.5) * k.height_px as f64 / ny as f64;
-                if let Some(b) = self.first_box_hit(pose.centre_m.to_array(), pixel_ray_enu(k, pose, u, v)) {
+                if let Some(b) =
+                    self.first_building_hit(pose.centre_m.to_array(), pixel_ray_enu(k, pose, u, v))
+                {
                     hits += 1;
                     seen.push(b);
                 }
@@ -292,23 +294,6 @@ impl BuildingIndex {
         seen.sort_unstable();
         seen.dedup();
         ViewCensus { building_fraction: hits as f64 / (nx * ny) as f64, visible_buildings: seen.len() as u32 }
-    }
-
-    /// Share (0..1) of a `rays[0]` × `rays[1]` grid of viewing rays (through the centres of an evenly
-    /// divided image) that hit a building.
-    pub fn building_fraction(&self, k: &Intrinsics, pose: &Pose, rays: [u32; 2]) -> f64 {
-        let (nx, ny) = (rays[0].max(1), rays[1].max(1));
-        let mut hits = 0u32;
-        for j in 0..ny {
-            for i in 0..nx {
-                let u = (i as f64 + 0.5) * k.width_px as f64 / nx as f64;
-                let v = (j as f64 + 0.5) * k.height_px as f64 / ny as f64;
-                if self.ray_hits_building(pose.centre_m.to_array(), pixel_ray_enu(k, pose, u, v)) {
-                    hits += 1;
-                }
-            }
-        }
-        hits as f64 / (nx * ny) as f64
     }
 }
 
@@ -428,8 +413,8 @@ mod tests {
         assert_eq!(c.visible_buildings, 1, "{c:?}");
         assert_eq!(c.building_fraction, 1.0);
         // A ray through both towers (west face of the big one first) counts only the first.
-        assert_eq!(ix.first_box_hit([-500.0, 0.0, 20.0], [1.0, 0.0, 0.0]), Some(0));
-        assert_eq!(ix.first_box_hit([1000.0, 0.0, 20.0], [-1.0, 0.0, 0.0]), Some(1));
+        assert_eq!(ix.first_building_hit([-500.0, 0.0, 20.0], [1.0, 0.0, 0.0]), Some(0));
+        assert_eq!(ix.first_building_hit([1000.0, 0.0, 20.0], [-1.0, 0.0, 0.0]), Some(1));
     }
 
     /// An L-shaped building (id 1: a 20 × 5 m wing along x and a 5 × 20 m wing along y, 10 m tall,
@@ -480,19 +465,19 @@ mod tests {
         let down = [0.0, 0.0, -1.0];
         // Into a wing, both agree; into the L's empty corner only the box is hit.
         for ix in [&boxes, &tris] {
-            assert_eq!(ix.first_box_hit([2.0, 15.0, 100.0], down), Some(0));
-            assert_eq!(ix.first_box_hit([15.0, 2.0, 100.0], down), Some(0));
-            assert_eq!(ix.first_box_hit([35.0, 35.0, 100.0], down), Some(1));
+            assert_eq!(ix.first_building_hit([2.0, 15.0, 100.0], down), Some(0));
+            assert_eq!(ix.first_building_hit([15.0, 2.0, 100.0], down), Some(0));
+            assert_eq!(ix.first_building_hit([35.0, 35.0, 100.0], down), Some(1));
         }
-        assert_eq!(boxes.first_box_hit([15.0, 15.0, 100.0], down), Some(0));
-        assert_eq!(tris.first_box_hit([15.0, 15.0, 100.0], down), None);
+        assert_eq!(boxes.first_building_hit([15.0, 15.0, 100.0], down), Some(0));
+        assert_eq!(tris.first_building_hit([15.0, 15.0, 100.0], down), None);
         // A ray from the south-west at 2 m height through the empty corner, on to the cube: the box
         // index stops it at the L's box, the triangles let it through to the cube behind.
         let (o, d) = ([6.0, 6.0, 2.0], [1.0, 1.0, 0.0]);
-        assert_eq!(boxes.first_box_hit(o, d), Some(0));
-        assert_eq!(tris.first_box_hit(o, d), Some(1));
+        assert_eq!(boxes.first_building_hit(o, d), Some(0));
+        assert_eq!(tris.first_building_hit(o, d), Some(1));
         // The same ray from outside the L (west of it) meets its y wing first.
-        assert_eq!(tris.first_box_hit([-10.0, 6.0, 2.0], [1.0, 0.0, 0.0]), Some(0));
+        assert_eq!(tris.first_building_hit([-10.0, 6.0, 2.0], [1.0, 0.0, 0.0]), Some(0));
 
         // Straight down from 1 km over the L's box centre with a narrow view covering exactly the box's
         // top: the box census sees it full, the triangle census sees the L's share of the roof,
