@@ -9,7 +9,10 @@
 //! Without `--count` every (node, view angle) pair is tried once, in lattice order (rows south to
 //! north, west to east). With `--count N` the pairs are visited in a seeded random order, and further
 //! rounds (new random heights and yaws at the same nodes) follow while fewer than N poses are placed;
-//! the poses of each round are then put back in lattice order.
+//! the poses of each round are then put back in lattice order. A (node, view angle) pair that placed
+//! nothing in a round (every attempt refused, or no height clears the buildings) is not tried again:
+//! on an area whose buildings fill only part of the polygon, the later rounds spend the candidate
+//! budget where views can be placed.
 
 use rand::seq::SliceRandom;
 use rand::Rng;
@@ -66,8 +69,10 @@ pub(crate) fn sample(ctx: &Ctx, rng: &mut ChaCha8Rng) -> Result<Sampled, CameraE
     let [h_lo, h_hi] = g.height_range_m;
     let mut frames: Vec<Frame> = Vec::new();
     let mut fractions: Vec<super::visibility::ViewCensus> = Vec::new();
+    // Pairs that placed nothing in an earlier round.
+    let mut barren = vec![false; pairs.len()];
     'rounds: loop {
-        let mut order: Vec<usize> = (0..pairs.len()).collect();
+        let mut order: Vec<usize> = (0..pairs.len()).filter(|&k| !barren[k]).collect();
         if count.is_some() {
             order.shuffle(rng);
         }
@@ -89,8 +94,10 @@ pub(crate) fn sample(ctx: &Ctx, rng: &mut ChaCha8Rng) -> Result<Sampled, CameraE
                 // No height in range clears the buildings here: one rejected candidate.
                 stats.candidates += 1;
                 stats.rejected_clearance += 1;
+                barren[k] = true;
                 continue;
             }
+            barren[k] = true;
             for _ in 0..ctx.cfg.max_attempts_per_pose {
                 let yaw = if g.yaw_deg.is_empty() {
                     rng.gen_range(0.0..360.0)
@@ -100,6 +107,7 @@ pub(crate) fn sample(ctx: &Ctx, rng: &mut ChaCha8Rng) -> Result<Sampled, CameraE
                 let h = if lo < h_hi { rng.gen_range(lo..=h_hi) } else { lo };
                 let pose = Pose::from_ypr_deg(yaw, pitch, 0.0, [p[0], p[1], ctx.ground_m + h]);
                 if let Ok(f) = ctx.check(&pose, &mut stats) {
+                    barren[k] = false;
                     round.push((k, pose, f));
                     ctx.progress.inc(1);
                     break;

@@ -10,7 +10,7 @@
 //!
 //! One pass over all lines is flown per view angle in `regular.pitch_deg`. With `--count N`, passes
 //! repeat (view angles cycling, lines shifted by a random fraction of the spacing, heights redrawn)
-//! until N frames are collected. Rejected frames split a segment into runs; runs shorter than
+//! until N frames are collected, the candidate budget is spent, or 16 passes in a row placed nothing. Rejected frames split a segment into runs; runs shorter than
 //! `regular.min_sequence_frames` are dropped; every kept run is one sequence.
 
 use rand::Rng;
@@ -76,6 +76,11 @@ pub(crate) fn plan_pass(ctx: &Ctx, heading_deg: f64, shift_frac: f64) -> Vec<Seg
     segments
 }
 
+/// With `--count`, passes in a row that place no frame before the sampler gives up (the candidate
+/// budget ends it first where passes have candidates). Over an area whose buildings fill little of the
+/// polygon, one shifted pass may place nothing where the next places a run.
+const MAX_FRUITLESS_PASSES: u32 = 16;
+
 pub(crate) fn sample(ctx: &Ctx, rng: &mut ChaCha8Rng) -> Result<Sampled, CameraError> {
     let count = ctx.count;
     let mut stats = SampleStats::default();
@@ -90,6 +95,7 @@ pub(crate) fn sample(ctx: &Ctx, rng: &mut ChaCha8Rng) -> Result<Sampled, CameraE
     let mut runs = RunCollector::new(r.min_sequence_frames, count, ctx.progress);
     let [h_lo, h_hi] = r.height_range_m;
     let mut pass = 0usize;
+    let mut fruitless_passes = 0u32;
     loop {
         let before = runs.frames.len();
         let pitch = r.pitch_deg[pass % r.pitch_deg.len()];
@@ -117,12 +123,10 @@ pub(crate) fn sample(ctx: &Ctx, rng: &mut ChaCha8Rng) -> Result<Sampled, CameraE
             runs.end_run(&mut stats);
         }
         pass += 1;
-        let progressed = runs.frames.len() > before;
+        fruitless_passes = if runs.frames.len() > before { 0 } else { fruitless_passes + 1 };
         let done = match count {
             None => pass >= r.pitch_deg.len(),
-            Some(_) => {
-                runs.full() || stats.candidates >= budget || (!progressed && pass >= r.pitch_deg.len())
-            }
+            Some(_) => runs.full() || stats.candidates >= budget || fruitless_passes >= MAX_FRUITLESS_PASSES,
         };
         if done {
             break;

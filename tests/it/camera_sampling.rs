@@ -149,6 +149,38 @@ mod grid {
         let names: std::collections::BTreeSet<&str> = out.poses.iter().map(|r| r.name.as_str()).collect();
         assert_eq!(names.len(), 250, "frame names must be unique");
     }
+    #[test]
+    fn nodes_that_placed_nothing_are_not_retried() {
+        // The polygon runs 1.8 km east of the box city over empty land, where no view sees enough
+        // buildings. 400 and 600 views need more rounds than the nodes that see buildings give in one;
+        // a node whose attempts were all refused in a round is not tried again, so the later rounds
+        // cost about one candidate per view. (Retried, the empty nodes' 30 attempts each cost about 28
+        // candidates per extra view.)
+        let mut poly = cs::area_polygon();
+        poly[1][0] = 2400.0;
+        poly[2][0] = 2400.0;
+        let scene = cs::city_with(poly.clone(), true);
+        let cfg = SamplingConfig::default();
+        let run = |count: usize| {
+            let out = sample_area(
+                &scene,
+                &cs::with_strategy("cam2", Trajectory::Grid),
+                &cfg,
+                Some(count),
+                4,
+                &NoProgress,
+            )
+            .unwrap_or_else(|e| panic!("{e}"));
+            assert_eq!(out.poses.len(), count);
+            for r in &out.poses {
+                let c = r.pose().centre_m;
+                assert!(cs::inside(&poly, [c[0], c[1]]), "{} outside the area at {c:?}", r.name);
+            }
+            out.stats.candidates
+        };
+        let (c400, c600) = (run(400), run(600));
+        assert!(c600 - c400 < 3 * 200, "200 more views cost {} candidates", c600 - c400);
+    }
 }
 
 mod regular {
@@ -212,6 +244,35 @@ mod regular {
         let out = run("cam3", Trajectory::Regular, &cfg, Some(400), 3);
         assert_eq!(out.poses.len(), 400);
         check_common(&out, &cfg, [400.0, 500.0]);
+    }
+    #[test]
+    fn a_pass_that_places_nothing_does_not_end_the_survey() {
+        // A 300 × 200 m area and strict views (60 % building pixels): two lines of a few frames each
+        // per pass, so a pass whose shifted lines see too little places no run of two frames. The sampler flies on while passes place frames
+        // within 16 fruitless passes and the budget (before, the first fruitless pass ended the run
+        // at 12 of 40 frames).
+        let poly = vec![[-150.0, -100.0], [150.0, -100.0], [150.0, 100.0], [-150.0, 100.0]];
+        let scene = cs::city_with(poly.clone(), true);
+        let cfg = SamplingConfig { min_building_fraction: 0.6, ..SamplingConfig::default() };
+        let out = sample_area(
+            &scene,
+            &cs::with_strategy("cam3", Trajectory::Regular),
+            &cfg,
+            Some(40),
+            1,
+            &NoProgress,
+        )
+        .unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(out.poses.len(), 40);
+        check_common(&out, &cfg, [400.0, 500.0]);
+        for r in &out.poses {
+            let c = r.pose().centre_m;
+            assert!(cs::inside(&poly, [c[0], c[1]]), "{} outside the area at {c:?}", r.name);
+        }
+        // More passes than one per view angle were flown: lines off the centred layout.
+        let across: std::collections::BTreeSet<i64> =
+            out.poses.iter().map(|r| (r.pose().centre_m[1] * 1000.0).round() as i64).collect();
+        assert!(across.len() > 2, "line offsets {across:?}");
     }
 }
 
