@@ -97,7 +97,7 @@ pub(crate) fn sample(ctx: &Ctx, rng: &mut ChaCha8Rng) -> Result<Sampled, CameraE
                 barren[k] = true;
                 continue;
             }
-            barren[k] = true;
+            let mut placed = false;
             for _ in 0..ctx.cfg.max_attempts_per_pose {
                 let yaw = if g.yaw_deg.is_empty() {
                     rng.gen_range(0.0..360.0)
@@ -107,12 +107,13 @@ pub(crate) fn sample(ctx: &Ctx, rng: &mut ChaCha8Rng) -> Result<Sampled, CameraE
                 let h = if lo < h_hi { rng.gen_range(lo..=h_hi) } else { lo };
                 let pose = Pose::from_ypr_deg(yaw, pitch, 0.0, [p[0], p[1], ctx.ground_m + h]);
                 if let Ok(f) = ctx.check(&pose, &mut stats) {
-                    barren[k] = false;
                     round.push((k, pose, f));
                     ctx.progress.inc(1);
+                    placed = true;
                     break;
                 }
             }
+            barren[k] = !placed;
         }
         let placed_this_round = round.len();
         round.sort_by_key(|r| r.0);

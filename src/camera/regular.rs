@@ -10,8 +10,10 @@
 //!
 //! One pass over all lines is flown per view angle in `regular.pitch_deg`. With `--count N`, passes
 //! repeat (view angles cycling, lines shifted by a random fraction of the spacing, heights redrawn)
-//! until N frames are collected, the candidate budget is spent, or 16 passes in a row placed nothing. Rejected frames split a segment into runs; runs shorter than
-//! `regular.min_sequence_frames` are dropped; every kept run is one sequence.
+//! until N frames are collected, the candidate budget is spent, or 16 passes in a row placed nothing
+//! (over a small area one shifted pass may place no run where the next does). Rejected frames split a
+//! segment into runs; runs shorter than `regular.min_sequence_frames` are dropped; every kept run is
+//! one sequence.
 
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
@@ -76,9 +78,8 @@ pub(crate) fn plan_pass(ctx: &Ctx, heading_deg: f64, shift_frac: f64) -> Vec<Seg
     segments
 }
 
-/// With `--count`, passes in a row that place no frame before the sampler gives up (the candidate
-/// budget ends it first where passes have candidates). Over an area whose buildings fill little of the
-/// polygon, one shifted pass may place nothing where the next places a run.
+/// With `--count`, passes in a row that place no frame before the sampler gives up; the candidate
+/// budget ends it first wherever the passes have candidates.
 const MAX_FRUITLESS_PASSES: u32 = 16;
 
 pub(crate) fn sample(ctx: &Ctx, rng: &mut ChaCha8Rng) -> Result<Sampled, CameraError> {
