@@ -28,10 +28,9 @@ fn run(
 
 /// Checks shared by every strategy: inside the polygon, clearance above nearby boxes, height range.
 fn check_common(out: &SampleOutput, cfg: &SamplingConfig, height_range_m: [f64; 2]) {
-    let poly = cs::area_polygon();
+    assert_inside(out, &cs::area_polygon());
     for r in &out.poses {
         let c = r.pose().centre_m;
-        assert!(cs::inside(&poly, [c[0], c[1]]), "{} outside the area at {c:?}", r.name);
         let agl = c[2] - cs::GROUND_M;
         assert!((agl - r.height_above_ground_m).abs() < 1e-9);
         assert!(
@@ -52,6 +51,14 @@ fn check_common(out: &SampleOutput, cfg: &SamplingConfig, height_range_m: [f64; 
     }
     assert_eq!(out.poses.len(), out.priors.len());
     assert_eq!(out.stats.accepted as usize, out.poses.len());
+}
+
+/// Every pose inside `poly`.
+fn assert_inside(out: &SampleOutput, poly: &[[f64; 2]]) {
+    for r in &out.poses {
+        let c = r.pose().centre_m;
+        assert!(cs::inside(poly, [c[0], c[1]]), "{} outside the area at {c:?}", r.name);
+    }
 }
 
 mod grid {
@@ -149,6 +156,7 @@ mod grid {
         let names: std::collections::BTreeSet<&str> = out.poses.iter().map(|r| r.name.as_str()).collect();
         assert_eq!(names.len(), 250, "frame names must be unique");
     }
+
     #[test]
     fn nodes_that_placed_nothing_are_not_retried() {
         // The polygon runs 1.8 km east of the box city over empty land, where no view sees enough
@@ -172,10 +180,7 @@ mod grid {
             )
             .unwrap_or_else(|e| panic!("{e}"));
             assert_eq!(out.poses.len(), count);
-            for r in &out.poses {
-                let c = r.pose().centre_m;
-                assert!(cs::inside(&poly, [c[0], c[1]]), "{} outside the area at {c:?}", r.name);
-            }
+            assert_inside(&out, &poly);
             out.stats.candidates
         };
         let (c400, c600) = (run(400), run(600));
@@ -245,12 +250,13 @@ mod regular {
         assert_eq!(out.poses.len(), 400);
         check_common(&out, &cfg, [400.0, 500.0]);
     }
+
     #[test]
     fn a_pass_that_places_nothing_does_not_end_the_survey() {
         // A 300 × 200 m area and strict views (60 % building pixels): two lines of a few frames each
-        // per pass, so a pass whose shifted lines see too little places no run of two frames. The sampler flies on while passes place frames
-        // within 16 fruitless passes and the budget (before, the first fruitless pass ended the run
-        // at 12 of 40 frames).
+        // per pass, so a pass whose shifted lines see too little places no run of two frames. The
+        // sampler flies on while passes place frames within 16 fruitless passes and the budget
+        // (before, the first fruitless pass ended the run at 12 of 40 frames).
         let poly = vec![[-150.0, -100.0], [150.0, -100.0], [150.0, 100.0], [-150.0, 100.0]];
         let scene = cs::city_with(poly.clone(), true);
         let cfg = SamplingConfig { min_building_fraction: 0.6, ..SamplingConfig::default() };
@@ -265,10 +271,7 @@ mod regular {
         .unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(out.poses.len(), 40);
         check_common(&out, &cfg, [400.0, 500.0]);
-        for r in &out.poses {
-            let c = r.pose().centre_m;
-            assert!(cs::inside(&poly, [c[0], c[1]]), "{} outside the area at {c:?}", r.name);
-        }
+        assert_inside(&out, &poly);
         // More passes than one per view angle were flown: lines off the centred layout.
         let across: std::collections::BTreeSet<i64> =
             out.poses.iter().map(|r| (r.pose().centre_m[1] * 1000.0).round() as i64).collect();
