@@ -470,13 +470,13 @@ pub fn search<E: Evaluate>(
         // First to the optimum of the filter's cost, then, if the polish's cost differs, to its
         // optimum from there (the first pass makes the fit of the silhouette offset and the second
         // start as good as the filter's cost can).
-        let (b, sc, mut n) = polish(eval, best, best_score, pivot_m)?;
+        let (b, sc, mut n) = polish(eval, best, best_score, pivot_m, 1.0)?;
         (best, best_score) = (b, sc);
         let (fitted, changed) = eval.enter_polish(&best, &fine.polish_cost)?;
         n += fitted;
         if changed {
             best_score = eval.evaluate(&[best])?[0];
-            let (b, sc, n2) = polish(eval, best, best_score, pivot_m)?;
+            let (b, sc, n2) = polish(eval, best, best_score, pivot_m, SECOND_PASS_SIMPLEX_SCALE)?;
             (best, best_score) = (b, sc);
             n += n2 + 1;
         }
@@ -696,7 +696,7 @@ pub const SIMPLEX_EVALUATIONS: u32 = 120;
 pub const SIMPLEX_STEP: (f64, f64) = (1.0, 0.2);
 
 /// Nelder–Mead over (x, y, z, yaw) from `start` (maximising the score), at most `max_evals`
-/// evaluations. The cost's valleys after the particle filter are narrow and diagonal (the camera
+/// evaluations, its first simplex `scale` × [`SIMPLEX_STEP`] wide. The cost's valleys after the particle filter are narrow and diagonal (the camera
 /// moved along its optical axis while yaw and sideways motion trade off, issue 15), where moves along
 /// fixed directions stall; a simplex adapts its shape to them. Coordinates are scaled by
 /// [`SIMPLEX_STEP`] so that 1 m and 0.2° weigh the same. Returns the best, its score, evaluations.
@@ -708,6 +708,7 @@ pub fn simplex<E: Evaluate>(
     start: Hypothesis,
     start_score: f64,
     max_evals: u32,
+    scale: f64,
 ) -> Result<(Hypothesis, f64, u64), E::Error> {
     let (sm, sd) = SIMPLEX_STEP;
     let to_h = |v: [f64; 4]| Hypothesis {
@@ -719,7 +720,7 @@ pub fn simplex<E: Evaluate>(
     let verts: Vec<[f64; 4]> = (0..4)
         .map(|k| {
             let mut v = x0;
-            v[k] += 1.0;
+            v[k] += scale;
             v
         })
         .collect();
@@ -780,6 +781,17 @@ pub fn simplex<E: Evaluate>(
     }
 }
 
+/// The first simplex of the polish's second pass, in units of [`SIMPLEX_STEP`]: 2 m and 0.4°.
+///
+/// The second pass starts at the optimum of the filter's cost and climbs the polish's cost. Where
+/// the two costs differ (the instance Dice blended with the semantic IoU against the union's
+/// outline with its spill weight), their optima can lie 1.5–2.5 m apart with a shallow ridge
+/// between them, mostly along the optical axis and sideways. A simplex 1 m wide then shrinks onto
+/// the near side of the ridge; one 2 m wide straddles it (issue 15: Den Haag with building heights
+/// perturbed and Shibuya against its LoD1 map, bench/loc_issue15.md). It costs no evaluation: the
+/// simplex's budget is [`SIMPLEX_EVALUATIONS`] either way.
+pub const SECOND_PASS_SIMPLEX_SCALE: f64 = 2.0;
+
 /// First step of [`polish`]: metres and degrees.
 pub const POLISH_START_STEP: (f64, f64) = (1.0, 0.2);
 /// Step halvings of [`polish`] (the last level moves by 1/32 of the first step).
@@ -792,7 +804,8 @@ pub const POLISH_MOVES_PER_LEVEL: u32 = 10;
 /// displacement ×2, ×4, ×8 scored together, the best improving one taken), so a long valley of the
 /// cost — typically along the optical axis with yaw and sideways motion — is travelled in a few
 /// steps. The step halves when no move improves ([`POLISH_START_STEP`], [`POLISH_LEVELS`],
-/// [`POLISH_MOVES_PER_LEVEL`]). Returns the best, its score and the hypotheses scored.
+/// [`POLISH_MOVES_PER_LEVEL`]). Before the moves, a [`simplex`] whose first simplex is
+/// `simplex_scale` × [`SIMPLEX_STEP`] wide. Returns the best, its score and the hypotheses scored.
 ///
 /// # Errors
 /// Whatever the evaluator returns.
@@ -801,8 +814,9 @@ pub fn polish<E: Evaluate>(
     mut best: Hypothesis,
     mut best_score: f64,
     pivot_m: Option<DVec3>,
+    simplex_scale: f64,
 ) -> Result<(Hypothesis, f64, u64), E::Error> {
-    let (b, sc, mut scored) = simplex(eval, best, best_score, SIMPLEX_EVALUATIONS)?;
+    let (b, sc, mut scored) = simplex(eval, best, best_score, SIMPLEX_EVALUATIONS, simplex_scale)?;
     (best, best_score) = (b, sc);
     let (mut step_m, mut step_deg) = POLISH_START_STEP;
     // Index of the strictly best score above `floor` (ties keep the current pose: deterministic, no
@@ -956,6 +970,43 @@ mod tests {
         let (best, _) =
             run(PolishCost { semantic_weight: 0.5, max_silhouette_offset_px: 0, spill_weight: 1.0 });
         assert!(dist(&best, &target) < 0.1, "ended {:?}", best.centre_m);
+    }
+
+    /// A narrow bump at the start and a higher, broader one `far_m` away: the polish's cost where
+    /// the filter's optimum sits on a shallow local maximum of it.
+    struct TwoBumps {
+        far: Hypothesis,
+    }
+
+    impl Evaluate for TwoBumps {
+        type Error = std::convert::Infallible;
+        fn evaluate(&mut self, hyps: &[Hypothesis]) -> Result<Vec<f64>, Self::Error> {
+            let bump = |h: &Hypothesis, at: &Hypothesis, height: f64, sigma_m: f64| {
+                let d2 = h.centre_m.distance_squared(at.centre_m);
+                let dy = (h.yaw_deg - at.yaw_deg) / 0.2;
+                height * (-(d2 + dy * dy) / (2.0 * sigma_m * sigma_m)).exp()
+            };
+            let near = Hypothesis { centre_m: DVec3::new(0.0, 0.0, 200.0), yaw_deg: 0.0 };
+            Ok(hyps.iter().map(|h| bump(h, &near, 0.9, 0.4).max(bump(h, &self.far, 1.0, 0.8))).collect())
+        }
+    }
+
+    #[test]
+    fn the_second_pass_simplex_straddles_a_shallow_ridge() {
+        let start = Hypothesis { centre_m: DVec3::new(0.0, 0.0, 200.0), yaw_deg: 0.0 };
+        // 2 m away, beyond a ridge where the cost falls to a third of the near bump.
+        let far = Hypothesis { centre_m: DVec3::new(2.0, 0.3, 199.9), yaw_deg: 0.02 };
+        let run = |scale: f64| {
+            let mut e = TwoBumps { far };
+            let s0 = e.evaluate(&[start]).unwrap()[0];
+            polish(&mut e, start, s0, None, scale).unwrap()
+        };
+        let (stuck, s_stuck, _) = run(1.0);
+        assert!(stuck.centre_m.distance(start.centre_m) < 0.1, "1 m simplex left the near bump");
+        assert!((s_stuck - 0.9).abs() < 1e-9, "{s_stuck}");
+        let (best, s_best, _) = run(SECOND_PASS_SIMPLEX_SCALE);
+        assert!(best.centre_m.distance(far.centre_m) < 0.05, "ended at {:?}", best.centre_m);
+        assert!(s_best > 0.999, "{s_best}");
     }
 
     #[test]
