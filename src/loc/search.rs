@@ -696,10 +696,11 @@ pub const SIMPLEX_EVALUATIONS: u32 = 120;
 pub const SIMPLEX_STEP: (f64, f64) = (1.0, 0.2);
 
 /// Nelder–Mead over (x, y, z, yaw) from `start` (maximising the score), at most `max_evals`
-/// evaluations, its first simplex `scale` × [`SIMPLEX_STEP`] wide. The cost's valleys after the particle filter are narrow and diagonal (the camera
-/// moved along its optical axis while yaw and sideways motion trade off, issue 15), where moves along
-/// fixed directions stall; a simplex adapts its shape to them. Coordinates are scaled by
-/// [`SIMPLEX_STEP`] so that 1 m and 0.2° weigh the same. Returns the best, its score, evaluations.
+/// evaluations, its first simplex `scale` × [`SIMPLEX_STEP`] wide. The cost's valleys after the
+/// particle filter are narrow and diagonal (the camera moved along its optical axis while yaw and
+/// sideways motion trade off, issue 15), where moves along fixed directions stall; a simplex adapts
+/// its shape to them. Coordinates are scaled by [`SIMPLEX_STEP`] so that 1 m and 0.2° weigh the
+/// same. Returns the best, its score, evaluations.
 ///
 /// # Errors
 /// Whatever the evaluator returns.
@@ -972,7 +973,7 @@ mod tests {
         assert!(dist(&best, &target) < 0.1, "ended {:?}", best.centre_m);
     }
 
-    /// A narrow bump at the start and a higher, broader one `far_m` away: the polish's cost where
+    /// A narrow bump at the start and a higher, broader one at `far`: the polish's cost where
     /// the filter's optimum sits on a shallow local maximum of it.
     struct TwoBumps {
         far: Hypothesis,
