@@ -229,6 +229,7 @@ fn bench_area(
                     silhouette_offset_px: 0,
                     // Distinct centres, as in the particle filter: one render per hypothesis.
                     yaw_fan: false,
+                    workspaces: Default::default(),
                 };
                 let hyps: Vec<Hypothesis> = (0..208)
                     .map(|i| {

@@ -251,6 +251,64 @@ pub struct CpuEvaluator<'a> {
     /// Runs of at least [`MIN_FAN`] consecutive hypotheses at one centre (the coarse grid's yaws) are
     /// rendered once, wide, and warped per yaw ([`RotationFan`]).
     pub yaw_fan: bool,
+    /// Buffers kept between batches, one set per thread at work ([`Workspaces`]).
+    pub workspaces: Workspaces,
+}
+
+/// Scoring buffers kept by a [`CpuEvaluator`] between batches.
+///
+/// A set holds a frame's ID and depth buffers and one camera-frame and screen position per vertex
+/// of the scene: megabytes for a city. Allocated and zeroed afresh for every batch, they cost about
+/// as much as a render of the polish, which scores one hypothesis at a time (issue 15); taken from
+/// here, each thread's set is allocated once per query.
+#[derive(Default)]
+pub struct Workspaces {
+    free: std::sync::Mutex<Vec<Workspace>>,
+}
+
+impl Workspaces {
+    /// A free set (a new one when all are in use), back in the pool when the guard drops.
+    fn take(&self) -> Lent<'_> {
+        Lent { pool: self, ws: Some(self.take_owned()) }
+    }
+
+    /// A free set (a new one when all are in use), for [`Workspaces::give_back`].
+    fn take_owned(&self) -> Workspace {
+        self.free.lock().map(|mut free| free.pop()).ok().flatten().unwrap_or_default()
+    }
+
+    fn give_back(&self, ws: Workspace) {
+        if let Ok(mut free) = self.free.lock() {
+            free.push(ws);
+        }
+    }
+}
+
+/// A [`Workspace`] lent by [`Workspaces::take`].
+struct Lent<'a> {
+    pool: &'a Workspaces,
+    ws: Option<Workspace>,
+}
+
+impl std::ops::Deref for Lent<'_> {
+    type Target = Workspace;
+    fn deref(&self) -> &Workspace {
+        self.ws.as_ref().expect("lent until dropped")
+    }
+}
+
+impl std::ops::DerefMut for Lent<'_> {
+    fn deref_mut(&mut self) -> &mut Workspace {
+        self.ws.as_mut().expect("lent until dropped")
+    }
+}
+
+impl Drop for Lent<'_> {
+    fn drop(&mut self) {
+        if let Some(ws) = self.ws.take() {
+            self.pool.give_back(ws);
+        }
+    }
 }
 
 /// The shortest run of same-centre hypotheses worth a wide render.
@@ -270,10 +328,12 @@ struct Workspace {
 impl CpuEvaluator<'_> {
     /// The cost of a full pose (any pitch and roll), e.g. the ground truth.
     pub fn cost_of_pose(&self, pose: &Pose) -> f64 {
-        let mut ws = Workspace::default();
+        let mut ws = self.workspaces.take();
         raster::render_ids(self.scene, pose, &self.k, &mut ws.frame);
         let ids = std::mem::take(&mut ws.frame.ids);
-        self.score(&mut ws, &ids)
+        let score = self.score(&mut ws, &ids);
+        ws.frame.ids = ids;
+        score
     }
 
     /// Scores a rendered dense-ID image of the evaluator's intrinsics, after the silhouette offset.
@@ -337,7 +397,7 @@ impl Evaluate for CpuEvaluator<'_> {
         let mut offsets: Vec<i32> = (-max..=max).collect();
         offsets.sort_by_key(|b| (b.abs(), *b));
         // One render at `at`, scored under every offset.
-        let mut ws = Workspace::default();
+        let mut ws = self.workspaces.take_owned();
         raster::render_ids(self.scene, &at.pose(self.pitch_deg, self.roll_deg), &self.k, &mut ws.frame);
         let ids = std::mem::take(&mut ws.frame.ids);
         let mut best = (f64::NEG_INFINITY, 0);
@@ -349,11 +409,18 @@ impl Evaluate for CpuEvaluator<'_> {
                 best = (score, b);
             }
         }
+        ws.frame.ids = ids;
+        self.workspaces.give_back(ws);
         self.silhouette_offset_px = best.1;
         if self.kind != CostKind::Merged {
             self.blend.spill_weight = cost.spill_weight;
         }
         Ok((offsets.len() as u64, (self.blend, self.silhouette_offset_px) != before))
+    }
+
+    /// Whenever rayon has more than one thread.
+    fn scores_pairs_in_parallel(&self) -> bool {
+        rayon::current_num_threads() > 1
     }
 
     fn evaluate(&mut self, hyps: &[Hypothesis]) -> Result<Vec<f64>, Self::Error> {
@@ -370,7 +437,7 @@ impl Evaluate for CpuEvaluator<'_> {
         let this = &*self;
         Ok(runs
             .par_iter()
-            .map_init(Workspace::default, |ws, run| this.score_run(run, ws))
+            .map_init(|| this.workspaces.take(), |ws, run| this.score_run(run, ws))
             .flatten_iter()
             .collect())
     }
@@ -876,6 +943,7 @@ impl<'q> QuerySetup<'q> {
             k_max: self.buildings as u32,
             silhouette_offset_px: 0,
             yaw_fan,
+            workspaces: Workspaces::default(),
         };
         let mut fine_eval = evaluator(self.k_fine, &qf, false);
         let mut coarse_eval = evaluator(self.k_coarse, &qc, opts.yaw_fan);
@@ -1172,6 +1240,59 @@ mod tests {
     }
 
     #[test]
+    fn pooled_workspaces_score_as_fresh_ones() {
+        let scene = CpuScene::new(&block_scene(), [0.0; 3]);
+        let k = Intrinsics::from_hfov(320, 240, 40.0);
+        let (pitch_deg, roll_deg) = (20.0, 0.0);
+        let at = Hypothesis { centre_m: DVec3::new(17.0, -30.0, 150.0), yaw_deg: 0.0 };
+        let mut frame = Frame::default();
+        raster::render_ids(&scene, &at.pose(pitch_deg, roll_deg), &k, &mut frame);
+        let query = Query::from_labels(320, 240, &frame.ids, &[1.0; 9]);
+        let evaluator = |silhouette_offset_px| CpuEvaluator {
+            scene: &scene,
+            k,
+            pitch_deg,
+            roll_deg,
+            query: &query,
+            kind: CostKind::Instance,
+            weighting: Weighting::Area,
+            blend: Blend::semantic(0.5),
+            k_max: 9,
+            silhouette_offset_px,
+            yaw_fan: true,
+            workspaces: Workspaces::default(),
+        };
+        // A yaw fan's run, distinct centres, and one far off to the side (fewer buildings in view).
+        let mut hyps: Vec<Hypothesis> =
+            (-2..=2).map(|i| Hypothesis { yaw_deg: i as f64 * 1.5, ..at }).collect();
+        hyps.extend((1..=8).map(|i| Hypothesis {
+            centre_m: at.centre_m + DVec3::new(i as f64 * 3.0, -(i as f64), 2.0 * i as f64),
+            yaw_deg: -(i as f64),
+        }));
+        for offset_px in [0, -1] {
+            let mut pooled = evaluator(offset_px);
+            let first = pooled.evaluate(&hyps).unwrap();
+            assert!(!pooled.workspaces.free.lock().unwrap().is_empty(), "the sets went back to the pool");
+            // The distinct centres in reverse, one by one, then the batch again: each scored in
+            // buffers another hypothesis left.
+            let mut reversed = pooled.evaluate(&hyps[5..].iter().rev().copied().collect::<Vec<_>>()).unwrap();
+            reversed.reverse();
+            let singles: Vec<f64> = hyps.iter().map(|h| pooled.evaluate(&[*h]).unwrap()[0]).collect();
+            let again = pooled.evaluate(&hyps).unwrap();
+            let fresh: Vec<f64> =
+                hyps.iter().map(|h| evaluator(offset_px).evaluate(&[*h]).unwrap()[0]).collect();
+            assert_eq!(singles, fresh, "offset {offset_px}");
+            assert_eq!(first, again, "offset {offset_px}");
+            // The fan's warped scores differ from single renders; the pool changes neither.
+            assert_eq!(first[5..], fresh[5..], "offset {offset_px}");
+            assert_eq!(reversed, fresh[5..], "offset {offset_px}");
+            if offset_px == 0 {
+                assert!(fresh[2] > 0.99, "the query's own pose scores {}", fresh[2]);
+            }
+        }
+    }
+
+    #[test]
     fn the_polish_fits_the_silhouette_offset_of_thinned_masks() {
         let scene = CpuScene::new(&block_scene(), [0.0; 3]);
         let k = Intrinsics::from_hfov(320, 240, 40.0);
@@ -1196,6 +1317,7 @@ mod tests {
                 k_max: 9,
                 silhouette_offset_px: 0,
                 yaw_fan: false,
+                workspaces: Workspaces::default(),
             };
             let (scored, changed) = ev.enter_polish(&at, &cost).unwrap();
             (ev.silhouette_offset_px, scored, changed, ev.blend)
