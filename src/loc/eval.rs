@@ -1239,29 +1239,48 @@ mod tests {
         m
     }
 
-    #[test]
-    fn pooled_workspaces_score_as_fresh_ones() {
-        let scene = CpuScene::new(&block_scene(), [0.0; 3]);
+    const BLOCK_PITCH_DEG: f64 = 20.0;
+
+    /// The view of [`block_scene`] the evaluator tests share: 320 × 240 px, 40° across, pitched 20°
+    /// down from 150 m, every box in sight; its render.
+    fn block_view(scene: &CpuScene) -> (Intrinsics, Hypothesis, Frame) {
         let k = Intrinsics::from_hfov(320, 240, 40.0);
-        let (pitch_deg, roll_deg) = (20.0, 0.0);
         let at = Hypothesis { centre_m: DVec3::new(17.0, -30.0, 150.0), yaw_deg: 0.0 };
         let mut frame = Frame::default();
-        raster::render_ids(&scene, &at.pose(pitch_deg, roll_deg), &k, &mut frame);
-        let query = Query::from_labels(320, 240, &frame.ids, &[1.0; 9]);
-        let evaluator = |silhouette_offset_px| CpuEvaluator {
-            scene: &scene,
+        raster::render_ids(scene, &at.pose(BLOCK_PITCH_DEG, 0.0), &k, &mut frame);
+        (k, at, frame)
+    }
+
+    /// An instance-cost evaluator (area weights, half semantic) of `query` in [`block_view`]'s frame.
+    fn block_evaluator<'a>(
+        scene: &'a CpuScene,
+        k: Intrinsics,
+        query: &'a Query,
+        silhouette_offset_px: i32,
+        yaw_fan: bool,
+    ) -> CpuEvaluator<'a> {
+        CpuEvaluator {
+            scene,
             k,
-            pitch_deg,
-            roll_deg,
-            query: &query,
+            pitch_deg: BLOCK_PITCH_DEG,
+            roll_deg: 0.0,
+            query,
             kind: CostKind::Instance,
             weighting: Weighting::Area,
             blend: Blend::semantic(0.5),
             k_max: 9,
             silhouette_offset_px,
-            yaw_fan: true,
+            yaw_fan,
             workspaces: Workspaces::default(),
-        };
+        }
+    }
+
+    #[test]
+    fn pooled_workspaces_score_as_fresh_ones() {
+        let scene = CpuScene::new(&block_scene(), [0.0; 3]);
+        let (k, at, frame) = block_view(&scene);
+        let query = Query::from_labels(320, 240, &frame.ids, &[1.0; 9]);
+        let evaluator = |silhouette_offset_px| block_evaluator(&scene, k, &query, silhouette_offset_px, true);
         // A yaw fan's run, distinct centres, and one far off to the side (fewer buildings in view).
         let mut hyps: Vec<Hypothesis> =
             (-2..=2).map(|i| Hypothesis { yaw_deg: i as f64 * 1.5, ..at }).collect();
@@ -1295,30 +1314,13 @@ mod tests {
     #[test]
     fn the_polish_fits_the_silhouette_offset_of_thinned_masks() {
         let scene = CpuScene::new(&block_scene(), [0.0; 3]);
-        let k = Intrinsics::from_hfov(320, 240, 40.0);
-        let (pitch_deg, roll_deg) = (20.0, 0.0);
-        let at = Hypothesis { centre_m: DVec3::new(17.0, -30.0, 150.0), yaw_deg: 0.0 };
-        let mut frame = Frame::default();
-        raster::render_ids(&scene, &at.pose(pitch_deg, roll_deg), &k, &mut frame);
+        let (k, at, frame) = block_view(&scene);
         let seen: std::collections::BTreeSet<u32> = frame.ids.iter().copied().filter(|&i| i != 0).collect();
         assert_eq!(seen.len(), 9, "every box in view");
         let fit = |offset_px: i32, cost: PolishCost| {
             let labels = crate::loc::morph::morph(&frame.ids, 320, 240, offset_px);
             let query = Query::from_labels(320, 240, &labels, &[1.0; 9]);
-            let mut ev = CpuEvaluator {
-                scene: &scene,
-                k,
-                pitch_deg,
-                roll_deg,
-                query: &query,
-                kind: CostKind::Instance,
-                weighting: Weighting::Area,
-                blend: Blend::semantic(0.5),
-                k_max: 9,
-                silhouette_offset_px: 0,
-                yaw_fan: false,
-                workspaces: Workspaces::default(),
-            };
+            let mut ev = block_evaluator(&scene, k, &query, 0, false);
             let (scored, changed) = ev.enter_polish(&at, &cost).unwrap();
             (ev.silhouette_offset_px, scored, changed, ev.blend)
         };
