@@ -258,9 +258,9 @@ pub struct CpuEvaluator<'a> {
 /// Scoring buffers kept by a [`CpuEvaluator`] between batches.
 ///
 /// A set holds a frame's ID and depth buffers and one camera-frame and screen position per vertex
-/// of the scene: megabytes for a city. Allocated and zeroed afresh for every batch, they cost about
-/// as much as a render of the polish, which scores one hypothesis at a time (issue 15); taken from
-/// here, each thread's set is allocated once per query.
+/// of the scene: megabytes for a city. Allocated and zeroed afresh for every batch, they weighed
+/// most on the polish, whose simplex scores one hypothesis at a time (issue 15); taken from here,
+/// each thread's set is allocated once per query and evaluator.
 #[derive(Default)]
 pub struct Workspaces {
     free: std::sync::Mutex<Vec<Workspace>>,
