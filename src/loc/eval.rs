@@ -269,18 +269,8 @@ pub struct Workspaces {
 impl Workspaces {
     /// A free set (a new one when all are in use), back in the pool when the guard drops.
     fn take(&self) -> Lent<'_> {
-        Lent { pool: self, ws: Some(self.take_owned()) }
-    }
-
-    /// A free set (a new one when all are in use), for [`Workspaces::give_back`].
-    fn take_owned(&self) -> Workspace {
-        self.free.lock().map(|mut free| free.pop()).ok().flatten().unwrap_or_default()
-    }
-
-    fn give_back(&self, ws: Workspace) {
-        if let Ok(mut free) = self.free.lock() {
-            free.push(ws);
-        }
+        let ws = self.free.lock().map(|mut free| free.pop()).ok().flatten().unwrap_or_default();
+        Lent { pool: self, ws: Some(ws) }
     }
 }
 
@@ -305,8 +295,8 @@ impl std::ops::DerefMut for Lent<'_> {
 
 impl Drop for Lent<'_> {
     fn drop(&mut self) {
-        if let Some(ws) = self.ws.take() {
-            self.pool.give_back(ws);
+        if let (Some(ws), Ok(mut free)) = (self.ws.take(), self.pool.free.lock()) {
+            free.push(ws);
         }
     }
 }
@@ -397,7 +387,7 @@ impl Evaluate for CpuEvaluator<'_> {
         let mut offsets: Vec<i32> = (-max..=max).collect();
         offsets.sort_by_key(|b| (b.abs(), *b));
         // One render at `at`, scored under every offset.
-        let mut ws = self.workspaces.take_owned();
+        let mut ws = self.workspaces.take();
         raster::render_ids(self.scene, &at.pose(self.pitch_deg, self.roll_deg), &self.k, &mut ws.frame);
         let ids = std::mem::take(&mut ws.frame.ids);
         let mut best = (f64::NEG_INFINITY, 0);
@@ -410,7 +400,6 @@ impl Evaluate for CpuEvaluator<'_> {
             }
         }
         ws.frame.ids = ids;
-        self.workspaces.give_back(ws);
         self.silhouette_offset_px = best.1;
         if self.kind != CostKind::Merged {
             self.blend.spill_weight = cost.spill_weight;

@@ -761,7 +761,7 @@ pub fn simplex<E: Evaluate>(
         // Reflection through the centroid of the others, and the inside contraction.
         let xr = lerp(centroid, worst.0, -1.0);
         let xi = lerp(centroid, worst.0, 0.5);
-        let (fr, mut fi) = if speculate {
+        let (fr, fi) = if speculate {
             let s = eval.evaluate(&[to_h(xr), to_h(xi)])?;
             n += 1;
             scored += 2;
@@ -780,7 +780,7 @@ pub fn simplex<E: Evaluate>(
             let (xc, fc) = if fr > worst.1 {
                 let xo = lerp(centroid, xr, 0.5);
                 (xo, one(eval, xo, &mut n, &mut scored)?)
-            } else if let Some(fi) = fi.take() {
+            } else if let Some(fi) = fi {
                 n += 1;
                 (xi, fi)
             } else {
