@@ -11,6 +11,7 @@
 //! clearance_radius_m = 40.0      # "near": building boxes within this horizontal distance
 //! min_building_fraction = 0.15   # share of the coarse ray grid that must hit a building
 //! min_visible_buildings = 3      # distinct buildings first hit by some ray of that grid
+//! min_covered_cells = 0          # of the frame's 4 × 4 cells, those whose rays hit buildings
 //! visibility_rays = [16, 12]     # coarse ray grid (columns, rows)
 //! max_attempts_per_pose = 30
 //!
@@ -75,6 +76,12 @@ pub struct SamplingConfig {
     /// least one ray of the visibility grid. Silhouettes of one or two buildings leave the pose
     /// ambiguous (issue 15).
     pub min_visible_buildings: u32,
+    /// Minimum number of the frame's 4 × 4 cells whose rays hit buildings (at least 5 % of a cell's
+    /// rays; [`super::visibility::ViewCensus::covered_cells`]), 0–16. Views whose buildings crowd
+    /// into a few cells (looking past the map's edge) observe the camera's depth along its axis
+    /// poorly, and errors in a map move the optimum along it (issue 15: eval-loc's recall per
+    /// `covered_frame_cells` bucket). 0 (the default) keeps them: a perfect map localizes them.
+    pub min_covered_cells: u32,
     /// Coarse ray grid for the visibility test: [columns, rows] of rays through pixel centres of an
     /// evenly divided image.
     pub visibility_rays: [u32; 2],
@@ -173,6 +180,7 @@ impl Default for SamplingConfig {
             clearance_radius_m: 40.0,
             min_building_fraction: 0.15,
             min_visible_buildings: 3,
+            min_covered_cells: 0,
             visibility_rays: [16, 12],
             max_attempts_per_pose: 30,
             grid: GridConfig::default(),
@@ -296,6 +304,13 @@ impl SamplingConfig {
                 "min_building_fraction",
                 self.min_building_fraction,
                 "must be in [0, 1]",
+            ));
+        }
+        if self.min_covered_cells > super::visibility::FRAME_CELLS {
+            issues.push(ConfigIssue::value(
+                "min_covered_cells",
+                self.min_covered_cells,
+                format!("must be at most {} (the frame's cells)", super::visibility::FRAME_CELLS),
             ));
         }
         if self.visibility_rays.contains(&0) || self.visibility_rays.iter().any(|&n| n > 256) {
@@ -424,5 +439,14 @@ mod tests {
         assert!(matches!(e, CameraError::ConfigToml { .. }), "{e:?}");
         let msg = crate::util::error_chain(&e);
         assert!(msg.starts_with("invalid [sampling] configuration: unknown field `spacing`"), "{msg}");
+    }
+
+    #[test]
+    fn covered_cells_are_at_most_the_frame_s() {
+        let cfg = SamplingConfig::from_scene_toml("[sampling]\nmin_covered_cells = 16\n", None).unwrap();
+        assert_eq!(cfg.min_covered_cells, 16);
+        let e = SamplingConfig::from_scene_toml("[sampling]\nmin_covered_cells = 17\n", None).unwrap_err();
+        let msg = crate::util::error_chain(&e);
+        assert!(msg.contains("min_covered_cells = 17") && msg.contains("at most 16"), "{msg}");
     }
 }

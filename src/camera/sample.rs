@@ -16,7 +16,9 @@
 //! - sees the city: at least `min_building_fraction` of a coarse grid of viewing rays hits a building
 //!   (its triangles), and at least `min_visible_buildings` distinct buildings are the first hit of some ray
 //!   ([`BuildingIndex::view_census`]): a view of one or two buildings cannot be localized from
-//!   silhouettes. Each pose records its count (`visible_buildings` in `poses.jsonl`).
+//!   silhouettes. Each pose records its count (`visible_buildings` in `poses.jsonl`). With
+//!   `min_covered_cells` > 0, the rays hitting buildings must also spread over that many cells of the
+//!   frame's 4 × 4 grid.
 //!
 //! Randomness: one ChaCha8 generator seeded with the run's seed (stream 0) drives the sampler; the
 //! priors use stream [`super::prior::PRIOR_STREAM`]. Same inputs and seed → identical outputs.
@@ -61,6 +63,10 @@ pub struct SampleStats {
     /// `min_visible_buildings`.
     #[serde(default)]
     pub rejected_few_buildings: u64,
+    /// Candidates that pass the other checks but whose buildings cover fewer of the frame's cells
+    /// than `min_covered_cells`.
+    #[serde(default)]
+    pub rejected_crowded: u64,
     /// Accepted frames dropped because their run of consecutive frames was too short.
     pub dropped_short_run_frames: u64,
     /// Sequences (grid: one per frame).
@@ -112,6 +118,7 @@ pub(crate) enum Reject {
     Clearance,
     Visibility,
     FewBuildings,
+    Crowded,
 }
 
 /// What every sampler shares: the area, the buildings, the camera, the settings and the number of
@@ -151,6 +158,8 @@ impl Ctx<'_> {
                 Err(Reject::Visibility)
             } else if v.visible_buildings < self.cfg.min_visible_buildings {
                 Err(Reject::FewBuildings)
+            } else if v.covered_cells < self.cfg.min_covered_cells {
+                Err(Reject::Crowded)
             } else {
                 Ok(v)
             }
@@ -160,6 +169,7 @@ impl Ctx<'_> {
             Err(Reject::Clearance) => stats.rejected_clearance += 1,
             Err(Reject::Visibility) => stats.rejected_visibility += 1,
             Err(Reject::FewBuildings) => stats.rejected_few_buildings += 1,
+            Err(Reject::Crowded) => stats.rejected_crowded += 1,
             Ok(_) => {}
         }
         verdict
@@ -178,9 +188,14 @@ impl Ctx<'_> {
         wanted: usize,
         stats: &SampleStats,
     ) -> CameraError {
-        let hint = if stats.rejected_few_buildings
-            > stats.rejected_clearance.max(stats.rejected_visibility).max(stats.rejected_outside)
-        {
+        let others = stats.rejected_clearance.max(stats.rejected_visibility).max(stats.rejected_outside);
+        let hint = if stats.rejected_crowded > others.max(stats.rejected_few_buildings) {
+            format!(
+                "lower min_covered_cells (now {} of 16) in the scene file's [sampling] table: the views' \
+                 buildings spread over fewer cells of the frame",
+                self.cfg.min_covered_cells
+            )
+        } else if stats.rejected_few_buildings > others {
             format!(
                 "lower min_visible_buildings (now {}) in the scene file's [sampling] table, or raise the \
                  {strategy} height range so that views hold more buildings",

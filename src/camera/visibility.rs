@@ -272,30 +272,57 @@ impl BuildingIndex {
     }
 
     /// What a coarse grid of `rays[0]` × `rays[1]` viewing rays (through the centres of an evenly
-    /// divided image) sees: the share that hits a building and the number of distinct buildings hit
-    /// first by at least one ray (estimates of the share of building pixels and of the buildings
-    /// visible in the view; with boxes alone, upper bounds).
+    /// divided image) sees: the share that hits a building, the number of distinct buildings hit
+    /// first by at least one ray, and the cells of the frame's [`FRAME_GRID`] × [`FRAME_GRID`] grid in
+    /// which at least [`COVERED_CELL_SHARE`] of the rays (and at least one) hit a building (estimates
+    /// of the share of building pixels, of the buildings visible and of how far they spread across
+    /// the frame; with boxes alone, upper bounds).
     pub fn view_census(&self, k: &Intrinsics, pose: &Pose, rays: [u32; 2]) -> ViewCensus {
         let (nx, ny) = (rays[0].max(1), rays[1].max(1));
         let mut hits = 0u32;
         let mut seen: Vec<u32> = Vec::new();
+        let g = FRAME_GRID;
+        let (mut cell_rays, mut cell_hits) = ([0u32; FRAME_CELLS as usize], [0u32; FRAME_CELLS as usize]);
         for j in 0..ny {
             for i in 0..nx {
+                // The ray's cell: the one holding its pixel position.
+                let cell = ((j * g / ny) * g + i * g / nx) as usize;
+                cell_rays[cell] += 1;
                 let u = (i as f64 + 0.5) * k.width_px as f64 / nx as f64;
                 let v = (j as f64 + 0.5) * k.height_px as f64 / ny as f64;
                 if let Some(b) =
                     self.first_building_hit(pose.centre_m.to_array(), pixel_ray_enu(k, pose, u, v))
                 {
                     hits += 1;
+                    cell_hits[cell] += 1;
                     seen.push(b);
                 }
             }
         }
         seen.sort_unstable();
         seen.dedup();
-        ViewCensus { building_fraction: hits as f64 / (nx * ny) as f64, visible_buildings: seen.len() as u32 }
+        let covered_cells = (0..FRAME_CELLS as usize)
+            .filter(|&c| cell_hits[c] > 0 && cell_hits[c] as f64 >= COVERED_CELL_SHARE * cell_rays[c] as f64)
+            .count() as u32;
+        ViewCensus {
+            building_fraction: hits as f64 / (nx * ny) as f64,
+            visible_buildings: seen.len() as u32,
+            covered_cells,
+        }
     }
 }
+
+/// The frame is cut into `FRAME_GRID` × `FRAME_GRID` cells to measure how far a view's buildings
+/// spread across it (the sampler's `min_covered_cells`, eval-loc's `covered_frame_cells`).
+/// Silhouettes spread across the frame pin the camera's depth along its axis; crowded into one part
+/// of it (a view past the map's edge), moving along the axis looks much like moving sideways and
+/// turning.
+pub const FRAME_GRID: u32 = 4;
+/// Cells of the [`FRAME_GRID`] grid.
+pub const FRAME_CELLS: u32 = FRAME_GRID * FRAME_GRID;
+/// Share of a cell that must show buildings for the cell to count as covered (a sliver of a
+/// building in a cell's corner does not).
+pub const COVERED_CELL_SHARE: f64 = 0.05;
 
 /// The viewing direction (ENU, not normalised: its camera-frame z component is 1) through pixel
 /// coordinates (u, v) (see [`Intrinsics`] for the pixel convention).
@@ -311,6 +338,9 @@ pub struct ViewCensus {
     pub building_fraction: f64,
     /// Distinct buildings hit first by at least one ray.
     pub visible_buildings: u32,
+    /// Cells of the frame's [`FRAME_GRID`] × [`FRAME_GRID`] grid whose rays hit buildings (at least
+    /// [`COVERED_CELL_SHARE`] of them).
+    pub covered_cells: u32,
 }
 
 /// The records whose boxes are finite and not inverted, in order.
@@ -407,11 +437,14 @@ mod tests {
         let c = ix.view_census(&k, &both, [256, 192]);
         assert_eq!(c.visible_buildings, 2, "{c:?}");
         assert!(c.building_fraction > 0.0 && c.building_fraction < 0.01, "{c:?}");
+        // Two small towers: each covers a sliver of the cell it lies in, below the covered share.
+        assert_eq!(c.covered_cells, 0, "{c:?}");
         // Low over the big tower, looking down: only it (the east tower is outside the view).
         let one = Pose::from_ypr_deg(0.0, 0.0, 0.0, [0.0, 0.0, 110.0]);
         let c = ix.view_census(&k, &one, [16, 12]);
         assert_eq!(c.visible_buildings, 1, "{c:?}");
         assert_eq!(c.building_fraction, 1.0);
+        assert_eq!(c.covered_cells, FRAME_CELLS, "{c:?}");
         // A ray through both towers (west face of the big one first) counts only the first.
         assert_eq!(ix.first_building_hit([-500.0, 0.0, 20.0], [1.0, 0.0, 0.0]), Some(0));
         assert_eq!(ix.first_building_hit([1000.0, 0.0, 20.0], [-1.0, 0.0, 0.0]), Some(1));
@@ -489,6 +522,11 @@ mod tests {
         let c = tris.view_census(&k, &pose, rays);
         assert!((c.building_fraction - 0.4375).abs() < 0.015, "{c:?}");
         assert_eq!(c.visible_buildings, 1);
+        // Cells are 5 m of the 20 m box: the L's wings, 5 m wide along two sides of the box, fill one
+        // row and one column of cells (7 cells; its inner walls' 0.1 m are below the covered
+        // share). The box fills all 16.
+        assert_eq!(c.covered_cells, 7, "{c:?}");
+        assert_eq!(boxes.view_census(&k, &pose, rays).covered_cells, FRAME_CELLS);
     }
 
     #[test]

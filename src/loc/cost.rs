@@ -115,6 +115,8 @@ impl QueryInstance {
     }
 }
 
+pub use crate::camera::visibility::{COVERED_CELL_SHARE, FRAME_CELLS, FRAME_GRID};
+
 /// The query: instances at a fixed resolution (built with [`Query::new`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Query {
@@ -156,6 +158,43 @@ impl Query {
             .map(|(p, &s)| QueryInstance::new(p, s, bbox_area(p, width)))
             .collect();
         Query::new(width, height, instances)
+    }
+
+    /// How many of the frame's [`FRAME_CELLS`] cells ([`FRAME_GRID`] × [`FRAME_GRID`], split at
+    /// integer pixel boundaries) hold at least [`COVERED_CELL_SHARE`] building pixels: the
+    /// pixel-exact counterpart of the sampler's census ([`crate::camera::visibility::ViewCensus`]).
+    /// Where the silhouettes crowd into a few cells, errors in the map move the optimum along the
+    /// axis (see [`FRAME_GRID`]).
+    pub fn covered_frame_cells(&self) -> u32 {
+        let (w, h) = (self.width as usize, self.height as usize);
+        if w == 0 || h == 0 {
+            return 0;
+        }
+        let g = FRAME_GRID as usize;
+        // Cell column of every x, and each cell's first x / y (cell c spans [c·w/g, (c+1)·w/g)).
+        let col_of: Vec<usize> =
+            (0..w).map(|x| (0..g).rev().find(|&c| x >= c * w / g).unwrap_or(0)).collect();
+        let row_of = |y: usize| (0..g).rev().find(|&r| y >= r * h / g).unwrap_or(0);
+        let mut covered = vec![0u64; g * g];
+        for &[a, b] in &self.union {
+            let (mut p, b) = (a as usize, b as usize);
+            while p < b {
+                let (y, x) = (p / w, p % w);
+                let end = b.min((y + 1) * w);
+                let cell_row = row_of(y);
+                for x in x..x + (end - p) {
+                    covered[cell_row * g + col_of[x]] += 1;
+                }
+                p = end;
+            }
+        }
+        let size = |n: usize, i: usize| ((i + 1) * n / g - i * n / g) as f64;
+        (0..g * g)
+            .filter(|&c| {
+                let cell_px = size(w, c % g) * size(h, c / g);
+                cell_px > 0.0 && covered[c] as f64 >= COVERED_CELL_SHARE * cell_px
+            })
+            .count() as u32
     }
 
     /// All query instances merged into one (score = mean score) — the "merged" ablation's query.
@@ -491,6 +530,34 @@ mod tests {
         assert_eq!(q.instances[0].pixels().collect::<Vec<_>>(), vec![0, 1, 6, 7]);
         assert_eq!(q.instances[0].spans(), &[[0, 2], [6, 8]]);
         assert_eq!(q.instances[0].bbox_area_px, 8.0);
+    }
+
+    #[test]
+    fn covered_frame_cells_count_the_cells_holding_buildings() {
+        // 8 × 8 frame: cells of 2 × 2 pixels. One pixel of a cell is 25 % of it (covered); the
+        // union counts overlapping instances once.
+        let (w, h) = (8u32, 8u32);
+        let mut labels = vec![0u32; 64];
+        // Instance 1: the whole top row of cells (y 0..2), a run crossing cell columns.
+        for p in labels.iter_mut().take(16) {
+            *p = 1;
+        }
+        // Instance 2: one pixel in the bottom-right cell, and one in the cell left of it.
+        labels[63] = 2;
+        labels[7 * 8 + 4] = 2;
+        let q = Query::from_labels(w, h, &labels, &[1.0, 1.0]);
+        assert_eq!(q.covered_frame_cells(), 4 + 2);
+        assert_eq!(Query::from_labels(w, h, &[0; 64], &[]).covered_frame_cells(), 0);
+        assert_eq!(Query::from_labels(w, h, &[1; 64], &[1.0]).covered_frame_cells(), FRAME_CELLS);
+        // A run wrapping from the end of one row to the start of the next lands in both rows' cells.
+        let mut wrap = vec![0u32; 64];
+        wrap[8 + 7] = 1;
+        wrap[16] = 1;
+        assert_eq!(Query::from_labels(w, h, &wrap, &[1.0]).covered_frame_cells(), 2);
+        // Below the share: one pixel of a 10 × 10 cell (1 %) does not count.
+        let mut sparse = vec![0u32; 40 * 40];
+        sparse[0] = 1;
+        assert_eq!(Query::from_labels(40, 40, &sparse, &[1.0]).covered_frame_cells(), 0);
     }
 
     #[test]

@@ -141,6 +141,10 @@ pub struct QueryResult {
     #[serde(default)]
     pub setup_seconds: f64,
     pub query_instances: usize,
+    /// Cells of the frame's 4 × 4 grid holding the query's buildings
+    /// ([`crate::loc::cost::Query::covered_frame_cells`]): how far its silhouettes spread.
+    #[serde(default)]
+    pub covered_frame_cells: u32,
     pub buildings_considered: usize,
     /// Hypotheses and seconds per stage of the search.
     #[serde(default)]
@@ -161,6 +165,9 @@ pub struct Summary {
     /// Recall at (2 m, 2°) per bucket of query instance counts, per cost (every query in one bucket).
     #[serde(default)]
     pub instance_buckets: Vec<metrics::BucketRow>,
+    /// Recall at (2 m, 2°) per bucket of the frame's cells holding buildings, per cost.
+    #[serde(default)]
+    pub coverage_buckets: Vec<metrics::BucketRow>,
     /// Per cost, the translation errors split along and across the camera's axis.
     #[serde(default)]
     pub axis_rows: Vec<metrics::AxisRow>,
@@ -984,6 +991,7 @@ impl<'q> QuerySetup<'q> {
             seconds,
             setup_seconds: self.setup_seconds,
             query_instances: qf.instances.len(),
+            covered_frame_cells: qf.covered_frame_cells(),
             buildings_considered: self.buildings,
             stages: r.stages,
         };
@@ -1018,7 +1026,7 @@ pub fn summarise(
         g.dedup();
         g
     };
-    let mut instance_buckets = Vec::new();
+    let (mut instance_buckets, mut coverage_buckets) = (Vec::new(), Vec::new());
     let mut axis_rows = Vec::new();
     let mut push_rows = |method: &str, errs: &[(f64, f64, &str)]| {
         for g in &groups {
@@ -1050,12 +1058,23 @@ pub fn summarise(
             CostKind::Merged => "merged instances".to_string(),
         };
         push_rows(&name, &errs);
-        let counted: Vec<(usize, f64, f64)> = results
-            .iter()
-            .filter(|r| r.cost == kind)
-            .map(|r| (r.query_instances, r.translation_error_m, r.rotation_error_deg))
-            .collect();
-        instance_buckets.extend(metrics::bucket_rows(&name, &counted));
+        let counted = |count: fn(&QueryResult) -> usize| -> Vec<(usize, f64, f64)> {
+            results
+                .iter()
+                .filter(|r| r.cost == kind)
+                .map(|r| (count(r), r.translation_error_m, r.rotation_error_deg))
+                .collect()
+        };
+        instance_buckets.extend(metrics::bucket_rows(
+            &name,
+            metrics::INSTANCE_BUCKETS,
+            &counted(|r| r.query_instances),
+        ));
+        coverage_buckets.extend(metrics::bucket_rows(
+            &name,
+            metrics::COVERAGE_BUCKETS,
+            &counted(|r| r.covered_frame_cells as usize),
+        ));
         let split: Vec<(f64, f64, f64, f64)> = results
             .iter()
             .filter(|r| r.cost == kind)
@@ -1075,6 +1094,7 @@ pub fn summarise(
         median_setup_seconds: metrics::median_or_nan(&setup_times),
         hypotheses_per_second: if total_s > 0.0 { total_hyp as f64 / total_s } else { 0.0 },
         instance_buckets,
+        coverage_buckets,
         axis_rows,
         search: search.clone(),
         map: map.clone(),
@@ -1120,14 +1140,18 @@ pub fn write_outputs(out_dir: &Path, outputs: &Outputs) -> Result<(), EvalError>
     util::write_json_atomic(&out_dir.join("summary.json"), summary)?;
     let md = format!(
         "# Localization on {}\n\n{} queries; median {:.2} s per query (search; the query's setup takes {:.2} s \
-         more); {:.0} hypotheses/s.\n\n{}\nRecall at (2 m, 2°) by the number of query instances:\n\n{}\n         Translation errors along the ground truth's viewing direction (axial) and across it (lateral):\n\n{}",
+         more); {:.0} hypotheses/s.\n\n{}\nRecall at (2 m, 2°) by the number of query instances:\n\n{}\n\
+         Recall at (2 m, 2°) by how many of the frame's 4 × 4 cells hold buildings (silhouettes crowded into one \
+         part of the frame leave the depth along the axis weakly observed):\n\n{}\n\
+         Translation errors along the ground truth's viewing direction (axial) and across it (lateral):\n\n{}",
         out_dir.display(),
         summary.queries,
         summary.median_seconds_per_query,
         summary.median_setup_seconds,
         summary.hypotheses_per_second,
         metrics::markdown(&summary.rows),
-        metrics::bucket_markdown(&summary.instance_buckets),
+        metrics::bucket_markdown("query instances", &summary.instance_buckets),
+        metrics::bucket_markdown("frame cells with buildings", &summary.coverage_buckets),
         metrics::axis_markdown(&summary.axis_rows)
     );
     util::write_bytes_atomic(&out_dir.join("summary.md"), md.as_bytes())?;

@@ -47,42 +47,61 @@ pub fn row(method: &str, group: &str, errors: &[(f64, f64)]) -> Row {
     }
 }
 
-/// Query-instance-count buckets of [`bucket_rows`]: inclusive lower bounds (the last is open).
-pub const INSTANCE_BUCKETS: [u32; 6] = [0, 1, 2, 4, 8, 16];
+/// Query-instance-count buckets: inclusive lower bounds (the last is open).
+pub const INSTANCE_BUCKETS: Buckets = Buckets { lower: &[0, 1, 2, 4, 8, 16], top: None };
 
-/// Recall per bucket of query instance counts, for one method: where silhouettes stop being enough.
+/// Buckets of the frame's cells holding buildings ([`crate::loc::cost::Query::covered_frame_cells`],
+/// of [`crate::loc::cost::FRAME_CELLS`]): inclusive lower bounds up to all cells.
+pub const COVERAGE_BUCKETS: Buckets =
+    Buckets { lower: &[0, 5, 9, 13], top: Some(crate::loc::cost::FRAME_CELLS) };
+
+/// Buckets of a per-query count: inclusive lower bounds, ascending from 0, and the largest count the
+/// last bucket holds (`None`: open).
+#[derive(Debug, Clone, Copy)]
+pub struct Buckets {
+    pub lower: &'static [u32],
+    pub top: Option<u32>,
+}
+
+impl Buckets {
+    /// The label of bucket `i`, e.g. `1`, `2–3`, `16+` or `13–16`.
+    fn label(&self, i: usize) -> String {
+        let lo = self.lower[i];
+        match (self.lower.get(i + 1), self.top) {
+            (None, None) => format!("{lo}+"),
+            (None, Some(top)) if top == lo => format!("{lo}"),
+            (None, Some(top)) => format!("{lo}–{top}"),
+            (Some(&next), _) if next == lo + 1 => format!("{lo}"),
+            (Some(&next), _) => format!("{lo}–{}", next - 1),
+        }
+    }
+}
+
+/// Recall per bucket of a per-query count (instances, covered frame cells), for one method: where
+/// silhouettes stop being enough.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct BucketRow {
     pub method: String,
-    /// The bucket's instance counts, e.g. `2–3` or `16+`.
-    pub instances: String,
+    /// The bucket's counts, e.g. `2–3` or `16+`.
+    #[serde(alias = "instances")]
+    pub bucket: String,
     pub queries: usize,
     /// Recall (percent) at (2 m, 2°); NaN (null) for an empty bucket.
     pub recall_2m_2deg_pct: f64,
 }
 
-/// The label of the bucket starting at `INSTANCE_BUCKETS[i]`.
-fn bucket_label(i: usize) -> String {
-    let lo = INSTANCE_BUCKETS[i];
-    match INSTANCE_BUCKETS.get(i + 1) {
-        None => format!("{lo}+"),
-        Some(&next) if next == lo + 1 => format!("{lo}"),
-        Some(&next) => format!("{lo}–{}", next - 1),
-    }
-}
-
-/// One row per bucket of [`INSTANCE_BUCKETS`] from (query instances, translation m, rotation °):
-/// every query falls in exactly one bucket, so the rows' counts add up to `errors.len()`.
-pub fn bucket_rows(method: &str, errors: &[(usize, f64, f64)]) -> Vec<BucketRow> {
-    (0..INSTANCE_BUCKETS.len())
+/// One row per bucket of `buckets` from (count, translation m, rotation °): every query falls in
+/// exactly one bucket, so the rows' counts add up to `errors.len()`.
+pub fn bucket_rows(method: &str, buckets: Buckets, errors: &[(usize, f64, f64)]) -> Vec<BucketRow> {
+    (0..buckets.lower.len())
         .map(|i| {
-            let lo = INSTANCE_BUCKETS[i] as usize;
-            let hi = INSTANCE_BUCKETS.get(i + 1).map_or(usize::MAX, |&h| h as usize);
+            let lo = buckets.lower[i] as usize;
+            let hi = buckets.lower.get(i + 1).map_or(usize::MAX, |&h| h as usize);
             let inside: Vec<&(usize, f64, f64)> = errors.iter().filter(|e| e.0 >= lo && e.0 < hi).collect();
             let ok = inside.iter().filter(|e| e.1 < THRESHOLDS[0].0 && e.2 < THRESHOLDS[0].1).count();
             BucketRow {
                 method: method.to_string(),
-                instances: bucket_label(i),
+                bucket: buckets.label(i),
                 queries: inside.len(),
                 recall_2m_2deg_pct: if inside.is_empty() {
                     f64::NAN
@@ -143,13 +162,13 @@ pub fn axis_markdown(rows: &[AxisRow]) -> String {
     s
 }
 
-/// The bucket rows as Markdown (empty buckets left out).
-pub fn bucket_markdown(rows: &[BucketRow]) -> String {
-    let mut s = String::from("| method | query instances | queries | 2m-2° |\n|---|---|---|---|\n");
+/// The bucket rows as Markdown under the bucket column's `heading` (empty buckets left out).
+pub fn bucket_markdown(heading: &str, rows: &[BucketRow]) -> String {
+    let mut s = format!("| method | {heading} | queries | 2m-2° |\n|---|---|---|---|\n");
     for r in rows.iter().filter(|r| r.queries > 0) {
         s.push_str(&format!(
             "| {} | {} | {} | {:.1} |\n",
-            r.method, r.instances, r.queries, r.recall_2m_2deg_pct
+            r.method, r.bucket, r.queries, r.recall_2m_2deg_pct
         ));
     }
     s
@@ -195,15 +214,39 @@ mod tests {
     #[test]
     fn buckets_partition_the_queries() {
         let e = [(1, 0.1, 0.1), (2, 3.0, 0.1), (3, 0.1, 0.1), (9, 0.1, 0.1), (40, 0.1, 0.1), (0, 9.0, 9.0)];
-        let rows = bucket_rows("x", &e);
-        let labels: Vec<&str> = rows.iter().map(|r| r.instances.as_str()).collect();
+        let rows = bucket_rows("x", INSTANCE_BUCKETS, &e);
+        let labels: Vec<&str> = rows.iter().map(|r| r.bucket.as_str()).collect();
         assert_eq!(labels, ["0", "1", "2–3", "4–7", "8–15", "16+"]);
         assert_eq!(rows.iter().map(|r| r.queries).sum::<usize>(), e.len());
         assert_eq!(rows.iter().map(|r| r.queries).collect::<Vec<_>>(), [1, 1, 2, 0, 1, 1]);
         // 2–3: (2, 3 m) misses, (3, 0.1 m) hits.
         assert_eq!(rows[2].recall_2m_2deg_pct, 50.0);
         assert!(rows[3].recall_2m_2deg_pct.is_nan());
-        assert!(!bucket_markdown(&rows).contains("| 4–7 |"));
+        assert!(!bucket_markdown("query instances", &rows).contains("| 4–7 |"));
+    }
+
+    #[test]
+    fn coverage_buckets_end_at_every_cell() {
+        let e = [(0, 0.1, 0.1), (4, 0.1, 0.1), (5, 3.0, 0.1), (12, 0.1, 0.1), (16, 0.1, 0.1), (13, 0.1, 3.0)];
+        let rows = bucket_rows("x", COVERAGE_BUCKETS, &e);
+        let labels: Vec<&str> = rows.iter().map(|r| r.bucket.as_str()).collect();
+        assert_eq!(labels, ["0–4", "5–8", "9–12", "13–16"]);
+        assert_eq!(rows.iter().map(|r| r.queries).collect::<Vec<_>>(), [2, 1, 1, 2]);
+        assert_eq!(rows.iter().map(|r| r.recall_2m_2deg_pct).collect::<Vec<_>>()[..2], [100.0, 0.0]);
+        assert_eq!(rows[3].recall_2m_2deg_pct, 50.0);
+        let md = bucket_markdown("frame cells with buildings", &rows);
+        assert!(
+            md.starts_with("| method | frame cells with buildings |")
+                && md.contains("| x | 13–16 | 2 | 50.0 |")
+        );
+    }
+
+    #[test]
+    fn bucket_rows_read_the_old_field_name() {
+        let r: BucketRow =
+            serde_json::from_str(r#"{"method":"m","instances":"2–3","queries":4,"recall_2m_2deg_pct":50.0}"#)
+                .unwrap();
+        assert_eq!(r.bucket, "2–3");
     }
 
     #[test]

@@ -83,9 +83,37 @@ mod grid {
                 + out.stats.rejected_outside
                 + out.stats.rejected_clearance
                 + out.stats.rejected_visibility
-                + out.stats.rejected_few_buildings,
+                + out.stats.rejected_few_buildings
+                + out.stats.rejected_crowded,
             "{:?}",
             out.stats
+        );
+    }
+
+    #[test]
+    fn views_whose_buildings_crowd_into_few_cells_are_counted_and_refused() {
+        // The area reaches to within 240 m of the box city's edge: lattice nodes near it looking out
+        // (45° down from 200–500 m) see the city in part of the frame and open ground in the rest.
+        // The default keeps them; asking for buildings in all 16 cells refuses them and counts them.
+        let keep_all = run("cam2", Trajectory::Grid, &SamplingConfig::default(), None, 1);
+        assert_eq!(keep_all.stats.rejected_crowded, 0);
+        let cfg = SamplingConfig { min_covered_cells: 16, ..SamplingConfig::default() };
+        let spread = run("cam2", Trajectory::Grid, &cfg, None, 1);
+        // Each lattice node draws other heights and yaws until a view qualifies: as many views, more
+        // candidates.
+        assert!(spread.stats.rejected_crowded > 0, "{:?}", spread.stats);
+        assert_eq!(spread.poses.len(), keep_all.poses.len());
+        assert!(spread.stats.candidates > keep_all.stats.candidates, "{:?}", spread.stats);
+        assert_eq!(
+            spread.stats.candidates,
+            spread.stats.accepted
+                + spread.stats.rejected_outside
+                + spread.stats.rejected_clearance
+                + spread.stats.rejected_visibility
+                + spread.stats.rejected_few_buildings
+                + spread.stats.rejected_crowded,
+            "{:?}",
+            spread.stats
         );
     }
 

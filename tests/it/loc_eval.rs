@@ -85,6 +85,9 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
         );
         assert!(t < 2.0 && rot < 2.0, "{}: {t} m / {rot}° from a prior {pt} m / {prot}° off", r["name"]);
         assert!(t < pt, "{}: the estimate must beat the prior", r["name"]);
+        // The sampler keeps views whose rays hit buildings for 15 % of the frame: some cell holds them.
+        let cells = r["covered_frame_cells"].as_u64().unwrap();
+        assert!((1..=16).contains(&cells), "{}: {cells} cells", r["name"]);
         // The search never scores below what it started from: its best is at least the cost at the
         // ground truth minus the sampling gap.
         assert!(r["best_cost"].as_f64().unwrap() > 0.9, "{r}");
@@ -103,11 +106,25 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
     // Every query in exactly one instance-count bucket.
     let buckets = summary["instance_buckets"].as_array().unwrap();
     assert_eq!(buckets.iter().map(|b| b["queries"].as_u64().unwrap()).sum::<u64>(), 3, "{buckets:?}");
+    // And in exactly one bucket of the frame's cells holding buildings, the one of its count.
+    let coverage = summary["coverage_buckets"].as_array().unwrap();
+    assert_eq!(coverage.iter().map(|b| b["queries"].as_u64().unwrap()).sum::<u64>(), 3, "{coverage:?}");
+    let cells = oracle[0]["covered_frame_cells"].as_u64().unwrap();
+    let bucket = coverage.iter().find(|b| {
+        b["method"] == rows[1]["method"] && {
+            let range: Vec<u64> =
+                b["bucket"].as_str().unwrap().split('–').map(|v| v.parse().unwrap()).collect();
+            range[0] <= cells && cells <= range[range.len() - 1]
+        }
+    });
+    assert!(bucket.is_some_and(|b| b["queries"].as_u64().unwrap() >= 1), "{cells} cells: {coverage:?}");
     assert_eq!(summary["map"]["area"], "demo-test");
     assert!(summary["map"]["perturbation"].is_null());
     assert_eq!(summary["search"]["fine"]["beams_mode"]["kind"], "basins");
     assert_eq!(rows[1]["recall_pct"][0].as_f64().unwrap(), 100.0, "{}", rows[1]);
-    assert!(std::fs::read_to_string(out.join("summary.md")).unwrap().contains("| prior |"));
+    let md = std::fs::read_to_string(out.join("summary.md")).unwrap();
+    assert!(md.contains("| prior |") && md.contains("| frame cells with buildings |"), "{md}");
+    assert!(!md.lines().any(|l| l.starts_with("    ")), "no line of prose indented into a code block:\n{md}");
     // est_poses: NAME qw qx qy qz tx ty tz, unit quaternions.
     let est = std::fs::read_to_string(out.join("est_poses_instance.txt")).unwrap();
     assert_eq!(est.lines().count(), 3);
