@@ -50,6 +50,10 @@ pub struct PoseRecord {
     /// older files and in poses made elsewhere).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub visible_buildings: Option<u32>,
+    /// Cells of the frame's 4 × 4 grid whose census rays hit buildings
+    /// ([`super::visibility::ViewCensus::covered_cells`]; `sample` records it, absent elsewhere).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub covered_frame_cells: Option<u32>,
 }
 
 /// A camera in the area's ENU frame: its intrinsics and its pose, given both as a 4×4 and in COLMAP's
@@ -115,6 +119,7 @@ impl PoseRecord {
             geo: GeoPose { lat_deg: g.lat_deg, lon_deg: g.lon_deg, h_m: g.h_m, yaw_deg, pitch_deg, roll_deg },
             height_above_ground_m: c.z - ground_enu_m,
             visible_buildings: None,
+            covered_frame_cells: None,
         }
     }
 

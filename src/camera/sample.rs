@@ -18,7 +18,7 @@
 //!   ([`BuildingIndex::view_census`]): a view of one or two buildings cannot be localized from
 //!   silhouettes. Each pose records its count (`visible_buildings` in `poses.jsonl`). With
 //!   `min_covered_cells` > 0, the rays hitting buildings must also spread over that many cells of the
-//!   frame's 4 × 4 grid.
+//!   frame's 4 × 4 grid; each pose records its count (`covered_frame_cells`).
 //!
 //! Randomness: one ChaCha8 generator seeded with the run's seed (stream 0) drives the sampler; the
 //! priors use stream [`super::prior::PRIOR_STREAM`]. Same inputs and seed → identical outputs.
@@ -365,6 +365,7 @@ pub fn sample_area(
                 m.ground_enu_m,
             );
             record.visible_buildings = Some(v.visible_buildings);
+            record.covered_frame_cells = Some(v.covered_cells);
             record
         })
         .collect();

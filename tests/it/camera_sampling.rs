@@ -48,6 +48,8 @@ fn check_common(out: &SampleOutput, cfg: &SamplingConfig, height_range_m: [f64; 
         assert!(r.geo.roll_deg.abs() < 1e-6, "{}: roll {}", r.name, r.geo.roll_deg);
         let seen = r.visible_buildings.expect("sample records the buildings in view");
         assert!(seen >= cfg.min_visible_buildings, "{}: {seen} buildings in view", r.name);
+        let cells = r.covered_frame_cells.expect("sample records the cells its buildings cover");
+        assert!((cfg.min_covered_cells..=16).contains(&cells), "{}: {cells} cells", r.name);
     }
     assert_eq!(out.poses.len(), out.priors.len());
     assert_eq!(out.stats.accepted as usize, out.poses.len());
@@ -103,6 +105,8 @@ mod grid {
         // candidates.
         assert!(spread.stats.rejected_crowded > 0, "{:?}", spread.stats);
         assert_eq!(spread.poses.len(), keep_all.poses.len());
+        assert!(spread.poses.iter().all(|r| r.covered_frame_cells == Some(16)));
+        assert!(keep_all.poses.iter().any(|r| r.covered_frame_cells < Some(16)));
         assert!(spread.stats.candidates > keep_all.stats.candidates, "{:?}", spread.stats);
         assert_eq!(
             spread.stats.candidates,
