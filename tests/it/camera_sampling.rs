@@ -108,6 +108,15 @@ mod grid {
         assert!(spread.poses.iter().all(|r| r.covered_frame_cells == Some(16)));
         assert!(keep_all.poses.iter().any(|r| r.covered_frame_cells < Some(16)));
         assert!(spread.stats.candidates > keep_all.stats.candidates, "{:?}", spread.stats);
+        // From 5 km every view shows the city in part of the frame at most: none qualifies, and the
+        // error names the setting.
+        let mut high = SamplingConfig { min_building_fraction: 0.0, min_visible_buildings: 0, ..cfg };
+        high.grid.height_range_m = [5000.0, 5000.0];
+        let scene = cs::city();
+        let e =
+            sample_area(&scene, &cs::with_strategy("cam2", Trajectory::Grid), &high, Some(3), 1, &NoProgress)
+                .expect_err("no view qualifies");
+        assert!(e.to_string().contains("lower min_covered_cells (now 16 of 16)"), "{e}");
         assert_eq!(
             spread.stats.candidates,
             spread.stats.accepted
