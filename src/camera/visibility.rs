@@ -302,7 +302,7 @@ impl BuildingIndex {
         seen.sort_unstable();
         seen.dedup();
         let covered_cells = (0..FRAME_CELLS as usize)
-            .filter(|&c| cell_hits[c] > 0 && cell_hits[c] as f64 >= COVERED_CELL_SHARE * cell_rays[c] as f64)
+            .filter(|&c| cell_is_covered(cell_hits[c] as u64, cell_rays[c] as u64))
             .count() as u32;
         ViewCensus {
             building_fraction: hits as f64 / (nx * ny) as f64,
@@ -323,6 +323,12 @@ pub const FRAME_CELLS: u32 = FRAME_GRID * FRAME_GRID;
 /// Share of a cell that must show buildings for the cell to count as covered (a sliver of a
 /// building in a cell's corner does not).
 pub const COVERED_CELL_SHARE: f64 = 0.05;
+
+/// Whether a cell in which `building` of `total` samples (rays or pixels) show buildings counts as
+/// covered: at least one, and at least [`COVERED_CELL_SHARE`] of them.
+pub fn cell_is_covered(building: u64, total: u64) -> bool {
+    building > 0 && building as f64 >= COVERED_CELL_SHARE * total as f64
+}
 
 /// The viewing direction (ENU, not normalised: its camera-frame z component is 1) through pixel
 /// coordinates (u, v) (see [`Intrinsics`] for the pixel convention).

@@ -115,6 +115,7 @@ impl QueryInstance {
     }
 }
 
+use crate::camera::visibility::cell_is_covered;
 pub use crate::camera::visibility::{COVERED_CELL_SHARE, FRAME_CELLS, FRAME_GRID};
 
 /// The query: instances at a fixed resolution (built with [`Query::new`]).
@@ -188,13 +189,8 @@ impl Query {
                 p = end;
             }
         }
-        let size = |n: usize, i: usize| ((i + 1) * n / g - i * n / g) as f64;
-        (0..g * g)
-            .filter(|&c| {
-                let cell_px = size(w, c % g) * size(h, c / g);
-                cell_px > 0.0 && covered[c] as f64 >= COVERED_CELL_SHARE * cell_px
-            })
-            .count() as u32
+        let size = |n: usize, i: usize| ((i + 1) * n / g - i * n / g) as u64;
+        (0..g * g).filter(|&c| cell_is_covered(covered[c], size(w, c % g) * size(h, c / g))).count() as u32
     }
 
     /// All query instances merged into one (score = mean score) — the "merged" ablation's query.
