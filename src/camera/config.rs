@@ -12,6 +12,7 @@
 //! min_building_fraction = 0.15   # share of the coarse ray grid that must hit a building
 //! min_visible_buildings = 3      # distinct buildings first hit by some ray of that grid
 //! min_covered_cells = 0          # of the frame's 4 × 4 cells, those whose rays hit buildings
+//! max_off_map_share = 0.5        # share of that grid landing beyond the modelled ground (or sky)
 //! visibility_rays = [16, 12]     # coarse ray grid (columns, rows)
 //! max_attempts_per_pose = 30
 //!
@@ -82,6 +83,14 @@ pub struct SamplingConfig {
     /// poorly, and errors in a map move the optimum along it (issue 15: eval-loc's recall per
     /// `covered_frame_cells` bucket). 0 (the default) keeps them: a perfect map localizes them.
     pub min_covered_cells: u32,
+    /// Maximum share (0..1) of the coarse ray grid that hits no building and lands beyond the map:
+    /// on the ground outside the convex hull of the building footprints, or at or above the horizon
+    /// ([`super::visibility::ViewCensus::off_map_share`]). Such a view is mostly land the map does
+    /// not model: a photogrammetry render shows buildings there that have no mask, a procedural one
+    /// shows an empty plain no flight over the city would see, and the localizer pins the camera's
+    /// depth from buildings crowded into a corner of the frame, which errors in a map move (issue 15).
+    /// 1 keeps every view.
+    pub max_off_map_share: f64,
     /// Coarse ray grid for the visibility test: [columns, rows] of rays through pixel centres of an
     /// evenly divided image.
     pub visibility_rays: [u32; 2],
@@ -181,6 +190,7 @@ impl Default for SamplingConfig {
             min_building_fraction: 0.15,
             min_visible_buildings: 3,
             min_covered_cells: 0,
+            max_off_map_share: 0.5,
             visibility_rays: [16, 12],
             max_attempts_per_pose: 30,
             grid: GridConfig::default(),
@@ -305,6 +315,9 @@ impl SamplingConfig {
                 self.min_building_fraction,
                 "must be in [0, 1]",
             ));
+        }
+        if !(0.0..=1.0).contains(&self.max_off_map_share) {
+            issues.push(ConfigIssue::value("max_off_map_share", self.max_off_map_share, "must be in [0, 1]"));
         }
         if self.min_covered_cells > super::visibility::FRAME_CELLS {
             issues.push(ConfigIssue::value(
@@ -439,6 +452,19 @@ mod tests {
         assert!(matches!(e, CameraError::ConfigToml { .. }), "{e:?}");
         let msg = crate::util::error_chain(&e);
         assert!(msg.starts_with("invalid [sampling] configuration: unknown field `spacing`"), "{msg}");
+    }
+
+    #[test]
+    fn off_map_share_is_a_share() {
+        let cfg = SamplingConfig::from_scene_toml("[sampling]\nmax_off_map_share = 1.0\n", None).unwrap();
+        assert_eq!(cfg.max_off_map_share, 1.0);
+        assert_eq!(SamplingConfig::default().max_off_map_share, 0.5);
+        for bad in ["1.5", "-0.1", "nan"] {
+            let toml = format!("[sampling]\nmax_off_map_share = {bad}\n");
+            let e = SamplingConfig::from_scene_toml(&toml, None).unwrap_err();
+            let msg = e.to_string();
+            assert!(msg.contains("max_off_map_share") && msg.contains("[0, 1]"), "{msg}");
+        }
     }
 
     #[test]

@@ -54,6 +54,10 @@ pub struct PoseRecord {
     /// ([`super::visibility::ViewCensus::covered_cells`]; `sample` records it, absent elsewhere).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub covered_frame_cells: Option<u32>,
+    /// Share of the census rays that hit no building and land beyond the map
+    /// ([`super::visibility::ViewCensus::off_map_share`]; `sample` records it, absent elsewhere).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub off_map_share: Option<f64>,
 }
 
 /// A camera in the area's ENU frame: its intrinsics and its pose, given both as a 4×4 and in COLMAP's
@@ -120,6 +124,7 @@ impl PoseRecord {
             height_above_ground_m: c.z - ground_enu_m,
             visible_buildings: None,
             covered_frame_cells: None,
+            off_map_share: None,
         }
     }
 

@@ -16,7 +16,10 @@
 //! - sees the city: at least `min_building_fraction` of a coarse grid of viewing rays hits a building
 //!   (its triangles), and at least `min_visible_buildings` distinct buildings are the first hit of some ray
 //!   ([`BuildingIndex::view_census`]): a view of one or two buildings cannot be localized from
-//!   silhouettes. Each pose records its count (`visible_buildings` in `poses.jsonl`). With
+//!   silhouettes. Each pose records its count (`visible_buildings` in `poses.jsonl`);
+//! - looks at the map: at most `max_off_map_share` of that grid hits no building and lands beyond the
+//!   modelled ground (outside the convex hull of the building footprints, or the sky); each pose records
+//!   its share (`off_map_share`). With
 //!   `min_covered_cells` > 0, the rays hitting buildings must also spread over that many cells of the
 //!   frame's 4 × 4 grid; each pose records its count (`covered_frame_cells`).
 //!
@@ -67,6 +70,10 @@ pub struct SampleStats {
     /// than `min_covered_cells`.
     #[serde(default)]
     pub rejected_crowded: u64,
+    /// Candidates that pass the building checks but whose view lands beyond the map for more than
+    /// `max_off_map_share` of its rays.
+    #[serde(default)]
+    pub rejected_off_map: u64,
     /// Accepted frames dropped because their run of consecutive frames was too short.
     pub dropped_short_run_frames: u64,
     /// Sequences (grid: one per frame).
@@ -118,6 +125,7 @@ pub(crate) enum Reject {
     Clearance,
     Visibility,
     FewBuildings,
+    OffMap,
     Crowded,
 }
 
@@ -153,11 +161,18 @@ impl Ctx<'_> {
         } else if c[2] - self.ground_m < self.required_height_agl_m([c[0], c[1]]) {
             Err(Reject::Clearance)
         } else {
-            let v = self.index.view_census(&self.camera.intrinsics, pose, self.cfg.visibility_rays);
+            let v = self.index.view_census(
+                &self.camera.intrinsics,
+                pose,
+                self.cfg.visibility_rays,
+                self.ground_m,
+            );
             if v.building_fraction < self.cfg.min_building_fraction {
                 Err(Reject::Visibility)
             } else if v.visible_buildings < self.cfg.min_visible_buildings {
                 Err(Reject::FewBuildings)
+            } else if v.off_map_share > self.cfg.max_off_map_share {
+                Err(Reject::OffMap)
             } else if v.covered_cells < self.cfg.min_covered_cells {
                 Err(Reject::Crowded)
             } else {
@@ -169,6 +184,7 @@ impl Ctx<'_> {
             Err(Reject::Clearance) => stats.rejected_clearance += 1,
             Err(Reject::Visibility) => stats.rejected_visibility += 1,
             Err(Reject::FewBuildings) => stats.rejected_few_buildings += 1,
+            Err(Reject::OffMap) => stats.rejected_off_map += 1,
             Err(Reject::Crowded) => stats.rejected_crowded += 1,
             Ok(_) => {}
         }
@@ -189,7 +205,15 @@ impl Ctx<'_> {
         stats: &SampleStats,
     ) -> CameraError {
         let others = stats.rejected_clearance.max(stats.rejected_visibility).max(stats.rejected_outside);
-        let hint = if stats.rejected_crowded > others.max(stats.rejected_few_buildings) {
+        let hint = if stats.rejected_off_map
+            > others.max(stats.rejected_few_buildings).max(stats.rejected_crowded)
+        {
+            format!(
+                "raise max_off_map_share (now {}) in the scene file's [sampling] table, or lower the \
+                 {strategy} height range or pitch: the views look past the modelled buildings",
+                self.cfg.max_off_map_share
+            )
+        } else if stats.rejected_crowded > others.max(stats.rejected_few_buildings) {
             format!(
                 "lower min_covered_cells (now {} of 16) in the scene file's [sampling] table: the views' \
                  buildings spread over fewer cells of the frame",
@@ -366,6 +390,7 @@ pub fn sample_area(
             );
             record.visible_buildings = Some(v.visible_buildings);
             record.covered_frame_cells = Some(v.covered_cells);
+            record.off_map_share = Some(v.off_map_share);
             record
         })
         .collect();

@@ -33,6 +33,9 @@ pub struct BuildingIndex {
     cells: Vec<Vec<u32>>,
     /// Lowest box bottom, ENU metres: rays stop there.
     floor_m: f64,
+    /// Convex hull of the boxes' footprints (counter-clockwise, ENU metres): the ground the map
+    /// models. Fewer than 3 vertices: no map ground.
+    map_hull_m: Vec<[f64; 2]>,
 }
 
 /// Upper bound on grid cells per axis (keeps the index small for huge, sparse areas).
@@ -87,6 +90,7 @@ impl BuildingIndex {
                 ny: 0,
                 cells: Vec::new(),
                 floor_m: 0.0,
+                map_hull_m: Vec::new(),
             };
         }
         let extent = (hi[0] - lo[0]).max(hi[1] - lo[1]);
@@ -105,8 +109,14 @@ impl BuildingIndex {
                 }
             }
         }
+        let corners: Vec<[f64; 2]> = boxes
+            .iter()
+            .flat_map(|(a, b)| [[a[0], a[1]], [b[0], a[1]], [b[0], b[1]], [a[0], b[1]]])
+            .collect();
+        let map_hull_m = crate::util::convex_hull(&corners);
         BuildingIndex {
             boxes,
+            map_hull_m,
             triangles: None,
             grid_origin_m: [lo[0], lo[1]],
             cell_m,
@@ -125,6 +135,23 @@ impl BuildingIndex {
     /// Whether there are no boxes.
     pub fn is_empty(&self) -> bool {
         self.boxes.is_empty()
+    }
+
+    /// The ground the map models: the convex hull of the building boxes' footprints, counter-clockwise
+    /// (ENU metres); fewer than 3 vertices when the boxes span no area.
+    pub fn map_hull_m(&self) -> &[[f64; 2]] {
+        &self.map_hull_m
+    }
+
+    /// Whether the ray `o + t·d` (t > 0) that hits no building ends on the map: it meets the ground
+    /// plane at height `ground_m` inside [`BuildingIndex::map_hull_m`]. A ray at or above the horizon
+    /// does not.
+    fn lands_on_map(&self, o: [f64; 3], d: [f64; 3], ground_m: f64) -> bool {
+        if self.map_hull_m.len() < 3 || d[2] >= 0.0 || o[2] <= ground_m {
+            return false;
+        }
+        let t = (ground_m - o[2]) / d[2];
+        crate::util::point_in_polygon([o[0] + t * d[0], o[1] + t * d[1]], &self.map_hull_m)
     }
 
     /// The highest box top of all, ENU metres (`None` without boxes).
@@ -273,13 +300,15 @@ impl BuildingIndex {
 
     /// What a coarse grid of `rays[0]` × `rays[1]` viewing rays (through the centres of an evenly
     /// divided image) sees: the share that hits a building, the number of distinct buildings hit
-    /// first by at least one ray, and the cells of the frame's [`FRAME_GRID`] × [`FRAME_GRID`] grid in
+    /// first by at least one ray, the cells of the frame's [`FRAME_GRID`] × [`FRAME_GRID`] grid in
     /// which at least [`COVERED_CELL_SHARE`] of the rays (and at least one) hit a building (estimates
     /// of the share of building pixels, of the buildings visible and of how far they spread across
-    /// the frame; with boxes alone, upper bounds).
-    pub fn view_census(&self, k: &Intrinsics, pose: &Pose, rays: [u32; 2]) -> ViewCensus {
+    /// the frame; with boxes alone, upper bounds), and the share of rays that hit no building and
+    /// end beyond the map: on the ground plane at `ground_m` outside [`BuildingIndex::map_hull_m`],
+    /// or at or above the horizon.
+    pub fn view_census(&self, k: &Intrinsics, pose: &Pose, rays: [u32; 2], ground_m: f64) -> ViewCensus {
         let (nx, ny) = (rays[0].max(1), rays[1].max(1));
-        let mut hits = 0u32;
+        let (mut hits, mut off_map) = (0u32, 0u32);
         let mut seen: Vec<u32> = Vec::new();
         let g = FRAME_GRID;
         let (mut cell_rays, mut cell_hits) = ([0u32; FRAME_CELLS as usize], [0u32; FRAME_CELLS as usize]);
@@ -290,12 +319,13 @@ impl BuildingIndex {
                 cell_rays[cell] += 1;
                 let u = (i as f64 + 0.5) * k.width_px as f64 / nx as f64;
                 let v = (j as f64 + 0.5) * k.height_px as f64 / ny as f64;
-                if let Some(b) =
-                    self.first_building_hit(pose.centre_m.to_array(), pixel_ray_enu(k, pose, u, v))
-                {
+                let (o, d) = (pose.centre_m.to_array(), pixel_ray_enu(k, pose, u, v));
+                if let Some(b) = self.first_building_hit(o, d) {
                     hits += 1;
                     cell_hits[cell] += 1;
                     seen.push(b);
+                } else if !self.lands_on_map(o, d, ground_m) {
+                    off_map += 1;
                 }
             }
         }
@@ -308,6 +338,7 @@ impl BuildingIndex {
             building_fraction: hits as f64 / (nx * ny) as f64,
             visible_buildings: seen.len() as u32,
             covered_cells,
+            off_map_share: off_map as f64 / (nx * ny) as f64,
         }
     }
 }
@@ -347,6 +378,10 @@ pub struct ViewCensus {
     /// Cells of the frame's [`FRAME_GRID`] × [`FRAME_GRID`] grid whose rays hit buildings (at least
     /// [`COVERED_CELL_SHARE`] of them).
     pub covered_cells: u32,
+    /// Share (0..1) of the rays that hit no building and end beyond the map (the ground outside the
+    /// hull of the building footprints, or the sky): what the frame shows of land the map does not
+    /// model.
+    pub off_map_share: f64,
 }
 
 /// The records whose boxes are finite and not inverted, in order.
@@ -440,20 +475,55 @@ mod tests {
         let k = Intrinsics::from_hfov(640, 480, 90.0);
         // Straight down from 1000 m over the midpoint: a 90° view spans ±1000 m, both towers in it.
         let both = Pose::from_ypr_deg(0.0, 0.0, 0.0, [150.0, 0.0, 1000.0]);
-        let c = ix.view_census(&k, &both, [256, 192]);
+        let c = ix.view_census(&k, &both, [256, 192], 0.0);
         assert_eq!(c.visible_buildings, 2, "{c:?}");
         assert!(c.building_fraction > 0.0 && c.building_fraction < 0.01, "{c:?}");
         // Two small towers: each covers a sliver of the cell it lies in, below the covered share.
         assert_eq!(c.covered_cells, 0, "{c:?}");
         // Low over the big tower, looking down: only it (the east tower is outside the view).
         let one = Pose::from_ypr_deg(0.0, 0.0, 0.0, [0.0, 0.0, 110.0]);
-        let c = ix.view_census(&k, &one, [16, 12]);
+        let c = ix.view_census(&k, &one, [16, 12], 0.0);
         assert_eq!(c.visible_buildings, 1, "{c:?}");
         assert_eq!(c.building_fraction, 1.0);
         assert_eq!(c.covered_cells, FRAME_CELLS, "{c:?}");
         // A ray through both towers (west face of the big one first) counts only the first.
         assert_eq!(ix.first_building_hit([-500.0, 0.0, 20.0], [1.0, 0.0, 0.0]), Some(0));
         assert_eq!(ix.first_building_hit([1000.0, 0.0, 20.0], [-1.0, 0.0, 0.0]), Some(1));
+    }
+
+    #[test]
+    fn census_counts_the_rays_that_land_beyond_the_map() {
+        // Four 10 m houses in the corners of a 200 m square: the map's ground is that square.
+        let ix = BuildingIndex::from_boxes(
+            [[0.0, 0.0], [190.0, 0.0], [0.0, 190.0], [190.0, 190.0]]
+                .iter()
+                .map(|&[e, n]| ([e, n, 0.0], [e + 10.0, n + 10.0, 10.0]))
+                .collect(),
+        );
+        assert_eq!(ix.map_hull_m(), &[[0.0, 0.0], [200.0, 0.0], [200.0, 200.0], [0.0, 200.0]]);
+        // Straight down with a 90° view from 100 m over the centre: the frame is the square.
+        let k = Intrinsics::from_hfov(400, 400, 90.0);
+        let centre = Pose::from_ypr_deg(0.0, 0.0, 0.0, [100.0, 100.0, 100.0]);
+        let c = ix.view_census(&k, &centre, [16, 16], 0.0);
+        assert_eq!(c.off_map_share, 0.0, "{c:?}");
+        // 100 m east: the frame's eastern half (8 of 16 ray columns) is ground beyond the map.
+        let east = Pose::from_ypr_deg(0.0, 0.0, 0.0, [200.0, 100.0, 100.0]);
+        let c = ix.view_census(&k, &east, [16, 16], 0.0);
+        assert_eq!(c.off_map_share, 0.5, "{c:?}");
+        // The ground 50 m higher: the frame shrinks to 100 m around the camera, and its eastern half
+        // is still beyond the map.
+        let c = ix.view_census(&k, &east, [16, 16], 50.0);
+        assert_eq!(c.off_map_share, 0.5, "{c:?}");
+        let corner = Pose::from_ypr_deg(0.0, 0.0, 0.0, [200.0, 200.0, 100.0]);
+        let c = ix.view_census(&k, &corner, [16, 16], 0.0);
+        assert_eq!(c.off_map_share, 0.75, "{c:?}");
+        // Looking at the horizon: the rays at and above it leave the map too.
+        let level = Pose::from_ypr_deg(0.0, 90.0, 0.0, [100.0, 100.0, 100.0]);
+        let c = ix.view_census(&k, &level, [16, 16], 0.0);
+        assert!(c.off_map_share >= 0.5, "{c:?}");
+        // No buildings, no map: every ray is off it.
+        let empty = BuildingIndex::from_boxes(Vec::new());
+        assert_eq!(empty.view_census(&k, &centre, [4, 4], 0.0).off_map_share, 1.0);
     }
 
     /// An L-shaped building (id 1: a 20 × 5 m wing along x and a 5 × 20 m wing along y, 10 m tall,
@@ -524,15 +594,15 @@ mod tests {
         let k = Intrinsics::from_hfov(400, 400, 2.0 * (10.0f64 / 1000.0).atan().to_degrees());
         let pose = Pose::from_ypr_deg(0.0, 0.0, 0.0, [10.0, 10.0, 1010.0]);
         let rays = [80, 80];
-        assert_eq!(boxes.view_census(&k, &pose, rays).building_fraction, 1.0);
-        let c = tris.view_census(&k, &pose, rays);
+        assert_eq!(boxes.view_census(&k, &pose, rays, 0.0).building_fraction, 1.0);
+        let c = tris.view_census(&k, &pose, rays, 0.0);
         assert!((c.building_fraction - 0.4375).abs() < 0.015, "{c:?}");
         assert_eq!(c.visible_buildings, 1);
         // Cells are 5 m of the 20 m box: the L's wings, 5 m wide along two sides of the box, fill one
         // row and one column of cells (7 cells; its inner walls' 0.1 m are below the covered
         // share). The box fills all 16.
         assert_eq!(c.covered_cells, 7, "{c:?}");
-        assert_eq!(boxes.view_census(&k, &pose, rays).covered_cells, FRAME_CELLS);
+        assert_eq!(boxes.view_census(&k, &pose, rays, 0.0).covered_cells, FRAME_CELLS);
     }
 
     #[test]

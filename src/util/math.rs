@@ -32,6 +32,38 @@ pub fn point_in_polygon(p: [f64; 2], ring: &[[f64; 2]]) -> bool {
     inside
 }
 
+/// The convex hull of `points` (Andrew's monotone chain): its vertices counter-clockwise from the
+/// leftmost-then-lowest one, without collinear vertices or repeats. Fewer than three distinct points,
+/// or all on a line, give those extreme points (0–2 of them): a hull without area. Non-finite points
+/// are ignored.
+///
+/// # Units
+/// Any planar coordinates (ENU metres in insgen).
+pub fn convex_hull(points: &[[f64; 2]]) -> Vec<[f64; 2]> {
+    let mut p: Vec<[f64; 2]> =
+        points.iter().copied().filter(|q| q[0].is_finite() && q[1].is_finite()).collect();
+    p.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+    p.dedup();
+    if p.len() < 3 {
+        return p;
+    }
+    let cross =
+        |o: [f64; 2], a: [f64; 2], b: [f64; 2]| (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+    let mut hull: Vec<[f64; 2]> = Vec::with_capacity(2 * p.len());
+    // The lower chain left to right, then the upper chain back: counter-clockwise.
+    for pass in [p.clone(), p.iter().rev().copied().collect()] {
+        let start = hull.len();
+        for q in pass {
+            while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0 {
+                hull.pop();
+            }
+            hull.push(q);
+        }
+        hull.pop();
+    }
+    hull
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -57,5 +89,32 @@ mod tests {
         assert!(point_in_polygon([0.5, 1.5], &l) && point_in_polygon([1.5, 0.5], &l));
         assert!(!point_in_polygon([1.5, 1.5], &l));
         assert!(!point_in_polygon([0.0, 0.0], &[]));
+    }
+
+    #[test]
+    fn convex_hull_of_a_square_with_inner_and_edge_points() {
+        let pts =
+            [[0.0, 0.0], [2.0, 0.0], [1.0, 0.0], [2.0, 2.0], [0.0, 2.0], [1.0, 1.0], [0.5, 1.5], [2.0, 2.0]];
+        let hull = convex_hull(&pts);
+        assert_eq!(hull, vec![[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]]);
+        // Counter-clockwise: positive shoelace area.
+        let twice_area: f64 = (0..hull.len())
+            .map(|i| {
+                let (a, b) = (hull[i], hull[(i + 1) % hull.len()]);
+                a[0] * b[1] - b[0] * a[1]
+            })
+            .sum();
+        assert_eq!(twice_area, 8.0);
+        assert!(point_in_polygon([1.9, 0.1], &hull) && !point_in_polygon([2.1, 1.0], &hull));
+    }
+
+    #[test]
+    fn convex_hull_without_area() {
+        assert!(convex_hull(&[]).is_empty());
+        assert_eq!(convex_hull(&[[1.0, 1.0], [1.0, 1.0]]), vec![[1.0, 1.0]]);
+        assert_eq!(convex_hull(&[[0.0, 0.0], [f64::NAN, 1.0], [3.0, 3.0]]), vec![[0.0, 0.0], [3.0, 3.0]]);
+        // Collinear points: the two ends.
+        let line = convex_hull(&[[0.0, 0.0], [1.0, 1.0], [2.0, 2.0], [3.0, 3.0]]);
+        assert_eq!(line, vec![[0.0, 0.0], [3.0, 3.0]]);
     }
 }

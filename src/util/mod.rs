@@ -7,7 +7,7 @@
 
 pub mod math;
 
-pub use math::{median, point_in_polygon};
+pub use math::{convex_hull, median, point_in_polygon};
 
 use std::fs;
 use std::io::{self, Write};

@@ -50,6 +50,8 @@ fn check_common(out: &SampleOutput, cfg: &SamplingConfig, height_range_m: [f64; 
         assert!(seen >= cfg.min_visible_buildings, "{}: {seen} buildings in view", r.name);
         let cells = r.covered_frame_cells.expect("sample records the cells its buildings cover");
         assert!((cfg.min_covered_cells..=16).contains(&cells), "{}: {cells} cells", r.name);
+        let off = r.off_map_share.expect("sample records the share of the view beyond the map");
+        assert!((0.0..=cfg.max_off_map_share).contains(&off), "{}: {off} of the view beyond the map", r.name);
     }
     assert_eq!(out.poses.len(), out.priors.len());
     assert_eq!(out.stats.accepted as usize, out.poses.len());
@@ -86,6 +88,7 @@ mod grid {
                 + out.stats.rejected_clearance
                 + out.stats.rejected_visibility
                 + out.stats.rejected_few_buildings
+                + out.stats.rejected_off_map
                 + out.stats.rejected_crowded,
             "{:?}",
             out.stats
@@ -110,7 +113,12 @@ mod grid {
         assert!(spread.stats.candidates > keep_all.stats.candidates, "{:?}", spread.stats);
         // From 5 km every view shows the city in part of the frame at most: none qualifies, and the
         // error names the setting.
-        let mut high = SamplingConfig { min_building_fraction: 0.0, min_visible_buildings: 0, ..cfg };
+        let mut high = SamplingConfig {
+            min_building_fraction: 0.0,
+            min_visible_buildings: 0,
+            max_off_map_share: 1.0,
+            ..cfg
+        };
         high.grid.height_range_m = [5000.0, 5000.0];
         let scene = cs::city();
         let e =
@@ -124,10 +132,42 @@ mod grid {
                 + spread.stats.rejected_clearance
                 + spread.stats.rejected_visibility
                 + spread.stats.rejected_few_buildings
+                + spread.stats.rejected_off_map
                 + spread.stats.rejected_crowded,
             "{:?}",
             spread.stats
         );
+    }
+
+    #[test]
+    fn views_that_look_past_the_map_are_counted_and_refused() {
+        // The box city ends 240–300 m beyond the area's edges: from 400–500 m, 60° off nadir, the
+        // centre of a view lands 690–870 m ahead, and a view looking out from near an edge sees
+        // mostly the open plain around the city. The default refuses views beyond the map for more
+        // than half their rays (each lattice node draws other heights and yaws instead); 1 keeps them.
+        let mut steep = SamplingConfig::default();
+        steep.grid.pitch_deg = vec![60.0];
+        steep.grid.height_range_m = [400.0, 500.0];
+        let everything = SamplingConfig { max_off_map_share: 1.0, ..steep.clone() };
+        let all = run("cam2", Trajectory::Grid, &everything, None, 1);
+        assert_eq!(all.stats.rejected_off_map, 0, "{:?}", all.stats);
+        assert!(
+            all.poses.iter().any(|r| r.off_map_share.unwrap() > 0.5),
+            "some view of the unrestricted lattice looks past the city"
+        );
+        let on_map = run("cam2", Trajectory::Grid, &steep, None, 1);
+        assert!(on_map.stats.rejected_off_map > 0, "{:?}", on_map.stats);
+        assert!(on_map.poses.iter().all(|r| r.off_map_share.unwrap() <= 0.5));
+        assert_eq!(on_map.poses.len(), all.poses.len());
+        // From 5 km every view is mostly plain: none qualifies, and the error names the setting.
+        let mut high =
+            SamplingConfig { min_building_fraction: 0.0, min_visible_buildings: 0, ..Default::default() };
+        high.grid.height_range_m = [5000.0, 5000.0];
+        let scene = cs::city();
+        let e =
+            sample_area(&scene, &cs::with_strategy("cam2", Trajectory::Grid), &high, Some(3), 1, &NoProgress)
+                .expect_err("no view qualifies");
+        assert!(e.to_string().contains("raise max_off_map_share (now 0.5)"), "{e}");
     }
 
     #[test]
