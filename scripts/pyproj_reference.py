@@ -9,7 +9,7 @@ request  = {
   "codes": [4326, 6697, ...],    # EPSG codes
   "extra_data_dirs": ["/usr/share/proj"],  # appended to pyproj's data dirs (same grids as insgen's PROJ)
   "geoid": {"grid": "/usr/share/proj/egm96_15.gtx", "points": [[lat, lon], ...]},  # optional
-  "geoids": [{"grid": "/tmp/x/synthetic.tif", "points": [[lat, lon], ...]}, ...],  # optional, several
+  "geoids": [{"grid": "target/geoid/synthetic.tif", "points": [[lat, lon], ...]}, ...],  # optional, several
   "compound": {"code": 6697, "points": [[lon_or_e, lat_or_n, H], ...]}   # optional: PROJ's own heights
 }
 answer   = {

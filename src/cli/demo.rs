@@ -16,7 +16,7 @@ use super::{Cli, Global};
 /// (about 20 CPU seconds each).
 #[derive(Debug, Clone, clap::Args)]
 #[command(after_long_help = "Examples:\n  insgen demo\n  insgen demo --no-rgb --count 8 --queries 2\n  \
-insgen --workdir /tmp/demo-runs demo --camera cam1")]
+insgen --workdir demo-runs demo --camera cam1")]
 pub struct Args {
     /// Camera preset, or a camera TOML file [default: <scenes>/cameras/cam2-quarter.toml].
     #[arg(long, value_name = "PRESET|FILE")]

@@ -443,7 +443,7 @@ fn component_export_agrees_with_pycocotools_and_the_id_maps() {
     let sheet = insgen::coco::raster::read_png_rgb(&p.out_dir.join("contact_sheet.png")).unwrap();
     assert_eq!((sheet.width, sheet.height), (4 * 320, 3 * 240));
     if let Some(keep) = std::env::var_os("INSGEN_COCO_PREVIEW") {
-        // For looking at the figures by eye: INSGEN_COCO_PREVIEW=/tmp/preview cargo test ...
+        // For looking at the figures by eye: INSGEN_COCO_PREVIEW=target/coco-preview cargo test ...
         std::fs::create_dir_all(&keep).unwrap();
         for f in &files_written {
             std::fs::copy(f, Path::new(&keep).join(f.file_name().unwrap())).unwrap();
