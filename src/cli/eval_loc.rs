@@ -1,16 +1,20 @@
 //! `insgen eval-loc`: the instance-silhouette localizer on an area's queries, and its report.
 
 use anyhow::Context;
+use serde::Deserialize;
 
 use super::Global;
 use crate::loc::cost::{CostKind, Weighting, DEFAULT_SEMANTIC_WEIGHT};
 use std::path::PathBuf;
 
+use crate::camera::config::PriorNoise;
 use crate::loc::eval::{self, EvalOptions, QueryPoses};
 use crate::loc::map::{MapPerturbation, MapSummary};
 use crate::loc::oracle::Degradation;
 use crate::loc::query::{load_predictions, QuerySource};
-use crate::loc::search::{BeamMode, CoarseParams, FineParams, PolishCost, Prune, SearchOptions, Stages};
+use crate::loc::search::{
+    BeamMode, CoarseParams, FineParams, PolishCost, Prune, SearchBounds, SearchOptions, Stages,
+};
 use crate::scene::PreparedScene;
 
 /// `--weighting`: how per-instance Dice scores are combined ([`Weighting`]).
@@ -200,6 +204,25 @@ pub struct Args {
     /// Coarse grid in yaw: ±RANGE degrees in steps of STEP [default: 7.5/2.5].
     #[arg(long, value_name = "RANGE/STEP", value_parser = parse_range_step)]
     pub coarse_yaw: Option<(f64, f64)>,
+    /// Search volume: the largest horizontal distance of the camera centre from the prior's, metres.
+    ///
+    /// Every stage (coarse grid, particle filter, polish, basins) keeps to a volume centred on the
+    /// prior, so that a degenerate cost cannot pull the estimate where the prior says the camera
+    /// cannot be; results.jsonl flags an estimate on its boundary (on_search_boundary). Default: 4
+    /// times the prior's RMS horizontal error, 4·√(σ_e² + σ_n²), plus its horizontal bias, at least 10
+    /// m, from the noise model of <camera dir>/sampling.json (`insgen sample`), else the default
+    /// model (σ = 7, 7, 5 m, yaw 3°: 39.6 m).
+    #[arg(long, value_name = "M", value_parser = parse_half_range)]
+    pub search_radius_m: Option<f64>,
+    /// Search volume: the largest difference from the prior's height, metres [default: 4·σ_u plus
+    /// the vertical bias, at least 5 m; the default model: 20 m].
+    #[arg(long, value_name = "M", value_parser = parse_half_range)]
+    pub search_height_m: Option<f64>,
+    /// Search volume: the largest difference from the prior's yaw, degrees, at most 180 [default:
+    /// 4·σ_yaw plus the yaw bias, at least 2°; the default model: 12°]. Pitch and roll are the
+    /// prior's (not searched).
+    #[arg(long, value_name = "DEG", value_parser = parse_half_range)]
+    pub search_yaw_deg: Option<f64>,
     /// Particle-filter iterations [default: 20; --paper: 40].
     #[arg(long, value_name = "N")]
     pub iterations: Option<u32>,
@@ -272,6 +295,61 @@ fn parse_range_step(s: &str) -> Result<(f64, f64), String> {
     Ok((r, st))
 }
 
+/// Parses a half-range of the search volume (`--search-*`): a number > 0.
+fn parse_half_range(s: &str) -> Result<f64, String> {
+    let v: f64 = s.trim().parse().map_err(|_| format!("expected a number > 0, got {s:?}"))?;
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("expected a number > 0, got {v}"))
+    }
+}
+
+/// The prior noise model the search volume is derived from, and where it came from: the one
+/// `insgen sample` recorded in `<camera_dir>/sampling.json` for sampled queries, else the default.
+fn prior_noise(camera_dir: &std::path::Path, queries: &QueryPoses) -> anyhow::Result<(PriorNoise, String)> {
+    let path = camera_dir.join(crate::camera::sample::SAMPLING_FILE);
+    if matches!(queries, QueryPoses::Colmap { .. }) || !path.is_file() {
+        return Ok((PriorNoise::default(), "the default prior noise model".into()));
+    }
+    let text = std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+    let record: serde_json::Value =
+        serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    let noise = match record.get("config").and_then(|c| c.get("prior")) {
+        Some(prior) => PriorNoise::deserialize(prior).with_context(|| {
+            format!(
+                "{}: config.prior is no prior noise model (rerun `insgen sample`, or give the search \
+                 volume with --search-radius-m, --search-height-m and --search-yaw-deg)",
+                path.display()
+            )
+        })?,
+        None => PriorNoise::default(),
+    };
+    Ok((noise, "the prior noise model in sampling.json".into()))
+}
+
+/// The search volume: derived from `noise` ([`SearchBounds::from_prior_noise`]), each half-range a
+/// `--search-*` flag gives replacing the derived one.
+fn search_bounds(args: &Args, noise: &PriorNoise, source: &str) -> anyhow::Result<SearchBounds> {
+    let mut b = SearchBounds::from_prior_noise(noise, source);
+    let mut given = Vec::new();
+    for (flag, value, field) in [
+        ("--search-radius-m", args.search_radius_m, &mut b.radius_m),
+        ("--search-height-m", args.search_height_m, &mut b.height_m),
+        ("--search-yaw-deg", args.search_yaw_deg, &mut b.yaw_deg),
+    ] {
+        if let Some(v) = value {
+            *field = v;
+            given.push(format!("{flag} {v}"));
+        }
+    }
+    if !given.is_empty() {
+        b.origin = format!("{}; {}", given.join(", "), b.origin);
+    }
+    b.validate().map_err(anyhow::Error::msg)?;
+    Ok(b)
+}
+
 /// Parses `AFTER/KEEP` (an early judgement of the basins) or `off`.
 /// The semantic IoU's weight in the instance cost: as given, else 0 with `--paper` (the paper's pure
 /// instance cost), else [`DEFAULT_SEMANTIC_WEIGHT`].
@@ -318,9 +396,10 @@ fn parse_prune(s: &str) -> Result<PruneFlag, String> {
 }
 
 /// The search's stages and parameters from the flags: the defaults, or the paper's with `--paper`,
-/// with each given flag applied on top.
-fn search_options(args: &Args) -> SearchOptions {
+/// with each given flag applied on top, and the search volume `bounds`.
+fn search_options(args: &Args, bounds: SearchBounds) -> SearchOptions {
     SearchOptions {
+        bounds,
         coarse: {
             let d = CoarseParams::default();
             let (xy_range_m, xy_step_m) = args.coarse_xy.unwrap_or((d.xy_range_m, d.xy_step_m));
@@ -426,6 +505,40 @@ fn load_map(
     Ok((map, MapSummary { area, perturbation: Some(perturbation), changes: Some(changes) }))
 }
 
+/// The output sub-directory under loc/ without `--tag`: the query source, then each ablation and
+/// map option that changes the results.
+fn default_tag(args: &Args, degradation: &Degradation, map: &MapSummary) -> String {
+    let mut t = String::from(if args.predictions.is_some() {
+        "predictions"
+    } else if degradation.is_perfect() {
+        "oracle"
+    } else {
+        "degraded"
+    });
+    if args.no_refine {
+        t.push_str("-norefine");
+    }
+    if args.no_select {
+        t.push_str("-noselect");
+    }
+    if args.no_polish {
+        t.push_str("-nopolish");
+    }
+    if args.paper {
+        t.push_str("-paper");
+    }
+    if let Some(m) = &args.map_area {
+        t.push_str(&format!("-map-{m}"));
+    }
+    if !map.perturbation.as_ref().is_none_or(|p| p.is_identity()) {
+        t.push_str("-perturbed");
+    }
+    if args.no_yaw_fan {
+        t.push_str("-nofan");
+    }
+    t
+}
+
 pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     let area_dir = global.workdir.join(&args.area);
     let (scene, map) = load_map(args, global, PreparedScene::load(&area_dir.join("scene"))?)?;
@@ -440,37 +553,7 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     for (name, f) in [("--drop", args.drop), ("--merge", args.merge), ("--split", args.split)] {
         anyhow::ensure!((0.0..=1.0).contains(&f), "{name} {f}: a fraction lies in [0, 1]");
     }
-    let tag = args.tag.clone().unwrap_or_else(|| {
-        let mut t = String::from(if args.predictions.is_some() {
-            "predictions"
-        } else if degradation.is_perfect() {
-            "oracle"
-        } else {
-            "degraded"
-        });
-        if args.no_refine {
-            t.push_str("-norefine");
-        }
-        if args.no_select {
-            t.push_str("-noselect");
-        }
-        if args.no_polish {
-            t.push_str("-nopolish");
-        }
-        if args.paper {
-            t.push_str("-paper");
-        }
-        if let Some(m) = &args.map_area {
-            t.push_str(&format!("-map-{m}"));
-        }
-        if !map.perturbation.as_ref().is_none_or(|p| p.is_identity()) {
-            t.push_str("-perturbed");
-        }
-        if args.no_yaw_fan {
-            t.push_str("-nofan");
-        }
-        t
-    });
+    let tag = args.tag.clone().unwrap_or_else(|| default_tag(args, &degradation, &map));
     let camera_dir = area_dir.join(&args.camera);
     let source = match &args.predictions {
         Some(results) => {
@@ -509,6 +592,8 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         _ => QueryPoses::Sample { camera_dir: camera_dir.clone() },
     };
     let out_dir = args.out.clone().unwrap_or_else(|| camera_dir.join("loc").join(&tag));
+    let (noise, noise_source) = prior_noise(&camera_dir, &queries)?;
+    let bounds = search_bounds(args, &noise, &noise_source)?;
     let opts = EvalOptions {
         queries,
         out_dir: out_dir.clone(),
@@ -516,7 +601,7 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         weighting: args.weighting.into(),
         semantic_weight: semantic_weight(args),
         source,
-        search: search_options(args),
+        search: search_options(args, bounds),
         seed: args.seed,
         render_width_px: args.render_width,
         coarse_width_px: args.coarse_width.unwrap_or(if args.paper { 320 } else { 160 }),
@@ -590,8 +675,25 @@ mod tests {
     }
 
     #[test]
+    fn search_volume_from_the_prior_noise_and_flags() {
+        let noise = PriorNoise::default();
+        let b = search_bounds(&parse(&[]).unwrap(), &noise, "the default prior noise model").unwrap();
+        assert_eq!(b, SearchBounds::default());
+        let a = parse(&["--search-radius-m", "25", "--search-yaw-deg", "6"]).unwrap();
+        let b = search_bounds(&a, &noise, "the default prior noise model").unwrap();
+        assert_eq!((b.radius_m, b.height_m, b.yaw_deg), (25.0, 20.0, 6.0));
+        assert!(b.origin.starts_with("--search-radius-m 25, --search-yaw-deg 6; 4σ of"), "{}", b.origin);
+        assert!(search_bounds(&parse(&["--search-yaw-deg", "181"]).unwrap(), &noise, "x").is_err());
+        for bad in [["--search-height-m", "0"], ["--search-radius-m", "nan"], ["--search-yaw-deg", "inf"]] {
+            let e = parse(&bad).unwrap_err().to_string();
+            assert!(e.contains("expected a number > 0"), "{e}");
+        }
+    }
+
+    #[test]
     fn beam_flags_apply_over_defaults_and_paper() {
-        let beams = |extra: &[&str]| search_options(&parse(extra).unwrap()).fine.beams_mode;
+        let beams =
+            |extra: &[&str]| search_options(&parse(extra).unwrap(), SearchBounds::default()).fine.beams_mode;
         assert_eq!(beams(&[]), FineParams::default().beams_mode);
         assert_eq!(
             beams(&["--basins", "6", "--prune", "5/3"]),

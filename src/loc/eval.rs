@@ -149,6 +149,11 @@ pub struct QueryResult {
     /// Hypotheses and seconds per stage of the search.
     #[serde(default)]
     pub stages: search::StageCosts,
+    /// Whether the estimate lies on the boundary of the search volume around the prior
+    /// ([`search::SearchBounds`], within [`search::BOUNDARY_TOLERANCE`] of a half-range): the cost's
+    /// optimum may lie beyond, where the prior says the camera cannot be.
+    #[serde(default)]
+    pub on_search_boundary: bool,
 }
 
 /// The run's summary.
@@ -171,10 +176,22 @@ pub struct Summary {
     /// Per cost, the translation errors split along and across the camera's axis.
     #[serde(default)]
     pub axis_rows: Vec<metrics::AxisRow>,
+    /// Per cost, the estimates on the boundary of the search volume.
+    #[serde(default)]
+    pub boundary_rows: Vec<BoundaryRow>,
     /// The search that ran (stages, coarse grid, particle filter, beams).
     pub search: SearchOptions,
     /// The map: its area and perturbation.
     pub map: MapSummary,
+}
+
+/// How many of one cost's estimates lie on the boundary of the search volume.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BoundaryRow {
+    pub method: String,
+    pub queries: usize,
+    /// Estimates with `on_search_boundary` (see [`QueryResult`]).
+    pub on_search_boundary: usize,
 }
 
 /// Intrinsics scaled to `width_px` (height rounded to keep the aspect ratio).
@@ -952,6 +969,7 @@ impl<'q> QuerySetup<'q> {
                 coarse_score: 0.0,
                 hypotheses_scored: 0,
                 stages: Default::default(),
+                on_boundary: false,
             }
         } else {
             match search::search(
@@ -994,6 +1012,7 @@ impl<'q> QuerySetup<'q> {
             covered_frame_cells: qf.covered_frame_cells(),
             buildings_considered: self.buildings,
             stages: r.stages,
+            on_search_boundary: r.on_boundary,
         };
         Localized { result, estimate: est }
     }
@@ -1028,6 +1047,7 @@ pub fn summarise(
     };
     let (mut instance_buckets, mut coverage_buckets) = (Vec::new(), Vec::new());
     let mut axis_rows = Vec::new();
+    let mut boundary_rows = Vec::new();
     let mut push_rows = |method: &str, errs: &[(f64, f64, &str)]| {
         for g in &groups {
             let e: Vec<(f64, f64)> = errs.iter().filter(|e| e.2 == *g).map(|e| (e.0, e.1)).collect();
@@ -1081,6 +1101,11 @@ pub fn summarise(
             .map(|r| (r.axial_error_m, r.lateral_error_m, r.translation_error_m, r.rotation_error_deg))
             .collect();
         axis_rows.push(metrics::axis_row(&name, &split));
+        boundary_rows.push(BoundaryRow {
+            method: name.clone(),
+            queries: split.len(),
+            on_search_boundary: results.iter().filter(|r| r.cost == kind && r.on_search_boundary).count(),
+        });
     }
     let secs: Vec<f64> = results.iter().map(|r| r.seconds).collect();
     // One setup per query, shared by its costs.
@@ -1096,9 +1121,27 @@ pub fn summarise(
         instance_buckets,
         coverage_buckets,
         axis_rows,
+        boundary_rows,
         search: search.clone(),
         map: map.clone(),
     }
+}
+
+/// The search volume in words, for `summary.md`.
+fn bounds_text(b: &search::SearchBounds) -> String {
+    format!(
+        "within {:.1} m of the prior horizontally, {:.1} m in height and {:.1}° in yaw; {}",
+        b.radius_m, b.height_m, b.yaw_deg, b.origin
+    )
+}
+
+/// The boundary rows as Markdown.
+fn boundary_markdown(rows: &[BoundaryRow]) -> String {
+    let mut s = String::from("| method | queries | on the boundary |\n|---|---:|---:|\n");
+    for r in rows {
+        s.push_str(&format!("| {} | {} | {} |\n", r.method, r.queries, r.on_search_boundary));
+    }
+    s
 }
 
 /// The file name of the estimated poses of cost `kind`: `est_poses_<cost>.txt`.
@@ -1143,7 +1186,8 @@ pub fn write_outputs(out_dir: &Path, outputs: &Outputs) -> Result<(), EvalError>
          more); {:.0} hypotheses/s.\n\n{}\nRecall at (2 m, 2°) by the number of query instances:\n\n{}\n\
          Recall at (2 m, 2°) by how many of the frame's 4 × 4 cells hold buildings (silhouettes crowded into one \
          part of the frame leave the depth along the axis weakly observed):\n\n{}\n\
-         Translation errors along the ground truth's viewing direction (axial) and across it (lateral):\n\n{}",
+         Translation errors along the ground truth's viewing direction (axial) and across it (lateral):\n\n{}\n\
+         Estimates on the boundary of the search volume around the prior ({}):\n\n{}",
         out_dir.display(),
         summary.queries,
         summary.median_seconds_per_query,
@@ -1152,7 +1196,9 @@ pub fn write_outputs(out_dir: &Path, outputs: &Outputs) -> Result<(), EvalError>
         metrics::markdown(&summary.rows),
         metrics::bucket_markdown("query instances", &summary.instance_buckets),
         metrics::bucket_markdown("frame cells with buildings", &summary.coverage_buckets),
-        metrics::axis_markdown(&summary.axis_rows)
+        metrics::axis_markdown(&summary.axis_rows),
+        bounds_text(&summary.search.bounds),
+        boundary_markdown(&summary.boundary_rows)
     );
     util::write_bytes_atomic(&out_dir.join("summary.md"), md.as_bytes())?;
     Ok(())

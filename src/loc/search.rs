@@ -13,6 +13,7 @@ use serde::{Deserialize, Serialize};
 
 use std::time::Instant;
 
+use crate::camera::config::PriorNoise;
 use crate::camera::Pose;
 use glam::DVec3;
 
@@ -26,6 +27,177 @@ pub struct Hypothesis {
 impl Hypothesis {
     pub fn pose(&self, pitch_deg: f64, roll_deg: f64) -> Pose {
         Pose::from_ypr_deg(self.yaw_deg, pitch_deg, roll_deg, self.centre_m)
+    }
+}
+
+/// The volume every stage of the search keeps to, centred on the prior: the camera centre within
+/// `radius_m` of the prior's horizontally and `height_m` of its height, the yaw within `yaw_deg` of
+/// the prior's. Pitch and roll are not searched (they stay the prior's, the IMU's gravity), so the
+/// volume needs no range for them.
+///
+/// A cost can have a degenerate optimum far from any pose the prior allows (issue 40: the merged
+/// instances on learned masks of an unseen city pulled the particle filter and the polish 113–517 m
+/// from the truth, with the coarse stage 17–28 m from it); no stage may follow it there. The coarse
+/// grid leaves out its cells outside the volume, the particle filter's draws and the polish's points
+/// are projected onto it (the nearest pose inside: a draw inside is left bit for bit as it was, so a
+/// search that never reaches the boundary runs exactly as an unbounded one), and the basins start
+/// from coarse cells. [`SearchResult::on_boundary`] says when the estimate ends on the boundary.
+///
+/// # Units
+/// Metres and degrees, each a half-range about the prior.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SearchBounds {
+    /// Largest horizontal distance of the camera centre from the prior's, metres.
+    pub radius_m: f64,
+    /// Largest difference from the prior's height, metres.
+    pub height_m: f64,
+    /// Largest difference from the prior's yaw, degrees (at most 180).
+    pub yaw_deg: f64,
+    /// How the bounds were set (the prior noise model they were derived from, or the flags).
+    #[serde(default)]
+    pub origin: String,
+}
+
+/// The default half-ranges of [`SearchBounds`] in standard deviations of the prior's noise: the
+/// prior error exceeds 4σ along one axis with a probability of 6·10⁻⁵, and its horizontal error
+/// exceeds 4 × its RMS, 4·√(σ_e² + σ_n²), with exp(−16) ≈ 10⁻⁷ (isotropic, Rayleigh).
+pub const PRIOR_SIGMA_MULTIPLE: f64 = 4.0;
+
+/// Floors of the derived [`SearchBounds`] (metres, metres, degrees), so that a nearly exact prior
+/// (σ → 0) still leaves the coarse grid's centre cells and the filter's steps some room.
+pub const MIN_SEARCH_BOUNDS: (f64, f64, f64) = (10.0, 5.0, 2.0);
+
+/// An estimate this close to the boundary, as a share of the half-range, counts as on it
+/// ([`SearchBounds::on_boundary`]).
+pub const BOUNDARY_TOLERANCE: f64 = 0.02;
+
+impl Default for SearchBounds {
+    /// Derived from the default prior noise model ([`PriorNoise::default`]: σ = 7, 7, 5 m, 3°):
+    /// 39.6 m, 20 m, 12°.
+    fn default() -> Self {
+        SearchBounds::from_prior_noise(&PriorNoise::default(), "the default prior noise model")
+    }
+}
+
+impl SearchBounds {
+    /// The bounds [`PRIOR_SIGMA_MULTIPLE`] standard deviations wide around the prior, plus the
+    /// model's bias (the prior is off by it on average), at least [`MIN_SEARCH_BOUNDS`]:
+    /// radius = |bias_en| + 4·√(σ_e² + σ_n²), height = |bias_u| + 4·σ_u, yaw = |bias_yaw| + 4·σ_yaw.
+    /// `source` names where the model came from (for [`SearchBounds::origin`]).
+    pub fn from_prior_noise(noise: &PriorNoise, source: &str) -> Self {
+        let k = PRIOR_SIGMA_MULTIPLE;
+        let [se, sn, su] = noise.sigma_enu_m.map(|s| if s.is_finite() { s.abs() } else { 0.0 });
+        let [be, bn, bu] = noise.bias_enu_m.map(|b| if b.is_finite() { b } else { 0.0 });
+        let (sy, by) = (noise.sigma_ypr_deg[0], noise.bias_ypr_deg[0]);
+        let (sy, by) = (if sy.is_finite() { sy.abs() } else { 0.0 }, if by.is_finite() { by } else { 0.0 });
+        let (min_r, min_h, min_y) = MIN_SEARCH_BOUNDS;
+        SearchBounds {
+            radius_m: (be.hypot(bn) + k * se.hypot(sn)).max(min_r),
+            height_m: (bu.abs() + k * su).max(min_h),
+            yaw_deg: (by.abs() + k * sy).clamp(min_y, 180.0),
+            origin: format!(
+                "{k}σ of {source} (σ = {se}, {sn}, {su} m, yaw {sy}°; bias {be}, {bn}, {bu} m, {by}°)"
+            ),
+        }
+    }
+
+    /// The volume these bounds give around `prior`.
+    pub fn around(&self, prior: Hypothesis) -> Volume {
+        Volume { prior, radius_m: self.radius_m, height_m: self.height_m, yaw_deg: self.yaw_deg }
+    }
+
+    /// Checks the half-ranges: each positive (not NaN), the yaw's at most 180°.
+    ///
+    /// # Errors
+    /// A message naming the half-range and its value.
+    pub fn validate(&self) -> Result<(), String> {
+        for (name, v) in [("radius", self.radius_m), ("height", self.height_m), ("yaw", self.yaw_deg)] {
+            if v.is_nan() || v <= 0.0 {
+                return Err(format!("search {name} {v}: a half-range is > 0"));
+            }
+        }
+        if self.yaw_deg > 180.0 {
+            return Err(format!("search yaw {}°: at most 180°", self.yaw_deg));
+        }
+        Ok(())
+    }
+}
+
+/// [`SearchBounds`] placed around a prior: the poses a search may score.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Volume {
+    pub prior: Hypothesis,
+    /// Half-ranges as in [`SearchBounds`]: metres, metres, degrees.
+    pub radius_m: f64,
+    pub height_m: f64,
+    pub yaw_deg: f64,
+}
+
+impl Volume {
+    /// No bounds around `prior` (every pose is inside); for tests of the stages alone.
+    pub fn unbounded(prior: Hypothesis) -> Self {
+        Volume { prior, radius_m: f64::INFINITY, height_m: f64::INFINITY, yaw_deg: f64::INFINITY }
+    }
+
+    /// The offsets of `h` from the prior: horizontal distance (m), height (m), yaw (degrees, the
+    /// plain difference: the search never wraps yaw).
+    fn offsets(&self, h: &Hypothesis) -> (f64, f64, f64) {
+        let d = h.centre_m - self.prior.centre_m;
+        (d.x.hypot(d.y), d.z, h.yaw_deg - self.prior.yaw_deg)
+    }
+
+    /// Whether `h` lies inside (boundary included).
+    pub fn contains(&self, h: &Hypothesis) -> bool {
+        let (r, dz, dyaw) = self.offsets(h);
+        r <= self.radius_m && dz.abs() <= self.height_m && dyaw.abs() <= self.yaw_deg
+    }
+
+    /// The pose inside nearest to `h` in each of the horizontal position, the height and the yaw;
+    /// `h` itself, bit for bit, when it is inside. A NaN coordinate becomes the prior's.
+    pub fn project(&self, h: Hypothesis) -> Hypothesis {
+        if self.contains(&h) {
+            return h;
+        }
+        // Onto the boundary less a part in 10⁹ of each half-range, so that rounding keeps the
+        // projection inside.
+        let inner = 1.0 - 1e-9;
+        let (r, dz, dyaw) = self.offsets(&h);
+        let (p, c) = (self.prior.centre_m, h.centre_m);
+        let (x, y) = if r <= self.radius_m {
+            (c.x, c.y)
+        } else if r.is_finite() {
+            let s = self.radius_m * inner / r;
+            (p.x + (c.x - p.x) * s, p.y + (c.y - p.y) * s)
+        } else {
+            (p.x, p.y)
+        };
+        let clamp = |v: f64, half: f64| {
+            if v.is_nan() {
+                0.0
+            } else if v.abs() <= half {
+                v
+            } else {
+                v.clamp(-half * inner, half * inner)
+            }
+        };
+        let out = Hypothesis {
+            centre_m: DVec3::new(x, y, p.z + clamp(dz, self.height_m)),
+            yaw_deg: self.prior.yaw_deg + clamp(dyaw, self.yaw_deg),
+        };
+        // Only coordinates too large for a metre's precision could still round outside.
+        if self.contains(&out) {
+            out
+        } else {
+            self.prior
+        }
+    }
+
+    /// Whether `h` lies on the boundary, within [`BOUNDARY_TOLERANCE`] of a half-range from it, or
+    /// outside, in any of the horizontal position, height and yaw.
+    pub fn on_boundary(&self, h: &Hypothesis) -> bool {
+        let (r, dz, dyaw) = self.offsets(h);
+        let near = |v: f64, half: f64| v.is_nan() || v >= half * (1.0 - BOUNDARY_TOLERANCE);
+        near(r, self.radius_m) || near(dz.abs(), self.height_m) || near(dyaw.abs(), self.yaw_deg)
     }
 }
 
@@ -254,6 +426,9 @@ pub struct SearchOptions {
     pub coarse: CoarseParams,
     pub fine: FineParams,
     pub stages: Stages,
+    /// The volume around the prior every stage keeps to.
+    #[serde(default)]
+    pub bounds: SearchBounds,
 }
 
 impl Default for SearchOptions {
@@ -262,6 +437,7 @@ impl Default for SearchOptions {
             coarse: CoarseParams::default(),
             fine: FineParams::default(),
             stages: Stages::CoarseAndFine,
+            bounds: SearchBounds::default(),
         }
     }
 }
@@ -278,6 +454,11 @@ pub struct SearchResult {
     /// Hypotheses and seconds per stage (where a query's time goes).
     #[serde(default)]
     pub stages: StageCosts,
+    /// Whether `best` lies on the boundary of [`SearchOptions::bounds`] (or within
+    /// [`BOUNDARY_TOLERANCE`] of it): the cost's optimum may lie beyond, where the prior says the
+    /// camera cannot be.
+    #[serde(default)]
+    pub on_boundary: bool,
 }
 
 /// Hypotheses scored and wall-clock seconds spent scoring them in one stage of the search.
@@ -364,10 +545,12 @@ pub fn search<E: Evaluate>(
     let (coarse, fine) = (&opts.coarse, &opts.fine);
     let select = matches!(opts.stages, Stages::CoarseAndFine | Stages::CoarseOnly);
     let refine = matches!(opts.stages, Stages::CoarseAndFine | Stages::FineOnly);
+    let volume = opts.bounds.around(prior);
     let mut counter = Counted::default();
-    // Coarse stage.
+    // Coarse stage: the grid's cells inside the volume (the prior's own cell always is).
     let ranked: Vec<(Hypothesis, f64)> = if select {
-        let grid = coarse_grid(&prior, coarse);
+        let mut grid = coarse_grid(&prior, coarse);
+        grid.retain(|h| volume.contains(h));
         let s = counter.run(coarse_eval, &grid, Stage::Coarse)?;
         rank(grid.into_iter().zip(s).collect())
     } else {
@@ -375,120 +558,42 @@ pub fn search<E: Evaluate>(
         vec![(prior, s[0])]
     };
     let (coarse_best, coarse_score) = ranked[0];
-    if !refine {
-        return Ok(SearchResult {
-            best: coarse_best,
-            best_score: coarse_score,
-            coarse_best,
-            coarse_score,
-            hypotheses_scored: counter.scored,
-            stages: counter.stages,
-        });
-    }
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let (mut best, mut best_score) = match fine.beams_mode {
-        BeamMode::Joint => {
-            let keep = (fine.beams * fine.keep_per_beam).max(1) as usize;
-            let mut pool = ranked;
-            pool.truncate(keep);
-            while pool.len() < keep {
-                pool.push(pool[0]);
+    let (mut best, mut best_score) = (coarse_best, coarse_score);
+    if refine {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut filter = Filter { counter: &mut counter, fine, volume, rng: &mut rng };
+        (best, best_score) = match fine.beams_mode {
+            BeamMode::Joint => {
+                let keep = (fine.beams * fine.keep_per_beam).max(1) as usize;
+                let mut pool = ranked;
+                pool.truncate(keep);
+                while pool.len() < keep {
+                    pool.push(pool[0]);
+                }
+                filter.particle_filter(coarse_eval, eval, pool, keep)?[0]
             }
-            let pool = particle_filter(&mut counter, coarse_eval, eval, fine, pool, keep, &mut rng)?;
-            pool[0]
-        }
-        BeamMode::Basins { count, survivors, prune } => {
-            let keep = fine.keep_per_beam.max(1) as usize;
-            let seeds = distinct_basins(&ranked, coarse, count.max(1) as usize);
-            let n_iter = fine.iterations.max(1);
-            let lowres = fine.lowres_iterations();
-            // Each basin refined on its own at the coarse resolution, from its own cell plus the grid
-            // neighbours that follow it in the ranking.
-            let mut beams: Vec<Vec<(Hypothesis, f64)>> = seeds
-                .iter()
-                .map(|seed_cell| {
-                    let mut pool: Vec<(Hypothesis, f64)> = ranked
-                        .iter()
-                        .filter(|(h, _)| neighbours(h, seed_cell, coarse))
-                        .take(keep)
-                        .copied()
-                        .collect();
-                    while pool.len() < keep {
-                        pool.push(pool[0]);
-                    }
-                    pool
-                })
-                .collect();
-            if beams.len() == 1 {
-                let pool = beams.remove(0);
-                particle_filter(&mut counter, coarse_eval, eval, fine, pool, keep, &mut rng)?[0]
-            } else {
-                // The early judgement, if any and before the switch, then the one at the switch.
-                let mut done = 0;
-                let mut judgements: Vec<(u32, usize)> = Vec::with_capacity(2);
-                if let Some(p) = prune {
-                    if p.after_iterations < lowres && (p.keep.max(1) as usize) < beams.len() {
-                        judgements.push((p.after_iterations, p.keep.max(1) as usize));
-                    }
-                }
-                judgements.push((lowres, survivors.max(1) as usize));
-                let mut judged: Vec<Judged> = Vec::new();
-                for (at, kept) in judgements {
-                    for pool in &mut beams {
-                        *pool = filter_iterations(
-                            &mut counter,
-                            coarse_eval,
-                            Stage::FilterCoarseWidth,
-                            fine,
-                            std::mem::take(pool),
-                            keep,
-                            done,
-                            at,
-                            &mut rng,
-                        )?;
-                    }
-                    done = at;
-                    // The fine resolution judges the basins: each beam's poses re-scored there, the
-                    // best `kept` beams go on.
-                    judged = judge(&mut counter, eval, std::mem::take(&mut beams))?;
-                    judged.truncate(kept);
-                    beams = judged.iter().map(|(coarse_pool, _)| coarse_pool.clone()).collect();
-                }
-                let mut finals = Vec::with_capacity(judged.len());
-                for (_, pool) in judged {
-                    let pool = filter_iterations(
-                        &mut counter,
-                        eval,
-                        Stage::FilterRenderWidth,
-                        fine,
-                        pool,
-                        keep,
-                        lowres,
-                        n_iter,
-                        &mut rng,
-                    )?;
-                    finals.push(pool[0]);
-                }
-                rank(finals)[0]
+            BeamMode::Basins { count, survivors, prune } => {
+                filter.basins(coarse_eval, eval, &ranked, coarse, (count, survivors, prune))?
             }
-        }
-    };
-    if fine.polish {
-        let started = Instant::now();
-        // First to the optimum of the filter's cost, then, if the polish's cost differs, to its
-        // optimum from there (the first pass makes the fit of the silhouette offset and the second
-        // start as good as the filter's cost can).
-        let (b, sc, mut n) = polish(eval, best, best_score, pivot_m, 1.0)?;
-        (best, best_score) = (b, sc);
-        let (fitted, changed) = eval.enter_polish(&best, &fine.polish_cost)?;
-        n += fitted;
-        if changed {
-            best_score = eval.evaluate(&[best])?[0];
-            let (b, sc, n2) = polish(eval, best, best_score, pivot_m, SECOND_PASS_SIMPLEX_SCALE)?;
+        };
+        if fine.polish {
+            let started = Instant::now();
+            // First to the optimum of the filter's cost, then, if the polish's cost differs, to its
+            // optimum from there (the first pass makes the fit of the silhouette offset and the
+            // second start as good as the filter's cost can).
+            let (b, sc, mut n) = polish(eval, best, best_score, pivot_m, 1.0, &volume)?;
             (best, best_score) = (b, sc);
-            n += n2 + 1;
+            let (fitted, changed) = eval.enter_polish(&best, &fine.polish_cost)?;
+            n += fitted;
+            if changed {
+                best_score = eval.evaluate(&[best])?[0];
+                let (b, sc, n2) =
+                    polish(eval, best, best_score, pivot_m, SECOND_PASS_SIMPLEX_SCALE, &volume)?;
+                (best, best_score) = (b, sc);
+                n += n2 + 1;
+            }
+            counter.charge(Stage::Polish, n, started.elapsed().as_secs_f64());
         }
-        counter.charge(Stage::Polish, n, started.elapsed().as_secs_f64());
     }
     Ok(SearchResult {
         best,
@@ -497,27 +602,120 @@ pub fn search<E: Evaluate>(
         coarse_score,
         hypotheses_scored: counter.scored,
         stages: counter.stages,
+        on_boundary: volume.on_boundary(&best),
     })
 }
 
-/// Iterations `from..to` of the particle filter, all scored by `eval` at `stage`'s width (`pool`
-/// already scored by it).
-#[allow(clippy::too_many_arguments)]
-fn filter_iterations<E: Evaluate>(
-    counter: &mut Counted,
-    eval: &mut E,
-    stage: Stage,
-    fine: &FineParams,
-    mut pool: Vec<(Hypothesis, f64)>,
-    keep: usize,
-    from: u32,
-    to: u32,
-    rng: &mut ChaCha8Rng,
-) -> Result<Vec<(Hypothesis, f64)>, E::Error> {
-    for i in from..to {
-        pool = iterate(counter, eval, stage, fine, pool, keep, i, rng)?;
+/// What the particle filter's iterations share: the counter, the parameters, the volume its draws
+/// are projected onto and the random stream.
+struct Filter<'a> {
+    counter: &'a mut Counted,
+    fine: &'a FineParams,
+    volume: Volume,
+    rng: &'a mut ChaCha8Rng,
+}
+
+impl Filter<'_> {
+    /// Iterations `from..to` of the particle filter, all scored by `eval` at `stage`'s width
+    /// (`pool` already scored by it).
+    fn iterations<E: Evaluate>(
+        &mut self,
+        eval: &mut E,
+        stage: Stage,
+        mut pool: Pool,
+        keep: usize,
+        (from, to): (u32, u32),
+    ) -> Result<Pool, E::Error> {
+        for i in from..to {
+            pool = iterate(self.counter, eval, stage, self.fine, pool, keep, i, self.rng, &self.volume)?;
+        }
+        Ok(pool)
     }
-    Ok(pool)
+
+    /// The particle filter (the paper's) from `pool` (scored by `coarse_eval`), switching to `eval`
+    /// after [`FineParams::lowres_iterations`]; the pool comes back scored by `eval`, ranked best
+    /// first.
+    fn particle_filter<E: Evaluate>(
+        &mut self,
+        coarse_eval: &mut E,
+        eval: &mut E,
+        pool: Pool,
+        keep: usize,
+    ) -> Result<Pool, E::Error> {
+        let n_iter = self.fine.iterations.max(1);
+        let lowres = self.fine.lowres_iterations();
+        // Scores in `pool` come from the coarse evaluator until they are re-scored at the fine one.
+        let pool = self.iterations(coarse_eval, Stage::FilterCoarseWidth, pool, keep, (0, lowres))?;
+        let hyps: Vec<Hypothesis> = pool.iter().map(|p| p.0).collect();
+        let s = self.counter.run(eval, &hyps, Stage::FilterRenderWidth)?;
+        let pool = rank(hyps.into_iter().zip(s).collect());
+        self.iterations(eval, Stage::FilterRenderWidth, pool, keep, (lowres, n_iter))
+    }
+
+    /// [`BeamMode::Basins`] with its (count, survivors, prune): each distinct basin of the coarse
+    /// grid's `ranked` cells refined on its own at the coarse resolution, from its own cell plus the
+    /// grid neighbours that follow it in the ranking; judged at the fine resolution (early with
+    /// `prune`, then at the switch); the survivors refined on there. Returns the best pose.
+    fn basins<E: Evaluate>(
+        &mut self,
+        coarse_eval: &mut E,
+        eval: &mut E,
+        ranked: &[(Hypothesis, f64)],
+        coarse: &CoarseParams,
+        (count, survivors, prune): (u32, u32, Option<Prune>),
+    ) -> Result<(Hypothesis, f64), E::Error> {
+        let keep = self.fine.keep_per_beam.max(1) as usize;
+        let seeds = distinct_basins(ranked, coarse, count.max(1) as usize);
+        let n_iter = self.fine.iterations.max(1);
+        let lowres = self.fine.lowres_iterations();
+        let mut beams: Vec<Pool> = seeds
+            .iter()
+            .map(|seed_cell| {
+                let mut pool: Pool = ranked
+                    .iter()
+                    .filter(|(h, _)| neighbours(h, seed_cell, coarse))
+                    .take(keep)
+                    .copied()
+                    .collect();
+                while pool.len() < keep {
+                    pool.push(pool[0]);
+                }
+                pool
+            })
+            .collect();
+        if beams.len() == 1 {
+            let pool = beams.remove(0);
+            return Ok(self.particle_filter(coarse_eval, eval, pool, keep)?[0]);
+        }
+        // The early judgement, if any and before the switch, then the one at the switch.
+        let mut done = 0;
+        let mut judgements: Vec<(u32, usize)> = Vec::with_capacity(2);
+        if let Some(p) = prune {
+            if p.after_iterations < lowres && (p.keep.max(1) as usize) < beams.len() {
+                judgements.push((p.after_iterations, p.keep.max(1) as usize));
+            }
+        }
+        judgements.push((lowres, survivors.max(1) as usize));
+        let mut judged: Vec<Judged> = Vec::new();
+        for (at, kept) in judgements {
+            for pool in &mut beams {
+                let taken = std::mem::take(pool);
+                *pool = self.iterations(coarse_eval, Stage::FilterCoarseWidth, taken, keep, (done, at))?;
+            }
+            done = at;
+            // The fine resolution judges the basins: each beam's poses re-scored there, the best
+            // `kept` beams go on.
+            judged = judge(self.counter, eval, std::mem::take(&mut beams))?;
+            judged.truncate(kept);
+            beams = judged.iter().map(|(coarse_pool, _)| coarse_pool.clone()).collect();
+        }
+        let mut finals = Vec::with_capacity(judged.len());
+        for (_, pool) in judged {
+            let pool = self.iterations(eval, Stage::FilterRenderWidth, pool, keep, (lowres, n_iter))?;
+            finals.push(pool[0]);
+        }
+        Ok(rank(finals)[0])
+    }
 }
 
 /// A beam's poses with their scores, best first.
@@ -601,31 +799,9 @@ pub fn distinct_basins(ranked: &[(Hypothesis, f64)], p: &CoarseParams, count: us
     kept
 }
 
-/// The particle filter (the paper's) from `pool` (scored by `coarse_eval`), switching to `eval` after
-/// [`FineParams::lowres_iterations`]; the pool comes back scored by `eval`, ranked best first.
-#[allow(clippy::too_many_arguments)]
-fn particle_filter<E: Evaluate>(
-    counter: &mut Counted,
-    coarse_eval: &mut E,
-    eval: &mut E,
-    fine: &FineParams,
-    pool: Vec<(Hypothesis, f64)>,
-    keep: usize,
-    rng: &mut ChaCha8Rng,
-) -> Result<Vec<(Hypothesis, f64)>, E::Error> {
-    let n_iter = fine.iterations.max(1);
-    let lowres = fine.lowres_iterations();
-    // Scores in `pool` come from the coarse evaluator until they are re-scored at the fine one.
-    let pool =
-        filter_iterations(counter, coarse_eval, Stage::FilterCoarseWidth, fine, pool, keep, 0, lowres, rng)?;
-    let hyps: Vec<Hypothesis> = pool.iter().map(|p| p.0).collect();
-    let s = counter.run(eval, &hyps, Stage::FilterRenderWidth)?;
-    let pool = rank(hyps.into_iter().zip(s).collect());
-    filter_iterations(counter, eval, Stage::FilterRenderWidth, fine, pool, keep, lowres, n_iter, rng)
-}
-
 /// One particle-filter iteration: `perturbations` draws around every pose of `pool` at the decayed
-/// scale s = max(γ, (n − i)/n), scored by `eval`; the best `keep` of old and new go on.
+/// scale s = max(γ, (n − i)/n), projected onto `volume`, scored by `eval`; the best `keep` of old and
+/// new go on.
 #[allow(clippy::too_many_arguments)]
 fn iterate<E: Evaluate>(
     counter: &mut Counted,
@@ -636,6 +812,7 @@ fn iterate<E: Evaluate>(
     keep: usize,
     i: u32,
     rng: &mut ChaCha8Rng,
+    volume: &Volume,
 ) -> Result<Vec<(Hypothesis, f64)>, E::Error> {
     let unit = Normal::new(0.0, 1.0).expect("σ = 1 is valid");
     let n_iter = fine.iterations.max(1);
@@ -643,14 +820,16 @@ fn iterate<E: Evaluate>(
     let mut fresh: Vec<Hypothesis> = Vec::with_capacity(pool.len() * fine.perturbations as usize);
     for &(h, _) in &pool {
         for _ in 0..fine.perturbations {
-            fresh.push(Hypothesis {
+            // A draw outside the volume is projected onto it (one draw per draw: the random stream
+            // is the same as without bounds).
+            fresh.push(volume.project(Hypothesis {
                 centre_m: DVec3::new(
                     h.centre_m[0] + fine.sigma_m * s * unit.sample(rng),
                     h.centre_m[1] + fine.sigma_m * s * unit.sample(rng),
                     h.centre_m[2] + fine.sigma_m * s * unit.sample(rng),
                 ),
                 yaw_deg: h.yaw_deg + rng.gen_range(-1.0..=1.0) * fine.yaw_deg * s,
-            });
+            }));
         }
     }
     let scores = counter.run(eval, &fresh, stage)?;
@@ -708,7 +887,8 @@ pub const SIMPLEX_STEP: (f64, f64) = (1.0, 0.2);
 /// particle filter are narrow and diagonal (the camera moved along its optical axis while yaw and
 /// sideways motion trade off, issue 15), where moves along fixed directions stall; a simplex adapts
 /// its shape to them. Coordinates are scaled by [`SIMPLEX_STEP`] so that 1 m and 0.2° weigh the
-/// same. Returns the best, its score, evaluations.
+/// same. Every vertex is kept in `volume` (projected onto it). Returns the best, its score,
+/// evaluations.
 ///
 /// The budget counts the evaluations the method uses. Where the evaluator scores pairs in parallel
 /// ([`Evaluate::scores_pairs_in_parallel`]), every reflection is scored together with the inside
@@ -725,19 +905,29 @@ pub fn simplex<E: Evaluate>(
     start_score: f64,
     max_evals: u32,
     scale: f64,
+    volume: &Volume,
 ) -> Result<(Hypothesis, f64, u64), E::Error> {
     let (sm, sd) = SIMPLEX_STEP;
-    let to_h = |v: [f64; 4]| Hypothesis {
+    let raw = |v: [f64; 4]| Hypothesis {
         centre_m: DVec3::new(v[0] * sm, v[1] * sm, v[2] * sm),
         yaw_deg: v[3] * sd,
     };
-    let x0 = [start.centre_m[0] / sm, start.centre_m[1] / sm, start.centre_m[2] / sm, start.yaw_deg / sd];
+    let from_h = |h: Hypothesis| [h.centre_m[0] / sm, h.centre_m[1] / sm, h.centre_m[2] / sm, h.yaw_deg / sd];
+    // Every point scored lies in the volume, and a vertex outside it is moved onto it, so that the
+    // simplex never leaves it; inside, both are the identity.
+    let to_h = |v: [f64; 4]| volume.project(raw(v));
+    let inside = |v: [f64; 4]| if volume.contains(&raw(v)) { v } else { from_h(volume.project(raw(v))) };
+    let x0 = from_h(start);
     let mut pts: Vec<([f64; 4], f64)> = vec![(x0, start_score)];
     let verts: Vec<[f64; 4]> = (0..4)
         .map(|k| {
             let mut v = x0;
             v[k] += scale;
-            v
+            // On the boundary, the first simplex extends inwards rather than collapsing onto it.
+            if !volume.contains(&raw(v)) {
+                v[k] = x0[k] - scale;
+            }
+            inside(v)
         })
         .collect();
     let s = eval.evaluate(&verts.iter().map(|v| to_h(*v)).collect::<Vec<_>>())?;
@@ -759,8 +949,8 @@ pub fn simplex<E: Evaluate>(
             Ok(eval.evaluate(&[to_h(v)])?[0])
         };
         // Reflection through the centroid of the others, and the inside contraction.
-        let xr = lerp(centroid, worst.0, -1.0);
-        let xi = lerp(centroid, worst.0, 0.5);
+        let xr = inside(lerp(centroid, worst.0, -1.0));
+        let xi = inside(lerp(centroid, worst.0, 0.5));
         let (fr, fi) = if speculate {
             let s = eval.evaluate(&[to_h(xr), to_h(xi)])?;
             n += 1;
@@ -770,7 +960,7 @@ pub fn simplex<E: Evaluate>(
             (one(eval, xr, &mut n, &mut scored)?, None)
         };
         if fr > pts[0].1 {
-            let xe = lerp(centroid, worst.0, -2.0);
+            let xe = inside(lerp(centroid, worst.0, -2.0));
             let fe = one(eval, xe, &mut n, &mut scored)?;
             pts[4] = if fe > fr { (xe, fe) } else { (xr, fr) };
         } else if fr > pts[3].1 {
@@ -778,7 +968,7 @@ pub fn simplex<E: Evaluate>(
         } else {
             // Contraction (outside if the reflection beat the worst, else inside).
             let (xc, fc) = if fr > worst.1 {
-                let xo = lerp(centroid, xr, 0.5);
+                let xo = inside(lerp(centroid, xr, 0.5));
                 (xo, one(eval, xo, &mut n, &mut scored)?)
             } else if let Some(fi) = fi {
                 n += 1;
@@ -791,7 +981,7 @@ pub fn simplex<E: Evaluate>(
             } else {
                 // Shrink towards the best.
                 let best = pts[0].0;
-                let shrunk: Vec<[f64; 4]> = pts[1..].iter().map(|p| lerp(best, p.0, 0.5)).collect();
+                let shrunk: Vec<[f64; 4]> = pts[1..].iter().map(|p| inside(lerp(best, p.0, 0.5))).collect();
                 let s = eval.evaluate(&shrunk.iter().map(|v| to_h(*v)).collect::<Vec<_>>())?;
                 n += shrunk.len() as u64;
                 scored += shrunk.len() as u64;
@@ -841,7 +1031,8 @@ pub const POLISH_MOVES_PER_LEVEL: u32 = 10;
 /// cost — typically along the optical axis with yaw and sideways motion — is travelled in a few
 /// steps. The step halves when no move improves ([`POLISH_START_STEP`], [`POLISH_LEVELS`],
 /// [`POLISH_MOVES_PER_LEVEL`]). Before the moves, a [`simplex`] whose first simplex is
-/// `simplex_scale` × [`SIMPLEX_STEP`] wide. Returns the best, its score and the hypotheses scored.
+/// `simplex_scale` × [`SIMPLEX_STEP`] wide. Every point scored is projected onto `volume`. Returns the
+/// best, its score and the hypotheses scored.
 ///
 /// # Errors
 /// Whatever the evaluator returns.
@@ -851,8 +1042,9 @@ pub fn polish<E: Evaluate>(
     mut best_score: f64,
     pivot_m: Option<DVec3>,
     simplex_scale: f64,
+    volume: &Volume,
 ) -> Result<(Hypothesis, f64, u64), E::Error> {
-    let (b, sc, mut scored) = simplex(eval, best, best_score, SIMPLEX_EVALUATIONS, simplex_scale)?;
+    let (b, sc, mut scored) = simplex(eval, best, best_score, SIMPLEX_EVALUATIONS, simplex_scale, volume)?;
     (best, best_score) = (b, sc);
     let (mut step_m, mut step_deg) = POLISH_START_STEP;
     // Index of the strictly best score above `floor` (ties keep the current pose: deterministic, no
@@ -871,7 +1063,8 @@ pub fn polish<E: Evaluate>(
     };
     for _level in 0..POLISH_LEVELS {
         for _ in 0..POLISH_MOVES_PER_LEVEL {
-            let cand = moves(&best, step_m, step_deg, pivot_m);
+            let mut cand = moves(&best, step_m, step_deg, pivot_m);
+            cand.iter_mut().for_each(|h| *h = volume.project(*h));
             let s = eval.evaluate(&cand)?;
             scored += cand.len() as u64;
             let Some((i, v)) = best_above(&s, best_score) else { break };
@@ -883,9 +1076,11 @@ pub fn polish<E: Evaluate>(
             loop {
                 let pattern: Vec<Hypothesis> = [1.0, 3.0, 7.0]
                     .iter()
-                    .map(|k| Hypothesis {
-                        centre_m: best.centre_m + d * *k,
-                        yaw_deg: best.yaw_deg + dyaw * k,
+                    .map(|k| {
+                        volume.project(Hypothesis {
+                            centre_m: best.centre_m + d * *k,
+                            yaw_deg: best.yaw_deg + dyaw * k,
+                        })
                     })
                     .collect();
                 let s = eval.evaluate(&pattern)?;
@@ -1035,7 +1230,7 @@ mod tests {
         let run = |scale: f64| {
             let mut e = TwoBumps { far };
             let s0 = e.evaluate(&[start]).unwrap()[0];
-            polish(&mut e, start, s0, None, scale).unwrap()
+            polish(&mut e, start, s0, None, scale, &Volume::unbounded(start)).unwrap()
         };
         let (stuck, s_stuck, _) = run(1.0);
         assert!(stuck.centre_m.distance(start.centre_m) < 0.1, "1 m simplex left the near bump");
@@ -1081,7 +1276,7 @@ mod tests {
             let s0 = v.evaluate(&[start]).unwrap()[0];
             v.batches.clear();
             v.seen.clear();
-            let r = simplex(&mut v, start, s0, SIMPLEX_EVALUATIONS, 1.0).unwrap();
+            let r = simplex(&mut v, start, s0, SIMPLEX_EVALUATIONS, 1.0, &Volume::unbounded(start)).unwrap();
             (r, v)
         };
         let ((best, score, scored), plain) = run(false);
@@ -1259,5 +1454,145 @@ mod tests {
     #[test]
     fn default_fine_stage_has_52_candidates() {
         assert_eq!(FineParams::default().candidates_per_iteration(), 52);
+    }
+
+    mod bounds {
+        use super::*;
+
+        /// A degenerate cost: the higher the closer to `far`, everywhere (a ramp, no local optimum
+        /// near the prior); it records every hypothesis scored.
+        struct Ramp {
+            far: Hypothesis,
+            seen: Vec<Hypothesis>,
+        }
+
+        impl Evaluate for Ramp {
+            type Error = std::convert::Infallible;
+            fn evaluate(&mut self, hyps: &[Hypothesis]) -> Result<Vec<f64>, Self::Error> {
+                self.seen.extend_from_slice(hyps);
+                Ok(hyps
+                    .iter()
+                    .map(|h| -h.centre_m.distance(self.far.centre_m) - (h.yaw_deg - self.far.yaw_deg).abs())
+                    .collect())
+            }
+        }
+
+        /// No bounds: every pose inside.
+        fn unbounded() -> SearchBounds {
+            let inf = f64::INFINITY;
+            SearchBounds { radius_m: inf, height_m: inf, yaw_deg: inf, origin: "unbounded".into() }
+        }
+
+        fn prior() -> Hypothesis {
+            Hypothesis { centre_m: DVec3::new(100.0, -50.0, 300.0), yaw_deg: 30.0 }
+        }
+
+        #[test]
+        fn default_bounds_are_4_sigma_of_the_default_prior_noise() {
+            let b = SearchBounds::default();
+            // 4 × √(7² + 7²) m, 4 × 5 m, 4 × 3° (PriorNoise::default, by hand).
+            assert!((b.radius_m - 4.0 * 98f64.sqrt()).abs() < 1e-9, "{}", b.radius_m);
+            assert_eq!((b.height_m, b.yaw_deg), (20.0, 12.0));
+            assert!(b.validate().is_ok());
+            // The default coarse grid (corners at √(20² + 20²) = 28.3 m, ±10 m, ±7.5°) lies inside.
+            let v = b.around(prior());
+            assert!(coarse_grid(&prior(), &CoarseParams::default()).iter().all(|h| v.contains(h)));
+            // A bias widens them; an exact prior gets the floors.
+            let biased = PriorNoise {
+                bias_enu_m: [3.0, 4.0, -2.0],
+                bias_ypr_deg: [-1.0, 0.0, 0.0],
+                ..PriorNoise::default()
+            };
+            let b = SearchBounds::from_prior_noise(&biased, "test");
+            assert!((b.radius_m - 5.0 - 4.0 * 98f64.sqrt()).abs() < 1e-9);
+            assert_eq!((b.height_m, b.yaw_deg), (22.0, 13.0));
+            let exact =
+                PriorNoise { sigma_enu_m: [0.0; 3], sigma_ypr_deg: [0.0; 3], ..PriorNoise::default() };
+            let b = SearchBounds::from_prior_noise(&exact, "test");
+            assert_eq!((b.radius_m, b.height_m, b.yaw_deg), MIN_SEARCH_BOUNDS);
+        }
+
+        #[test]
+        fn projection_keeps_inside_poses_and_moves_outside_ones_onto_the_boundary() {
+            let v = SearchBounds { radius_m: 10.0, height_m: 5.0, yaw_deg: 2.0, origin: String::new() }
+                .around(prior());
+            let inside = Hypothesis { centre_m: DVec3::new(103.0, -46.0, 301.0), yaw_deg: 31.0 };
+            assert_eq!(v.project(inside), inside);
+            assert!(!v.on_boundary(&inside));
+            // 30 m east, 20 m up, 10° of yaw: onto 10 m east, 5 m up, 2°.
+            let out = Hypothesis { centre_m: DVec3::new(130.0, -50.0, 320.0), yaw_deg: 40.0 };
+            let p = v.project(out);
+            assert!(p.centre_m.distance(DVec3::new(110.0, -50.0, 305.0)) < 1e-6, "{p:?}");
+            assert!((p.yaw_deg - 32.0).abs() < 1e-6);
+            assert!(v.contains(&p) && v.on_boundary(&p));
+            // NaN coordinates become the prior's, and count as on the boundary.
+            let nan = Hypothesis { centre_m: DVec3::new(f64::NAN, 0.0, f64::NAN), yaw_deg: f64::NAN };
+            let p = v.project(nan);
+            assert_eq!(p, prior());
+            assert!(v.on_boundary(&nan));
+            let bad = SearchBounds { radius_m: 0.0, ..SearchBounds::default() };
+            assert!(bad.validate().unwrap_err().contains("radius 0"));
+            assert!(SearchBounds { yaw_deg: 200.0, ..SearchBounds::default() }.validate().is_err());
+        }
+
+        /// Issue 40: a cost whose optimum lies 300 m from the prior pulls no stage out of the volume;
+        /// the estimate ends on its boundary, flagged.
+        #[test]
+        fn issue_40_a_degenerate_optimum_300_m_away_cannot_pull_the_estimate_out() {
+            let far = Hypothesis { centre_m: DVec3::new(400.0, -50.0, 300.0), yaw_deg: 30.0 };
+            let modes = [
+                SearchOptions::default(),
+                SearchOptions { fine: FineParams::paper(), ..Default::default() },
+                SearchOptions { stages: Stages::FineOnly, ..Default::default() },
+                SearchOptions { stages: Stages::CoarseOnly, ..Default::default() },
+            ];
+            for opts in modes {
+                let (mut coarse, mut fine) = (Ramp { far, seen: Vec::new() }, Ramp { far, seen: Vec::new() });
+                let r = search(&mut coarse, &mut fine, prior(), &opts, 5, None).unwrap();
+                let v = opts.bounds.around(prior());
+                let outside = coarse.seen.iter().chain(&fine.seen).filter(|h| !v.contains(h)).count();
+                assert_eq!(outside, 0, "{:?}: hypotheses scored outside the volume", opts.stages);
+                assert!(v.contains(&r.best), "{:?}", r.best);
+                // The coarse grid alone ends at its own edge, inside the volume.
+                let coarse_only = opts.stages == Stages::CoarseOnly;
+                assert_eq!(r.on_boundary, !coarse_only, "{:?}: flag at {:?}", opts.stages, r.best);
+                // Towards the optimum: east, at the full radius (the coarse grid's edge at 20 m alone).
+                let reach_m = if opts.stages == Stages::CoarseOnly { 20.0 } else { v.radius_m };
+                assert!((r.best.centre_m.x - prior().centre_m.x - reach_m).abs() < 0.5, "{:?}", r.best);
+            }
+            // Unbounded, the same search follows the ramp out of the volume.
+            let opts = SearchOptions { bounds: unbounded(), ..Default::default() };
+            let r = search(
+                &mut Ramp { far, seen: Vec::new() },
+                &mut Ramp { far, seen: Vec::new() },
+                prior(),
+                &opts,
+                5,
+                None,
+            )
+            .unwrap();
+            assert!(
+                r.best.centre_m.distance(prior().centre_m) > SearchBounds::default().radius_m,
+                "{:?}",
+                r.best
+            );
+        }
+
+        #[test]
+        fn a_cost_whose_optimum_lies_well_inside_runs_as_if_unbounded() {
+            let target = Hypothesis { centre_m: DVec3::new(110.0, -55.0, 296.0), yaw_deg: 33.0 };
+            for stages in [Stages::CoarseAndFine, Stages::FineOnly] {
+                let run = |bounds: SearchBounds| {
+                    let opts = SearchOptions { stages, bounds, ..Default::default() };
+                    let b = || Bowl { target, calls: 0 };
+                    search(&mut b(), &mut b(), prior(), &opts, 11, None).unwrap()
+                };
+                let (bounded, free) = (run(SearchBounds::default()), run(unbounded()));
+                let key = |r: &SearchResult| (r.best, r.best_score, r.coarse_best, r.hypotheses_scored);
+                assert_eq!(key(&bounded), key(&free), "{stages:?}");
+                assert!(!bounded.on_boundary);
+                assert!(bounded.best.centre_m.distance(target.centre_m) < 0.5, "{:?}", bounded.best);
+            }
+        }
     }
 }

@@ -121,6 +121,10 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
     assert_eq!(summary["map"]["area"], "demo-test");
     assert!(summary["map"]["perturbation"].is_null());
     assert_eq!(summary["search"]["fine"]["beams_mode"]["kind"], "basins");
+    // Issue 40: the search volume around the prior is recorded; no estimate ends on its boundary.
+    assert!(summary["search"]["bounds"]["radius_m"].as_f64().unwrap() >= 10.0, "{}", summary["search"]);
+    assert!(oracle.iter().all(|r| r["on_search_boundary"] == false), "{oracle:?}");
+    assert_eq!(summary["boundary_rows"][0]["on_search_boundary"], 0, "{}", summary["boundary_rows"]);
     assert_eq!(rows[1]["recall_pct"][0].as_f64().unwrap(), 100.0, "{}", rows[1]);
     let md = std::fs::read_to_string(out.join("summary.md")).unwrap();
     assert!(md.contains("| prior |") && md.contains("| frame cells with buildings |"), "{md}");
