@@ -1,6 +1,8 @@
 //! The 4-DoF pose search: a coarse grid around the prior, then the particle-filter refinement of the
 //! LoD-Loc v2/v3 framework (parameters as in ../shared/SPEC.md). Pitch and roll come from the prior
 //! (the IMU gives gravity); x, y, z and yaw are searched.
+//! Every stage keeps to a volume around the prior derived from its uncertainty ([`SearchBounds`]), so
+//! that a degenerate cost cannot pull the estimate where the prior says the camera cannot be.
 //!
 //! The search is generic over an [`Evaluate`] implementation that scores a batch of poses (higher is
 //! better), so the renderer, the cost and the search are tested separately. It is deterministic for a
