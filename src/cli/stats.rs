@@ -8,10 +8,12 @@ use crate::coco::export::{read_json, Split};
 use crate::coco::format::Dataset;
 use crate::coco::stats::{self, ReportOptions};
 
-/// Summarise a COCO export: images, instances per image, size classes, buildings seen per area.
+/// Summarise a COCO export: images, instances per image, size classes, buildings seen per area, and per
+/// area statistics that predict learnability (touching-neighbour boundaries, their colour contrast,
+/// instance sizes, masks split by occluders).
 ///
-/// Reads instances_{train,val,test}.json from the COCO directory (those present) and the images they
-/// name (for the contact sheet, found through `info.image_root`). Writes stats.md, stats.json,
+/// Reads instances_{train,val,test}.json from the COCO directory (those present) and the images and ID
+/// maps they name (found through `info.image_root`; those not on disk are skipped). Writes stats.md, stats.json,
 /// hist_instances_per_image.png, hist_sizes.png and contact_sheet.png into the same directory.
 #[derive(Debug, Clone, clap::Args)]
 #[command(after_long_help = "Examples:\n  insgen stats --coco runs/coco\n  \
@@ -51,7 +53,8 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     let image_root =
         if std::path::Path::new(root).is_absolute() { PathBuf::from(root) } else { dir.join(root) };
     let refs: Vec<_> = datasets.iter().map(|(s, d)| (*s, d)).collect();
-    let st = stats::compute(&refs);
+    let st = stats::compute(&refs, &image_root)
+        .with_context(|| format!("computing the statistics of {}", dir.display()))?;
     let files = stats::write_report(
         &st,
         &refs,

@@ -1,7 +1,7 @@
 //! The dataset card, `README.md` next to the COCO files: what the dataset contains, its splits and
-//! areas, counts and statistics, camera presets, the licences and attributions of every source, how it
-//! was made and how to load it. Written from the [`DatasetManifest`] and the [`Stats`], so it never says
-//! anything the files do not.
+//! areas, counts and statistics (with each area's learnability table), camera presets, the licences
+//! and attributions of every source, how it was made and how to load it. Written from the
+//! [`DatasetManifest`] and the [`Stats`], so it never says anything the files do not.
 
 use std::fmt::Write as _;
 
@@ -90,6 +90,7 @@ pub fn card_markdown(m: &DatasetManifest, stats: &Stats) -> String {
         s,
         "\nSize classes are COCO's (below 32², below 96², above). `stats.md` has the histograms."
     );
+    s.push_str(&super::learnability::card_section(&stats.areas));
     let _ = writeln!(s, "\n## Sources, licences and attributions\n");
     for a in &m.areas {
         let attribution = if a.attributions.is_empty() {

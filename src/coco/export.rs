@@ -818,10 +818,11 @@ pub fn export(plan: &ExportPlan, progress: &dyn Progress) -> Result<(Export, Vec
 }
 
 /// Writes built datasets as [`export`] does: the COCO files with `info.image_root` set for
-/// `plan.out_dir`, then the manifest and the card that describe them.
+/// `plan.out_dir`, then the manifest and the card that describe them (the card's learnability table
+/// reads the frames' ID maps and photos in `plan.workdir`).
 ///
 /// # Errors
-/// I/O errors naming the file.
+/// I/O errors naming the file, and an ID map or photo that is on disk but unreadable.
 pub fn write_export(plan: &ExportPlan, mut ex: Export) -> Result<(Export, Vec<PathBuf>), CocoError> {
     crate::util::create_dir_all(&plan.out_dir)?;
     let root = image_root(&plan.workdir, &plan.out_dir);
@@ -842,7 +843,7 @@ pub fn write_export(plan: &ExportPlan, mut ex: Export) -> Result<(Export, Vec<Pa
     manifest.write(&plan.out_dir)?;
     written.push(plan.out_dir.join(super::manifest::MANIFEST_FILE));
     let refs: Vec<(Split, &Dataset)> = ex.datasets.iter().map(|(s, d)| (*s, d)).collect();
-    let card = super::card::card_markdown(&manifest, &super::stats::compute(&refs));
+    let card = super::card::card_markdown(&manifest, &super::stats::compute(&refs, &plan.workdir)?);
     let card_path = plan.out_dir.join(super::card::CARD_FILE);
     crate::util::write_bytes_atomic(&card_path, card.as_bytes())?;
     written.push(card_path);

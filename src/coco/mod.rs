@@ -11,6 +11,8 @@
 //! - [`format`]: the COCO file types with insgen's extension keys;
 //! - [`export`]: the `export-coco` stage;
 //! - [`stats`]: per-split statistics, histograms and a contact sheet;
+//! - [`learnability`]: per-area statistics that predict how learnable the instances are (touching
+//!   boundaries in the ID maps, their contrast in the photos, sizes, masks split by occluders);
 //! - [`manifest`], [`card`], [`verify`]: the dataset manifest (`dataset.json`), the dataset card
 //!   (`README.md`) and the check of a dataset against them (`insgen verify`);
 //! - [`results`]: reading and validating COCO results (predictions);
@@ -27,6 +29,7 @@ pub mod error;
 pub mod export;
 pub mod format;
 pub mod frames;
+pub mod learnability;
 pub mod manifest;
 pub mod panoptic;
 pub mod parts;

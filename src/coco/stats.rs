@@ -6,8 +6,10 @@
 //! < 96² px, large = area ≥ 96² px. (COCOeval's own ranges are closed at both ends, so an instance of
 //! exactly 1024 px counts as both small and medium there; here it is medium.)
 //!
-//! Everything is computed from the COCO files alone (the extension keys `area_name` and `building_id`,
-//! and `info.areas` for the building totals), so `insgen stats` can summarise any export.
+//! Everything but the learnability block is computed from the COCO files alone (the extension keys
+//! `area_name` and `building_id`, and `info.areas` for the building totals), so `insgen stats` can
+//! summarise any export; the learnability block ([`super::learnability`]) also reads each image's ID
+//! map and photo, skipping (and counting) those not on disk.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
@@ -17,6 +19,7 @@ use serde::Serialize;
 
 use super::export::Split;
 use super::format::{Dataset, Segmentation};
+use super::learnability::Learnability;
 use super::raster::{bar_chart, palette, read_png_rgb, RgbImage, Series};
 use super::CocoError;
 use crate::scene::BuildingId;
@@ -117,6 +120,8 @@ pub struct AreaStats {
     pub buildings_total: u64,
     /// `buildings_seen / buildings_total` (0 when the table is empty).
     pub coverage: f64,
+    /// Statistics that predict how learnable the area's instances are.
+    pub learnability: Learnability,
 }
 
 /// The whole report (`stats.json`).
@@ -127,8 +132,12 @@ pub struct Stats {
     pub areas: Vec<AreaStats>,
 }
 
-/// Computes the statistics of the given splits.
-pub fn compute(datasets: &[(Split, &Dataset)]) -> Stats {
+/// Computes the statistics of the given splits; `image_root` is the directory `images[].file_name` and
+/// `mask_file` are relative to (read for the learnability block).
+///
+/// # Errors
+/// As [`super::learnability::compute`]: an ID map or photo that is on disk but unreadable, naming it.
+pub fn compute(datasets: &[(Split, &Dataset)], image_root: &Path) -> Result<Stats, CocoError> {
     let mut splits = Vec::new();
     let mut areas = Vec::new();
     for &(split, ds) in datasets {
@@ -174,6 +183,7 @@ pub fn compute(datasets: &[(Split, &Dataset)]) -> Stats {
                 &ds.images.iter().filter_map(|im| im.consistency).collect::<Vec<f64>>(),
             ),
         });
+        let learnability = super::learnability::compute(ds, image_root)?;
         for info in &ds.info.areas {
             let images = ds.images.iter().filter(|im| im.area_name == info.name).count() as u64;
             let anns: Vec<_> = ds.annotations.iter().filter(|a| a.area_name == info.name).collect();
@@ -186,11 +196,13 @@ pub fn compute(datasets: &[(Split, &Dataset)]) -> Stats {
                 buildings_seen: seen.len() as u64,
                 buildings_total: info.buildings,
                 coverage: if info.buildings > 0 { seen.len() as f64 / info.buildings as f64 } else { 0.0 },
+                // learnability::compute keys every area of `ds.info.areas`.
+                learnability: learnability.get(&info.name).cloned().expect("every area is measured"),
             });
         }
     }
     areas.sort_by(|a, b| a.area.cmp(&b.area));
-    Stats { insgen_version: env!("CARGO_PKG_VERSION").into(), splits, areas }
+    Ok(Stats { insgen_version: env!("CARGO_PKG_VERSION").into(), splits, areas })
 }
 
 /// Options for [`write_report`].
@@ -381,6 +393,7 @@ fn markdown(stats: &Stats, sheet: bool) -> String {
             100.0 * a.coverage
         );
     }
+    s.push_str(&super::learnability::markdown_section(&stats.areas));
     if sheet {
         let _ = writeln!(s, "\n## Contact sheet\n\n![annotated frames](contact_sheet.png)");
     }
@@ -569,7 +582,8 @@ mod tests {
     fn counts_sizes_histogram_and_coverage() {
         // Image 1: three instances; image 2: one; image 3: none. Areas on both sides of 32² and 96².
         let ds = dataset(&[(1, 1023, 5), (1, 1024, 5), (1, 9215, 6), (2, 9216, 7)]);
-        let st = compute(&[(Split::Train, &ds)]);
+        // No ID map is on disk here: the learnability block has sizes and splits only.
+        let st = compute(&[(Split::Train, &ds)], Path::new("/nonexistent")).unwrap();
         let sp = &st.splits[0];
         assert_eq!((sp.images, sp.annotations, sp.images_without_annotations), (3, 4, 1));
         assert_eq!(sp.sizes, SizeCounts { small: 1, medium: 2, large: 1 });

@@ -293,6 +293,32 @@ fn load(path: &Path) -> Dataset {
     serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
 }
 
+/// Touching-neighbour pairs of an ID map PNG (8-bit RGB, ID = R·2¹⁶ + G·2⁸ + B), decoded here with the
+/// png crate: 4-neighbours holding two different non-zero IDs.
+fn touching_pairs(path: &Path) -> u64 {
+    let mut r =
+        png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap())).read_info().unwrap();
+    let mut buf = vec![0u8; r.output_buffer_size()];
+    let info = r.next_frame(&mut buf).unwrap();
+    let (w, h) = (info.width as usize, info.height as usize);
+    let id = |x: usize, y: usize| {
+        let p = &buf[(y * w + x) * 3..];
+        (p[0] as u32) << 16 | (p[1] as u32) << 8 | p[2] as u32
+    };
+    let mut n = 0;
+    for y in 0..h {
+        for x in 0..w {
+            let a = id(x, y);
+            for (nx, ny) in [(x + 1, y), (x, y + 1)] {
+                if nx < w && ny < h && a != 0 && id(nx, ny) != 0 && id(nx, ny) != a {
+                    n += 1;
+                }
+            }
+        }
+    }
+    n
+}
+
 fn validate_schema(schema_file: &str, instance: &Value) {
     let schema_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas").join(schema_file);
     let schema: Value = serde_json::from_slice(&std::fs::read(&schema_path).unwrap()).unwrap();
@@ -429,7 +455,7 @@ fn component_export_agrees_with_pycocotools_and_the_id_maps() {
 
     // Statistics report from the same datasets.
     let refs: Vec<(Split, &Dataset)> = ex.datasets.iter().map(|(s, d)| (*s, d)).collect();
-    let st = stats::compute(&refs);
+    let st = stats::compute(&refs, &wd).unwrap();
     let files_written = stats::write_report(&st, &refs, &p.out_dir, &wd, ReportOptions::default()).unwrap();
     assert_eq!(files_written.len(), 5);
     let sj: Value = serde_json::from_slice(&std::fs::read(p.out_dir.join("stats.json")).unwrap()).unwrap();
@@ -440,6 +466,26 @@ fn component_export_agrees_with_pycocotools_and_the_id_maps() {
         assert_eq!(sp["sizes"]["small"].as_u64().unwrap() as usize, small);
     }
     assert_eq!(st.splits[2].images_without_annotations, 1, "charlie's empty frame");
+    validate_schema("stats.schema.json", &sj);
+    // Learnability: every frame's ID map and photo were read; the touching boundary equals the pairs
+    // counted here straight from the PNGs (4-neighbours, two different non-zero IDs).
+    for a in sj["areas"].as_array().unwrap() {
+        let l = &a["learnability"];
+        let name = a["area"].as_str().unwrap();
+        let ds = files.iter().find(|d| d.images.iter().any(|im| im.area_name == name)).unwrap();
+        let images: Vec<_> = ds.images.iter().filter(|im| im.area_name == name).collect();
+        let n = images.len() as u64;
+        assert_eq!(
+            (l["images_with_id_map"].as_u64(), l["images_with_rgb"].as_u64()),
+            (Some(n), Some(n)),
+            "{name}"
+        );
+        let touching: u64 = images.iter().map(|im| touching_pairs(&wd.join(&im.mask_file))).sum();
+        let got = l["boundary"]["touching_px_per_image"].as_f64().unwrap();
+        assert!((got - touching as f64 / n as f64).abs() < 1e-9, "{name}: {got} vs {touching} / {n}");
+        let anns = ds.annotations.iter().filter(|x| x.area_name == name).count() as u64;
+        assert_eq!(l["sizes"]["instances"].as_u64(), Some(anns), "{name}");
+    }
     let sheet = insgen::coco::raster::read_png_rgb(&p.out_dir.join("contact_sheet.png")).unwrap();
     assert_eq!((sheet.width, sheet.height), (4 * 320, 3 * 240));
     if let Some(keep) = std::env::var_os("INSGEN_COCO_PREVIEW") {

@@ -174,6 +174,13 @@ fn panoptic_pngs_decode_to_the_instance_masks() {
     .unwrap();
     assert_eq!(st["splits"].as_array().unwrap().len(), 3);
     assert!(st["splits"][0]["max_instances_per_image"].as_u64().unwrap() > 0);
+    // … with each area's learnability block, read from the ID maps and photos.
+    crate::util::assert_schema("stats.schema.json", &st);
+    for a in st["areas"].as_array().unwrap() {
+        let l = &a["learnability"];
+        assert_eq!(l["images_with_id_map"], l["images"], "{}", a["area"]);
+        assert!(l["boundary"]["touching_px_per_image"].as_f64().unwrap() >= 0.0 && l["contrast"].is_object());
+    }
     let Some(py) = python_with(&["panopticapi", "pycocotools", "PIL"]) else { return };
     assert_panoptic_exact(&py, &coco);
 }
