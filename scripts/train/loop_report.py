@@ -1,0 +1,139 @@
+#!/usr/bin/env python3
+"""Writes one run's section of bench/closed_loop.md from a closed-loop work directory.
+
+Reads `<workdir>/loop.json` (what scripts/bench_closed_loop.sh ran), each family's `model.json` and
+`score_<holdout>.json`, and eval-loc's `summary.json` of the oracle and prediction runs; copies each
+family's picture next to the report. The section sits between `<!-- run:LABEL -->` markers, so runs of
+other sizes (the CPU run, a GPU run) stay in the file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+from pathlib import Path
+
+HEADER = """# The closed loop: dataset → model → predictions → pycocotools and eval-loc
+
+Each section is one run of `scripts/bench_closed_loop.sh`: insgen renders a dataset (masks + Blender RGB)
+of the training areas, holds one area out entirely (its buildings, city and CRS are never seen in
+training), trains the reference baseline (`scripts/train/baseline.py`) from scratch on the rest, predicts
+the held-out frames, scores them with pycocotools (COCOeval segm against insgen's own COCO export) and
+localizes them with `insgen eval-loc --predictions` next to the oracle (ground-truth) masks. Definitions:
+AP/AP50/AP75 are COCOeval's; building IoU is the IoU of the union of predicted masks (score ≥ 0.3)
+with the union of true ones; P/R@0.5 are one-to-one matches at mask IoU ≥ 0.5. Localization recall is
+the share of queries within (2 m, 2°) of the truth; the oracle rows are the upper bound the masks allow.
+"""
+
+
+def load(path: Path):
+    return json.loads(path.read_text()) if path.exists() else None
+
+
+def loc_rows(summary: dict | None, source: str) -> list[str]:
+    if not summary:
+        return [f"| {source} | (not run) | | | |"]
+    rows = []
+    for r in summary["rows"]:
+        if r["group"] != "all":
+            continue
+        rec = r["recall_pct"][0]
+        t, q = r["median_translation_m"], r["median_rotation_deg"]
+        rows.append(f"| {source} | {r['method']} | {rec:.1f} % | {fmt(t, 'm')} | {fmt(q, '°')} |")
+    return rows
+
+
+def fmt(v, unit):
+    return "–" if v is None else f"{v:.2f} {unit}"
+
+
+def learnability_rows(stats: dict | None) -> list[str]:
+    """Per area: what predicts instance learnability (insgen stats; definitions in coco/stats.md)."""
+    if not stats:
+        return []
+    out = ["What the data asks of the model, per area (`insgen stats`, learnability block): touching boundary per "
+           "image, share of instances touching another, colour contrast across touching vs background "
+           "boundaries (0–255 levels), median instance area, share under 32² px, share of buildings split by "
+           "occluders.", "",
+           "| area | split | images | touching px / image | touching instances | contrast touching / background |"
+           " median area px | small | split by occluders |",
+           "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for a in stats.get("areas", []):
+        ln = a.get("learnability", {})
+        b, c, s, o = ln.get("boundary", {}), ln.get("contrast"), ln.get("sizes", {}), ln.get("occluder_splits", {})
+        contrast = (f"{c['touching_rgb_levels']:.1f} / {c['background_rgb_levels']:.1f}" if c else "–")
+        out.append(f"| {a['area']} | {a['split']} | {a['images']} | {b.get('touching_px_per_image', 0):.0f} | "
+                   f"{100 * b.get('touching_instances_share', 0):.0f} % | {contrast} | {s.get('area_p50_px', '–')} | "
+                   f"{100 * s.get('small_share', 0):.0f} % | {100 * o.get('split_share', 0):.1f} % |")
+    return out + [""]
+
+
+def section(w: Path, bench: Path) -> str:
+    loop = load(w / "loop.json")
+    if loop is None:
+        sys.exit(f"loop_report: {w}/loop.json missing (run scripts/bench_closed_loop.sh first)")
+    hold, cam, label = loop["holdout"], loop["camera"], loop["label"]
+    out = [f"<!-- run:{label} -->", f"## Run `{label}`: held out `{hold}`, trained on {loop['train_areas']}", "",
+           f"Reproduce: `{loop['command']}` ({cam}, {loop['frames_per_area']} frames per training area, "
+           f"{loop['holdout_frames']} held-out frames, {loop['queries']} localization queries).", "",
+           "| family | device | steps | train s | train frames | AP | AP50 | AP75 | building IoU | P@0.5 | R@0.5 |"
+           " predictions / truths |",
+           "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    pictures = []
+    for fam in loop["families"].split():
+        m = load(w / "model" / fam / "model.json") or {}
+        s = load(w / "model" / fam / f"score_{hold}.json") or {}
+        out.append(f"| {fam} | {m.get('device', '–')} | {m.get('steps', '–')} | {m.get('train_seconds', '–')} | "
+                   f"{m.get('frames', '–')} | {s.get('AP', '–')} | {s.get('AP50', '–')} | {s.get('AP75', '–')} | "
+                   f"{s.get('building_iou', '–')} | {s.get('precision_50', '–')} | {s.get('recall_50', '–')} | "
+                   f"{s.get('predictions', '–')} / {s.get('annotations', '–')} |")
+        sheet = w / "model" / fam / f"sheet_{hold}.png"
+        if sheet.exists():
+            dest = bench / f"closed_loop_{label}_{fam}.png"
+            shutil.copyfile(sheet, dest)
+            pictures.append((fam, dest.name))
+    out += [""] + learnability_rows(load(w / "coco" / "stats.json"))
+    first = loop["families"].split()[0]
+    out += ["", f"Localization of the held-out frames (`eval-loc`, {cam}), masks from the oracle and from "
+            f"`{first}`:", ""]
+    for mode in ("defaults", "paper"):
+        out += [f"**{mode}**{' (`--paper`: the paper search and its pure instance cost)' if mode == 'paper' else ''}",
+                "", "| masks | cost | recall (2 m, 2°) | median error | median rotation |", "|---|---|---:|---:|---:|"]
+        base = w / hold / cam / "loc"
+        out += loc_rows(load(base / f"loop-oracle-{mode}" / "summary.json"), "oracle")
+        out += loc_rows(load(base / f"loop-{first}-{mode}" / "summary.json"), first)
+        out.append("")
+    for fam, name in pictures:
+        out += [f"`{fam}` on `{hold}` — RGB | truth | prediction:", "", f"![{fam}]({name})", ""]
+    if (bench / "closed_loop_fix_rooftop.png").exists():
+        out += ["Data fix: rooftop units no longer punch holes in the roof masks (`render-masks --occluders` "
+                "default `trees,cars`; the units belong to the building they stand on). Before | after on the "
+                "first training area, changed pixels in yellow:", "", "![rooftop fix](closed_loop_fix_rooftop.png)", ""]
+    out.append(f"<!-- end:{label} -->")
+    return "\n".join(out) + "\n"
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__)
+    p.add_argument("--workdir", type=Path, required=True)
+    p.add_argument("--report", type=Path, default=Path("bench/closed_loop.md"))
+    a = p.parse_args()
+    text = section(a.workdir, a.report.parent)
+    label = load(a.workdir / "loop.json")["label"]
+    old = a.report.read_text() if a.report.exists() else HEADER
+    start, end = f"<!-- run:{label} -->", f"<!-- end:{label} -->"
+    if start in old and end in old:
+        new = old[: old.index(start)] + text.rstrip("\n") + old[old.index(end) + len(end):]
+    else:
+        new = old.rstrip("\n") + "\n\n" + text
+    tmp = a.report.with_name(a.report.name + ".tmp")
+    tmp.write_text(new)
+    tmp.replace(a.report)
+    print(f"loop_report: wrote section {label} of {a.report}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,168 @@
+"""Scoring a results file against the COCO ground truth, and the RGB | truth | prediction picture.
+
+- `AP`, `AP50`, `AP75`: pycocotools COCOeval, iouType `segm`, on the images of the chosen areas.
+- `building_iou`: IoU of the union of the predicted masks scoring ≥ 0.3 with the union of the
+  annotations (crowd pixels left out): how well the model finds building pixels at all;
+  `all_building_iou` is what calling every pixel a building would score (the share of building pixels).
+- `precision_50`, `recall_50`: one-to-one matches at mask IoU ≥ 0.5 (greedy by score, predictions
+  scoring ≥ 0.3): how often an instance is exactly one building.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+from PIL import Image, ImageDraw
+from pycocotools import mask as mask_utils
+from pycocotools.coco import COCO
+from pycocotools.cocoeval import COCOeval
+
+import data as ds
+
+SCORE_MIN = 0.3  # predictions counted by building_iou and P/R@0.5
+
+
+def load(coco_json: Path, results: Path, areas):
+    with contextlib.redirect_stdout(io.StringIO()):
+        gt = COCO(str(coco_json))
+    img_ids = sorted(i for i, im in gt.imgs.items() if not areas or im.get("area_name") in areas)
+    if not img_ids:
+        raise ds.DataError(f"{coco_json}: no image of areas {areas}")
+    preds = json.loads(Path(results).read_text())
+    preds = [p for p in preds if p["image_id"] in set(img_ids)]
+    return gt, img_ids, preds
+
+
+def score(coco_json: Path, results: Path, areas=None) -> dict:
+    gt, img_ids, preds = load(coco_json, results, areas)
+    report = {"coco": str(coco_json), "results": str(results), "areas": areas or "all", "images": len(img_ids),
+              "annotations": len(gt.getAnnIds(imgIds=img_ids, iscrowd=False)), "predictions": len(preds)}
+    if preds:
+        with contextlib.redirect_stdout(io.StringIO()):
+            dt = gt.loadRes(preds)
+            ev = COCOeval(gt, dt, "segm")
+            ev.params.imgIds = img_ids
+            ev.evaluate()
+            ev.accumulate()
+            ev.summarize()
+        report.update({"AP": round(float(ev.stats[0]), 4), "AP50": round(float(ev.stats[1]), 4),
+                       "AP75": round(float(ev.stats[2]), 4)})
+    else:
+        report.update({"AP": 0.0, "AP50": 0.0, "AP75": 0.0})
+    report.update(pixel_and_match_scores(gt, img_ids, preds))
+    return report
+
+
+def pixel_and_match_scores(gt: COCO, img_ids: list[int], preds: list[dict]) -> dict:
+    inter = union = truth_px = valid_px = 0
+    tp = n_pred = n_gt = 0
+    by_img: dict[int, list[dict]] = {}
+    for p in preds:
+        if p["score"] >= SCORE_MIN:
+            by_img.setdefault(p["image_id"], []).append(p)
+    for i in img_ids:
+        anns = gt.loadAnns(gt.getAnnIds(imgIds=[i]))
+        im = gt.imgs[i]
+        h, w = im["height"], im["width"]
+        crowd = np.zeros((h, w), bool)
+        truth = [gt.annToMask(a).astype(bool) for a in anns if not a.get("iscrowd", 0)]
+        for a in anns:
+            if a.get("iscrowd", 0):
+                crowd |= gt.annToMask(a).astype(bool)
+        ps = sorted(by_img.get(i, []), key=lambda p: -p["score"])
+        pm = [mask_utils.decode(p["segmentation"]).astype(bool) for p in ps]
+        gu = np.logical_or.reduce(truth) if truth else np.zeros((h, w), bool)
+        pu = np.logical_or.reduce(pm) if pm else np.zeros((h, w), bool)
+        truth_px += int((gu & ~crowd).sum())
+        valid_px += int((~crowd).sum())
+        inter += int((gu & pu & ~crowd).sum())
+        union += int(((gu | pu) & ~crowd).sum())
+        n_pred += len(pm)
+        n_gt += len(truth)
+        tp += greedy_matches(pm, truth)
+    return {"building_iou": round(inter / union, 4) if union else None,
+            "all_building_iou": round(truth_px / valid_px, 4) if valid_px else None,
+            "precision_50": round(tp / n_pred, 4) if n_pred else 0.0,
+            "recall_50": round(tp / n_gt, 4) if n_gt else 0.0}
+
+
+def greedy_matches(pred: list[np.ndarray], truth: list[np.ndarray]) -> int:
+    used = [False] * len(truth)
+    tp = 0
+    areas = [t.sum() for t in truth]
+    for p in pred:
+        pa = p.sum()
+        best, best_iou = -1, 0.5
+        for j, t in enumerate(truth):
+            if used[j]:
+                continue
+            i = (p & t).sum()
+            if i == 0:
+                continue
+            iou = i / (pa + areas[j] - i)
+            if iou >= best_iou:
+                best, best_iou = j, iou
+        if best >= 0:
+            used[best] = True
+            tp += 1
+    return tp
+
+
+# ------------------------------------------------------------------------------------------------ sheet
+def colours(n: int) -> np.ndarray:
+    rng = np.random.default_rng(7)
+    c = rng.integers(60, 256, size=(n + 1, 3)).astype(np.uint8)
+    c[0] = 0
+    return c
+
+
+def paint(masks: list[np.ndarray], rgb: np.ndarray) -> np.ndarray:
+    """Instances in distinct colours over the darkened photo, with their outlines in white."""
+    out = (rgb.astype(np.float32) * 0.25).astype(np.uint8)
+    ids = np.zeros(rgb.shape[:2], np.int32)
+    for k, m in enumerate(masks, start=1):
+        ids[m] = k
+    pal = colours(len(masks))
+    col = pal[ids]
+    fg = ids > 0
+    out[fg] = (0.75 * col[fg] + 0.25 * rgb[fg]).astype(np.uint8)
+    edge = np.zeros_like(fg)
+    edge[:, 1:] |= ids[:, 1:] != ids[:, :-1]
+    edge[1:, :] |= ids[1:, :] != ids[:-1, :]
+    out[edge] = 255
+    return out
+
+
+def sheet(coco_json: Path, results: Path, out: Path, areas=None, count: int = 6, min_score: float = 0.3) -> None:
+    gt, img_ids, preds = load(coco_json, results, areas)
+    root = Path(coco_json).parent / gt.dataset.get("info", {}).get("image_root", ".")
+    picks = [img_ids[round(k * (len(img_ids) - 1) / max(count - 1, 1))] for k in range(min(count, len(img_ids)))]
+    rows = []
+    for i in dict.fromkeys(picks):
+        im = gt.imgs[i]
+        rgb = np.asarray(Image.open(root / im["file_name"]).convert("RGB"))
+        truth = [gt.annToMask(a).astype(bool) for a in gt.loadAnns(gt.getAnnIds(imgIds=[i]))]
+        ps = sorted((p for p in preds if p["image_id"] == i and p["score"] >= min_score), key=lambda p: p["score"])
+        pm = [mask_utils.decode(p["segmentation"]).astype(bool) for p in ps]
+        row = np.concatenate([rgb, np.full((rgb.shape[0], 4, 3), 255, np.uint8), paint(truth, rgb),
+                              np.full((rgb.shape[0], 4, 3), 255, np.uint8), paint(pm, rgb)], axis=1)
+        label = f"{im.get('area_name', '')}/{im.get('frame', i)}: {len(truth)} true, {len(pm)} predicted"
+        rows.append(caption(row, label))
+    w = max(r.shape[1] for r in rows)
+    head = caption(np.zeros((0, w, 3), np.uint8), "RGB | truth (annotations) | prediction (score >= "
+                   f"{min_score}); each instance one colour, outlines white")
+    pic = np.concatenate([head] + rows, axis=0)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(out.name + ".tmp.png")
+    Image.fromarray(pic).save(tmp)
+    tmp.replace(out)
+
+
+def caption(row: np.ndarray, text: str) -> np.ndarray:
+    bar = Image.new("RGB", (row.shape[1], 18), (30, 30, 30))
+    ImageDraw.Draw(bar).text((4, 3), text, fill=(255, 255, 255))
+    return np.concatenate([np.asarray(bar), row], axis=0)
