@@ -3,7 +3,7 @@
 # the side-by-side figures against its peer (Blender, pycocotools, pyproj, the paper's search), as each
 # report in bench/ gives them (medians or best of several runs; each report says which and how).
 #
-#   scripts/benchmarks.sh             run everything (about 1.5 hours on 2 cores), then write BENCHMARKS.md
+#   scripts/benchmarks.sh             run everything (about 2 hours on 2 cores), then write BENCHMARKS.md
 #   scripts/benchmarks.sh --collect   only rebuild BENCHMARKS.md from the reports already in bench/
 #
 # Only public tools: cargo bench, the bench scripts in scripts/, Python from .venv, GNU time.
@@ -24,6 +24,7 @@ if [ "$collect_only" = 0 ]; then
     bash scripts/loc_areas.sh
     bash scripts/bench_align.sh
     bash scripts/bench_occlusion.sh
+    bash scripts/bench_closed_loop.sh --size small
     # scripts/loc_issue15.sh compares with a build of the commit before issue 15's search (it takes that
     # binary as its argument): run it by hand when that comparison is wanted.
 fi

@@ -4,6 +4,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
+bash scripts/setup_train.sh
 # The binary silences Mesa's device-select layer itself; the test binaries render in-process.
 export NODEVICE_SELECT=1
 export INSGEN_PYTHON="${INSGEN_PYTHON:-$(pwd)/.venv/bin/python}"

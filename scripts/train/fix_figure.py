@@ -5,7 +5,7 @@
 
 DIRs hold `<frame>.png` (RGB photos; insgen 24-bit ID maps, id = R·65536 + G·256 + B). Picks the N
 frames where the masks differ most; each row is photo | before | after, with the pixels that changed
-outlined in yellow and counted (background pixels enclosed by one building = holes).
+outlined in yellow and counted (background pixels enclosed by one building: holes in its mask).
 """
 
 from __future__ import annotations
@@ -28,10 +28,25 @@ def read_ids(path: Path) -> np.ndarray:
 
 
 def holes(ids: np.ndarray) -> int:
-    c = ids[1:-1, 1:-1]
-    nb = [ids[1:-1, :-2], ids[1:-1, 2:], ids[:-2, 1:-1], ids[2:, 1:-1]]
-    same = (nb[0] != 0) & (nb[0] == nb[1]) & (nb[0] == nb[2]) & (nb[0] == nb[3])
-    return int(((c == 0) & same).sum())
+    """Pixels of background regions (4-connected) that one building encloses: holes in its mask."""
+    from scipy import ndimage
+
+    bg, n = ndimage.label(ids == 0)
+    if n == 0:
+        return 0
+    border = np.unique(np.concatenate([bg[0], bg[-1], bg[:, 0], bg[:, -1]]))
+    total = 0
+    for k, sl in enumerate(ndimage.find_objects(bg), start=1):
+        if k in border:
+            continue
+        y0, y1 = max(sl[0].start - 1, 0), sl[0].stop + 1
+        x0, x1 = max(sl[1].start - 1, 0), sl[1].stop + 1
+        region = bg[y0:y1, x0:x1] == k
+        ring = ndimage.binary_dilation(region) & ~region
+        around = np.unique(ids[y0:y1, x0:x1][ring])
+        if len(around) == 1 and around[0] != 0:
+            total += int(region.sum())
+    return total
 
 
 def panel(ids: np.ndarray, rgb: np.ndarray, changed: np.ndarray) -> np.ndarray:
@@ -67,15 +82,15 @@ def main() -> int:
         changed = b != f
         sep = np.full((rgb.shape[0], 4, 3), 255, np.uint8)
         row = np.concatenate([rgb, sep, panel(b, rgb, changed), sep, panel(f, rgb, changed)], axis=1)
-        rows.append(scoring.caption(row, f"{n}: {count} px changed; enclosed holes {holes(b)} -> {holes(f)}"))
+        rows.append(scoring.caption(row, f"{n}: {count} px changed; hole pixels {holes(b)} -> {holes(f)}"))
     w = max(r.shape[1] for r in rows)
     head = scoring.caption(np.zeros((0, w, 3), np.uint8),
-                           f"{a.title}; all {len(names)} frames: enclosed holes {total_b} -> {total_f}")
+                           f"{a.title}; all {len(names)} frames: hole pixels {total_b} -> {total_f}")
     a.out.parent.mkdir(parents=True, exist_ok=True)
     tmp = a.out.with_name(a.out.name + ".tmp.png")
     Image.fromarray(np.concatenate([head] + rows, axis=0)).save(tmp)
     tmp.replace(a.out)
-    print(f"fix_figure: wrote {a.out} (holes {total_b} -> {total_f} over {len(names)} frames)", file=sys.stderr)
+    print(f"fix_figure: wrote {a.out} (hole pixels {total_b} -> {total_f} over {len(names)} frames)", file=sys.stderr)
     return 0
 
 

@@ -36,8 +36,9 @@ def loc_rows(summary: dict | None, source: str) -> list[str]:
     if not summary:
         return [f"| {source} | (not run) | | | |"]
     rows = []
+    groups = {r["group"] for r in summary["rows"]}
     for r in summary["rows"]:
-        if r["group"] != "all":
+        if len(groups) > 1 and r["group"] != "all":
             continue
         rec = r["recall_pct"][0]
         t, q = r["median_translation_m"], r["median_rotation_deg"]

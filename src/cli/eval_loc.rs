@@ -78,7 +78,8 @@ insgen eval-loc --area tokyo --camera uav --oracle --masks uav/masks --query-lis
 pub struct Args {
     #[arg(long, value_name = "NAME")]
     pub area: String,
-    #[arg(long, value_name = "PRESET")]
+    /// The queries' camera: a preset, the camera's name, or the camera TOML file given to `sample`.
+    #[arg(long, value_name = "PRESET|NAME|FILE", value_parser = super::parse_camera_dir)]
     pub camera: String,
     /// Use the ground-truth masks (masks/<frame>.png) as the query, with the degradations below.
     #[arg(long)]

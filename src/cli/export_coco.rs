@@ -179,8 +179,11 @@ pub(crate) fn write_reports(
 ) -> anyhow::Result<()> {
     if let Some(opts) = report {
         let refs: Vec<_> = ex.datasets.iter().map(|(s, d)| (*s, d)).collect();
-        let st = stats::compute(&refs, &plan.workdir)
-            .with_context(|| format!("computing the statistics of {}", plan.out_dir.display()))?;
+        let st = match &ex.stats {
+            Some(st) => st.clone(),
+            None => stats::compute(&refs, &plan.workdir)
+                .with_context(|| format!("computing the statistics of {}", plan.out_dir.display()))?,
+        };
         let files = stats::write_report(&st, &refs, &plan.out_dir, &plan.workdir, opts)
             .with_context(|| format!("writing the statistics report in {}", plan.out_dir.display()))?;
         written.extend(files);

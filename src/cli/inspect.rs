@@ -97,6 +97,9 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         return Ok(());
     }
     let file = args.file.as_ref().expect("clap requires FILE or --area");
+    if !file.exists() {
+        anyhow::bail!("{}: no such file or directory", file.display());
+    }
     let opts = ReadOptions { lod: args.lod.clone(), ..ReadOptions::default() };
     let m = lod::read_source(file, None, &opts).with_context(|| format!("inspecting {}", file.display()))?;
     // Resolve the CRS as `prepare` does, so that an unknown code fails here too (exit 1).

@@ -34,7 +34,8 @@ use clap::{Parser, Subcommand};
 #[command(name = "insgen", version, about, max_term_width = 100)]
 #[command(
     after_long_help = "Typical run:\n  insgen prepare --area demo\n  insgen sample --area demo --camera cam2\n  \
-insgen render-masks --area demo --camera cam2\n  insgen export-coco\n\nOr all at once on the embedded city: insgen demo\n\n\
+insgen render-masks --area demo --camera cam2\n  insgen render-rgb --area demo --camera cam2\n  \
+insgen export-coco\n  insgen verify runs/coco\n\nOr all at once on the embedded city: insgen demo\n\n\
 Other formats: insgen export-panoptic, insgen export-yolo, insgen export-tiles --area demo\n\
 Shell completions and man pages: insgen completions bash, insgen man --out target/man"
 )]
@@ -194,6 +195,16 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Completions(a) => completions::run_completions(a, g),
         Command::Man(a) => completions::run_man(a, g),
     }
+}
+
+/// `--camera` of the stages after `sample`: a preset (`cam2`), the camera's name (its directory under
+/// the area, e.g. `cam2-quarter`) or the camera TOML file `sample` was given, resolved to that name.
+pub(crate) fn parse_camera_dir(arg: &str) -> Result<String, String> {
+    let looks_like_file = arg.ends_with(".toml") || arg.contains('/') || arg.contains('\\');
+    if !looks_like_file {
+        return Ok(arg.to_string());
+    }
+    crate::camera::CameraSpec::resolve(arg).map(|spec| spec.name).map_err(|e| crate::util::error_chain(&e))
 }
 
 /// The shard a `--shard` asks for: fixed, or from the scheduler's environment (logged with its

@@ -54,8 +54,9 @@ pub struct Args {
     #[arg(long, value_name = "NAME")]
     pub area: String,
 
-    /// Camera preset whose poses to render (<workdir>/<area>/<camera>/poses.jsonl).
-    #[arg(long, value_name = "PRESET")]
+    /// Camera whose poses to render (<workdir>/<area>/<camera>/poses.jsonl): a preset, the camera's
+    /// name, or the camera TOML file given to `sample`.
+    #[arg(long, value_name = "PRESET|NAME|FILE", value_parser = super::parse_camera_dir)]
     pub camera: String,
 
     /// Render only frames whose line index in poses.jsonl is ≡ I (mod N).
@@ -115,8 +116,9 @@ pub struct Args {
     /// `all` / `none`. Only layers the prepared scene holds matter (`insgen prepare` writes them unless
     /// --no-clutter). A building behind a tree then has no mask pixels there, and visible_fraction and
     /// the COCO area follow. Use the same list for `render-rgb --occluders` so that
-    /// --check-alignment compares like with like.
-    #[arg(long, value_name = "LAYERS", default_value = "trees,cars,rooftop", value_parser = parse_occluders)]
+    /// --check-alignment compares like with like. Rooftop units are left out by default: they belong to
+    /// the building they stand on (`rooftop` makes them punch holes in its mask).
+    #[arg(long, value_name = "LAYERS", default_value = "trees,cars", value_parser = parse_occluders)]
     pub occluders: LayerList,
 
     /// Photogrammetry tileset (tileset.json) whose surface hides LoD buildings.
@@ -295,6 +297,19 @@ mod tests {
         }
 
         #[test]
+        fn camera_takes_the_preset_the_name_or_the_file_sample_was_given() {
+            let camera = |c: &str| {
+                Cli::try_parse_from(["insgen", "--area", "demo", "--camera", c]).map(|c| c.args.camera)
+            };
+            assert_eq!(camera("cam2").unwrap(), "cam2");
+            assert_eq!(camera("cam2-quarter").unwrap(), "cam2-quarter");
+            let file = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cameras/cam2-quarter.toml");
+            assert_eq!(camera(file).unwrap(), "cam2-quarter");
+            let e = camera("no/such/camera.toml").unwrap_err().to_string();
+            assert!(e.contains("no/such/camera.toml"), "{e}");
+        }
+
+        #[test]
         fn shard() {
             assert_eq!(
                 parse(&["--shard", "2/5"]).unwrap().args.shard,
@@ -329,7 +344,11 @@ mod tests {
         #[test]
         fn occluders() {
             use ClutterLayer::*;
-            assert_eq!(parse(&[]).unwrap().args.occluders.0, vec![Trees, Cars, Rooftop]);
+            assert_eq!(parse(&[]).unwrap().args.occluders.0, vec![Trees, Cars]);
+            assert_eq!(
+                parse(&["--occluders", "trees,cars,rooftop"]).unwrap().args.occluders.0,
+                vec![Trees, Cars, Rooftop]
+            );
             assert_eq!(parse(&["--occluders", "none"]).unwrap().args.occluders.0, vec![]);
             assert_eq!(parse(&["--occluders", "cars,roads"]).unwrap().args.occluders.0, vec![Roads, Cars]);
             assert_eq!(parse(&["--occluders", "all"]).unwrap().args.occluders.0.len(), 7);

@@ -146,8 +146,9 @@ pub struct Args {
     /// Area name (a directory under the workdir).
     #[arg(long, value_name = "NAME")]
     pub area: String,
-    /// Camera preset whose poses to render (cam1, cam2, cam3 or custom).
-    #[arg(long, value_name = "PRESET")]
+    /// Camera whose poses to render: a preset (cam1, cam2, cam3), the camera's name, or the camera
+    /// TOML file given to `sample`.
+    #[arg(long, value_name = "PRESET|NAME|FILE", value_parser = super::parse_camera_dir)]
     pub camera: String,
     /// Render only frames whose index in poses.jsonl is i modulo N (0 ≤ i < N).
     ///
@@ -184,7 +185,7 @@ pub struct Args {
     #[arg(
         long,
         value_name = "LAYERS",
-        default_value = "trees,cars,rooftop",
+        default_value = "trees,cars",
         value_parser = super::render_masks::parse_occluders
     )]
     pub occluders: super::render_masks::LayerList,

@@ -15,27 +15,35 @@ use anyhow::bail;
     after_long_help = "Examples:\n  insgen verify runs/coco\n  insgen verify /data/uav-buildings -q && echo ok"
 )]
 pub struct Args {
-    /// The dataset directory (`export-coco`'s output: `<workdir>/coco` by default).
+    /// The dataset: `export-coco`'s output folder (`<workdir>/coco` by default), its `dataset.json`,
+    /// or the work directory that holds it.
     #[arg(value_name = "DATASET")]
     pub dataset: PathBuf,
 }
 
 pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     let printer = global.printer();
-    let report = crate::coco::verify::verify(&args.dataset, &printer.progress());
+    let dir = crate::coco::verify::dataset_dir(&args.dataset);
+    if !dir.exists() {
+        bail!(
+            "{}: no such file or directory (give the export folder, its dataset.json or the work directory)",
+            dir.display()
+        );
+    }
+    let report = crate::coco::verify::verify(&dir, &printer.progress());
     for p in &report.problems {
         eprintln!("problem: {p}");
     }
     printer.summary(format!(
         "{}: {} COCO file(s), {} images, {} annotations checked; {} problem(s)",
-        args.dataset.display(),
+        dir.display(),
         report.coco_files,
         report.images,
         report.annotations,
         report.problems.len()
     ));
     if !report.problems.is_empty() {
-        bail!("{}: {} problem(s) found (listed above)", args.dataset.display(), report.problems.len());
+        bail!("{}: {} problem(s) found (listed above)", dir.display(), report.problems.len());
     }
     Ok(())
 }

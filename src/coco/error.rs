@@ -67,6 +67,9 @@ pub enum CocoError {
         #[source]
         source: RleError,
     },
+    /// The export would list no image at all; nothing was written. Names the command that fills the gap.
+    #[error("{}: the export would list no image, so nothing was written: {}", workdir.display(), gap.advice())]
+    EmptyExport { workdir: PathBuf, gap: EmptyGap },
     /// `--holdout` names an area that is not in the working directory.
     #[error("--holdout {area}: no such area under {}; areas found: {}", workdir.display(), available.join(", "))]
     UnknownHoldout { area: String, workdir: PathBuf, available: Vec<String> },
@@ -107,4 +110,40 @@ fn list_others(others: &[String]) -> String {
         s.insert_str(0, "; other failures:");
     }
     s
+}
+
+/// Why an export came out empty, most actionable first.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum EmptyGap {
+    /// Labelled frames have no RGB frame yet (the first camera without them).
+    NoRgb { area: String, camera: String, frames: u64 },
+    /// Posed frames have no ID map yet.
+    NoMasks { frames: u64 },
+    /// Frames exist but the filters dropped every image: this many scored below `--min-consistency`,
+    /// this many had no annotation left (and empty images are dropped).
+    Filtered { low_consistency_images: u64, empty_images: u64 },
+    /// No area holds a posed frame.
+    NoFrames,
+}
+
+impl EmptyGap {
+    /// The sentence that tells what to run.
+    pub fn advice(&self) -> String {
+        match self {
+            EmptyGap::NoRgb { area, camera, frames } => format!(
+                "{frames} labelled frame(s) of {area}/{camera} have no RGB photo; run `insgen render-rgb --area \
+                 {area} --camera {camera}` (for every area and camera), or export the labels alone with \
+                 `insgen export-coco --label-only`"
+            ),
+            EmptyGap::NoMasks { frames } => format!(
+                "{frames} posed frame(s) have no ID map; run `insgen render-masks --area NAME --camera NAME` first"
+            ),
+            EmptyGap::Filtered { low_consistency_images, empty_images } => format!(
+                "the filters left no image: {low_consistency_images} frame(s) scored below --min-consistency, \
+                 {empty_images} image(s) had no annotation left (lower --min-consistency, --min-area or \
+                 --min-visible-fraction, or keep empty images)"
+            ),
+            EmptyGap::NoFrames => "no area has posed frames; run `insgen sample --area NAME --camera C` first".into(),
+        }
+    }
 }

@@ -133,6 +133,9 @@ pub struct Export {
     /// decode, or has another size (not in a `--label-only` export).
     pub frames_without_rgb: Vec<MissingRgb>,
     pub dropped: DropCounts,
+    /// The statistics of `datasets`, once [`write_export`] has computed them for the card (they read
+    /// every ID map and photo, so the report reuses them).
+    pub stats: Option<super::stats::Stats>,
 }
 
 /// Labelled frames of one camera left out for want of an RGB frame.
@@ -793,7 +796,7 @@ pub fn build(plan: &ExportPlan, image_root: &str, progress: &dyn Progress) -> Re
             }
         }
     }
-    Ok(Export { datasets, frames_without_masks, frames_without_rgb, dropped })
+    Ok(Export { datasets, frames_without_masks, frames_without_rgb, dropped, stats: None })
 }
 
 /// Builds the datasets and writes `instances_{train,val,test}.json`, `dataset.json` and `README.md`
@@ -810,11 +813,33 @@ pub fn export(plan: &ExportPlan, progress: &dyn Progress) -> Result<(Export, Vec
     crate::util::remove_stale_temps(&plan.out_dir.join(crate::util::shard::PARTS_DIR), true, &|_| false)?;
     // Build first, so that a failing export leaves no empty output directory behind.
     let ex = build(plan, "..", progress)?;
+    if plan.shard.is_whole() && ex.datasets.iter().all(|(_, ds)| ds.images.is_empty()) {
+        return Err(CocoError::EmptyExport { workdir: plan.workdir.clone(), gap: empty_gap(&ex) });
+    }
     if !plan.shard.is_whole() {
         let written = super::parts::write_part(plan, &ex, Some(super::stats::ReportOptions::default()))?;
         return Ok((ex, written));
     }
     write_export(plan, ex)
+}
+
+/// Why `ex` lists no image.
+fn empty_gap(ex: &Export) -> super::error::EmptyGap {
+    use super::error::EmptyGap;
+    if let Some(m) = ex.frames_without_rgb.iter().find(|m| m.frames > 0) {
+        return EmptyGap::NoRgb { area: m.area.clone(), camera: m.camera.clone(), frames: m.frames };
+    }
+    if ex.frames_without_masks > 0 {
+        return EmptyGap::NoMasks { frames: ex.frames_without_masks };
+    }
+    let d = &ex.dropped;
+    if d.empty_images > 0 || d.low_consistency_images > 0 {
+        return EmptyGap::Filtered {
+            low_consistency_images: d.low_consistency_images,
+            empty_images: d.empty_images,
+        };
+    }
+    EmptyGap::NoFrames
 }
 
 /// Writes built datasets as [`export`] does: the COCO files with `info.image_root` set for
@@ -843,10 +868,12 @@ pub fn write_export(plan: &ExportPlan, mut ex: Export) -> Result<(Export, Vec<Pa
     manifest.write(&plan.out_dir)?;
     written.push(plan.out_dir.join(super::manifest::MANIFEST_FILE));
     let refs: Vec<(Split, &Dataset)> = ex.datasets.iter().map(|(s, d)| (*s, d)).collect();
-    let card = super::card::card_markdown(&manifest, &super::stats::compute(&refs, &plan.workdir)?);
+    let stats = super::stats::compute(&refs, &plan.workdir)?;
+    let card = super::card::card_markdown(&manifest, &stats);
     let card_path = plan.out_dir.join(super::card::CARD_FILE);
     crate::util::write_bytes_atomic(&card_path, card.as_bytes())?;
     written.push(card_path);
+    ex.stats = Some(stats);
     Ok((ex, written))
 }
 

@@ -284,6 +284,7 @@ pub fn combine(
             frames_without_masks,
             frames_without_rgb: missing_rgb.into_values().collect(),
             dropped,
+            stats: None,
         },
     })
 }

@@ -51,6 +51,19 @@ pub struct VerifyReport {
 
 /// Checks the dataset in `dir` (see the module doc). Never fails: every problem, unreadable files
 /// included, is a [`Problem`] in the report.
+/// The dataset folder a user's path means: the folder itself, its `dataset.json`, or the work
+/// directory that holds the export in `coco/`.
+pub fn dataset_dir(path: &Path) -> PathBuf {
+    if path.file_name().is_some_and(|n| n == MANIFEST_FILE) && path.is_file() {
+        return path.parent().map(Path::to_path_buf).unwrap_or_default();
+    }
+    let in_workdir = path.join("coco");
+    if !path.join(MANIFEST_FILE).exists() && in_workdir.join(MANIFEST_FILE).is_file() {
+        return in_workdir;
+    }
+    path.to_path_buf()
+}
+
 pub fn verify(dir: &Path, progress: &dyn Progress) -> VerifyReport {
     let mut report = VerifyReport::default();
     let problem = |file: &Path, what: String| Problem { file: file.to_path_buf(), what };
@@ -297,4 +310,23 @@ fn check_image(
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dataset_dir_takes_the_folder_its_manifest_or_the_workdir() {
+        let work = tempfile::tempdir().unwrap();
+        let coco = work.path().join("coco");
+        std::fs::create_dir_all(&coco).unwrap();
+        std::fs::write(coco.join(MANIFEST_FILE), "{}").unwrap();
+        assert_eq!(dataset_dir(&coco), coco);
+        assert_eq!(dataset_dir(&coco.join(MANIFEST_FILE)), coco);
+        assert_eq!(dataset_dir(work.path()), coco);
+        // Anything else is taken as given (verify then names what is missing there).
+        let other = work.path().join("elsewhere");
+        assert_eq!(dataset_dir(&other), other);
+    }
 }

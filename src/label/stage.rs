@@ -136,7 +136,7 @@ pub struct MaskPlan {
     /// Clip planes.
     pub range: DepthRange,
     /// Clutter layers drawn as occluders (ID 0) when the scene has them
-    /// (default [`ClutterLayer::DEFAULT_OCCLUDERS`]: trees, cars, rooftop units).
+    /// (default [`ClutterLayer::DEFAULT_OCCLUDERS`]: trees and cars).
     pub occluders: Vec<ClutterLayer>,
     /// Compare every frame with a photogrammetry tileset's depth (see the module doc).
     pub tileset: Option<TilesetOcclusion>,

@@ -94,9 +94,10 @@ impl ClutterLayer {
         ClutterLayer::Cars,
         ClutterLayer::Rooftop,
     ];
-    /// The layers that hide buildings in the masks unless told otherwise: the ones that stand up.
-    pub const DEFAULT_OCCLUDERS: [ClutterLayer; 3] =
-        [ClutterLayer::Trees, ClutterLayer::Cars, ClutterLayer::Rooftop];
+    /// The layers that hide buildings in the masks unless told otherwise: the ones that stand up
+    /// beside the buildings. Rooftop units are not among them: they stand on their building's roof and
+    /// belong to it, as a segmenter should learn (as occluders they punched holes in the roof masks).
+    pub const DEFAULT_OCCLUDERS: [ClutterLayer; 2] = [ClutterLayer::Trees, ClutterLayer::Cars];
 
     /// The layer's name in files and on the command line.
     pub fn name(self) -> &'static str {

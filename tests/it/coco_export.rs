@@ -782,6 +782,27 @@ fn missing_visible_fraction_and_empty_workdir_explain_the_fix() {
 }
 
 #[test]
+fn an_export_without_photos_is_an_error_naming_render_rgb_and_writes_nothing() {
+    // Issue 39: following prepare → sample → render-masks → export-coco (no render-rgb) used to write
+    // 0 images, a card and charts, and exit 0.
+    let tmp = tempfile::tempdir().unwrap();
+    let wd = tmp.path().join("runs");
+    let mut alpha = AreaSpec::new("alpha", "train", 1);
+    alpha.rgb_frames = 0;
+    write_area(&wd, &alpha);
+    let p = plan(&wd, "coco");
+    let msg = format!("{:#}", anyhow::Error::from(export(&p, &NoProgress).unwrap_err()));
+    assert!(msg.contains("no image") && msg.contains("insgen render-rgb --area alpha --camera"), "{msg}");
+    assert!(msg.contains("--label-only"), "{msg}");
+    assert!(!p.out_dir.exists(), "an empty export left {}", p.out_dir.display());
+    // The labels alone are still an export.
+    let mut labels = plan(&wd, "coco");
+    labels.label_only = true;
+    let (ex, _) = export(&labels, &NoProgress).unwrap();
+    assert!(ex.datasets.iter().any(|(_, ds)| !ds.images.is_empty()));
+}
+
+#[test]
 fn results_written_by_pycocotools_read_back_exactly() {
     let tmp = tempfile::tempdir().unwrap();
     let wd = standard_workdir(tmp.path());

@@ -17,6 +17,7 @@ mod blender_render_tiles;
 mod camera_io;
 mod camera_sampling;
 mod cli_run;
+mod closed_loop;
 mod coco_export;
 mod coco_rle;
 mod crash;

@@ -229,7 +229,7 @@ fn prepared_demo_clutter_occludes_and_blender_ids_agree_with_the_masks() {
     assert_eq!(scene.clutter.layers.len(), 7);
     crate::util::assert_schema("manifest.schema.json", &serde_json::to_value(&scene.manifest).unwrap());
 
-    // Masks with the default occluders (trees, cars, rooftop units).
+    // Masks with the default occluders (trees and cars).
     let mut plan = MaskPlan::new(work.path().join("demo/cam9"));
     plan.min_area_px = 4;
     let report = stage::render_masks(&plan, &scene, renderer(), &NoProgress).unwrap();
@@ -254,6 +254,30 @@ fn prepared_demo_clutter_occludes_and_blender_ids_agree_with_the_masks() {
     }
     eprintln!("building pixels: {with} with clutter, {without} without");
     assert!(with > 1000 && with < without, "{with} building pixels with clutter, {without} without");
+
+    // Rooftop units belong to their building by default; as occluders they punch holes in the roofs
+    // (background pixels enclosed by one building), which the default masks do not have.
+    let cam8 = work.path().join("demo/cam8");
+    std::fs::create_dir_all(&cam8).unwrap();
+    std::fs::copy(plan.poses_path(), cam8.join("poses.jsonl")).unwrap();
+    let mut holed = MaskPlan::new(cam8);
+    holed.min_area_px = 4;
+    holed.occluders = vec![ClutterLayer::Trees, ClutterLayer::Cars, ClutterLayer::Rooftop];
+    assert_eq!(stage::render_masks(&holed, &scene, renderer(), &NoProgress).unwrap().rendered, 4);
+    let (mut holes_default, mut holes_rooftop, mut px_rooftop) = (0, 0, 0usize);
+    for i in 0..4 {
+        let name = format!("v{i}");
+        holes_default += enclosed_holes(&IdMap::read_png(&plan.png_path(&name)).unwrap());
+        let m = IdMap::read_png(&holed.png_path(&name)).unwrap();
+        holes_rooftop += enclosed_holes(&m);
+        px_rooftop += m.raw().iter().filter(|&&id| id != 0).count();
+    }
+    eprintln!("hole pixels: {holes_default} default, {holes_rooftop} with rooftop occluders");
+    assert!(
+        holes_rooftop > holes_default,
+        "{holes_rooftop} holes with rooftop units, {holes_default} without"
+    );
+    assert!(px_rooftop < with, "rooftop units hid no roof pixels: {px_rooftop} vs {with}");
 
     // Blender's ID render of the same scene, clutter included as background, agrees with the masks.
     let Some(py) = blender_python() else { return };
@@ -320,4 +344,44 @@ fn side_by_side_picture_shows_rgb_outlines_and_the_clutter_layer() {
     let third_centre = (4 + 2 * (PANEL_WIDTH_PX + 4) + PANEL_WIDTH_PX / 2, 4 + 90);
     assert_eq!(px(third_centre.0, third_centre.1), layer_colour(ClutterLayer::Trees));
     assert_eq!(px(4 + 10, 4 + 10), [120, 130, 140]);
+}
+
+/// Pixels of background regions (4-connected) that one building encloses: holes in its mask.
+fn enclosed_holes(m: &IdMap) -> usize {
+    let (w, h) = (m.width() as usize, m.height() as usize);
+    let ids = m.raw();
+    let mut seen = vec![false; w * h];
+    let mut total = 0;
+    for start in 0..w * h {
+        if ids[start] != 0 || seen[start] {
+            continue;
+        }
+        // Flood one background region; note whether it reaches the border and what surrounds it.
+        let (mut stack, mut size, mut border) = (vec![start], 0usize, false);
+        let mut around = std::collections::BTreeSet::new();
+        seen[start] = true;
+        while let Some(i) = stack.pop() {
+            size += 1;
+            let (x, y) = (i % w, i / w);
+            border |= x == 0 || y == 0 || x + 1 == w || y + 1 == h;
+            let nbs = [
+                (x > 0).then(|| i - 1),
+                (x + 1 < w).then(|| i + 1),
+                (y > 0).then(|| i - w),
+                (y + 1 < h).then(|| i + w),
+            ];
+            for j in nbs.into_iter().flatten() {
+                if ids[j] != 0 {
+                    around.insert(ids[j]);
+                } else if !seen[j] {
+                    seen[j] = true;
+                    stack.push(j);
+                }
+            }
+        }
+        if !border && around.len() == 1 {
+            total += size;
+        }
+    }
+    total
 }

@@ -1,0 +1,315 @@
+//! The closed loop on CPU, small (issue 37): insgen renders a dataset of the demo districts (masks and
+//! Blender photos), the reference baseline (`scripts/train/baseline.py`, PyTorch) trains on it from
+//! scratch for real steps, predicts the held-out district, pycocotools scores the predictions and
+//! `insgen eval-loc --predictions` localizes with them.
+//!
+//! Checks real outcomes: the loss falls, the model finds building pixels on a district it never saw, the
+//! results file passes insgen's schema, pycocotools' `loadRes` and eval-loc; the same seed and steps give
+//! the same weights and the same predictions byte for byte; bad input is an error naming the file.
+//! Skips (fails under CI=true) without bpy or the training venv (`scripts/setup_train.sh`).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use crate::blender_support::blender_python;
+use crate::util::{assert_schema, insgen, repo, repo_scene, scratch_with_scenes, skip, stderr};
+
+/// The training interpreter: `$INSGEN_TRAIN_PYTHON`, else `<repo>/.venv-train/bin/python`, if it imports
+/// torch; else `None` with a printed reason (a failure under CI=true).
+fn train_python() -> Option<PathBuf> {
+    let p = std::env::var_os("INSGEN_TRAIN_PYTHON")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| repo().join(".venv-train/bin/python"));
+    let ok = Command::new(&p)
+        .args(["-c", "import torch, torchvision, skimage, pycocotools"])
+        .output()
+        .map(|o| o.status.success())
+        .unwrap_or(false);
+    if ok {
+        return Some(p);
+    }
+    skip(&format!("{} cannot import torch (run scripts/setup_train.sh)", p.display()));
+    None
+}
+
+fn baseline(py: &Path, cwd: &Path, args: &[&str]) -> Output {
+    Command::new(py)
+        .arg(repo().join("scripts/train/baseline.py"))
+        .args(args)
+        .current_dir(cwd)
+        .output()
+        .expect("python runs")
+}
+
+fn ok(o: Output, what: &str) -> Output {
+    assert!(o.status.success(), "{what} failed:\n{}", stderr(&o));
+    o
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_slice(&bytes).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// demo (train, 8 frames) and demo-test (held out, 4 frames) at 320×180, masks + photos, exported.
+fn demo_dataset(dir: &Path, bpy: &Path) {
+    std::fs::write(
+        dir.join("small.toml"),
+        "name = \"small\"\nwidth_px = 320\nheight_px = 180\nsensor_width_mm = 23.76\n\
+         sensor_height_mm = 13.365\nhfov_deg = 25.0\nstrategy = \"grid\"\n",
+    )
+    .unwrap();
+    for (area, count) in [("demo", "8"), ("demo-test", "4")] {
+        for step in [
+            vec!["prepare", "--area", area],
+            vec!["sample", "--area", area, "--camera", "small.toml", "--count", count],
+            vec!["render-masks", "--area", area, "--camera", "small"],
+        ] {
+            let o = insgen(dir, &[&["--no-progress"], step.as_slice()].concat());
+            ok(o, &step.join(" "));
+        }
+        let o = Command::new(env!("CARGO_BIN_EXE_insgen"))
+            .args(["--no-progress", "render-rgb", "--area", area, "--camera", "small"])
+            .current_dir(dir)
+            .env("INSGEN_BLENDER_PYTHON", bpy)
+            .env("RUST_LOG", "warn")
+            .output()
+            .expect("insgen runs");
+        ok(o, "render-rgb");
+    }
+    ok(insgen(dir, &["--no-progress", "export-coco"]), "export-coco");
+}
+
+/// `baseline.py train` on the demo export, small: a U-Net of width 8 on 128×224 crops, on the CPU.
+fn train_args(out: &str, steps: &str, seed: &str, log_every: &str) -> Vec<String> {
+    [
+        "train",
+        "--coco",
+        "runs/coco",
+        "--out",
+        out,
+        "--device",
+        "cpu",
+        "--steps",
+        steps,
+        "--batch",
+        "4",
+        "--width",
+        "8",
+        "--crop",
+        "128x224",
+        "--seed",
+        seed,
+        "--log-every",
+        log_every,
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect()
+}
+
+fn train(py: &Path, dir: &Path, out: &str, steps: &str) -> serde_json::Value {
+    let args = train_args(out, steps, "3", "5");
+    let o = ok(baseline(py, dir, &strs(&args)), "baseline train");
+    let log = stderr(&o);
+    assert!(log.contains("device: cpu") && log.contains("trained"), "no progress lines:\n{log}");
+    json(&dir.join(out).join("model.json"))
+}
+
+#[test]
+fn baseline_trains_predicts_and_its_masks_are_scored_and_localized() {
+    let Some(bpy) = blender_python() else { return };
+    let Some(py) = train_python() else { return };
+    let scratch =
+        scratch_with_scenes(&[("demo", repo_scene("demo")), ("demo-test", repo_scene("demo-test"))]);
+    let dir = scratch.path();
+    demo_dataset(dir, &bpy);
+
+    // Real training steps: the loss falls; the checkpoint and the log are written.
+    let model = train(&py, dir, "model", "150");
+    assert_schema("baseline_model.schema.json", &model);
+    assert_eq!(model["steps"], 150);
+    let (first, last) = (model["first_loss"].as_f64().unwrap(), model["final_loss"].as_f64().unwrap());
+    assert!(last < 0.8 * first, "the loss did not fall: {first} → {last}");
+    assert!(dir.join("model/checkpoint.pt").is_file());
+    let log = std::fs::read_to_string(dir.join("model/train_log.jsonl")).unwrap();
+    assert!(log.lines().count() >= 1, "empty train log");
+
+    // Predictions on the held-out district, read by insgen's schema, pycocotools and eval-loc.
+    let predict = |out: &str| {
+        let args = [
+            "predict",
+            "--checkpoint",
+            "model/checkpoint.pt",
+            "--coco",
+            "runs/coco/instances_test.json",
+            "--area",
+            "demo-test",
+            "--device",
+            "cpu",
+            "--out",
+            out,
+        ];
+        ok(baseline(&py, dir, &args), "baseline predict");
+        std::fs::read(dir.join(out)).unwrap()
+    };
+    let results_bytes = predict("results.json");
+    let results: serde_json::Value = serde_json::from_slice(&results_bytes).unwrap();
+    assert_schema("coco_results.schema.json", &results);
+    let test = json(&dir.join("runs/coco/instances_test.json"));
+    let sizes: std::collections::BTreeMap<u64, [u64; 2]> = test["images"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|im| {
+            (im["id"].as_u64().unwrap(), [im["height"].as_u64().unwrap(), im["width"].as_u64().unwrap()])
+        })
+        .collect();
+    let entries = results.as_array().unwrap();
+    assert!(!entries.is_empty(), "no instance predicted");
+    for e in entries {
+        let size = sizes.get(&e["image_id"].as_u64().unwrap()).expect("a test image id");
+        assert_eq!(e["segmentation"]["size"], serde_json::json!(size), "mask size differs from the image");
+    }
+    // Same checkpoint → the same file byte for byte.
+    assert_eq!(predict("results_again.json"), results_bytes, "prediction is not deterministic");
+
+    let o = ok(
+        baseline(
+            &py,
+            dir,
+            &[
+                "score",
+                "--coco",
+                "runs/coco/instances_test.json",
+                "--results",
+                "results.json",
+                "--out",
+                "score.json",
+            ],
+        ),
+        "baseline score",
+    );
+    drop(o);
+    let score = json(&dir.join("score.json"));
+    assert_schema("baseline_score.schema.json", &score);
+    eprintln!("trained: {model}\nscored: {score}");
+    let iou = score["building_iou"].as_f64().unwrap();
+    let trivial = score["all_building_iou"].as_f64().unwrap();
+    assert!(
+        iou > trivial + 0.05,
+        "building-pixel IoU {iou} on the held-out district, {trivial} for calling every pixel a building: the \
+         model learned no buildings"
+    );
+    assert!(score["predictions"].as_u64().unwrap() as usize == entries.len());
+
+    let o = insgen(
+        dir,
+        &[
+            "--no-progress",
+            "eval-loc",
+            "--area",
+            "demo-test",
+            "--camera",
+            "small",
+            "--predictions",
+            "results.json",
+            "--limit",
+            "2",
+            "--cost",
+            "instance",
+            "--cost",
+            "semantic",
+            "--render-width",
+            "320",
+            "--coarse-width",
+            "160",
+            "--tag",
+            "loop",
+        ],
+    );
+    ok(o, "eval-loc --predictions");
+    let summary = json(&dir.join("runs/demo-test/small/loc/loop/summary.json"));
+    assert_schema("loc_summary.schema.json", &summary);
+    assert_eq!(summary["queries"], 2);
+    let methods: Vec<&str> =
+        summary["rows"].as_array().unwrap().iter().filter_map(|r| r["method"].as_str()).collect();
+    assert!(
+        methods.iter().any(|m| m.starts_with("instance"))
+            && methods.iter().any(|m| m.starts_with("semantic")),
+        "{methods:?}"
+    );
+    seeded_and_strict(&py, dir);
+}
+
+/// The same seed and steps give the same weights; bad input is an error naming the file, nothing written.
+fn seeded_and_strict(py: &Path, dir: &Path) {
+    let a = train(py, dir, "a", "4");
+    let b = train(py, dir, "b", "4");
+    assert_eq!(a["weights_sha256"], b["weights_sha256"], "same seed and steps, other weights");
+    assert_ne!(a["weights_sha256"], serde_json::Value::Null);
+
+    interrupted_and_resumed(py, dir);
+
+    let o =
+        baseline(py, dir, &["train", "--coco", "no/such/instances_train.json", "--out", "c", "--steps", "1"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("no/such/instances_train.json"), "{}", stderr(&o));
+    assert!(!dir.join("c/model.json").exists(), "a failed run left a model");
+    let o = baseline(
+        py,
+        dir,
+        &[
+            "predict",
+            "--checkpoint",
+            "missing.pt",
+            "--coco",
+            "runs/coco/instances_test.json",
+            "--out",
+            "r.json",
+        ],
+    );
+    assert!(!o.status.success() && stderr(&o).contains("missing.pt"), "{}", stderr(&o));
+    assert!(!dir.join("r.json").exists());
+}
+
+/// Ctrl-C ends a run between two steps with a checkpoint; `--resume` then gives the weights of a run
+/// that was never stopped.
+fn interrupted_and_resumed(py: &Path, dir: &Path) {
+    let args = |out: &str| train_args(out, "40", "5", "0");
+    ok(baseline(py, dir, &strs(&args("straight"))), "straight run");
+    let straight = json(&dir.join("straight/model.json"));
+    let mut child = Command::new(py)
+        .arg(repo().join("scripts/train/baseline.py"))
+        .args(args("stopped"))
+        .current_dir(dir)
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("python runs");
+    // Stop it once it has logged a few steps.
+    let log = dir.join("stopped/train_log.jsonl");
+    let started = std::time::Instant::now();
+    while std::fs::read_to_string(&log).map(|t| t.lines().count()).unwrap_or(0) < 3 {
+        assert!(started.elapsed().as_secs() < 120, "no training step within 2 minutes");
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let kill = Command::new("kill").args(["-INT", &child.id().to_string()]).status().expect("kill runs");
+    assert!(kill.success());
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "a stopped run exits 130");
+    assert!(!dir.join("stopped/model.json").exists(), "a stopped run wrote its final model.json");
+    let mut resume = args("stopped");
+    resume.push("--resume".into());
+    let o = ok(baseline(py, dir, &strs(&resume)), "resumed run");
+    assert!(stderr(&o).contains("resumed from"), "{}", stderr(&o));
+    let resumed = json(&dir.join("stopped/model.json"));
+    assert_eq!(resumed["steps"], 40);
+    assert_eq!(
+        resumed["weights_sha256"], straight["weights_sha256"],
+        "stopped + resumed differs from straight"
+    );
+}
+
+fn strs(v: &[String]) -> Vec<&str> {
+    v.iter().map(String::as_str).collect()
+}
