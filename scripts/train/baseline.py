@@ -18,7 +18,8 @@
 
 Nothing is downloaded: both families start from random weights. Same data, seed and --steps on the same
 device give the same checkpoint; a --minutes budget stops on the clock, so its step count varies.
-Needs torch, torchvision, numpy, scipy, scikit-image, pycocotools and pillow (scripts/setup_train.sh).
+Training and prediction need torch, torchvision, numpy, scipy, scikit-image and pillow (RLE in numpy,
+rle.py); scoring, pictures and polygon annotations also pycocotools (scripts/setup_train.sh installs all).
 """
 
 from __future__ import annotations

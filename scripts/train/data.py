@@ -2,8 +2,8 @@
 
 A frame is one `images[]` entry of an `instances_<split>.json`: the RGB photo (`file_name`, relative to
 `info.image_root`, itself relative to the JSON's folder) and an instance map painted from the
-annotations' masks (RLE or polygons, decoded by pycocotools), so any COCO instance file works, not only
-insgen's. Pixels to leave out of the loss: `iscrowd` annotations and insgen's `ignore_file` (255 where a
+annotations' masks (RLE, or polygons rasterised by pycocotools), so any COCO instance file works, not
+only insgen's. Pixels to leave out of the loss: `iscrowd` annotations and insgen's `ignore_file` (255 where a
 photogrammetry tileset hides a LoD building).
 """
 
@@ -15,8 +15,9 @@ from pathlib import Path
 
 import numpy as np
 from PIL import Image
-from pycocotools import mask as mask_utils
 from scipy import ndimage
+
+import rle
 
 IGNORE = 255
 
@@ -99,13 +100,14 @@ def read_frame(root: Path, image: dict, annotations: list[dict], scale: float) -
 
 
 def decode_segmentation(seg, h: int, w: int) -> np.ndarray:
-    """An annotation's mask as (h, w) uint8: RLE (compressed or not) or polygons."""
+    """An annotation's mask as (h, w) uint8: RLE (compressed or not; numpy, `rle.py`) or polygons
+    (rasterised by pycocotools, needed only for polygon annotations)."""
     if isinstance(seg, list):
+        from pycocotools import mask as mask_utils
+
         rles = mask_utils.frPyObjects(seg, h, w)
         return mask_utils.decode(mask_utils.merge(rles))
-    if isinstance(seg.get("counts"), list):
-        seg = mask_utils.frPyObjects(seg, h, w)
-    return mask_utils.decode(seg)
+    return rle.decode(seg)
 
 
 # ------------------------------------------------------------------------------------- bottom-up targets

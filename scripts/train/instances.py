@@ -11,9 +11,10 @@ mean building probability and its core's mean interior probability (0–1, highe
 from __future__ import annotations
 
 import numpy as np
-from pycocotools import mask as mask_utils
 from scipy import ndimage
 from skimage.segmentation import watershed
+
+import rle
 
 
 def decode_unet(probs: np.ndarray, dist: np.ndarray, fg_threshold: float = 0.5, seed_threshold: float = 0.35,
@@ -66,12 +67,11 @@ def result_entries(image_id: int, instances: list[tuple[np.ndarray, float]], cat
     """COCO results entries (compressed RLE, bbox, score) for one image."""
     entries = []
     for mask, score in instances:
-        rle = mask_utils.encode(np.asfortranarray(mask.astype(np.uint8)))
         entries.append({
             "image_id": int(image_id),
             "category_id": int(category_id),
-            "segmentation": {"size": [int(v) for v in rle["size"]], "counts": rle["counts"].decode("ascii")},
-            "bbox": [round(float(v), 2) for v in mask_utils.toBbox(rle)],
+            "segmentation": rle.encode(mask),
+            "bbox": rle.bbox(mask),
             "score": round(float(score), 5),
         })
     return entries

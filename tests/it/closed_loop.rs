@@ -313,3 +313,21 @@ fn interrupted_and_resumed(py: &Path, dir: &Path) {
 fn strs(v: &[String]) -> Vec<&str> {
     v.iter().map(String::as_str).collect()
 }
+
+#[test]
+fn numpy_rle_equals_pycocotools() {
+    // Training and prediction encode masks without pycocotools (a GPU machine may lack it): the
+    // strings, the decoded masks and the boxes must be pycocotools' own.
+    let Some(py) = train_python() else { return };
+    let o = ok(
+        Command::new(&py)
+            .arg(repo().join("scripts/train/rle_check.py"))
+            .arg("7")
+            .output()
+            .expect("python runs"),
+        "rle_check.py",
+    );
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).expect("rle_check prints JSON");
+    assert_eq!(report["masks"], 400);
+    assert_eq!(report["mismatches"], serde_json::json!([]), "{report}");
+}
