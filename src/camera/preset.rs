@@ -140,11 +140,15 @@ impl CameraSpec {
             return Ok(spec);
         }
         let path = Path::new(arg);
-        let looks_like_path = arg.ends_with(".toml") || arg.contains('/') || arg.contains('\\');
-        if path.is_file() || looks_like_path {
+        if path.is_file() || Self::names_a_file(arg) {
             return Self::load(path);
         }
         Err(CameraError::UnknownPreset { name: arg.to_string(), available: PRESET_NAMES.join(", ") })
+    }
+
+    /// Whether a `--camera` value names a file (`.toml`, or a path) rather than a preset or a name.
+    pub fn names_a_file(arg: &str) -> bool {
+        arg.ends_with(".toml") || arg.contains('/') || arg.contains('\\')
     }
 
     /// Reads a custom camera TOML file (`schemas/camera.schema.json`).

@@ -200,8 +200,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 /// `--camera` of the stages after `sample`: a preset (`cam2`), the camera's name (its directory under
 /// the area, e.g. `cam2-quarter`) or the camera TOML file `sample` was given, resolved to that name.
 pub(crate) fn parse_camera_dir(arg: &str) -> Result<String, String> {
-    let looks_like_file = arg.ends_with(".toml") || arg.contains('/') || arg.contains('\\');
-    if !looks_like_file {
+    if !crate::camera::CameraSpec::names_a_file(arg) {
         return Ok(arg.to_string());
     }
     crate::camera::CameraSpec::resolve(arg).map(|spec| spec.name).map_err(|e| crate::util::error_chain(&e))
