@@ -71,6 +71,9 @@ done
 : "${WORKDIR:=runs/closed_loop_$SIZE}"
 : "${LABEL:=$SIZE}"
 W=$WORKDIR
+if [ -z "${INSGEN_TRAIN_PYTHON:-}" ]; then
+    bash scripts/setup_train.sh  # idempotent: the training venv (torch), once
+fi
 PY="${INSGEN_TRAIN_PYTHON:-$ROOT/.venv-train/bin/python}"
 BASE="$ROOT/scripts/train/baseline.py"
 INSGEN="$ROOT/target/release/insgen"
