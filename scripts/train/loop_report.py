@@ -11,9 +11,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import shutil
 import sys
 from pathlib import Path
+
+from PIL import Image
 
 HEADER = """# The closed loop: dataset → model → predictions → pycocotools and eval-loc
 
@@ -92,8 +93,11 @@ def section(w: Path, bench: Path) -> str:
                    f"{s.get('predictions', '–')} / {s.get('annotations', '–')} |")
         sheet = w / "model" / fam / f"sheet_{hold}.png"
         if sheet.exists():
-            dest = bench / f"closed_loop_{label}_{fam}.png"
-            shutil.copyfile(sheet, dest)
+            # A JPEG next to the report: the PNG sheet runs to megabytes.
+            dest = bench / f"closed_loop_{label}_{fam}.jpg"
+            tmp = dest.with_name(dest.name + ".tmp.jpg")
+            Image.open(sheet).convert("RGB").save(tmp, quality=85)
+            tmp.replace(dest)
             pictures.append((fam, dest.name))
     out += [""] + learnability_rows(load(w / "coco" / "stats.json"))
     first = loop["families"].split()[0]
