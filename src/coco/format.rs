@@ -333,3 +333,41 @@ mod tests {
         assert_eq!(licence_url("open data, licence unknown"), "");
     }
 }
+
+/// Fixtures shared by the COCO stage's unit tests.
+#[cfg(test)]
+pub(crate) mod testing {
+    use super::Image;
+
+    /// Image `id` of area `a`, camera `cam2`, `width × height` px, its ID map at `a/cam2/masks/<id>.png`
+    /// (also its `file_name`), at an identity pose.
+    pub(crate) fn image(id: u64, width: u32, height: u32) -> Image {
+        let pose: crate::camera::PoseRecord = serde_json::from_value(serde_json::json!({
+            "name": "f", "area": "a", "preset": "cam2", "trajectory": "grid", "sequence": 0, "index": 0,
+            "intrinsics": {"width_px": 4, "height_px": 4, "fx_px": 1.0, "fy_px": 1.0, "cx_px": 2.0, "cy_px": 2.0},
+            "cam_to_world_enu": [[1.0,0.0,0.0,0.0],[0.0,1.0,0.0,0.0],[0.0,0.0,1.0,0.0],[0.0,0.0,0.0,1.0]],
+            "colmap_qvec": [1.0,0.0,0.0,0.0], "colmap_tvec": [0.0,0.0,0.0], "ecef_m": [0.0,0.0,0.0],
+            "lat_deg": 0.0, "lon_deg": 0.0, "h_m": 0.0, "yaw_deg": 0.0, "pitch_deg": 0.0, "roll_deg": 0.0,
+            "height_above_ground_m": 0.0
+        }))
+        .unwrap();
+        Image {
+            id,
+            file_name: format!("a/cam2/masks/{id}.png"),
+            width,
+            height,
+            license: None,
+            area_name: "a".into(),
+            camera: "cam2".into(),
+            preset: "cam2".into(),
+            frame: format!("{id}"),
+            mask_file: format!("a/cam2/masks/{id}.png"),
+            connectivity: crate::label::Connectivity::Eight,
+            view: pose.view,
+            geo: pose.geo,
+            look: None,
+            consistency: None,
+            ignore_file: None,
+        }
+    }
+}
