@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use insgen::coco::rle::{encode, encode_labels};
+use insgen::export::rle::{encode, encode_labels};
 use insgen::label::{label_components, Connectivity};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

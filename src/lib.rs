@@ -10,10 +10,13 @@
 //! | [`camera`] | camera presets, pose sampling strategies, priors, COLMAP and JSON output |
 //! | [`render`] | wgpu offscreen instance-ID renderer                                     |
 //! | [`label`]  | connected components and per-frame instance lists                       |
-//! | [`coco`]   | COCO instance export, RLE exactly as pycocotools writes it              |
+//! | [`export`] | COCO (RLE as pycocotools writes it), panoptic, YOLO and 3D Tiles exports |
 //! | [`blender`]| Blender (bpy) headless RGB rendering driven by JSON job files            |
 //! | [`loc`]    | the instance-silhouette localizer and its evaluation                    |
 //! | [`cli`]    | the `insgen` command line                                               |
+//!
+//! [`layout`] names every file and folder of a work directory and of an export, for every stage; [`util`]
+//! holds what every stage shares (atomic writes, progress, the GLB container, sharding).
 //!
 //! Conventions used everywhere:
 //! - Names carry units (`height_m`, `yaw_deg`); angles are radians inside functions and degrees at the
@@ -26,9 +29,10 @@
 pub mod blender;
 pub mod camera;
 pub mod cli;
-pub mod coco;
+pub mod export;
 pub mod geo;
 pub mod label;
+pub mod layout;
 pub mod loc;
 pub mod lod;
 pub mod render;

@@ -168,7 +168,7 @@ pub struct RenderSummary {
 }
 
 /// Suffix of the per-frame metadata written next to each RGB frame (`rgb/<frame>.render.json`).
-pub const META_SUFFIX: &str = crate::label::stage::RGB_META_SUFFIX;
+pub const META_SUFFIX: &str = crate::layout::RGB_META_SUFFIX;
 
 /// What one Blender process reported about itself.
 #[derive(Debug, Clone)]
@@ -744,8 +744,8 @@ mod tests {
             look_seed: 1,
             look: LookRanges::plain(35.0),
             ground_enu_m: 0.0,
-            out_dir: dir.join("rgb"),
-            work_dir: dir.join("blender"),
+            out_dir: dir.join(crate::layout::RGB_DIR),
+            work_dir: dir.join(crate::layout::BLENDER_DIR),
             restart_every: 10,
             force: false,
             clip_start_m: 0.1,

@@ -41,13 +41,8 @@ use crate::geo::{EnuFrame, Geodetic};
 use crate::scene::PreparedScene;
 use crate::util::Progress;
 
-/// File names written by [`write_sample`] inside the camera directory.
-pub const POSES_FILE: &str = "poses.jsonl";
-pub const PRIORS_FILE: &str = "priors.jsonl";
-pub const COLMAP_DIR: &str = "colmap";
-pub const CAMERA_FILE: &str = "camera.json";
-pub const SAMPLING_FILE: &str = "sampling.json";
-pub const FLIGHT_PLAN_FILE: &str = "flight_plan.png";
+/// File names written by [`write_sample`] inside the camera directory (see [`crate::layout`]).
+pub use crate::layout::{CAMERA_FILE, COLMAP_DIR, FLIGHT_PLAN_FILE, POSES_FILE, PRIORS_FILE, SAMPLING_FILE};
 
 /// Counters of one sampling run.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]

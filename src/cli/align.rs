@@ -73,7 +73,7 @@ pub struct Report {
 pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     let printer = global.printer();
     let area_dir = global.workdir.join(&args.area);
-    let scene_dir = area_dir.join("scene");
+    let scene_dir = area_dir.join(crate::layout::SCENE_DIR);
     anyhow::ensure!(
         args.tileset.is_file(),
         "{}: no such tileset file (give the tileset.json of the photogrammetry model)",

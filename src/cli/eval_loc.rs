@@ -464,9 +464,10 @@ fn load_map(
 ) -> anyhow::Result<(PreparedScene, MapSummary)> {
     let (scene, area) = match &args.map_area {
         Some(name) if *name != args.area => {
-            let map = PreparedScene::load(&global.workdir.join(name).join("scene")).with_context(|| {
-                format!("loading the map area {name} (run `insgen prepare --area {name}`)")
-            })?;
+            let map = PreparedScene::load(&global.workdir.join(name).join(crate::layout::SCENE_DIR))
+                .with_context(|| {
+                    format!("loading the map area {name} (run `insgen prepare --area {name}`)")
+                })?;
             crate::loc::map::check_same_frame(&query_scene, &map)?;
             (map, name.clone())
         }
@@ -542,7 +543,8 @@ fn default_tag(args: &Args, degradation: &Degradation, map: &MapSummary) -> Stri
 
 pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     let area_dir = global.workdir.join(&args.area);
-    let (scene, map) = load_map(args, global, PreparedScene::load(&area_dir.join("scene"))?)?;
+    let (scene, map) =
+        load_map(args, global, PreparedScene::load(&area_dir.join(crate::layout::SCENE_DIR))?)?;
     let degradation = Degradation {
         morph_px: args.dilate as i32 - args.erode as i32,
         drop_fraction: args.drop,
@@ -582,7 +584,7 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
             )?)
         }
         None => QuerySource::Oracle {
-            masks_dir: args.masks.clone().unwrap_or_else(|| camera_dir.join("masks")),
+            masks_dir: args.masks.clone().unwrap_or_else(|| camera_dir.join(crate::layout::MASKS_DIR)),
             degradation,
         },
     };

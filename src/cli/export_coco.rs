@@ -4,9 +4,9 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use crate::coco::export::{build, export, ExportPlan};
-use crate::coco::format::{AnnotationUnit, Filters, TruncatedPolicy};
-use crate::coco::stats::{self, ReportOptions};
+use crate::export::coco::{build, export, ExportPlan};
+use crate::export::format::{AnnotationUnit, Filters, TruncatedPolicy};
+use crate::export::stats::{self, ReportOptions};
 use crate::util::ShardSpec;
 
 /// What to do with instances that touch the image border.
@@ -148,7 +148,7 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
         let ex = build(&plan, "..", &progress)
             .with_context(|| format!("exporting COCO from {}", plan.workdir.display()))?;
         log_export(&plan, &ex);
-        let written = crate::coco::parts::write_part(&plan, &ex, args.report())
+        let written = crate::export::parts::write_part(&plan, &ex, args.report())
             .with_context(|| format!("writing shard {} of the export", plan.shard))?;
         for f in &written {
             log::info!("wrote {}", f.display());
@@ -156,7 +156,7 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
         printer.summary(format!(
             "shard {} of the export → {}; combine the parts with `insgen merge`",
             plan.shard,
-            crate::coco::parts::part_dir(&plan.out_dir, plan.shard).display()
+            crate::export::parts::part_dir(&plan.out_dir, plan.shard).display()
         ));
         return Ok(());
     }
@@ -173,7 +173,7 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
 /// I/O and PNG errors naming the file.
 pub(crate) fn write_reports(
     plan: &ExportPlan,
-    ex: &crate::coco::export::Export,
+    ex: &crate::export::coco::Export,
     report: Option<ReportOptions>,
     mut written: Vec<PathBuf>,
 ) -> anyhow::Result<()> {
@@ -195,7 +195,7 @@ pub(crate) fn write_reports(
 }
 
 /// Logs what the export left out and how many images and annotations each split got.
-pub(crate) fn log_export(plan: &ExportPlan, ex: &crate::coco::export::Export) {
+pub(crate) fn log_export(plan: &ExportPlan, ex: &crate::export::coco::Export) {
     if ex.frames_without_masks > 0 {
         log::warn!(
             "{} frame(s) in poses.jsonl have no ID map or instance file yet and were skipped; run \

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use crate::coco::panoptic::{export_panoptic, PanopticPlan};
+use crate::export::panoptic::{export_panoptic, PanopticPlan};
 
 /// Export COCO panoptic segmentation (PNGs + panoptic_<split>.json) from a COCO instance export.
 ///

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use crate::scene::tiles::{write_scene_tileset, TILESET_DIR};
+use crate::export::tiles::{write_scene_tileset, TILESET_DIR};
 
 /// Write a prepared area as a 3D Tiles 1.1 tileset that CesiumJS shows where it belongs on the globe.
 ///
@@ -68,7 +68,7 @@ pub enum StyleArg {
 impl Args {
     /// The scene directory and the output directory.
     pub fn dirs(&self, global: &super::Global) -> (PathBuf, PathBuf) {
-        let scene = global.workdir.join(&self.area).join("scene");
+        let scene = global.workdir.join(&self.area).join(crate::layout::SCENE_DIR);
         let out = self.out.clone().unwrap_or_else(|| scene.join(TILESET_DIR));
         (scene, out)
     }
@@ -78,7 +78,8 @@ impl Args {
 pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     let (scene, out) = args.dirs(global);
     if let Some(style) = args.style {
-        use crate::lod::tiles3d::write::{buildings_from_scene, generate_city_tileset, Style};
+        use crate::export::city_tileset::{generate_city_tileset, Style};
+        use crate::scene::mesh::buildings_from_scene;
         let prepared = crate::scene::artifact::PreparedScene::load(&scene)?;
         let o = prepared.manifest.origin;
         let enu = crate::geo::EnuFrame::new(crate::geo::Geodetic::new(o.lat_deg, o.lon_deg, o.h_m));

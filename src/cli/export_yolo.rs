@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use crate::coco::yolo::{export_yolo, YoloPlan};
+use crate::export::yolo::{export_yolo, YoloPlan};
 
 /// Export YOLO segmentation labels and data.yaml (Ultralytics format) from a COCO instance export.
 ///

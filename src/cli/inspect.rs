@@ -64,7 +64,7 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     if let Some(area) = &args.area {
-        let dir = global.workdir.join(area).join("scene");
+        let dir = global.workdir.join(area).join(crate::layout::SCENE_DIR);
         let s = crate::scene::PreparedScene::load(&dir)?;
         let m = &s.manifest;
         if args.json {

@@ -1,6 +1,6 @@
 //! `insgen merge [SOURCE...]`: merges work directories of shards into `--workdir` (see
 //! [`crate::util::merge`]) and combines the reports shards wrote in parts: COCO exports
-//! ([`crate::coco::parts`]) and localization results ([`crate::loc::eval::combine_parts`]). Every
+//! ([`crate::export::parts`]) and localization results ([`crate::loc::eval::combine_parts`]). Every
 //! combined file is checked against what the destination holds before anything is written.
 
 use std::path::PathBuf;
@@ -33,7 +33,7 @@ pub struct Args {
 
 /// A report combined from its parts, ready to write.
 enum Combined {
-    Coco(Box<crate::coco::parts::Combined>),
+    Coco(Box<crate::export::parts::Combined>),
     Loc { out_dir: PathBuf, outputs: Box<crate::loc::eval::Outputs> },
 }
 
@@ -50,8 +50,8 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
         let out_dir = dest.join(&rp.report);
         let kind = part_kind(&rp.parts)?;
         let (c, primary): (Combined, Vec<(PathBuf, Vec<u8>)>) = match kind.as_str() {
-            crate::coco::parts::PART_KIND => {
-                let c = crate::coco::parts::combine(&rp.parts, dest, &out_dir)
+            crate::export::parts::PART_KIND => {
+                let c = crate::export::parts::combine(&rp.parts, dest, &out_dir)
                     .with_context(|| format!("combining the COCO parts of {}", out_dir.display()))?;
                 let files = coco_bytes(&c, &rp.report)?;
                 (Combined::Coco(Box::new(c)), files)
@@ -102,7 +102,7 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
         match c {
             Combined::Coco(c) => {
                 let (ex, written) =
-                    crate::coco::export::write_export(&c.plan, c.export).with_context(|| {
+                    crate::export::coco::write_export(&c.plan, c.export).with_context(|| {
                         format!("writing the combined export to {}", c.plan.out_dir.display())
                     })?;
                 super::export_coco::log_export(&c.plan, &ex);
@@ -162,9 +162,9 @@ fn part_kind(parts: &std::collections::BTreeMap<crate::util::Shard, PathBuf>) ->
 }
 
 /// The COCO files a combined export writes to `report` (relative to the work directory), as
-/// [`crate::coco::export::write_export`] will write them (with the image root `..` per level).
+/// [`crate::export::coco::write_export`] will write them (with the image root `..` per level).
 fn coco_bytes(
-    c: &crate::coco::parts::Combined,
+    c: &crate::export::parts::Combined,
     report: &std::path::Path,
 ) -> anyhow::Result<Vec<(PathBuf, Vec<u8>)>> {
     let levels = report.components().count();

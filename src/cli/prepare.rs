@@ -45,7 +45,7 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     let progress = printer.progress();
     for file in files {
         let area = file.file_stem().and_then(|s| s.to_str()).unwrap_or("area").to_string();
-        let out = global.workdir.join(&area).join("scene");
+        let out = global.workdir.join(&area).join(crate::layout::SCENE_DIR);
         let options = scene::prepare::PrepareOptions {
             clutter: (!args.no_clutter)
                 .then(|| scene::clutter::ClutterSpec { seed: args.clutter_seed, ..Default::default() }),

@@ -193,7 +193,7 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<(MaskPlan, PathBu
         plan.tileset =
             Some(TilesetOcclusion { path: path.clone(), mode: args.occlusion.into(), threshold_m: t });
     }
-    Ok((plan, area_dir.join("scene")))
+    Ok((plan, area_dir.join(crate::layout::SCENE_DIR)))
 }
 
 /// Runs `insgen render-masks`.

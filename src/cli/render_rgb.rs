@@ -279,9 +279,9 @@ struct Plan {
 
 fn plan(args: &Args, global: &super::Global) -> anyhow::Result<Plan> {
     let area_dir = global.workdir.join(&args.area);
-    let scene_dir = area_dir.join("scene");
+    let scene_dir = area_dir.join(crate::layout::SCENE_DIR);
     let camera_dir = area_dir.join(&args.camera);
-    let poses_path = camera_dir.join("poses.jsonl");
+    let poses_path = camera_dir.join(crate::layout::POSES_FILE);
     if !poses_path.is_file() {
         bail!(
             "{} does not exist; sample the poses first: insgen sample --area {} --camera {}",
@@ -333,7 +333,7 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<Plan> {
     let (mode, out_dir) = if args.check_alignment {
         (Mode::Ids, camera_dir.join("alignment"))
     } else {
-        (Mode::Rgb, camera_dir.join(crate::label::stage::RGB_DIR))
+        (Mode::Rgb, camera_dir.join(crate::layout::RGB_DIR))
     };
     let defaults = source.default_rgb_settings(args.lighting.into());
     let look = look_ranges(args, manifest.origin.lat_deg)?;
@@ -365,7 +365,7 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<Plan> {
         look,
         ground_enu_m: manifest.ground_enu_m,
         out_dir,
-        work_dir: camera_dir.join("blender"),
+        work_dir: camera_dir.join(crate::layout::BLENDER_DIR),
         restart_every: args.restart_every as usize,
         force: args.force,
         clip_start_m: 0.5,
@@ -465,7 +465,7 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
         }
         return Ok(());
     }
-    let masks = plan.camera_dir.join("masks");
+    let masks = plan.camera_dir.join(crate::layout::MASKS_DIR);
     let mut per_frame = Vec::with_capacity(plan.frames.len());
     for f in &plan.frames {
         let ids_path = frame_outputs(&plan.render, &f.name)
@@ -519,11 +519,11 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
 /// Writes `rgb/side_by_side.png` for the first `--side-by-side` frames of the plan.
 fn side_by_side(args: &Args, global: &super::Global, plan: &Plan) -> anyhow::Result<()> {
     use crate::label::side_by_side::{write_side_by_side, SideFrame};
-    let scene_dir = global.workdir.join(&args.area).join("scene");
+    let scene_dir = global.workdir.join(&args.area).join(crate::layout::SCENE_DIR);
     let scene = crate::scene::PreparedScene::load(&scene_dir)
         .with_context(|| format!("loading {}", scene_dir.display()))?;
     let renderer = crate::render::Renderer::new().context("setting up the GPU renderer")?;
-    let rgb_dir = plan.camera_dir.join(crate::label::stage::RGB_DIR);
+    let rgb_dir = plan.camera_dir.join(crate::layout::RGB_DIR);
     let frames: Vec<SideFrame> = plan
         .frames
         .iter()
@@ -531,7 +531,7 @@ fn side_by_side(args: &Args, global: &super::Global, plan: &Plan) -> anyhow::Res
             name: f.name.clone(),
             view: crate::render::View { intrinsics: f.intrinsics, pose: f.pose },
             rgb_png: rgb_dir.join(format!("{}.png", f.name)),
-            mask_png: plan.camera_dir.join("masks").join(format!("{}.png", f.name)),
+            mask_png: plan.camera_dir.join(crate::layout::MASKS_DIR).join(format!("{}.png", f.name)),
         })
         .collect();
     let out = rgb_dir.join("side_by_side.png");

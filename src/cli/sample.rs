@@ -90,7 +90,7 @@ impl Plan {
         if area.is_empty() || area.contains(['/', '\\']) || area == "." || area == ".." {
             anyhow::bail!("--area {given:?}: expected an area name (as in <scenes>/<area>.toml), not a path");
         }
-        let scene_dir = global.workdir.join(area).join("scene");
+        let scene_dir = global.workdir.join(area).join(crate::layout::SCENE_DIR);
         let manifest = scene_dir.join(crate::scene::artifact::MANIFEST_FILE);
         if !manifest.is_file() {
             anyhow::bail!("{}", unknown_area_message(area, &global.workdir, &global.scenes, &manifest));
@@ -136,7 +136,7 @@ fn unknown_area_message(area: &str, workdir: &Path, scenes: &Path, manifest: &Pa
         v
     };
     let prepared = list(workdir, &|p| {
-        p.join("scene")
+        p.join(crate::layout::SCENE_DIR)
             .join(crate::scene::artifact::MANIFEST_FILE)
             .is_file()
             .then(|| p.file_name().map(|n| n.to_string_lossy().into_owned()))

@@ -4,9 +4,9 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use crate::coco::export::{read_json, Split};
-use crate::coco::format::Dataset;
-use crate::coco::stats::{self, ReportOptions};
+use crate::export::coco::{read_json, Split};
+use crate::export::format::Dataset;
+use crate::export::stats::{self, ReportOptions};
 
 /// Summarise a COCO export: images, instances per image, size classes, buildings seen per area, and per
 /// area statistics that predict learnability (touching-neighbour boundaries, their colour contrast,

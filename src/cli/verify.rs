@@ -1,4 +1,4 @@
-//! `insgen verify DATASET`: checks an exported dataset (see [`crate::coco::verify`]).
+//! `insgen verify DATASET`: checks an exported dataset (see [`crate::export::verify`]).
 
 use std::path::PathBuf;
 
@@ -23,14 +23,14 @@ pub struct Args {
 
 pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     let printer = global.printer();
-    let dir = crate::coco::verify::dataset_dir(&args.dataset);
+    let dir = crate::export::verify::dataset_dir(&args.dataset);
     if !dir.exists() {
         bail!(
             "{}: no such file or directory (give the export folder, its dataset.json or the work directory)",
             dir.display()
         );
     }
-    let report = crate::coco::verify::verify(&dir, &printer.progress());
+    let report = crate::export::verify::verify(&dir, &printer.progress());
     for p in &report.problems {
         eprintln!("problem: {p}");
     }

@@ -60,14 +60,7 @@ use crate::util::{FileError, Progress, Shard};
 /// Default minimum component area kept in the instance lists, pixels (see the module doc).
 pub const DEFAULT_MIN_AREA_PX: u64 = 16;
 
-/// File names inside `<workdir>/<area>/<camera>/`.
-pub const POSES_FILE: &str = "poses.jsonl";
-/// Where the ID maps and instance lists go.
-pub const MASKS_DIR: &str = "masks";
-/// Where the RGB stage writes frames (preview backdrops).
-pub const RGB_DIR: &str = "rgb";
-/// Suffix of the metadata the RGB stage writes beside each frame (`rgb/<frame>.render.json`).
-pub const RGB_META_SUFFIX: &str = "render.json";
+use crate::layout::{MASKS_DIR, POSES_FILE, RGB_DIR};
 
 /// Frames per contact sheet (4 columns × 3 rows) and the width of one tile.
 const SHEET_COLUMNS: u32 = 4;

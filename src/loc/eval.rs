@@ -513,7 +513,7 @@ pub enum QueryPoses {
 pub fn load_queries(src: &QueryPoses) -> Result<Vec<QueryPose>, EvalError> {
     match src {
         QueryPoses::Sample { camera_dir } => {
-            let gt_path = camera_dir.join("poses.jsonl");
+            let gt_path = camera_dir.join(crate::layout::POSES_FILE);
             let prior_path = camera_dir.join("priors.jsonl");
             let gts = read_jsonl(&gt_path)?;
             let priors: BTreeMap<String, PoseRecord> =
@@ -876,7 +876,7 @@ fn load_selected_queries(opts: &EvalOptions) -> Result<Vec<QueryPose>, EvalError
     if queries.is_empty() {
         return Err(EvalError::Input {
             path: match &opts.queries {
-                QueryPoses::Sample { camera_dir } => camera_dir.join("poses.jsonl"),
+                QueryPoses::Sample { camera_dir } => camera_dir.join(crate::layout::POSES_FILE),
                 QueryPoses::Colmap { gt, .. } => gt.clone(),
             },
             what: "no queries".into(),

@@ -16,7 +16,7 @@ use serde::Deserialize;
 use super::cost::{bbox_area, Query, QueryInstance};
 use super::oracle::{self, Degradation};
 use crate::camera::Intrinsics;
-use crate::coco::results::{read_results, Prediction};
+use crate::export::results::{read_results, Prediction};
 use crate::label::{label_components, Connectivity};
 use crate::scene::IdMap;
 
@@ -24,7 +24,7 @@ use crate::scene::IdMap;
 #[derive(Debug, thiserror::Error)]
 pub enum QueryError {
     #[error(transparent)]
-    Coco(#[from] crate::coco::CocoError),
+    Coco(#[from] crate::export::CocoError),
     #[error("{}: {what}", path.display())]
     Input { path: PathBuf, what: String },
     /// An oracle query's ID map cannot be read.
@@ -192,7 +192,7 @@ pub fn load_predictions(
     let results = read_results(results_path)?;
     let mut frames: BTreeMap<u64, String> = BTreeMap::new();
     for f in instances_files {
-        let bytes = crate::util::read_file(f).map_err(crate::coco::CocoError::from)?;
+        let bytes = crate::util::read_file(f).map_err(crate::export::CocoError::from)?;
         let images: ImagesOnly = serde_json::from_slice(&bytes)
             .map_err(|source| QueryError::Instances { path: f.clone(), source })?;
         for im in images.images {
@@ -230,7 +230,7 @@ pub fn load_predictions(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::coco::rle::encode;
+    use crate::export::rle::encode;
 
     #[test]
     fn nearest_resize_samples_pixel_centres() {

@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 use crate::util::{self, FileError};
 
 /// Folder (next to `scene.glb`) the texture images are copied into.
-pub const TEXTURES_DIR: &str = "textures";
+pub use crate::layout::TEXTURES_DIR;
 
 /// Per-vertex appearance, parallel to a mesh's vertices.
 #[derive(Debug, Clone, Default, PartialEq)]

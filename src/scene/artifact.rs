@@ -21,10 +21,8 @@ use serde::{Deserialize, Serialize};
 use super::ids::BuildingId;
 use super::mesh::SceneMesh;
 
-/// File names inside a scene directory.
-pub const GLB_FILE: &str = "scene.glb";
-pub const MANIFEST_FILE: &str = "manifest.json";
-pub const BUILDINGS_FILE: &str = "buildings.json";
+/// File names inside a scene directory (see [`crate::layout`]).
+pub use crate::layout::{BUILDINGS_FILE, GLB_FILE, MANIFEST_FILE};
 
 /// One row of the building table.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -49,7 +49,6 @@
 
 use glam::{DMat4, DVec3, Mat4};
 use std::collections::BTreeMap;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use serde_json::{json, Value};
@@ -58,6 +57,7 @@ use super::appearance::{AppearanceMaterial, VertexAppearance};
 use super::artifact::BuildingRecord;
 use super::ids::{BuildingId, MAX_BUILDING_ID};
 use super::mesh::SceneMesh;
+use crate::util::glb::GlbBuilder;
 use crate::util::FileError;
 
 /// Errors of the GLB writer and reader; every variant names the file.
@@ -79,6 +79,13 @@ pub enum GlbError {
         #[source]
         source: gltf::Error,
     },
+    /// The file is not a GLB container (header or chunks).
+    #[error("{}: not a valid binary glTF file", path.display())]
+    Container {
+        path: PathBuf,
+        #[source]
+        source: crate::util::glb::GlbError,
+    },
     /// The document is valid glTF but not an instanced scene insgen can read; `at` is a JSON path.
     #[error("{}: {at}: {what}", path.display())]
     Invalid { path: PathBuf, at: String, what: String },
@@ -93,13 +100,9 @@ const TARGET_ARRAY_BUFFER: u32 = 34962;
 const TARGET_ELEMENT_ARRAY_BUFFER: u32 = 34963;
 /// glTF primitive mode TRIANGLES.
 const MODE_TRIANGLES: u32 = 4;
-/// GLB chunk types and magic (glTF 2.0, "Binary glTF Layout").
-const GLB_MAGIC: &[u8; 4] = b"glTF";
-const CHUNK_JSON: u32 = 0x4E4F_534A;
-const CHUNK_BIN: u32 = 0x004E_4942;
 /// Alignment of buffer views: 4 bytes for vertex data (glTF), 8 bytes for property tables
 /// (`EXT_structural_metadata`, "Binary Data Storage"); 8 serves both.
-const VIEW_ALIGN: u64 = 8;
+const VIEW_ALIGN: usize = 8;
 
 /// Semantic of the feature ID attribute (`EXT_mesh_features`: `_FEATURE_ID_n`, set index 0).
 pub const FEATURE_ID_ATTRIBUTE: &str = "_FEATURE_ID_0";
@@ -129,29 +132,6 @@ fn enu_to_gltf(p: [f32; 3]) -> [f32; 3] {
 #[inline]
 fn gltf_to_enu(p: [f32; 3]) -> [f32; 3] {
     [p[0], -p[2], p[1]]
-}
-
-fn align_up(n: u64, a: u64) -> u64 {
-    n.div_ceil(a) * a
-}
-
-/// One buffer view of the binary chunk: where it goes and how it is filled.
-struct ViewPlan {
-    offset: u64,
-    length: u64,
-    target: Option<u32>,
-}
-
-/// Plans consecutive, aligned buffer views of the given lengths; returns them and the total length.
-fn plan_views(specs: &[(u64, Option<u32>)]) -> (Vec<ViewPlan>, u64) {
-    let mut offset = 0u64;
-    let mut out = Vec::with_capacity(specs.len());
-    for &(length, target) in specs {
-        offset = align_up(offset, VIEW_ALIGN);
-        out.push(ViewPlan { offset, length, target });
-        offset += length;
-    }
-    (out, align_up(offset, 4))
 }
 
 /// Checks the mesh and the building table before anything is written.
@@ -239,64 +219,37 @@ pub fn write_glb_with_appearance(
 ) -> Result<(), GlbError> {
     check_input(path, mesh, buildings)?;
     if let Some(a) = appearance {
-        let n = mesh.positions_m.len();
-        let bad = |what: String| GlbError::BadInput { path: path.to_path_buf(), what };
-        if a.vertices.uvs.len() != n || a.vertices.ids.len() != n {
-            return Err(bad(format!(
-                "{n} vertices but {} texture coordinates and {} appearance numbers",
-                a.vertices.uvs.len(),
-                a.vertices.ids.len()
-            )));
-        }
-        if let Some(&k) = a.vertices.ids.iter().find(|&&k| k as usize > a.materials.len()) {
-            return Err(bad(format!("appearance {k}, but there are {} materials", a.materials.len())));
-        }
-        if let Some(uv) = a.vertices.uvs.iter().find(|uv| !uv.iter().all(|c| c.is_finite())) {
-            return Err(bad(format!("non-finite texture coordinate {uv:?}")));
-        }
+        check_appearance(path, mesh, a)?;
     }
     let n_vertices = mesh.positions_m.len() as u64;
-    let n_indices = mesh.indices.len() as u64;
-
-    let mut distinct: Vec<u32> = mesh.building_ids.iter().map(|id| id.get()).collect();
-    distinct.sort_unstable();
-    distinct.dedup();
-    let feature_count = distinct.len() as u64;
-
-    // Property table: row = building ID, rows 0..=max ID. Only when the IDs are dense (as `prepare`
-    // assigns them, 1..=N), so that a few scattered large IDs do not bloat the file with empty rows.
-    let source_ids: BTreeMap<u32, &str> =
-        buildings.iter().map(|b| (b.id.get(), b.source_id.as_str())).collect();
-    let max_id = distinct.last().copied().unwrap_or(0);
-    let table_rows = (u64::from(max_id) <= 2 * feature_count + 1024).then_some(u64::from(max_id) + 1);
-    let string_bytes: u64 = match table_rows {
-        Some(_) => (0..=max_id).map(|id| source_ids.get(&id).map_or(0, |s| s.len() as u64)).sum(),
-        None => 0,
-    };
-    if string_bytes > u64::from(u32::MAX) {
-        return Err(GlbError::TooLarge { path: path.to_path_buf(), bytes: string_bytes });
+    let table = SourceIdTable::new(mesh, buildings);
+    if table.string_bytes > u64::from(u32::MAX) {
+        return Err(GlbError::TooLarge { path: path.to_path_buf(), bytes: table.string_bytes });
     }
 
-    let mut view_specs = vec![
-        (n_vertices * 12, Some(TARGET_ARRAY_BUFFER)),       // 0: POSITION
-        (n_vertices * 4, Some(TARGET_ARRAY_BUFFER)),        // 1: _FEATURE_ID_0
-        (n_vertices * 4, Some(TARGET_ARRAY_BUFFER)),        // 2: COLOR_0
-        (n_indices * 4, Some(TARGET_ELEMENT_ARRAY_BUFFER)), // 3: indices
-    ];
-    if let Some(rows) = table_rows {
-        view_specs.push((string_bytes, None)); // 4: source_id string values
-        view_specs.push(((rows + 1) * 4, None)); // 5: source_id string offsets (UINT32)
+    // Views in a fixed order (0 POSITION, 1 _FEATURE_ID_0, 2 COLOR_0, 3 indices, then the property
+    // table's strings and offsets, then the appearance views), so the file is the same every time.
+    let mut b = GlbBuilder::with_view_alignment(VIEW_ALIGN);
+    let vertex_view =
+        |b: &mut GlbBuilder, bytes: Vec<u8>| b.push_view_with(&bytes, None, Some(TARGET_ARRAY_BUFFER));
+    vertex_view(
+        &mut b,
+        mesh.positions_m.iter().flat_map(|&p| enu_to_gltf(p)).flat_map(f32::to_le_bytes).collect(),
+    );
+    // Exact: a BuildingId is at most 2^24 − 1, and f32 holds every integer up to 2^24.
+    vertex_view(&mut b, mesh.building_ids.iter().flat_map(|id| (id.get() as f32).to_le_bytes()).collect());
+    vertex_view(&mut b, colour_bytes(&mesh.building_ids));
+    let indices: Vec<u8> = mesh.indices.iter().flat_map(|i| i.to_le_bytes()).collect();
+    b.push_view_with(&indices, None, Some(TARGET_ELEMENT_ARRAY_BUFFER));
+    if table.rows.is_some() {
+        let (strings, offsets) = table.views();
+        b.push_view(&strings, None);
+        b.push_view(&offsets, None);
     }
-    // Appearance views come last, so the others keep their indices.
-    let appearance_views = appearance.map(|_| {
-        let first = view_specs.len();
-        view_specs.push((n_vertices * 8, Some(TARGET_ARRAY_BUFFER))); // TEXCOORD_0
-        view_specs.push((n_vertices * 4, Some(TARGET_ARRAY_BUFFER))); // _APPEARANCE
-        first
-    });
-    let (views, bin_len) = plan_views(&view_specs);
 
-    // Bounds in the glTF frame, as the validator recomputes them from the stored f32 values.
+    // Bounds in the glTF frame, as the validator recomputes them from the stored f32 values; min/max
+    // as the f64 value of each f32, so they equal the stored data exactly whichever precision the
+    // reader compares in.
     let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
     for &p in &mesh.positions_m {
         let g = enu_to_gltf(p);
@@ -305,132 +258,123 @@ pub fn write_glb_with_appearance(
             hi[k] = hi[k].max(g[k]);
         }
     }
-    let mut json = document_json(&views, bin_len, n_vertices, n_indices, table_rows, feature_count, lo, hi);
-    if let (Some(a), Some(first)) = (appearance, appearance_views) {
-        add_appearance_json(&mut json, a.materials, first, n_vertices);
+    let f64s = |a: [f32; 3]| a.map(f64::from).to_vec();
+    let n_indices = mesh.indices.len();
+    for accessor in [
+        json!({"bufferView": 0, "componentType": COMPONENT_FLOAT, "count": n_vertices, "type": "VEC3",
+               "min": f64s(lo), "max": f64s(hi)}),
+        json!({"bufferView": 1, "componentType": COMPONENT_FLOAT, "count": n_vertices, "type": "SCALAR"}),
+        json!({"bufferView": 2, "componentType": COMPONENT_UNSIGNED_BYTE, "normalized": true,
+               "count": n_vertices, "type": "VEC4"}),
+        json!({"bufferView": 3, "componentType": COMPONENT_UNSIGNED_INT, "count": n_indices, "type": "SCALAR"}),
+    ] {
+        b.push_accessor(accessor);
     }
-    let mut json_bytes =
-        serde_json::to_vec(&json).map_err(|e| FileError::new("serialising glTF JSON for", path, e.into()))?;
-    while json_bytes.len() % 4 != 0 {
-        json_bytes.push(b' ');
+    let mut json = document_json(table.rows, table.feature_count);
+    if let Some(a) = appearance {
+        add_appearance(&mut json, &mut b, a);
     }
-    let total = 12 + 8 + json_bytes.len() as u64 + 8 + bin_len;
-    if total > u64::from(u32::MAX) {
-        return Err(GlbError::TooLarge { path: path.to_path_buf(), bytes: total });
-    }
-
-    crate::util::write_atomic(path, |w| {
-        let io = |e: std::io::Error| GlbError::File(FileError::new("writing", path, e));
-        let mut written = 0u64;
-        w.write_all(GLB_MAGIC).map_err(io)?;
-        w.write_all(&2u32.to_le_bytes()).map_err(io)?;
-        w.write_all(&(total as u32).to_le_bytes()).map_err(io)?;
-        w.write_all(&(json_bytes.len() as u32).to_le_bytes()).map_err(io)?;
-        w.write_all(&CHUNK_JSON.to_le_bytes()).map_err(io)?;
-        w.write_all(&json_bytes).map_err(io)?;
-        w.write_all(&(bin_len as u32).to_le_bytes()).map_err(io)?;
-        w.write_all(&CHUNK_BIN.to_le_bytes()).map_err(io)?;
-
-        pad_to(w, &mut written, views[0].offset).map_err(io)?;
-        for &p in &mesh.positions_m {
-            for c in enu_to_gltf(p) {
-                w.write_all(&c.to_le_bytes()).map_err(io)?;
-            }
-        }
-        written += views[0].length;
-        pad_to(w, &mut written, views[1].offset).map_err(io)?;
-        for &id in &mesh.building_ids {
-            // Exact: a BuildingId is at most 2^24 − 1, and f32 holds every integer up to 2^24.
-            w.write_all(&(id.get() as f32).to_le_bytes()).map_err(io)?;
-        }
-        written += views[1].length;
-        pad_to(w, &mut written, views[2].offset).map_err(io)?;
-        let mut colour_of = (None, [0u8; 4]);
-        for &id in &mesh.building_ids {
-            if colour_of.0 != Some(id) {
-                let [r, g, b] = building_colour(id);
-                colour_of = (Some(id), [r, g, b, 255]);
-            }
-            w.write_all(&colour_of.1).map_err(io)?;
-        }
-        written += views[2].length;
-        pad_to(w, &mut written, views[3].offset).map_err(io)?;
-        for &i in &mesh.indices {
-            w.write_all(&i.to_le_bytes()).map_err(io)?;
-        }
-        written += views[3].length;
-        if table_rows.is_some() {
-            pad_to(w, &mut written, views[4].offset).map_err(io)?;
-            for id in 0..=max_id {
-                if let Some(s) = source_ids.get(&id) {
-                    w.write_all(s.as_bytes()).map_err(io)?;
-                }
-            }
-            written += views[4].length;
-            pad_to(w, &mut written, views[5].offset).map_err(io)?;
-            let mut offset = 0u32;
-            w.write_all(&offset.to_le_bytes()).map_err(io)?;
-            for id in 0..=max_id {
-                // Cannot overflow: the sum of all lengths was checked against u32::MAX.
-                offset += source_ids.get(&id).map_or(0, |s| s.len() as u32);
-                w.write_all(&offset.to_le_bytes()).map_err(io)?;
-            }
-            written += views[5].length;
-        }
-        if let (Some(a), Some(first)) = (appearance, appearance_views) {
-            pad_to(w, &mut written, views[first].offset).map_err(io)?;
-            for uv in &a.vertices.uvs {
-                // glTF puts (0, 0) at the image's upper-left corner, the LoD sources at its lower left.
-                w.write_all(&uv[0].to_le_bytes()).map_err(io)?;
-                w.write_all(&(1.0 - uv[1]).to_le_bytes()).map_err(io)?;
-            }
-            written += views[first].length;
-            pad_to(w, &mut written, views[first + 1].offset).map_err(io)?;
-            for &k in &a.vertices.ids {
-                // Exact: appearance numbers stay far below 2^24.
-                w.write_all(&(k as f32).to_le_bytes()).map_err(io)?;
-            }
-            written += views[first + 1].length;
-        }
-        pad_to(w, &mut written, bin_len).map_err(io)?;
-        Ok(())
-    })
+    let bytes = b.finish(json).map_err(|e| glb_error(path, e))?;
+    Ok(crate::util::write_bytes_atomic(path, &bytes)?)
 }
 
-/// Writes zero bytes until `written` reaches `target` (alignment padding inside the BIN chunk).
-fn pad_to(w: &mut dyn Write, written: &mut u64, target: u64) -> std::io::Result<()> {
-    while *written < target {
-        w.write_all(&[0])?;
-        *written += 1;
+/// The container's error, for the scene file at `path`.
+fn glb_error(path: &Path, e: crate::util::glb::GlbError) -> GlbError {
+    match e {
+        crate::util::glb::GlbError::TooLarge { bytes } => {
+            GlbError::TooLarge { path: path.to_path_buf(), bytes }
+        }
+        source => GlbError::Container { path: path.to_path_buf(), source },
+    }
+}
+
+/// Checks that the appearance data is parallel to the mesh's vertices and numbers existing materials.
+fn check_appearance(path: &Path, mesh: &SceneMesh, a: &GlbAppearance) -> Result<(), GlbError> {
+    let n = mesh.positions_m.len();
+    let bad = |what: String| GlbError::BadInput { path: path.to_path_buf(), what };
+    if a.vertices.uvs.len() != n || a.vertices.ids.len() != n {
+        return Err(bad(format!(
+            "{n} vertices but {} texture coordinates and {} appearance numbers",
+            a.vertices.uvs.len(),
+            a.vertices.ids.len()
+        )));
+    }
+    if let Some(&k) = a.vertices.ids.iter().find(|&&k| k as usize > a.materials.len()) {
+        return Err(bad(format!("appearance {k}, but there are {} materials", a.materials.len())));
+    }
+    if let Some(uv) = a.vertices.uvs.iter().find(|uv| !uv.iter().all(|c| c.is_finite())) {
+        return Err(bad(format!("non-finite texture coordinate {uv:?}")));
     }
     Ok(())
 }
 
-/// The glTF JSON document for the planned binary chunk.
-#[allow(clippy::too_many_arguments)]
-fn document_json(
-    views: &[ViewPlan],
-    bin_len: u64,
-    n_vertices: u64,
-    n_indices: u64,
-    table_rows: Option<u64>,
+/// `COLOR_0` bytes: each vertex's building colour ([`building_colour`]), opaque.
+fn colour_bytes(ids: &[BuildingId]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(ids.len() * 4);
+    let mut colour_of = (None, [0u8; 4]);
+    for &id in ids {
+        if colour_of.0 != Some(id) {
+            let [r, g, b] = building_colour(id);
+            colour_of = (Some(id), [r, g, b, 255]);
+        }
+        out.extend_from_slice(&colour_of.1);
+    }
+    out
+}
+
+/// The `EXT_structural_metadata` property table: row = building ID, rows 0..=max ID, one STRING
+/// property `source_id`.
+struct SourceIdTable<'a> {
+    source_ids: BTreeMap<u32, &'a str>,
+    max_id: u32,
+    /// Number of distinct building IDs in the mesh.
     feature_count: u64,
-    lo: [f32; 3],
-    hi: [f32; 3],
-) -> Value {
-    let buffer_views: Vec<Value> = views
-        .iter()
-        .map(|v| {
-            let mut o = json!({"buffer": 0, "byteOffset": v.offset, "byteLength": v.length});
-            if let Some(t) = v.target {
-                o["target"] = json!(t);
+    /// Rows of the table; `None` when the IDs are too sparse for one (see the module doc).
+    rows: Option<u64>,
+    /// Bytes of all strings of the table.
+    string_bytes: u64,
+}
+
+impl<'a> SourceIdTable<'a> {
+    fn new(mesh: &SceneMesh, buildings: &'a [BuildingRecord]) -> SourceIdTable<'a> {
+        let mut distinct: Vec<u32> = mesh.building_ids.iter().map(|id| id.get()).collect();
+        distinct.sort_unstable();
+        distinct.dedup();
+        let feature_count = distinct.len() as u64;
+        // Only when the IDs are dense (as `prepare` assigns them, 1..=N), so that a few scattered
+        // large IDs do not bloat the file with empty rows.
+        let source_ids: BTreeMap<u32, &str> =
+            buildings.iter().map(|b| (b.id.get(), b.source_id.as_str())).collect();
+        let max_id = distinct.last().copied().unwrap_or(0);
+        let rows = (u64::from(max_id) <= 2 * feature_count + 1024).then_some(u64::from(max_id) + 1);
+        let string_bytes: u64 = match rows {
+            Some(_) => (0..=max_id).map(|id| source_ids.get(&id).map_or(0, |s| s.len() as u64)).sum(),
+            None => 0,
+        };
+        SourceIdTable { source_ids, max_id, feature_count, rows, string_bytes }
+    }
+
+    /// The string values and the UINT32 string offsets (one more than rows).
+    fn views(&self) -> (Vec<u8>, Vec<u8>) {
+        let mut strings = Vec::with_capacity(self.string_bytes as usize);
+        let mut offsets = Vec::with_capacity((self.max_id as usize + 2) * 4);
+        let mut offset = 0u32;
+        offsets.extend_from_slice(&offset.to_le_bytes());
+        for id in 0..=self.max_id {
+            if let Some(s) = self.source_ids.get(&id) {
+                strings.extend_from_slice(s.as_bytes());
+                // Cannot overflow: the sum of all lengths was checked against u32::MAX.
+                offset += s.len() as u32;
             }
-            o
-        })
-        .collect();
-    // min/max as the f64 value of each f32, so they equal the stored data exactly whichever
-    // precision the reader compares in.
-    let f64s = |a: [f32; 3]| a.map(f64::from).to_vec();
+            offsets.extend_from_slice(&offset.to_le_bytes());
+        }
+        (strings, offsets)
+    }
+}
+
+/// The glTF JSON document of the scene, without the buffers, views and accessors the
+/// [`GlbBuilder`] fills in; `table_rows` as [`SourceIdTable::rows`].
+fn document_json(table_rows: Option<u64>, feature_count: u64) -> Value {
     let mut doc = json!({
         "asset": {
             "version": "2.0",
@@ -497,16 +441,6 @@ fn document_json(
             "doubleSided": true,
             "extensions": {"KHR_materials_unlit": {}}
         }],
-        "accessors": [
-            {"bufferView": 0, "componentType": COMPONENT_FLOAT, "count": n_vertices, "type": "VEC3",
-             "min": f64s(lo), "max": f64s(hi)},
-            {"bufferView": 1, "componentType": COMPONENT_FLOAT, "count": n_vertices, "type": "SCALAR"},
-            {"bufferView": 2, "componentType": COMPONENT_UNSIGNED_BYTE, "normalized": true,
-             "count": n_vertices, "type": "VEC4"},
-            {"bufferView": 3, "componentType": COMPONENT_UNSIGNED_INT, "count": n_indices, "type": "SCALAR"}
-        ],
-        "bufferViews": buffer_views,
-        "buffers": [{"byteLength": bin_len}]
     });
     if table_rows.is_none() {
         doc["extensionsUsed"] = json!(["EXT_mesh_features", "KHR_materials_unlit"]);
@@ -523,26 +457,27 @@ fn document_json(
     doc
 }
 
-/// Adds the appearance attributes, images, textures and materials to the document (see the module
-/// doc); `first_view` is the TEXCOORD_0 view, the `_APPEARANCE` view follows it.
-fn add_appearance_json(
-    doc: &mut Value,
-    materials: &[AppearanceMaterial],
-    first_view: usize,
-    n_vertices: u64,
-) {
-    let accessors = doc["accessors"].as_array().map_or(0, Vec::len);
-    if let Some(list) = doc["accessors"].as_array_mut() {
-        list.push(json!({"bufferView": first_view, "componentType": COMPONENT_FLOAT, "count": n_vertices,
-                         "type": "VEC2"}));
-        list.push(
-            json!({"bufferView": first_view + 1, "componentType": COMPONENT_FLOAT, "count": n_vertices,
-                         "type": "SCALAR"}),
-        );
-    }
+/// Adds the appearance views and accessors (`TEXCOORD_0`, `_APPEARANCE`, after every other view) and
+/// the images, textures and materials to the document (see the module doc).
+fn add_appearance(doc: &mut Value, b: &mut GlbBuilder, a: &GlbAppearance) {
+    let n_vertices = a.vertices.uvs.len();
+    // glTF puts (0, 0) at the image's upper-left corner, the LoD sources at its lower left.
+    let uvs: Vec<u8> =
+        a.vertices.uvs.iter().flat_map(|uv| [uv[0], 1.0 - uv[1]]).flat_map(f32::to_le_bytes).collect();
+    let uv_view = b.push_view_with(&uvs, None, Some(TARGET_ARRAY_BUFFER));
+    // Exact: appearance numbers stay far below 2^24.
+    let numbers: Vec<u8> = a.vertices.ids.iter().flat_map(|&k| (k as f32).to_le_bytes()).collect();
+    let number_view = b.push_view_with(&numbers, None, Some(TARGET_ARRAY_BUFFER));
+    let uv_accessor = b.push_accessor(
+        json!({"bufferView": uv_view, "componentType": COMPONENT_FLOAT, "count": n_vertices, "type": "VEC2"}),
+    );
+    let number_accessor = b.push_accessor(
+        json!({"bufferView": number_view, "componentType": COMPONENT_FLOAT, "count": n_vertices, "type": "SCALAR"}),
+    );
     let attributes = &mut doc["meshes"][0]["primitives"][0]["attributes"];
-    attributes["TEXCOORD_0"] = json!(accessors);
-    attributes[APPEARANCE_ATTRIBUTE] = json!(accessors + 1);
+    attributes["TEXCOORD_0"] = json!(uv_accessor);
+    attributes[APPEARANCE_ATTRIBUTE] = json!(number_accessor);
+    let materials = a.materials;
     let (mut images, mut textures, mut mats, mut extras) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for (k, m) in materials.iter().enumerate() {
         let name = format!("appearance_{}", k + 1);
@@ -808,7 +743,7 @@ fn read_indices(
 pub fn read_glb(path: &Path) -> Result<SceneMesh, GlbError> {
     let bytes = crate::util::read_file(path)?;
     let parse = |source: gltf::Error| GlbError::Parse { path: path.to_path_buf(), source };
-    let glb = gltf::Glb::from_slice(&bytes).map_err(parse)?;
+    let glb = crate::util::glb::read(&bytes).map_err(|e| glb_error(path, e))?;
     let root: gltf::json::Root =
         gltf::json::deserialize::from_slice(&glb.json).map_err(|e| parse(gltf::Error::Deserialize(e)))?;
     let doc = gltf::Document::from_json(root).map_err(parse)?;
@@ -958,107 +893,95 @@ pub fn add_layers(path: &Path, layers: &crate::scene::clutter::Clutter) -> Resul
         return Ok(());
     }
     let bytes = crate::util::read_file(path)?;
-    let parse = |source: gltf::Error| GlbError::Parse { path: path.to_path_buf(), source };
-    let glb = gltf::Glb::from_slice(&bytes).map_err(parse)?;
-    let mut doc: Value = serde_json::from_slice(&glb.json).map_err(|e| parse(gltf::Error::Deserialize(e)))?;
-    let mut bin: Vec<u8> = glb.bin.as_deref().unwrap_or(&[]).to_vec();
+    let glb = crate::util::glb::read(&bytes).map_err(|e| glb_error(path, e))?;
+    let mut doc: Value = serde_json::from_slice(&glb.json)
+        .map_err(|e| GlbError::Parse { path: path.to_path_buf(), source: gltf::Error::Deserialize(e) })?;
+    let mut b = GlbBuilder::continuing(&mut doc, glb.bin.as_deref().unwrap_or(&[]), VIEW_ALIGN);
+    for (layer, m) in &layers.layers {
+        add_layer(path, &mut doc, &mut b, *layer, m)?;
+    }
+    let out = b.finish(doc).map_err(|e| glb_error(path, e))?;
+    Ok(crate::util::write_bytes_atomic(path, &out)?)
+}
+
+/// Appends one clutter layer's views, accessors, material, mesh and node (see [`add_layers`]).
+fn add_layer(
+    path: &Path,
+    doc: &mut Value,
+    b: &mut GlbBuilder,
+    layer: crate::scene::clutter::ClutterLayer,
+    m: &crate::scene::clutter::LayerMesh,
+) -> Result<(), GlbError> {
     let bad = |what: String| GlbError::BadInput { path: path.to_path_buf(), what };
     let count = |key: &str, doc: &Value| doc[key].as_array().map_or(0, |a| a.len());
-    for (layer, m) in &layers.layers {
-        let n = m.positions_m.len();
-        if m.colors_srgb.len() != n
-            || !m.indices.len().is_multiple_of(3)
-            || m.indices.iter().any(|&i| i as usize >= n)
-        {
-            return Err(bad(format!("clutter layer {layer}: inconsistent buffers")));
+    let n = m.positions_m.len();
+    if m.colors_srgb.len() != n
+        || !m.indices.len().is_multiple_of(3)
+        || m.indices.iter().any(|&i| i as usize >= n)
+    {
+        return Err(bad(format!("clutter layer {layer}: inconsistent buffers")));
+    }
+    if m.positions_m.iter().any(|p| !p.iter().all(|c| c.is_finite())) {
+        return Err(bad(format!("clutter layer {layer}: a non-finite coordinate")));
+    }
+    let name = format!("{CLUTTER_NODE_PREFIX}{}", layer.name());
+    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+    let mut pos = Vec::with_capacity(n * 12);
+    for &p in &m.positions_m {
+        let g = enu_to_gltf(p);
+        for k in 0..3 {
+            lo[k] = lo[k].min(g[k]);
+            hi[k] = hi[k].max(g[k]);
+            pos.extend_from_slice(&g[k].to_le_bytes());
         }
-        if m.positions_m.iter().any(|p| !p.iter().all(|c| c.is_finite())) {
-            return Err(bad(format!("clutter layer {layer}: a non-finite coordinate")));
+    }
+    let col: Vec<u8> = m.colors_srgb.iter().flat_map(|c| [c[0], c[1], c[2], 255]).collect();
+    let idx: Vec<u8> = m.indices.iter().flat_map(|i| i.to_le_bytes()).collect();
+    let v_pos = b.push_view_with(&pos, None, Some(TARGET_ARRAY_BUFFER));
+    let v_col = b.push_view_with(&col, None, Some(TARGET_ARRAY_BUFFER));
+    let v_idx = b.push_view_with(&idx, None, Some(TARGET_ELEMENT_ARRAY_BUFFER));
+    let f64s = |a: [f32; 3]| a.map(f64::from).to_vec();
+    let a0 = b.push_accessor(json!({"bufferView": v_pos, "componentType": COMPONENT_FLOAT, "count": n,
+                                    "type": "VEC3", "min": f64s(lo), "max": f64s(hi)}));
+    b.push_accessor(json!({"bufferView": v_col, "componentType": COMPONENT_UNSIGNED_BYTE,
+                           "normalized": true, "count": n, "type": "VEC4"}));
+    b.push_accessor(json!({"bufferView": v_idx, "componentType": COMPONENT_UNSIGNED_INT,
+                           "count": m.indices.len(), "type": "SCALAR"}));
+    let list = |doc: &mut Value, key: &str| -> Result<usize, GlbError> {
+        let n = count(key, doc);
+        match doc[key].as_array() {
+            Some(_) => Ok(n),
+            None => Err(bad(format!("the scene GLB has no {key} list"))),
         }
-        let name = format!("{CLUTTER_NODE_PREFIX}{}", layer.name());
-        let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-        let push_view = |bin: &mut Vec<u8>, data: Vec<u8>, target: u32, doc: &mut Value| -> usize {
-            while !(bin.len() as u64).is_multiple_of(VIEW_ALIGN) {
-                bin.push(0);
-            }
-            let view =
-                json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": data.len(), "target": target});
-            bin.extend_from_slice(&data);
-            let views =
-                doc["bufferViews"].as_array_mut().expect("a GLB written by write_glb has bufferViews");
-            views.push(view);
-            views.len() - 1
-        };
-        let mut pos = Vec::with_capacity(n * 12);
-        for &p in &m.positions_m {
-            let g = enu_to_gltf(p);
-            for k in 0..3 {
-                lo[k] = lo[k].min(g[k]);
-                hi[k] = hi[k].max(g[k]);
-                pos.extend_from_slice(&g[k].to_le_bytes());
-            }
-        }
-        let col: Vec<u8> = m.colors_srgb.iter().flat_map(|c| [c[0], c[1], c[2], 255]).collect();
-        let idx: Vec<u8> = m.indices.iter().flat_map(|i| i.to_le_bytes()).collect();
-        let v_pos = push_view(&mut bin, pos, TARGET_ARRAY_BUFFER, &mut doc);
-        let v_col = push_view(&mut bin, col, TARGET_ARRAY_BUFFER, &mut doc);
-        let v_idx = push_view(&mut bin, idx, TARGET_ELEMENT_ARRAY_BUFFER, &mut doc);
-        let a0 = count("accessors", &doc);
-        let f64s = |a: [f32; 3]| a.map(f64::from).to_vec();
-        let accessors = doc["accessors"].as_array_mut().expect("a GLB written by write_glb has accessors");
-        accessors.push(json!({"bufferView": v_pos, "componentType": COMPONENT_FLOAT, "count": n,
-                              "type": "VEC3", "min": f64s(lo), "max": f64s(hi)}));
-        accessors.push(json!({"bufferView": v_col, "componentType": COMPONENT_UNSIGNED_BYTE,
-                              "normalized": true, "count": n, "type": "VEC4"}));
-        accessors.push(json!({"bufferView": v_idx, "componentType": COMPONENT_UNSIGNED_INT,
-                              "count": m.indices.len(), "type": "SCALAR"}));
-        let material = count("materials", &doc);
-        doc["materials"].as_array_mut().expect("a GLB written by write_glb has materials").push(json!({
+    };
+    let material = list(doc, "materials")?;
+    doc["materials"].as_array_mut().into_iter().for_each(|l| {
+        l.push(json!({
             "name": name,
             "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0,
                                      "roughnessFactor": 1.0},
             "doubleSided": true
-        }));
-        let mesh = count("meshes", &doc);
-        doc["meshes"].as_array_mut().expect("a GLB written by write_glb has meshes").push(json!({
+        }))
+    });
+    let mesh = list(doc, "meshes")?;
+    doc["meshes"].as_array_mut().into_iter().for_each(|l| {
+        l.push(json!({
             "name": name,
             "primitives": [{"attributes": {"POSITION": a0, "COLOR_0": a0 + 1}, "indices": a0 + 2,
                             "material": material, "mode": MODE_TRIANGLES}]
-        }));
-        let node = count("nodes", &doc);
-        doc["nodes"].as_array_mut().expect("a GLB written by write_glb has nodes").push(json!({
-            "name": name, "mesh": mesh, "extras": {"insgen_layer": layer.name()}
-        }));
-        let scene = doc["scene"].as_u64().unwrap_or(0) as usize;
-        doc["scenes"][scene]["nodes"]
-            .as_array_mut()
-            .ok_or_else(|| bad("the scene GLB has no scene node list".into()))?
-            .push(json!(node));
-    }
-    while !bin.len().is_multiple_of(4) {
-        bin.push(0);
-    }
-    doc["buffers"][0]["byteLength"] = json!(bin.len());
-    let mut json_bytes =
-        serde_json::to_vec(&doc).map_err(|e| FileError::new("serialising glTF JSON for", path, e.into()))?;
-    while json_bytes.len() % 4 != 0 {
-        json_bytes.push(b' ');
-    }
-    let total = 12 + 8 + json_bytes.len() as u64 + 8 + bin.len() as u64;
-    if total > u64::from(u32::MAX) {
-        return Err(GlbError::TooLarge { path: path.to_path_buf(), bytes: total });
-    }
-    let mut out = Vec::with_capacity(total as usize);
-    out.extend_from_slice(GLB_MAGIC);
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(json_bytes.len() as u32).to_le_bytes());
-    out.extend_from_slice(&CHUNK_JSON.to_le_bytes());
-    out.extend_from_slice(&json_bytes);
-    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-    out.extend_from_slice(&CHUNK_BIN.to_le_bytes());
-    out.extend_from_slice(&bin);
-    Ok(crate::util::write_bytes_atomic(path, &out)?)
+        }))
+    });
+    let node = list(doc, "nodes")?;
+    doc["nodes"]
+        .as_array_mut()
+        .into_iter()
+        .for_each(|l| l.push(json!({"name": name, "mesh": mesh, "extras": {"insgen_layer": layer.name()}})));
+    let scene = doc["scene"].as_u64().unwrap_or(0) as usize;
+    doc["scenes"][scene]["nodes"]
+        .as_array_mut()
+        .ok_or_else(|| bad("the scene GLB has no scene node list".into()))?
+        .push(json!(node));
+    Ok(())
 }
 
 /// Reads the clutter layers of a scene GLB (the nodes [`add_layers`] wrote); none for a scene
@@ -1071,7 +994,7 @@ pub fn read_layers(path: &Path) -> Result<crate::scene::clutter::Clutter, GlbErr
     use gltf::accessor::{DataType, Dimensions};
     let bytes = crate::util::read_file(path)?;
     let parse = |source: gltf::Error| GlbError::Parse { path: path.to_path_buf(), source };
-    let glb = gltf::Glb::from_slice(&bytes).map_err(parse)?;
+    let glb = crate::util::glb::read(&bytes).map_err(|e| glb_error(path, e))?;
     let root: gltf::json::Root =
         gltf::json::deserialize::from_slice(&glb.json).map_err(|e| parse(gltf::Error::Deserialize(e)))?;
     let doc = gltf::Document::from_json(root).map_err(parse)?;
@@ -1175,13 +1098,20 @@ mod tests {
     }
 
     mod layout {
-        use super::*;
+        use crate::util::glb::GlbBuilder;
 
         #[test]
         fn views_are_8_byte_aligned_and_disjoint() {
-            let (v, total) = plan_views(&[(12 * 3, None), (4 * 3, None), (5, None), (4, None)]);
-            assert_eq!(v.iter().map(|v| v.offset).collect::<Vec<_>>(), vec![0, 40, 56, 64]);
-            assert_eq!(total, 68);
+            let mut b = GlbBuilder::with_view_alignment(super::super::VIEW_ALIGN);
+            let offsets: Vec<usize> =
+                [36, 12, 5, 4].iter().map(|&n| b.push_view(&vec![1; n], None)).collect();
+            let bytes = b.finish(serde_json::json!({})).unwrap();
+            let glb = crate::util::glb::read(&bytes).unwrap();
+            let doc: serde_json::Value = serde_json::from_slice(&glb.json).unwrap();
+            let starts: Vec<u64> =
+                offsets.iter().map(|&v| doc["bufferViews"][v]["byteOffset"].as_u64().unwrap()).collect();
+            assert_eq!(starts, vec![0, 40, 56, 64]);
+            assert_eq!(doc["buffers"][0]["byteLength"], 68);
         }
     }
 }

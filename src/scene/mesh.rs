@@ -58,3 +58,63 @@ impl SceneMesh {
         out
     }
 }
+
+/// One building on its own: its 24-bit ID and its triangles (three vertices each) in ENU metres, as
+/// the generated tilesets and the photogrammetry simulation take them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CityBuilding {
+    /// The building's ID.
+    pub id: BuildingId,
+    /// Vertex positions, ENU metres relative to the area origin.
+    pub positions_enu_m: Vec<[f64; 3]>,
+    /// Triangles as indices into `positions_enu_m`.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Splits a prepared scene mesh into its buildings (in ID order; each triangle gets its own three
+/// vertices).
+pub fn buildings_from_scene(mesh: &SceneMesh) -> Vec<CityBuilding> {
+    let mut by_id: std::collections::BTreeMap<BuildingId, CityBuilding> = Default::default();
+    for t in mesh.indices.chunks_exact(3) {
+        let id = mesh.building_ids[t[0] as usize];
+        let b = by_id.entry(id).or_insert_with(|| CityBuilding {
+            id,
+            positions_enu_m: vec![],
+            triangles: vec![],
+        });
+        let base = b.positions_enu_m.len() as u32;
+        for &i in t {
+            b.positions_enu_m.push(mesh.positions_m[i as usize].map(f64::from));
+        }
+        b.triangles.push([base, base + 1, base + 2]);
+    }
+    by_id.into_values().collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scene_mesh_splits_into_buildings() {
+        let mesh = SceneMesh {
+            positions_m: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [5.0, 0.0, 0.0],
+                [6.0, 0.0, 0.0],
+                [5.0, 1.0, 2.0],
+            ],
+            building_ids: [7, 7, 7, 3, 3, 3].map(|i| BuildingId::new(i).unwrap()).to_vec(),
+            indices: vec![0, 1, 2, 3, 4, 5, 2, 1, 0],
+        };
+        let b = buildings_from_scene(&mesh);
+        assert_eq!(
+            b.iter().map(|b| (b.id.get(), b.triangles.len())).collect::<Vec<_>>(),
+            vec![(3, 1), (7, 2)]
+        );
+        assert_eq!(b[0].positions_enu_m[2], [5.0, 1.0, 2.0]);
+        assert_eq!(b[1].triangles[1], [3, 4, 5]);
+    }
+}

@@ -32,4 +32,3 @@ pub use ids::{BuildingId, IdError, IdMap, MAX_BUILDING_ID};
 pub use mesh::SceneMesh;
 pub mod glb;
 pub mod procedural;
-pub mod tiles;

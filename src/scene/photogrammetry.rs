@@ -2,18 +2,18 @@
 //! tileset-aware masks without shipping third-party tilesets.
 //!
 //! [`perturb`] takes the buildings of a prepared scene (ENU metres, see
-//! [`crate::lod::tiles3d::write::buildings_from_scene`]) and returns what a photogrammetry mesh of the
+//! [`crate::scene::mesh::buildings_from_scene`]) and returns what a photogrammetry mesh of the
 //! same place might hold: the buildings moved by a known rigid [`Correction`] (the "offset" `align`
 //! must recover), every vertex jittered by a seeded uniform amount (the same for coincident vertices,
 //! so surfaces stay closed), a ground surface of jittered quads under the whole area, and clutter the
 //! LoD model does not have: box "trees" and one tall "crane". The result is written as a tileset by
-//! [`crate::lod::tiles3d::write::generate_city_tileset`]. Same inputs and seed, same output.
+//! [`crate::export::city_tileset::generate_city_tileset`]. Same inputs and seed, same output.
 
 use glam::DVec3;
 
 use super::correction::Correction;
 use super::ids::BuildingId;
-use crate::lod::tiles3d::write::CityBuilding;
+use crate::scene::mesh::CityBuilding;
 
 /// What to add to and how to disturb the buildings.
 #[derive(Debug, Clone, Copy, PartialEq)]

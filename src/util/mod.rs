@@ -13,6 +13,7 @@ use std::fs;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
+pub mod glb;
 pub mod interrupt;
 pub mod merge;
 pub mod provenance;

@@ -21,7 +21,7 @@ pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 pub const GIT_COMMIT: &str = env!("INSGEN_GIT_COMMIT");
 
 /// File name of the command log in a workdir.
-pub const COMMANDS_FILE: &str = "commands.jsonl";
+pub use crate::layout::COMMANDS_FILE;
 
 /// One command run in a workdir.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -54,7 +54,7 @@ pub enum ShardError {
 
 /// The directory, inside a report's output directory, that holds the parts shards write of it:
 /// `<out>/parts/<i>-of-<N>/` (see [`Shard::part_dir_name`]).
-pub const PARTS_DIR: &str = "parts";
+pub use crate::layout::PARTS_DIR;
 /// The file that makes a directory `parts/<i>-of-<N>/` a shard's part of a report (its `kind` says
 /// which report); `insgen merge` combines such parts instead of copying them.
 pub const PART_MARKER: &str = "part.json";

@@ -907,8 +907,8 @@ fn cli_renders_rgb_and_checks_alignment_against_masks() {
 
 /// PSNR (dB, 8-bit RGB, peak 255) between two PNGs of the same size.
 fn psnr_db(a: &Path, b: &Path) -> f64 {
-    let a = insgen::coco::raster::read_png_rgb(a).unwrap();
-    let b = insgen::coco::raster::read_png_rgb(b).unwrap();
+    let a = insgen::export::raster::read_png_rgb(a).unwrap();
+    let b = insgen::export::raster::read_png_rgb(b).unwrap();
     assert_eq!((a.width, a.height), (b.width, b.height));
     let n = a.data.len() as f64;
     let mse = a.data.iter().zip(&b.data).map(|(&x, &y)| (x as f64 - y as f64).powi(2)).sum::<f64>() / n;

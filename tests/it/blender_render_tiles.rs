@@ -21,7 +21,7 @@ use insgen::blender::run::frame_outputs;
 use insgen::blender::tileset::{select_tiles, SelectOptions};
 use insgen::blender::{render_frames, Engine, FrameRequest, Launcher, Mode, RenderPlan, SceneSource};
 use insgen::camera::{Intrinsics, Pose};
-use insgen::lod::tiles3d::write::Style;
+use insgen::export::city_tileset::Style;
 use insgen::lod::tiles3d::Refine;
 use insgen::scene::IdMap;
 use insgen::util::NoProgress;

@@ -242,7 +242,7 @@ fn ctrl_c_stops_render_rgb_with_130_and_a_rerun_completes() {
     );
     for png in &done {
         // Every finished frame decodes and has its render metadata.
-        insgen::coco::raster::read_png_rgb(&rgb_dir.join(png)).expect("complete PNG");
+        insgen::export::raster::read_png_rgb(&rgb_dir.join(png)).expect("complete PNG");
         let meta = rgb_dir.join(png.replace(".png", ".render.json"));
         assert!(meta.is_file(), "{} without its metadata", png);
     }

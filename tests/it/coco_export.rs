@@ -13,11 +13,11 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use insgen::camera::{Intrinsics, Pose, PoseRecord, Trajectory};
-use insgen::coco::export::{export, ExportPlan};
-use insgen::coco::format::{AnnotationUnit, Dataset, Filters, Segmentation, TruncatedPolicy};
-use insgen::coco::results::read_results;
-use insgen::coco::stats::{self, ReportOptions};
-use insgen::coco::Split;
+use insgen::export::coco::{export, ExportPlan};
+use insgen::export::format::{AnnotationUnit, Dataset, Filters, Segmentation, TruncatedPolicy};
+use insgen::export::results::read_results;
+use insgen::export::stats::{self, ReportOptions};
+use insgen::export::Split;
 use insgen::geo::{EnuFrame, Geodetic};
 use insgen::label::{label_components, Connectivity, FrameInstances, InstanceEntry};
 use insgen::scene::artifact::{GeoidUsed, Origin, SourceEntry};
@@ -486,7 +486,7 @@ fn component_export_agrees_with_pycocotools_and_the_id_maps() {
         let anns = ds.annotations.iter().filter(|x| x.area_name == name).count() as u64;
         assert_eq!(l["sizes"]["instances"].as_u64(), Some(anns), "{name}");
     }
-    let sheet = insgen::coco::raster::read_png_rgb(&p.out_dir.join("contact_sheet.png")).unwrap();
+    let sheet = insgen::export::raster::read_png_rgb(&p.out_dir.join("contact_sheet.png")).unwrap();
     assert_eq!((sheet.width, sheet.height), (4 * 320, 3 * 240));
     if let Some(keep) = std::env::var_os("INSGEN_COCO_PREVIEW") {
         // For looking at the figures by eye: INSGEN_COCO_PREVIEW=target/coco-preview cargo test ...
@@ -646,7 +646,7 @@ fn label_only_lists_unrendered_frames_by_their_rgb_name_and_says_so() {
 
 #[test]
 fn verify_passes_an_export_and_reports_each_kind_of_damage() {
-    use insgen::coco::verify::verify;
+    use insgen::export::verify::verify;
     let tmp = tempfile::tempdir().unwrap();
     let wd = standard_workdir(tmp.path());
     let p = plan(&wd, "coco");

@@ -5,8 +5,8 @@
 //! Python is found through `INSGEN_PYTHON` (default `<repo>/.venv/bin/python`); when it or the fixture is
 //! missing the test prints why and skips, unless `CI=true`, where it fails.
 
-use insgen::coco::polygon::mask_to_polygons;
-use insgen::coco::rle::{encode, encode_labels, Rle};
+use insgen::export::polygon::mask_to_polygons;
+use insgen::export::rle::{encode, encode_labels, Rle};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::Value;

@@ -25,11 +25,11 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use insgen::coco::export::export;
-use insgen::coco::format::{AnnotationUnit, TruncatedPolicy};
-use insgen::coco::panoptic::{export_panoptic, PanopticPlan};
-use insgen::coco::yolo::{export_yolo, YoloPlan};
-use insgen::coco::CocoError;
+use insgen::export::coco::export;
+use insgen::export::format::{AnnotationUnit, TruncatedPolicy};
+use insgen::export::panoptic::{export_panoptic, PanopticPlan};
+use insgen::export::yolo::{export_yolo, YoloPlan};
+use insgen::export::CocoError;
 use insgen::scene::{BuildingRecord, Manifest};
 use insgen::util::NoProgress;
 use serde_json::Value;

@@ -253,7 +253,7 @@ const READERS: &[Reader] = &[
         name: "coco_results",
         takes: |n| ext(n, &[".json"]),
         run: |p| {
-            let _ = insgen::coco::results::read_results(p);
+            let _ = insgen::export::results::read_results(p);
         },
         binary: false,
     },
@@ -571,7 +571,7 @@ fn all_files(dir: &Path, but: &str) -> Vec<(String, Vec<u8>)> {
 /// Test tilesets in the four generated styles (Cesium ion, Google, PLATEAU, 3DBAG), generated once per
 /// test process into `target/fuzz-work/generated`.
 fn generated_tilesets() -> Vec<(String, PathBuf)> {
-    use insgen::lod::tiles3d::write::Style;
+    use insgen::export::city_tileset::Style;
     static DONE: std::sync::OnceLock<Vec<(String, PathBuf)>> = std::sync::OnceLock::new();
     DONE.get_or_init(|| {
         let root = work_root().join("generated");

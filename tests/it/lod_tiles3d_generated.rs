@@ -15,10 +15,11 @@
 use std::path::Path;
 
 use glam::{DMat4, DVec3};
+use insgen::export::city_tileset::{self, GeneratedTileset, Style};
 use insgen::geo::{EnuFrame, Geodetic};
-use insgen::lod::tiles3d::write::{self, CityBuilding, GeneratedTileset, Style};
 use insgen::lod::tiles3d::{self, plain, Tile, Tileset};
 use insgen::lod::{Geometry, ReadOptions};
+use insgen::scene::mesh::CityBuilding;
 
 use crate::blender_support::{box_city, BoxBuilding};
 use crate::util::error_chain;
@@ -42,7 +43,7 @@ pub fn city_buildings(boxes: &[BoxBuilding]) -> Vec<CityBuilding> {
 }
 
 pub fn generate(dir: &Path, style: Style) -> GeneratedTileset {
-    write::generate_city_tileset(&city_buildings(&box_city()), &area(), dir, style).unwrap()
+    city_tileset::generate_city_tileset(&city_buildings(&box_city()), &area(), dir, style).unwrap()
 }
 
 const STYLES: [Style; 4] = [Style::CesiumIon, Style::Google, Style::Plateau, Style::Bag3d];
@@ -257,7 +258,7 @@ fn gzip_compressed_contents_and_tileset_read_the_same() {
 
 /// A GLB with one triangle whose texture is a KTX2 image behind `KHR_texture_basisu`.
 fn ktx2_glb() -> Vec<u8> {
-    let mut b = write::GlbBuilder::default();
+    let mut b = insgen::util::glb::GlbBuilder::default();
     let pos = b.push_vec3(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]]);
     let uv = b.push_vec2(&[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]);
     let idx = b.push_indices(&[0, 1, 2]);
@@ -271,6 +272,7 @@ fn ktx2_glb() -> Vec<u8> {
         "textures": [{"extensions": {"KHR_texture_basisu": {"source": 0}}}],
         "images": [{"bufferView": img, "mimeType": "image/ktx2"}]
     }))
+    .unwrap()
 }
 
 #[test]

@@ -194,7 +194,7 @@ mod prepared {
         assert!(attrs.get("TEXCOORD_0").is_some() && attrs.get("_APPEARANCE").is_some(), "{attrs}");
         // `export-tiles` takes the images along.
         let tiles = dir.path().join("tiles");
-        insgen::scene::tiles::write_scene_tileset(&out, &tiles).unwrap();
+        insgen::export::tiles::write_scene_tileset(&out, &tiles).unwrap();
         assert!(tiles.join("textures/0001_quadrants_2x2.png").is_file());
         // Same inputs → same bytes.
         let dir2 = tempfile::tempdir().unwrap();

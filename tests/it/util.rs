@@ -78,28 +78,9 @@ pub fn coco_check(py: &Path, args: &[&str]) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).expect("coco_check.py prints JSON")
 }
 
-/// A GLB file from a JSON document and a BIN chunk (each padded to 4 bytes as the spec requires).
+/// A GLB file from a JSON document and a BIN chunk (the library's one GLB container writer).
 pub fn glb(json: &serde_json::Value, bin: &[u8]) -> Vec<u8> {
-    let pad = |mut v: Vec<u8>, fill: u8| {
-        while !v.len().is_multiple_of(4) {
-            v.push(fill);
-        }
-        v
-    };
-    let j = pad(serde_json::to_vec(json).unwrap(), b' ');
-    let b = pad(bin.to_vec(), 0);
-    let total = 12 + 8 + j.len() + 8 + b.len();
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&j);
-    out.extend_from_slice(&(b.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(&b);
-    out
+    insgen::util::glb::container(json, bin).unwrap()
 }
 
 /// The building `id` of a source model (panics when absent).

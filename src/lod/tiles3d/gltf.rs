@@ -473,24 +473,7 @@ pub(crate) struct Gltf<'a> {
 /// # Errors
 /// [`ContentError`] saying what is wrong where (the caller adds the file name).
 pub(crate) fn parse_glb<'a>(bytes: &'a [u8], load_uri: &LoadUri<'_>) -> Result<Gltf<'a>, ContentError> {
-    // The header is checked here so that the `gltf` crate only ever sees a consistent one (it
-    // subtracts 12 from the length field unchecked) and never the padding a b3dm may add after it.
-    if bytes.len() < 20 || &bytes[0..4] != b"glTF" {
-        return Err(ContentError::NotGlb {
-            length: bytes.len(),
-            magic: String::from_utf8_lossy(&bytes[..bytes.len().min(4)]).into_owned(),
-        });
-    }
-    let word = |i: usize| u32::from_le_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]) as usize;
-    let version = word(4);
-    if version != 2 {
-        return Err(ContentError::GlbVersion { version });
-    }
-    let length = word(8);
-    if !(20..=bytes.len()).contains(&length) {
-        return Err(ContentError::GlbLength { length, available: bytes.len() });
-    }
-    let glb = gltf::Glb::from_slice(&bytes[..length]).map_err(|e| ContentError::Glb(Box::new(e)))?;
+    let glb = crate::util::glb::read(bytes)?;
     let root = parse_json(&glb.json)?;
     let bin = glb.bin;
     let mut buffers = Vec::with_capacity(root.buffers.len());
@@ -509,6 +492,22 @@ pub(crate) fn parse_glb<'a>(bytes: &'a [u8], load_uri: &LoadUri<'_>) -> Result<G
         }
     }
     finish(root, buffers)
+}
+
+/// The container errors keep the variants (and messages) the tile reader has always reported.
+impl From<crate::util::glb::GlbError> for ContentError {
+    fn from(e: crate::util::glb::GlbError) -> ContentError {
+        use crate::util::glb::GlbError as G;
+        match e {
+            G::NotGlb { length, magic } => ContentError::NotGlb { length, magic },
+            G::Version { version } => ContentError::GlbVersion { version },
+            G::Length { length, available } => ContentError::GlbLength { length, available },
+            G::Chunks(source) => ContentError::Glb(source),
+            G::TooLarge { bytes } => {
+                ContentError::GlbLength { length: bytes as usize, available: u32::MAX as usize }
+            }
+        }
+    }
 }
 
 /// Parses a `.gltf` JSON asset; every buffer needs a `uri`.

@@ -8,8 +8,8 @@
 //! `KHR_mesh_quantization`, `EXT_mesh_features` and [`metadata`] for `EXT_structural_metadata`) —
 //! and groups triangles per feature. Contents are decoded in parallel and assembled in traversal
 //! order, so the output does not depend on thread timing. [`plain`] turns one content into a GLB
-//! without required extensions (textures and UVs included) for Blender; [`write`] writes tilesets
-//! and generates test tilesets. The Blender stage (`blender::tileset`) uses [`Tileset`]
+//! without required extensions (textures and UVs included) for Blender (tilesets are written by
+//! `crate::export`). The Blender stage (`blender::tileset`) uses [`Tileset`]
 //! for its per-frame tile selection: this module is the one reader of 3D Tiles in insgen.
 //!
 //! # Errors
@@ -50,7 +50,6 @@ pub(crate) mod meshopt;
 pub(crate) mod metadata;
 pub mod plain;
 pub mod tileset;
-pub mod write;
 
 pub use error::{
     AccessorProblem, ContentError, DracoMeshError, GltfIssue, MeshoptError, UriError, WebpError,

@@ -38,8 +38,8 @@ use serde_json::{json, Value};
 use super::content::relative_loader;
 use super::error::{ContentError, WebpError};
 use super::gltf::{self, Gltf, LoadUri, Surface, UpAxis};
-use super::write::GlbBuilder;
 use super::{b3dm, maybe_gunzip};
+use crate::util::glb::GlbBuilder;
 
 /// A plain GLB and where its coordinates sit in the tile frame.
 #[derive(Debug, Clone)]
@@ -277,7 +277,7 @@ fn build(parts: &[Part<'_>], load_uri: &LoadUri<'_>) -> Result<Importable, Conte
     if unlit_used {
         root["extensionsUsed"] = json!(["KHR_materials_unlit"]);
     }
-    let glb = b.finish(root);
+    let glb = b.finish(root)?;
     Ok(Importable {
         glb,
         tile_from_plain: DMat4::from_translation(centre),

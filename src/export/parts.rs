@@ -10,14 +10,14 @@
 //! [`combine`] reads the N parts of one export, checks that they are the parts of one run (every shard
 //! once, same options, same `info` and licences), puts the images back in the export's order (area,
 //! camera, frame, by name) and numbers images and annotations from 1 in that order, as
-//! [`super::export::build`] does — so the combined files are byte for byte those of one process.
+//! [`super::coco::build`] does — so the combined files are byte for byte those of one process.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::export::{read_json, DropCounts, Export, ExportPlan, MissingRgb, Split};
+use super::coco::{read_json, DropCounts, Export, ExportPlan, MissingRgb, Split};
 use super::format::{AnnotationUnit, Dataset, Filters};
 use super::stats::ReportOptions;
 use super::CocoError;
@@ -82,13 +82,13 @@ pub fn write_part(
 ) -> Result<Vec<PathBuf>, CocoError> {
     let dir = part_dir(&plan.out_dir, plan.shard);
     crate::util::create_dir_all(&dir)?;
-    let root = super::export::image_root(&plan.workdir, &dir);
+    let root = super::coco::image_root(&plan.workdir, &dir);
     let mut written = Vec::new();
     for (split, ds) in &ex.datasets {
         let mut ds = ds.clone();
         ds.info.image_root = root.clone();
         let path = dir.join(split.file_name());
-        super::export::write_dataset(&path, &ds)?;
+        super::coco::write_dataset(&path, &ds)?;
         written.push(path);
     }
     let info = PartInfo {

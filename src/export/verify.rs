@@ -88,7 +88,7 @@ pub fn verify(dir: &Path, progress: &dyn Progress) -> VerifyReport {
     let files: Vec<PathBuf> = match &manifest {
         Some(m) => m.files.iter().map(|f| dir.join(&f.path)).collect(),
         None => {
-            super::export::Split::ALL.iter().map(|s| dir.join(s.file_name())).filter(|p| p.exists()).collect()
+            super::coco::Split::ALL.iter().map(|s| dir.join(s.file_name())).filter(|p| p.exists()).collect()
         }
     };
     if let Some(m) = &manifest {

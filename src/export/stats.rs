@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use super::export::Split;
+use super::coco::Split;
 use super::format::{Dataset, Segmentation};
 use super::learnability::Learnability;
 use super::raster::{bar_chart, palette, read_png_rgb, RgbImage, Series};
@@ -502,7 +502,7 @@ fn contact_sheet(datasets: &[(Split, &Dataset)], image_root: &Path, n: usize) ->
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::coco::format::*;
+    use crate::export::format::*;
 
     fn dataset(anns: &[(u64, u64, u32)]) -> Dataset {
         // anns: (image_id, area, building_id)

@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 
 use crate::scene::IdMap;
 
-use super::export::{read_json, Split};
+use super::coco::{read_json, Split};
 use super::format::{Annotation, Dataset, Image, Segmentation};
 use super::rle::Rle;
 use super::CocoError;

@@ -29,11 +29,11 @@ use glam::DVec3;
 
 use crate::util::FileError;
 
-use super::artifact::{PreparedScene, GLB_FILE};
-use super::SceneError;
+use crate::scene::artifact::{PreparedScene, GLB_FILE};
+use crate::scene::SceneError;
 
 /// Default folder name of the tileset inside a scene directory.
-pub const TILESET_DIR: &str = "tileset";
+pub use crate::layout::TILESET_DIR;
 /// The tileset JSON's file name.
 pub const TILESET_FILE: &str = "tileset.json";
 

@@ -173,7 +173,7 @@ fn check_len(len: usize, height: u32, width: u32) -> Result<(), RleError> {
 ///             0, 1, 1, 1, 0, //
 ///             0, 1, 1, 1, 0, //
 ///             0, 0, 0, 0, 0u8];
-/// let rle = insgen::coco::rle::encode(&mask, 4, 5).unwrap();
+/// let rle = insgen::export::rle::encode(&mask, 4, 5).unwrap();
 /// assert_eq!(rle.counts, [5, 2, 2, 2, 2, 2, 5]); // column-major runs, zeros first
 /// assert_eq!(rle.to_string(), "5220003");
 /// assert_eq!((rle.area(), rle.to_bbox()), (6, [1.0, 1.0, 3.0, 2.0])); // px, [x, y, w, h] px

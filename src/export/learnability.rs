@@ -549,7 +549,7 @@ pub fn card_section(areas: &[AreaStats]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::coco::format::*;
+    use crate::export::format::*;
 
     /// Two 10 × 10 px squares side by side (building 1 at x 1–10, building 2 at x 11–20, rows 1–10)
     /// on background, in a 22 × 12 px map.

@@ -9,7 +9,7 @@ use super::manifest::DatasetManifest;
 use super::stats::Stats;
 
 /// File name of the card in a dataset directory.
-pub const CARD_FILE: &str = "README.md";
+pub use crate::layout::CARD_FILE;
 
 /// The card's Markdown.
 pub fn card_markdown(m: &DatasetManifest, stats: &Stats) -> String {

@@ -13,12 +13,12 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use super::export::{ExportPlan, Split};
+use super::coco::{ExportPlan, Split};
 use super::format::{AnnotationUnit, Dataset, Filters, SourceInfo};
 use crate::util::provenance::{self, CommandRecord};
 
 /// File name of the manifest in a dataset directory.
-pub const MANIFEST_FILE: &str = "dataset.json";
+pub use crate::layout::DATASET_FILE as MANIFEST_FILE;
 /// Value of `format`.
 pub const MANIFEST_FORMAT: &str = "insgen-dataset";
 /// Version of the layout.
@@ -108,7 +108,7 @@ pub fn rgb_render_settings(
     let mut out: BTreeMap<(String, String), BTreeMap<String, (u64, serde_json::Value)>> = BTreeMap::new();
     for (_, ds) in datasets {
         for im in &ds.images {
-            let meta = workdir.join(&im.file_name).with_extension(crate::label::stage::RGB_META_SUFFIX);
+            let meta = workdir.join(&im.file_name).with_extension(crate::layout::RGB_META_SUFFIX);
             let Ok(bytes) = std::fs::read(&meta) else { continue };
             let Ok(serde_json::Value::Object(mut m)) = serde_json::from_slice(&bytes) else { continue };
             m.remove("frame");

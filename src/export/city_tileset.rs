@@ -1,10 +1,10 @@
-//! Writing 3D Tiles: GLB contents ([`GlbBuilder`]), tileset JSON ([`TileOut`], [`write_tileset`]),
+//! Writing 3D Tiles: GLB contents (with [`GlbBuilder`]), tileset JSON ([`TileOut`], [`write_tileset`]),
 //! and a generator of textured multi-level city tilesets from insgen's own buildings
 //! ([`generate_city_tileset`]) in the styles of real producers, which the tests render and read back.
 //!
 //! # Generated tilesets
 //! Buildings (ENU metres, one 24-bit ID each, e.g. a prepared `scene.glb` through
-//! [`buildings_from_scene`]) are put in a quadtree over their footprint square by centroid (levels
+//! [`crate::scene::mesh::buildings_from_scene`]) are put in a quadtree over their footprint square by centroid (levels
 //! 0, 1, 2; a tile per non-empty cell). Every tile's content holds all of its cell's buildings (the
 //! coarse levels are copies, as in real photogrammetry LODs) with a texture of its own: a 4 × 2 image
 //! whose left half is the tile's roof colour and right half its wall colour ([`palette_colour`]),
@@ -28,11 +28,12 @@ use std::path::{Path, PathBuf};
 use glam::{DMat3, DMat4, DVec3};
 use serde_json::{json, Value};
 
-use super::gltf::{TextureTransform, UpAxis};
-use super::implicit;
-use super::tileset::{BoundingVolume, Refine};
 use crate::geo::EnuFrame;
-use crate::scene::BuildingId;
+use crate::lod::tiles3d::gltf::{TextureTransform, UpAxis};
+use crate::lod::tiles3d::implicit;
+use crate::lod::tiles3d::tileset::{BoundingVolume, Refine};
+use crate::scene::mesh::CityBuilding;
+use crate::util::glb::{floats, min_max, GlbBuilder, GlbError};
 use crate::util::FileError;
 
 /// Errors of the writers.
@@ -40,6 +41,9 @@ use crate::util::FileError;
 pub enum WriteError {
     #[error(transparent)]
     File(#[from] FileError),
+    /// A tile's GLB cannot be assembled (past the format's 4 GiB).
+    #[error(transparent)]
+    Glb(#[from] GlbError),
     /// An encoder refused the data: `what` was being encoded, `source` is the encoder's error.
     #[error("encoding {what}")]
     Encode {
@@ -50,161 +54,6 @@ pub enum WriteError {
     /// The input cannot make a tileset.
     #[error("cannot build a tileset: {0}")]
     Input(&'static str),
-}
-
-// ------------------------------------------------------------------------------------------ GLB
-
-/// Accumulates a GLB's binary chunk, buffer views and accessors.
-#[derive(Debug, Default)]
-pub struct GlbBuilder {
-    bin: Vec<u8>,
-    views: Vec<Value>,
-    accessors: Vec<Value>,
-    /// Bytes of the `EXT_meshopt_compression` fallback buffer (buffer 1), when any view is compressed.
-    fallback_len: usize,
-}
-
-impl GlbBuilder {
-    fn align(&mut self) {
-        while !self.bin.len().is_multiple_of(4) {
-            self.bin.push(0);
-        }
-    }
-
-    /// Appends a buffer view of `bytes` (4-byte aligned); returns its index.
-    pub fn push_view(&mut self, bytes: &[u8], stride: Option<usize>) -> usize {
-        self.align();
-        let mut v = json!({"buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len()});
-        if let Some(s) = stride {
-            v["byteStride"] = json!(s);
-        }
-        self.bin.extend_from_slice(bytes);
-        self.views.push(v);
-        self.views.len() - 1
-    }
-
-    /// Appends an `EXT_meshopt_compression` view: `compressed` in buffer 0, decoding to `count ×
-    /// stride` bytes of the fallback buffer.
-    fn push_meshopt_view(
-        &mut self,
-        compressed: &[u8],
-        count: usize,
-        stride: usize,
-        mode: &str,
-        vertex: bool,
-    ) -> usize {
-        self.align();
-        let len = count * stride;
-        let mut v = json!({
-            "buffer": 1, "byteOffset": self.fallback_len, "byteLength": len,
-            "extensions": {"EXT_meshopt_compression": {
-                "buffer": 0, "byteOffset": self.bin.len(), "byteLength": compressed.len(),
-                "byteStride": stride, "count": count, "mode": mode}}
-        });
-        if vertex {
-            v["byteStride"] = json!(stride);
-        }
-        self.bin.extend_from_slice(compressed);
-        self.fallback_len += len;
-        while !self.fallback_len.is_multiple_of(4) {
-            self.fallback_len += 1;
-        }
-        self.views.push(v);
-        self.views.len() - 1
-    }
-
-    /// Appends an accessor object; returns its index.
-    pub fn push_accessor(&mut self, a: Value) -> usize {
-        self.accessors.push(a);
-        self.accessors.len() - 1
-    }
-
-    /// FLOAT VEC3 with min/max (as POSITION requires).
-    pub fn push_vec3(&mut self, v: &[[f32; 3]]) -> usize {
-        let (lo, hi) = min_max(v.iter().map(|p| p.map(f64::from)));
-        let view = self.push_view(&floats(v.iter().flatten()), None);
-        self.push_accessor(json!({"bufferView": view, "componentType": 5126, "count": v.len(), "type": "VEC3", "min": lo, "max": hi}))
-    }
-
-    /// FLOAT VEC2.
-    pub fn push_vec2(&mut self, v: &[[f32; 2]]) -> usize {
-        let view = self.push_view(&floats(v.iter().flatten()), None);
-        self.push_accessor(
-            json!({"bufferView": view, "componentType": 5126, "count": v.len(), "type": "VEC2"}),
-        )
-    }
-
-    /// FLOAT SCALAR.
-    pub fn push_scalar_f32(&mut self, v: &[f32]) -> usize {
-        let view = self.push_view(&floats(v.iter()), None);
-        self.push_accessor(
-            json!({"bufferView": view, "componentType": 5126, "count": v.len(), "type": "SCALAR"}),
-        )
-    }
-
-    /// UNSIGNED_INT indices.
-    pub fn push_indices(&mut self, v: &[u32]) -> usize {
-        let bytes: Vec<u8> = v.iter().flat_map(|i| i.to_le_bytes()).collect();
-        let view = self.push_view(&bytes, None);
-        self.push_accessor(
-            json!({"bufferView": view, "componentType": 5125, "count": v.len(), "type": "SCALAR"}),
-        )
-    }
-
-    /// The GLB: `root` with `buffers`, `bufferViews` and `accessors` filled in.
-    pub fn finish(mut self, mut root: Value) -> Vec<u8> {
-        self.align();
-        let mut buffers = vec![json!({"byteLength": self.bin.len()})];
-        if self.fallback_len > 0 {
-            buffers.push(json!({"byteLength": self.fallback_len, "extensions": {"EXT_meshopt_compression": {"fallback": true}}}));
-        }
-        root["buffers"] = json!(buffers);
-        root["bufferViews"] = json!(self.views);
-        root["accessors"] = json!(self.accessors);
-        glb(&root, &self.bin)
-    }
-}
-
-fn floats<'a>(v: impl Iterator<Item = &'a f32>) -> Vec<u8> {
-    v.flat_map(|f| f.to_le_bytes()).collect()
-}
-
-fn min_max(points: impl Iterator<Item = [f64; 3]>) -> ([f64; 3], [f64; 3]) {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in points {
-        for k in 0..3 {
-            lo[k] = lo[k].min(p[k]);
-            hi[k] = hi[k].max(p[k]);
-        }
-    }
-    (lo, hi)
-}
-
-/// A GLB container around a glTF JSON and its binary chunk (both padded to 4 bytes).
-pub fn glb(json: &Value, bin: &[u8]) -> Vec<u8> {
-    let mut j = serde_json::to_vec(json).expect("a JSON value serialises");
-    while !j.len().is_multiple_of(4) {
-        j.push(b' ');
-    }
-    let mut b = bin.to_vec();
-    while !b.len().is_multiple_of(4) {
-        b.push(0);
-    }
-    let total = 12 + 8 + j.len() + if b.is_empty() { 0 } else { 8 + b.len() };
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&j);
-    if !b.is_empty() {
-        out.extend_from_slice(&(b.len() as u32).to_le_bytes());
-        out.extend_from_slice(b"BIN\0");
-        out.extend_from_slice(&b);
-    }
-    out
 }
 
 // ------------------------------------------------------------------------------------------ tileset JSON
@@ -292,33 +141,6 @@ pub fn write_tileset(dir: &Path, root: &TileOut, extensions_used: &[&str]) -> Re
 
 // ------------------------------------------------------------------------------------------ city tilesets
 
-/// One building to put in a tileset: its 24-bit ID and triangles in ENU metres.
-#[derive(Debug, Clone, PartialEq)]
-pub struct CityBuilding {
-    pub id: BuildingId,
-    pub positions_enu_m: Vec<[f64; 3]>,
-    pub triangles: Vec<[u32; 3]>,
-}
-
-/// Splits a prepared scene mesh into its buildings.
-pub fn buildings_from_scene(mesh: &crate::scene::mesh::SceneMesh) -> Vec<CityBuilding> {
-    let mut by_id: std::collections::BTreeMap<BuildingId, CityBuilding> = Default::default();
-    for t in mesh.indices.chunks_exact(3) {
-        let id = mesh.building_ids[t[0] as usize];
-        let b = by_id.entry(id).or_insert_with(|| CityBuilding {
-            id,
-            positions_enu_m: vec![],
-            triangles: vec![],
-        });
-        let base = b.positions_enu_m.len() as u32;
-        for &i in t {
-            b.positions_enu_m.push(mesh.positions_m[i as usize].map(f64::from));
-        }
-        b.triangles.push([base, base + 1, base + 2]);
-    }
-    by_id.into_values().collect()
-}
-
 /// The producer whose output a generated tileset imitates (see the module doc).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Style {
@@ -331,7 +153,7 @@ pub enum Style {
 /// One tile of a generated tileset, for tests to predict what a render shows.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GeneratedTile {
-    /// JSON path as [`super::Tile::at`] names it (`root.children[1]`, `root{level 1, x 0, y 1}`).
+    /// JSON path as [`crate::lod::tiles3d::Tile::at`] names it (`root.children[1]`, `root{level 1, x 0, y 1}`).
     pub at: String,
     pub level: u32,
     pub refine: Refine,
@@ -696,13 +518,28 @@ fn tile_glb(
             }
             let qid: Vec<u8> = floats(ids.iter());
             let n = g.len();
-            let vp =
-                b.push_meshopt_view(&super::meshopt::encode_attributes(&qpos, 8), n, 8, "ATTRIBUTES", true);
-            let vu =
-                b.push_meshopt_view(&super::meshopt::encode_attributes(&quv, 4), n, 4, "ATTRIBUTES", true);
-            let vi =
-                b.push_meshopt_view(&super::meshopt::encode_attributes(&qid, 4), n, 4, "ATTRIBUTES", true);
-            let ib: Vec<u8> = super::meshopt::encode_triangles(&indices, n);
+            let vp = b.push_meshopt_view(
+                &crate::lod::tiles3d::meshopt::encode_attributes(&qpos, 8),
+                n,
+                8,
+                "ATTRIBUTES",
+                true,
+            );
+            let vu = b.push_meshopt_view(
+                &crate::lod::tiles3d::meshopt::encode_attributes(&quv, 4),
+                n,
+                4,
+                "ATTRIBUTES",
+                true,
+            );
+            let vi = b.push_meshopt_view(
+                &crate::lod::tiles3d::meshopt::encode_attributes(&qid, 4),
+                n,
+                4,
+                "ATTRIBUTES",
+                true,
+            );
+            let ib: Vec<u8> = crate::lod::tiles3d::meshopt::encode_triangles(&indices, n);
             let vx = b.push_meshopt_view(&ib, indices.len(), 4, "TRIANGLES", false);
             let qmax: Vec<u32> = (0..3).map(|k| ((phi[k] - plo[k]) / step[k]).round() as u32).collect();
             attributes.insert("POSITION".into(), json!(b.push_accessor(json!({"bufferView": vp, "componentType": 5123, "count": n, "type": "VEC3", "min": [0, 0, 0], "max": qmax}))));
@@ -857,7 +694,7 @@ fn finish_tile_glb(
     if !root_ext.is_empty() {
         root["extensions"] = Value::Object(root_ext);
     }
-    Ok(b.finish(root))
+    Ok(b.finish(root)?)
 }
 
 /// Draco-encodes a triangle soup: POSITION (unique id 0, 16-bit quantised), TEXCOORD_0 (id 1,
@@ -1145,30 +982,6 @@ mod tests {
             let back = t.apply(untransform(&t, uv));
             assert!((back[0] - uv[0]).abs() < 1e-12 && (back[1] - uv[1]).abs() < 1e-12, "{uv:?} → {back:?}");
         }
-    }
-
-    #[test]
-    fn scene_mesh_splits_into_buildings() {
-        use crate::scene::mesh::SceneMesh;
-        let mesh = SceneMesh {
-            positions_m: vec![
-                [0.0, 0.0, 0.0],
-                [1.0, 0.0, 0.0],
-                [0.0, 1.0, 0.0],
-                [5.0, 0.0, 0.0],
-                [6.0, 0.0, 0.0],
-                [5.0, 1.0, 2.0],
-            ],
-            building_ids: [7, 7, 7, 3, 3, 3].map(|i| BuildingId::new(i).unwrap()).to_vec(),
-            indices: vec![0, 1, 2, 3, 4, 5, 2, 1, 0],
-        };
-        let b = buildings_from_scene(&mesh);
-        assert_eq!(
-            b.iter().map(|b| (b.id.get(), b.triangles.len())).collect::<Vec<_>>(),
-            vec![(3, 1), (7, 2)]
-        );
-        assert_eq!(b[0].positions_enu_m[2], [5.0, 1.0, 2.0]);
-        assert_eq!(b[1].triangles[1], [3, 4, 5]);
     }
 
     #[test]

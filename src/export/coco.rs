@@ -16,6 +16,7 @@
 //! Frames are processed in parallel (rayon); files are written atomically and only when every frame
 //! succeeded.
 
+use crate::layout::AreaDir;
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -199,7 +200,8 @@ fn discover(workdir: &Path, shard: Shard) -> Result<(Vec<AreaInput>, u64), CocoE
     let mut areas = Vec::new();
     let mut missing = 0u64;
     for (name, dir) in list_dirs(workdir)? {
-        let manifest_path = dir.join("scene").join(crate::scene::artifact::MANIFEST_FILE);
+        let area = AreaDir::new(&dir);
+        let manifest_path = area.scene().join(crate::layout::MANIFEST_FILE);
         if !manifest_path.is_file() {
             continue;
         }
@@ -216,15 +218,13 @@ fn discover(workdir: &Path, shard: Shard) -> Result<(Vec<AreaInput>, u64), CocoE
                 reason: format!("split \"{}\" is not one of train, val, test", manifest.split),
             });
         };
-        let buildings_path = dir.join("scene").join(crate::scene::artifact::BUILDINGS_FILE);
+        let buildings_path = area.scene().join(crate::layout::BUILDINGS_FILE);
         let buildings: Vec<BuildingRecord> = read_json(&buildings_path)?;
         let source_ids = buildings.into_iter().map(|b| (b.id, b.source_id)).collect();
         let mut cameras = Vec::new();
-        for (cam_name, cam_dir) in list_dirs(&dir)? {
-            let poses_path = cam_dir.join("poses.jsonl");
-            if cam_name == "scene" || !poses_path.is_file() {
-                continue;
-            }
+        let sampled = area.sampled_cameras().map_err(|e| FileError::new("listing", &dir, e))?;
+        for (cam_name, cam_dir) in sampled {
+            let poses_path = cam_dir.poses();
             let mut poses = crate::camera::record::read_jsonl(&poses_path)?;
             let mut names: Vec<&str> = poses.iter().map(|p| p.name.as_str()).collect();
             names.sort_unstable();
@@ -249,13 +249,13 @@ fn discover(workdir: &Path, shard: Shard) -> Result<(Vec<AreaInput>, u64), CocoE
                         ),
                     });
                 }
-                let mask = cam_dir.join("masks").join(format!("{}.png", pose.name));
-                let instances = cam_dir.join("masks").join(format!("{}.instances.json", pose.name));
+                let mask = cam_dir.mask_png(&pose.name);
+                let instances = cam_dir.instances(&pose.name);
                 if !mask.is_file() || !instances.is_file() {
                     missing += 1;
                     continue;
                 }
-                let rgb = cam_dir.join(crate::label::stage::RGB_DIR).join(format!("{}.png", pose.name));
+                let rgb = cam_dir.rgb().join(format!("{}.png", pose.name));
                 frames.push(FrameInput { pose, mask, instances, rgb });
             }
             cameras.push(CameraInput { name: cam_name, frames });
@@ -605,7 +605,7 @@ fn image_record(
 
 /// The `look` of an RGB frame's render metadata (`rgb/<frame>.render.json`), when there is one.
 fn frame_look(rgb: &Path) -> Option<serde_json::Value> {
-    let meta = rgb.with_extension(crate::label::stage::RGB_META_SUFFIX);
+    let meta = rgb.with_extension(crate::layout::RGB_META_SUFFIX);
     let bytes = std::fs::read(meta).ok()?;
     match serde_json::from_slice::<serde_json::Value>(&bytes).ok()? {
         serde_json::Value::Object(mut m) => m.remove("look"),

@@ -1,0 +1,59 @@
+//! The export stage: what trainers and viewers read, made from the rendered work directory.
+//!
+//! Takes in what the earlier stages left in the work directory — per frame an ID map
+//! `masks/<frame>.png` and its `masks/<frame>.instances.json` (`label`), the photo `rgb/<frame>.*`
+//! (`blender`), each area's prepared scene (`scene`) and each camera's `poses.jsonl` (`camera`) —
+//! and hands on the files a user takes elsewhere. Every export has one module; a new one goes here,
+//! reads the COCO export or the prepared scene, and writes through [`crate::util::write_atomic`].
+//!
+//! COCO instances (`export-coco`), the export the others are made from:
+//! - [`coco`]: the `export-coco` stage — COCO instance files per geographic split
+//!   (`instances_train.json`, `instances_val.json`, `instances_test.json`);
+//! - [`rle`]: run-length encoding, byte-identical to `pycocotools.mask` (encode, string form, decode,
+//!   area, bbox, merge), with a one-pass encoder for all components of a frame;
+//! - [`format`]: the COCO file types with insgen's extension keys;
+//! - [`polygon`]: outer-boundary polygons for `--polygons`;
+//! - [`parts`]: the part a shard of the frames writes (`export-coco --shard`), and the parts combined
+//!   into the export one process writes (`insgen merge`);
+//! - [`frames`]: an existing export read back, each image's masks checked against its ID map;
+//! - [`results`]: reading and validating COCO results (predictions), which the localizer consumes.
+//!
+//! What describes and checks an export:
+//! - [`stats`]: per-split statistics, histograms and a contact sheet; [`learnability`]: per-area
+//!   statistics that predict how learnable the instances are (touching boundaries in the ID maps,
+//!   their contrast in the photos, sizes, masks split by occluders);
+//! - [`manifest`], [`card`], [`verify`]: the dataset manifest (`dataset.json`), the dataset card
+//!   (`README.md`) and the check of a dataset against them (`insgen verify`);
+//! - [`raster`]: a tiny raster for figures (ID maps are [`crate::scene::IdMap`]).
+//!
+//! Made from a COCO export: [`panoptic`] (`export-panoptic`, COCO panoptic PNGs and JSON) and [`yolo`]
+//! (`export-yolo`, Ultralytics YOLO segmentation labels and `data.yaml`).
+//!
+//! Made from a prepared scene: [`tiles`] (`export-tiles`, the scene as a 3D Tiles 1.1 tileset placed
+//! on the globe) and [`city_tileset`] (`export-tiles --style`, textured multi-level tilesets in the
+//! styles of real producers, the test tilesets of the photogrammetry path). GLB contents are
+//! assembled by [`crate::util::glb::GlbBuilder`], the crate's one GLB writer.
+
+pub mod card;
+pub mod city_tileset;
+pub mod coco;
+pub mod error;
+pub mod format;
+pub mod frames;
+pub mod learnability;
+pub mod manifest;
+pub mod panoptic;
+pub mod parts;
+pub mod polygon;
+pub mod raster;
+pub mod results;
+pub mod rle;
+pub mod stats;
+pub mod tiles;
+pub mod verify;
+pub mod yolo;
+
+pub use coco::{ExportPlan, Split};
+pub use error::CocoError;
+pub use format::{Annotation, AnnotationUnit, Dataset, Filters, Image, TruncatedPolicy};
+pub use rle::{encode, encode_labels, Rle, RleError};
