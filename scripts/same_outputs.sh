@@ -7,7 +7,7 @@
 #
 # Areas: the demo and, when its data is present, Shibuya (tokyo). Stages: prepare → sample →
 # render-masks → render-rgb (Blender, a few small frames) → export-coco (+ panoptic, YOLO) →
-# export-tiles → eval-loc (oracle; instance and semantic; and the demo's export as predictions).
+# export-tiles (the scene, and on the demo every generated style) → eval-loc (oracle; instance and semantic; and the demo's export as predictions).
 # Environment: COUNT (frames per area, default 6), AREAS (default "demo tokyo").
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -79,6 +79,12 @@ for area in $AREAS; do
   "${IG[@]}" render-masks --area "$area" --camera cam2
   "${IG[@]}" render-rgb --area "$area" --camera cam2 --samples 2 --limit "$COUNT" --seed 7
   "${IG[@]}" export-tiles --area "$area" --out "$OUT/tiles-$area"
+  if [[ "$area" == demo ]]; then  # the generated tilesets in every producer's style
+    for style in cesium-ion google plateau 3dbag; do
+      "${IG[@]}" export-tiles --area demo --style "$style" --photogrammetry-noise --seed 3 \
+        --out "$OUT/tiles-demo-$style"
+    done
+  fi
   "${IG[@]}" eval-loc --area "$area" --camera cam2 --oracle --cost instance --cost semantic \
     --out "$OUT/loc-$area"
 done

@@ -406,6 +406,55 @@ fn untransform(t: &TextureTransform, uv: [f64; 2]) -> [f64; 2] {
     [xs / t.scale[0], ys / t.scale[1]]
 }
 
+/// A tile's geometry as encoded into a GLB builder: what the primitive and node need.
+struct EncodedGeometry {
+    b: GlbBuilder,
+    attributes: serde_json::Map<String, Value>,
+    prim_ext: serde_json::Map<String, Value>,
+    indices: usize,
+    node: Value,
+    used: Vec<&'static str>,
+    required: Vec<&'static str>,
+}
+
+impl EncodedGeometry {
+    fn new(node: Value) -> EncodedGeometry {
+        EncodedGeometry {
+            b: GlbBuilder::default(),
+            attributes: serde_json::Map::new(),
+            prim_ext: serde_json::Map::new(),
+            indices: 0,
+            node,
+            used: Vec::new(),
+            required: Vec::new(),
+        }
+    }
+
+    fn attribute(&mut self, name: &str, accessor: usize) {
+        self.attributes.insert(name.into(), json!(accessor));
+    }
+}
+
+/// A tile's vertices in glTF axes, ready to encode: positions relative to the node's translation,
+/// texture coordinates (with the style's texture transform undone), feature IDs and indices.
+struct TileVertices {
+    g: Vec<[f32; 3]>,
+    uv: Vec<[f32; 2]>,
+    ids: Vec<f32>,
+    indices: Vec<u32>,
+    node_translation: DVec3,
+}
+
+/// What the material and feature IDs of a tile need besides its geometry.
+struct TileSurface<'a> {
+    style: Style,
+    with_ids: bool,
+    ids: &'a [u32],
+    image: Vec<u8>,
+    mime: &'static str,
+    transform: Option<TextureTransform>,
+}
+
 /// Builds one tile's GLB content.
 fn tile_glb(
     style: Style,
@@ -421,7 +470,6 @@ fn tile_glb(
     let z_to_y = UpAxis::Y.to_z_up().inverse();
     let g: Vec<[f32; 3]> =
         tile.iter().map(|p| z_to_y.transform_point3(*p - centre).as_vec3().to_array()).collect();
-    let node_translation = z_to_y.transform_point3(centre);
     let transform = (style == Style::CesiumIon).then_some(CESIUM_TEXTURE_TRANSFORM);
     let uv: Vec<[f32; 2]> = mesh
         .uv
@@ -432,182 +480,115 @@ fn tile_glb(
         })
         .collect();
     let with_ids = style != Style::Google;
-    let ids: Vec<f32> = mesh.ids.iter().map(|&i| i as f32).collect();
-    let indices: Vec<u32> = (0..g.len() as u32).collect();
+    let v = TileVertices {
+        ids: mesh.ids.iter().map(|&i| i as f32).collect(),
+        indices: (0..g.len() as u32).collect(),
+        node_translation: z_to_y.transform_point3(centre),
+        g,
+        uv,
+    };
     let (image, mime) = tile_texture(roof, wall, style == Style::Plateau)?;
-
-    let mut b = GlbBuilder::default();
-    let mut used: Vec<&str> = Vec::new();
-    let mut required: Vec<&str> = Vec::new();
-    let mut attributes = serde_json::Map::new();
-    let mut prim_ext = serde_json::Map::new();
-    let mut node = json!({"mesh": 0, "translation": node_translation.to_array()});
-    match style {
-        Style::CesiumIon | Style::Google => {
-            let (bytes, n_points, ids_map) = draco_encode(&g, &uv, with_ids.then_some(&ids[..]), &indices)?;
-            let view = b.push_view(&bytes, None);
-            let (plo, phi) = min_max(g.iter().map(|p| p.map(f64::from)));
-            attributes.insert(
-                "POSITION".into(),
-                json!(b.push_accessor(
-                    json!({"componentType": 5126, "count": n_points, "type": "VEC3", "min": plo, "max": phi})
-                )),
-            );
-            attributes.insert(
-                "TEXCOORD_0".into(),
-                json!(b.push_accessor(json!({"componentType": 5126, "count": n_points, "type": "VEC2"}))),
-            );
-            let mut dattr = json!({"POSITION": 0, "TEXCOORD_0": 1});
-            if let Some(fid) = ids_map {
-                attributes.insert(
-                    "_FEATURE_ID_0".into(),
-                    json!(
-                        b.push_accessor(json!({"componentType": 5126, "count": n_points, "type": "SCALAR"}))
-                    ),
-                );
-                dattr["_FEATURE_ID_0"] = json!(fid);
-            }
-            let n_idx = indices.len();
-            let idx_acc = b.push_accessor(json!({"componentType": 5125, "count": n_idx, "type": "SCALAR"}));
-            prim_ext.insert(
-                "KHR_draco_mesh_compression".into(),
-                json!({"bufferView": view, "attributes": dattr}),
-            );
-            used.push("KHR_draco_mesh_compression");
-            required.push("KHR_draco_mesh_compression");
-            return finish_tile_glb(
-                b,
-                attributes,
-                prim_ext,
-                Some(idx_acc),
-                node,
-                used,
-                required,
-                style,
-                with_ids,
-                &mesh.ids,
-                image,
-                mime,
-                transform,
-            );
-        }
-        Style::Plateau => {
-            attributes.insert("POSITION".into(), json!(b.push_vec3(&g)));
-            attributes.insert("TEXCOORD_0".into(), json!(b.push_vec2(&uv)));
-            attributes.insert("_FEATURE_ID_0".into(), json!(b.push_scalar_f32(&ids)));
-        }
-        Style::Bag3d => {
-            // KHR_mesh_quantization: positions as UNSIGNED_SHORT (padded to 8 bytes per vertex),
-            // dequantised by the node's scale and translation; UVs as normalised UNSIGNED_SHORT.
-            let (plo, phi) = min_max(g.iter().map(|p| p.map(f64::from)));
-            let step: Vec<f64> = (0..3).map(|k| ((phi[k] - plo[k]) / 65535.0).max(1e-9)).collect();
-            let mut qpos = Vec::with_capacity(g.len() * 8);
-            for p in &g {
-                for k in 0..3 {
-                    let q = ((p[k] as f64 - plo[k]) / step[k]).round().clamp(0.0, 65535.0) as u16;
-                    qpos.extend_from_slice(&q.to_le_bytes());
-                }
-                qpos.extend_from_slice(&[0, 0]);
-            }
-            let mut quv = Vec::with_capacity(uv.len() * 4);
-            for t in &uv {
-                for &c in t {
-                    let q = (c as f64 * 65535.0).round().clamp(0.0, 65535.0) as u16;
-                    quv.extend_from_slice(&q.to_le_bytes());
-                }
-            }
-            let qid: Vec<u8> = floats(ids.iter());
-            let n = g.len();
-            let vp = b.push_meshopt_view(
-                &crate::lod::tiles3d::meshopt::encode_attributes(&qpos, 8),
-                n,
-                8,
-                "ATTRIBUTES",
-                true,
-            );
-            let vu = b.push_meshopt_view(
-                &crate::lod::tiles3d::meshopt::encode_attributes(&quv, 4),
-                n,
-                4,
-                "ATTRIBUTES",
-                true,
-            );
-            let vi = b.push_meshopt_view(
-                &crate::lod::tiles3d::meshopt::encode_attributes(&qid, 4),
-                n,
-                4,
-                "ATTRIBUTES",
-                true,
-            );
-            let ib: Vec<u8> = crate::lod::tiles3d::meshopt::encode_triangles(&indices, n);
-            let vx = b.push_meshopt_view(&ib, indices.len(), 4, "TRIANGLES", false);
-            let qmax: Vec<u32> = (0..3).map(|k| ((phi[k] - plo[k]) / step[k]).round() as u32).collect();
-            attributes.insert("POSITION".into(), json!(b.push_accessor(json!({"bufferView": vp, "componentType": 5123, "count": n, "type": "VEC3", "min": [0, 0, 0], "max": qmax}))));
-            attributes.insert("TEXCOORD_0".into(), json!(b.push_accessor(json!({"bufferView": vu, "componentType": 5123, "normalized": true, "count": n, "type": "VEC2"}))));
-            attributes.insert(
-                "_FEATURE_ID_0".into(),
-                json!(b.push_accessor(
-                    json!({"bufferView": vi, "componentType": 5126, "count": n, "type": "SCALAR"})
-                )),
-            );
-            let idx = b.push_accessor(
-                json!({"bufferView": vx, "componentType": 5125, "count": indices.len(), "type": "SCALAR"}),
-            );
-            let t = node_translation + DVec3::from_array(plo);
-            node = json!({"mesh": 0, "translation": t.to_array(), "scale": step});
-            used.extend(["EXT_meshopt_compression", "KHR_mesh_quantization"]);
-            required.extend(["EXT_meshopt_compression", "KHR_mesh_quantization"]);
-            return finish_tile_glb(
-                b,
-                attributes,
-                prim_ext,
-                Some(idx),
-                node,
-                used,
-                required,
-                style,
-                with_ids,
-                &mesh.ids,
-                image,
-                mime,
-                transform,
-            );
-        }
-    }
-    let idx = b.push_indices(&indices);
-    finish_tile_glb(
-        b,
-        attributes,
-        prim_ext,
-        Some(idx),
-        node,
-        used,
-        required,
-        style,
-        with_ids,
-        &mesh.ids,
-        image,
-        mime,
-        transform,
-    )
+    let geometry = match style {
+        Style::CesiumIon | Style::Google => draco_geometry(&v, with_ids)?,
+        Style::Plateau => plain_geometry(&v),
+        Style::Bag3d => meshopt_geometry(&v),
+    };
+    finish_tile_glb(geometry, TileSurface { style, with_ids, ids: &mesh.ids, image, mime, transform })
 }
 
-#[allow(clippy::too_many_arguments)]
-fn finish_tile_glb(
-    mut b: GlbBuilder,
-    attributes: serde_json::Map<String, Value>,
-    mut prim_ext: serde_json::Map<String, Value>,
-    indices: Option<usize>,
-    node: Value,
-    mut used: Vec<&str>,
-    mut required: Vec<&str>,
-    style: Style,
-    with_ids: bool,
-    ids: &[u32],
-    image: Vec<u8>,
-    mime: &str,
-    transform: Option<TextureTransform>,
-) -> Result<Vec<u8>, WriteError> {
+/// `KHR_draco_mesh_compression` (Cesium ion and Google styles): accessors without views, one
+/// compressed view.
+fn draco_geometry(v: &TileVertices, with_ids: bool) -> Result<EncodedGeometry, WriteError> {
+    let mut e = EncodedGeometry::new(json!({"mesh": 0, "translation": v.node_translation.to_array()}));
+    let (bytes, n_points, ids_map) = draco_encode(&v.g, &v.uv, with_ids.then_some(&v.ids[..]), &v.indices)?;
+    let view = e.b.push_view(&bytes, None);
+    let (plo, phi) = min_max(v.g.iter().map(|p| p.map(f64::from)));
+    let position = e
+        .b
+        .push_accessor(json!({"componentType": 5126, "count": n_points, "type": "VEC3", "min": plo, "max": phi}));
+    e.attribute("POSITION", position);
+    let uv = e.b.push_accessor(json!({"componentType": 5126, "count": n_points, "type": "VEC2"}));
+    e.attribute("TEXCOORD_0", uv);
+    let mut dattr = json!({"POSITION": 0, "TEXCOORD_0": 1});
+    if let Some(fid) = ids_map {
+        let ids = e.b.push_accessor(json!({"componentType": 5126, "count": n_points, "type": "SCALAR"}));
+        e.attribute("_FEATURE_ID_0", ids);
+        dattr["_FEATURE_ID_0"] = json!(fid);
+    }
+    e.indices = e.b.push_accessor(json!({"componentType": 5125, "count": v.indices.len(), "type": "SCALAR"}));
+    e.prim_ext.insert("KHR_draco_mesh_compression".into(), json!({"bufferView": view, "attributes": dattr}));
+    e.used.push("KHR_draco_mesh_compression");
+    e.required.push("KHR_draco_mesh_compression");
+    Ok(e)
+}
+
+/// Plain FLOAT attributes and UNSIGNED_INT indices (PLATEAU style).
+fn plain_geometry(v: &TileVertices) -> EncodedGeometry {
+    let mut e = EncodedGeometry::new(json!({"mesh": 0, "translation": v.node_translation.to_array()}));
+    let position = e.b.push_vec3(&v.g);
+    e.attribute("POSITION", position);
+    let uv = e.b.push_vec2(&v.uv);
+    e.attribute("TEXCOORD_0", uv);
+    let ids = e.b.push_scalar_f32(&v.ids);
+    e.attribute("_FEATURE_ID_0", ids);
+    e.indices = e.b.push_indices(&v.indices);
+    e
+}
+
+/// `EXT_meshopt_compression` + `KHR_mesh_quantization` (3DBAG style): positions as UNSIGNED_SHORT
+/// (padded to 8 bytes per vertex), dequantised by the node's scale and translation; UVs as
+/// normalised UNSIGNED_SHORT.
+fn meshopt_geometry(v: &TileVertices) -> EncodedGeometry {
+    use crate::lod::tiles3d::meshopt::{encode_attributes, encode_triangles};
+    let (plo, phi) = min_max(v.g.iter().map(|p| p.map(f64::from)));
+    let step: Vec<f64> = (0..3).map(|k| ((phi[k] - plo[k]) / 65535.0).max(1e-9)).collect();
+    let mut qpos = Vec::with_capacity(v.g.len() * 8);
+    for p in &v.g {
+        for k in 0..3 {
+            let q = ((p[k] as f64 - plo[k]) / step[k]).round().clamp(0.0, 65535.0) as u16;
+            qpos.extend_from_slice(&q.to_le_bytes());
+        }
+        qpos.extend_from_slice(&[0, 0]);
+    }
+    let mut quv = Vec::with_capacity(v.uv.len() * 4);
+    for t in &v.uv {
+        for &c in t {
+            let q = (c as f64 * 65535.0).round().clamp(0.0, 65535.0) as u16;
+            quv.extend_from_slice(&q.to_le_bytes());
+        }
+    }
+    let qid: Vec<u8> = floats(v.ids.iter());
+    let n = v.g.len();
+    let t = v.node_translation + DVec3::from_array(plo);
+    let mut e = EncodedGeometry::new(json!({"mesh": 0, "translation": t.to_array(), "scale": step}));
+    let vp = e.b.push_meshopt_view(&encode_attributes(&qpos, 8), n, 8, "ATTRIBUTES", true);
+    let vu = e.b.push_meshopt_view(&encode_attributes(&quv, 4), n, 4, "ATTRIBUTES", true);
+    let vi = e.b.push_meshopt_view(&encode_attributes(&qid, 4), n, 4, "ATTRIBUTES", true);
+    let ib: Vec<u8> = encode_triangles(&v.indices, n);
+    let vx = e.b.push_meshopt_view(&ib, v.indices.len(), 4, "TRIANGLES", false);
+    let qmax: Vec<u32> = (0..3).map(|k| ((phi[k] - plo[k]) / step[k]).round() as u32).collect();
+    let position = e.b.push_accessor(
+        json!({"bufferView": vp, "componentType": 5123, "count": n, "type": "VEC3", "min": [0, 0, 0], "max": qmax}),
+    );
+    e.attribute("POSITION", position);
+    let uv = e.b.push_accessor(
+        json!({"bufferView": vu, "componentType": 5123, "normalized": true, "count": n, "type": "VEC2"}),
+    );
+    e.attribute("TEXCOORD_0", uv);
+    let ids = e.b.push_accessor(json!({"bufferView": vi, "componentType": 5126, "count": n, "type": "SCALAR"}));
+    e.attribute("_FEATURE_ID_0", ids);
+    e.indices = e.b.push_accessor(
+        json!({"bufferView": vx, "componentType": 5125, "count": v.indices.len(), "type": "SCALAR"}),
+    );
+    e.used.extend(["EXT_meshopt_compression", "KHR_mesh_quantization"]);
+    e.required.extend(["EXT_meshopt_compression", "KHR_mesh_quantization"]);
+    e
+}
+
+/// The tile's GLB: the encoded geometry with its texture, material and feature IDs.
+fn finish_tile_glb(geometry: EncodedGeometry, surface: TileSurface) -> Result<Vec<u8>, WriteError> {
+    let EncodedGeometry { mut b, attributes, mut prim_ext, indices, node, mut used, mut required } = geometry;
+    let TileSurface { style, with_ids, ids, image, mime, transform } = surface;
     let image_view = b.push_view(&image, None);
     let mut distinct: Vec<u32> = ids.to_vec();
     distinct.sort_unstable();
@@ -665,10 +646,7 @@ fn finish_tile_glb(
     } else {
         json!({"sampler": 0, "source": 0})
     };
-    let mut prim = json!({"attributes": attributes, "mode": 4, "material": 0});
-    if let Some(i) = indices {
-        prim["indices"] = json!(i);
-    }
+    let mut prim = json!({"attributes": attributes, "mode": 4, "material": 0, "indices": indices});
     if !prim_ext.is_empty() {
         prim["extensions"] = Value::Object(prim_ext);
     }
