@@ -108,8 +108,9 @@ pub enum OutputError {
     Ids(#[source] crate::scene::IdError),
     #[error("is {width_px}×{height_px} px, expected {expected_width_px}×{expected_height_px}")]
     Size { width_px: u32, height_px: u32, expected_width_px: u32, expected_height_px: u32 },
-    #[error("applying the camera effects: {0}")]
-    Effects(String),
+    /// The camera effects failed (the source says how).
+    #[error("applying the camera effects")]
+    Effects(#[source] EffectsError),
     #[error("re-encoding the PNG")]
     EncodePng(#[source] png::EncodingError),
     #[error("re-encoding the EXR")]
@@ -194,4 +195,118 @@ pub enum BlenderError {
     /// Two ID maps of one frame differ in size.
     #[error("{}: ID maps of different sizes, {}×{} vs {}×{}", path.display(), a[0], a[1], b[0], b[1])]
     SizeMismatch { path: PathBuf, a: [u32; 2], b: [u32; 2] },
+}
+
+/// Look ranges that cannot be drawn from (see [`crate::blender::look::LookRanges::check`]), or a sun
+/// that never rises high enough in them.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LookError {
+    /// A range (`name`: "sun hours", "sun azimuth", "white balance", …) that is not finite or decreases.
+    #[error("{name}: {}..{} is not an increasing finite range", range[0], range[1])]
+    NotIncreasing {
+        /// What the range is, as the flags name it.
+        name: &'static str,
+        /// The range as given (units of the quantity: hours, degrees, kelvin).
+        range: [f64; 2],
+    },
+    /// The latitude the sun is computed at is outside −90..90°.
+    #[error("latitude {latitude_deg}° is outside −90..90")]
+    Latitude {
+        /// The latitude given, degrees.
+        latitude_deg: f64,
+    },
+    /// The days of the year are outside 1..366 or decrease.
+    #[error("sun days {}..{} must lie in 1..366, increasing", days[0], days[1])]
+    SunDays {
+        /// First and last day of the year given.
+        days: [u32; 2],
+    },
+    /// The solar hours are outside 0..24.
+    #[error("sun hours {}..{} must lie in 0..24", solar_hours[0], solar_hours[1])]
+    SunHours {
+        /// First and last local solar time given, hours.
+        solar_hours: [f64; 2],
+    },
+    /// The minimum sun elevation is outside −90..90°.
+    #[error("minimum sun elevation {min_elevation_deg}° is outside −90..90")]
+    MinElevation {
+        /// The minimum elevation given, degrees.
+        min_elevation_deg: f64,
+    },
+    /// The drawn sun elevations are outside 0..90°.
+    #[error("sun elevation {}..{}° must lie in 0..90°", elevation_deg[0], elevation_deg[1])]
+    SunElevation {
+        /// The elevation range given, degrees.
+        elevation_deg: [f64; 2],
+    },
+    /// A sky weight is negative or not finite, or they sum to 0.
+    #[error("sky weights {weights:?} must be ≥ 0 with a positive sum")]
+    SkyWeights {
+        /// Weights of clear, hazy and overcast skies.
+        weights: [f64; 3],
+    },
+    /// The exposure jitter is negative or not finite.
+    #[error("exposure jitter {jitter_ev} must be ≥ 0")]
+    ExposureJitter {
+        /// The jitter given, stops.
+        jitter_ev: f64,
+    },
+    /// The white balance range is outside 1000..40000 K.
+    #[error("white balance {}..{} K must lie in 1000..40000 K", kelvin[0], kelvin[1])]
+    WhiteBalance {
+        /// The colour temperature range given, kelvin.
+        kelvin: [f64; 2],
+    },
+    /// The JPEG quality range is outside 1..100 or decreases.
+    #[error("JPEG quality {}..{} must lie in 1..100, increasing", quality[0], quality[1])]
+    JpegQuality {
+        /// The quality range given.
+        quality: [u8; 2],
+    },
+    /// No draw of day and hour put the sun above the minimum elevation.
+    #[error(
+        "the sun does not rise {min_elevation_deg}° above the horizon on days {}..{} between {}h and {}h solar \
+         time at latitude {latitude_deg:.2}°; widen --sun-days/--sun-hours or give --sun-azimuth/--sun-elevation",
+        days[0],
+        days[1],
+        solar_hours[0],
+        solar_hours[1]
+    )]
+    SunNeverUp {
+        /// The latitude the sun was computed at, degrees.
+        latitude_deg: f64,
+        /// First and last day of the year drawn from.
+        days: [u32; 2],
+        /// First and last local solar time drawn from, hours.
+        solar_hours: [f64; 2],
+        /// The elevation the sun had to reach, degrees.
+        min_elevation_deg: f64,
+    },
+}
+
+/// Why the camera effects could not be applied to a frame (see
+/// [`crate::blender::look::apply_camera_effects`]).
+#[derive(Debug, thiserror::Error)]
+pub enum EffectsError {
+    /// The sensor noise's standard deviation is not usable (NaN).
+    #[error("sensor noise σ {sigma} is not a valid standard deviation")]
+    Noise {
+        /// The noise standard deviation, 8-bit levels.
+        sigma: f64,
+        /// The distribution's refusal.
+        #[source]
+        source: rand_distr::NormalError,
+    },
+    /// The JPEG encoder failed.
+    #[error("JPEG encoding at quality {quality}")]
+    JpegEncode {
+        /// The JPEG quality asked for.
+        quality: u8,
+        /// The codec's error.
+        #[source]
+        source: image::ImageError,
+    },
+    /// The re-encoded JPEG does not decode.
+    #[error("JPEG decoding")]
+    JpegDecode(#[source] image::ImageError),
 }

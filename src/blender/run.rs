@@ -482,12 +482,12 @@ fn check_request(plan: &RenderPlan, frames: &[FrameRequest]) -> Vec<JobIssue> {
         }
     }
     if plan.mode == Mode::Rgb {
-        if let Err(what) = plan.look.check() {
-            issues.push(JobIssue { path: "look".into(), what });
-        } else if let Some(Err(what)) =
+        if let Err(e) = plan.look.check() {
+            issues.push(JobIssue { path: "look".into(), what: e.to_string() });
+        } else if let Some(Err(e)) =
             frames.iter().map(|f| FrameLook::draw(&plan.look, plan.look_seed, &f.name)).find(Result::is_err)
         {
-            issues.push(JobIssue { path: "look.sun".into(), what });
+            issues.push(JobIssue { path: "look.sun".into(), what: e.to_string() });
         }
     }
     if plan.restart_every == 0 {
@@ -602,9 +602,9 @@ fn run_batch(
         .iter()
         .map(|f| FrameLook::draw(&plan.look, plan.look_seed, &f.name))
         .collect::<Result<_, _>>()
-        .map_err(|what| BlenderError::InvalidJob {
+        .map_err(|e| BlenderError::InvalidJob {
             path: plan.work_dir.clone(),
-            issues: vec![JobIssue { path: "look.sun".into(), what }],
+            issues: vec![JobIssue { path: "look.sun".into(), what: e.to_string() }],
         })?;
     let mut job_frames = Vec::with_capacity(batch.len());
     for (i, f) in batch.iter().enumerate() {
