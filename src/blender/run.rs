@@ -573,15 +573,14 @@ pub fn render_frames(
     result.map(|()| summary)
 }
 
-fn run_batch(
+/// The models of a batch's job: the prepared scene, or the tiles its frames select (with each frame's
+/// share of them; skipped contents are counted in `summary`).
+fn batch_models(
     plan: &RenderPlan,
-    script: &Path,
-    look: &Look,
     batch: &[FrameRequest],
-    progress: &dyn Progress,
     summary: &mut RenderSummary,
-) -> Result<(), BlenderError> {
-    let (models, per_frame): (Vec<JobModel>, Option<Vec<Vec<u32>>>) = match &plan.source {
+) -> Result<(Vec<JobModel>, Option<Vec<Vec<u32>>>), BlenderError> {
+    Ok(match &plan.source {
         SceneSource::Lod { glb, enu_from_gltf } => {
             (vec![JobModel { glb: absolute(glb), enu_from_gltf: *enu_from_gltf, kind: ModelKind::Lod }], None)
         }
@@ -596,16 +595,32 @@ fn run_batch(
                 sel.tiles.iter().map(|t| prepare_tile(t, enu, &cache)).collect::<Result<Vec<_>, _>>()?;
             (models, Some(sel.per_frame))
         }
-    };
-    let outputs: Vec<Vec<Output>> = batch.iter().map(|f| frame_outputs(plan, &f.name)).collect();
-    let looks: Vec<FrameLook> = batch
+    })
+}
+
+/// The look of every frame of a batch.
+///
+/// # Errors
+/// [`BlenderError::InvalidJob`] when the sun cannot be drawn for a frame.
+fn draw_looks(plan: &RenderPlan, batch: &[FrameRequest]) -> Result<Vec<FrameLook>, BlenderError> {
+    batch
         .iter()
         .map(|f| FrameLook::draw(&plan.look, plan.look_seed, &f.name))
         .collect::<Result<_, _>>()
         .map_err(|e| BlenderError::InvalidJob {
             path: plan.work_dir.clone(),
             issues: vec![JobIssue { path: "look.sun".into(), what: e.to_string() }],
-        })?;
+        })
+}
+
+/// The job's frames: camera, pose, models, look and output files of each frame of the batch.
+fn job_frames(
+    plan: &RenderPlan,
+    batch: &[FrameRequest],
+    outputs: &[Vec<Output>],
+    looks: &[FrameLook],
+    per_frame: Option<&[Vec<u32>]>,
+) -> Result<Vec<JobFrame>, BlenderError> {
     let mut job_frames = Vec::with_capacity(batch.len());
     for (i, f) in batch.iter().enumerate() {
         let camera =
@@ -617,12 +632,29 @@ fn run_batch(
             camera,
             cam_to_world_enu: cam_to_world_enu(&f.pose),
             blender_matrix_world: blender_matrix_world(&f.pose),
-            models: per_frame.as_ref().map(|p| p[i].clone()),
+            models: per_frame.map(|p| p[i].clone()),
             look: looks[i],
             png: find(OutputKind::Png),
             exr: find(OutputKind::RgbExr).or_else(|| find(OutputKind::IdExr)),
         });
     }
+    Ok(job_frames)
+}
+
+/// Renders one batch of frames in one Blender process: writes its job, runs Blender, and finalises
+/// each frame's outputs as Blender reports it done (temporary files are removed on failure).
+fn run_batch(
+    plan: &RenderPlan,
+    script: &Path,
+    look: &Look,
+    batch: &[FrameRequest],
+    progress: &dyn Progress,
+    summary: &mut RenderSummary,
+) -> Result<(), BlenderError> {
+    let (models, per_frame) = batch_models(plan, batch, summary)?;
+    let outputs: Vec<Vec<Output>> = batch.iter().map(|f| frame_outputs(plan, &f.name)).collect();
+    let looks = draw_looks(plan, batch)?;
+    let job_frames = job_frames(plan, batch, &outputs, &looks, per_frame.as_deref())?;
     let job = Job {
         format: JOB_FORMAT.into(),
         version: JOB_VERSION,
