@@ -22,6 +22,15 @@ pub enum GeoError {
     /// A geoid grid is malformed, or a position lies outside it.
     #[error("geoid grid {path}: {why}")]
     Geoid { path: String, why: String },
+    /// A GeoTIFF geoid grid cannot be used; `source` says why.
+    #[error("geoid grid {path}")]
+    GeoTiff {
+        /// The grid file.
+        path: String,
+        /// What is wrong with it.
+        #[source]
+        source: GeoTiffError,
+    },
     /// A file (the geoid grid) could not be read.
     #[error(transparent)]
     File(#[from] crate::util::FileError),
@@ -142,4 +151,152 @@ pub enum ProjError {
     /// `proj_create` refused a definition.
     #[error("PROJ cannot create {definition:?}: {reason}")]
     Create { definition: String, reason: String },
+}
+
+/// Why a GeoTIFF vertical grid cannot be used (see [`GeoError::GeoTiff`], which names the file).
+#[derive(Debug, thiserror::Error)]
+pub enum GeoTiffError {
+    /// The TIFF decoder failed; `what` is the tag or step it was at.
+    #[error("{what}")]
+    Tiff {
+        /// The tag read ("ModelTiepoint") or the step ("not a readable TIFF", "reading the samples").
+        what: &'static str,
+        /// The decoder's error.
+        #[source]
+        source: tiff::TiffError,
+    },
+    /// A further image file directory cannot be read.
+    #[error("IFD {ifd}")]
+    Ifd {
+        /// Index of the image file directory (0 = the grid).
+        ifd: usize,
+        /// The decoder's error.
+        #[source]
+        source: tiff::TiffError,
+    },
+    /// The first image is an overview or a mask, not a grid.
+    #[error("the first image has NewSubfileType {subfile} (PROJ refuses it: \"Invalid subfileType\")")]
+    SubfileType {
+        /// The `NewSubfileType` value.
+        subfile: u32,
+    },
+    /// The image has no pixels.
+    #[error("image size {width_px} × {height_px} is empty")]
+    EmptyImage {
+        /// Image width, pixels.
+        width_px: u32,
+        /// Image height, pixels.
+        height_px: u32,
+    },
+    /// `SamplesPerPixel` is 0.
+    #[error("SamplesPerPixel is 0")]
+    NoSamples,
+    /// The `GeoKeyDirectory` is not a whole number of 4-value entries.
+    #[error("GeoKeyDirectory has {count} values, not a multiple of 4")]
+    GeoKeyCount {
+        /// Number of values in the directory.
+        count: usize,
+    },
+    /// The GeoTIFF key directory has a major version other than 1.
+    #[error("GeoTIFF major version {major} is not supported")]
+    GeoKeyVersion {
+        /// The key directory's major version.
+        major: u16,
+    },
+    /// The grid is in a projected CRS.
+    #[error(
+        "the grid is in a projected CRS; geoid grids must be in latitude/longitude (PROJ: \"Can only handle \
+         grids referenced in a geographic CRS\")"
+    )]
+    Projected,
+    /// `GTModelTypeGeoKey` is neither geographic nor projected.
+    #[error("GTModelTypeGeoKey {model_type} is neither geographic nor projected")]
+    ModelType {
+        /// The key's value.
+        model_type: u16,
+    },
+    /// `ModelTransformation` rotates or shears the grid.
+    #[error("ModelTransformation has rotation terms (not supported, as in PROJ)")]
+    Rotation,
+    /// A tag georeferencing needs is absent.
+    #[error("no {tag} tag: not a georeferenced GeoTIFF")]
+    MissingTag {
+        /// The tag's name.
+        tag: &'static str,
+    },
+    /// A georeferencing tag has the wrong number of values.
+    #[error("{tag} has {count} values, expected {expected}")]
+    TagLength {
+        /// The tag's name.
+        tag: &'static str,
+        /// Number of values found.
+        count: usize,
+        /// What was expected ("3", "6 (one tiepoint)").
+        expected: &'static str,
+    },
+    /// The node extent or the steps are not finite, out of range or reversed.
+    #[error(
+        "inconsistent georeferencing: nodes from {west_deg}° to {east_deg}° E, {south_deg}° to {north_deg}° N, \
+         steps {h_res_deg}° × {v_res_deg}°"
+    )]
+    Georeferencing {
+        /// Longitude of the westernmost nodes, degrees.
+        west_deg: f64,
+        /// Longitude of the easternmost nodes, degrees.
+        east_deg: f64,
+        /// Latitude of the southernmost nodes, degrees.
+        south_deg: f64,
+        /// Latitude of the northernmost nodes, degrees.
+        north_deg: f64,
+        /// Node spacing along longitude, degrees.
+        h_res_deg: f64,
+        /// Node spacing along latitude, degrees (negative: rows run south to north).
+        v_res_deg: f64,
+    },
+    /// The bands are described, but none as the geoid.
+    #[error("its bands are described as {names:?} but none as geoid_undulation or vertical_offset")]
+    NoGeoidBand {
+        /// The bands' descriptions.
+        names: Vec<String>,
+    },
+    /// The band described as the geoid does not exist.
+    #[error("band {band} is described as the geoid, but the file has {samples_per_pixel} samples per pixel")]
+    BandOutOfRange {
+        /// The described band (0-based sample index).
+        band: usize,
+        /// Samples per pixel in the file.
+        samples_per_pixel: usize,
+    },
+    /// `GDAL_NODATA` is not a number.
+    #[error("GDAL_NODATA {text:?} is not a number")]
+    Nodata {
+        /// The tag's text.
+        text: String,
+    },
+    /// The samples are integers.
+    #[error(
+        "the samples are integers; only float32/float64 grids are supported (PROJ-data geoid grids are float32)"
+    )]
+    IntegerSamples,
+    /// The image holds fewer samples than its size says.
+    #[error("the image holds {found} samples, fewer than {rows} × {cols} × {samples_per_pixel}")]
+    TooFewSamples {
+        /// Samples decoded.
+        found: usize,
+        /// Grid rows.
+        rows: usize,
+        /// Grid columns.
+        cols: usize,
+        /// Samples per pixel.
+        samples_per_pixel: usize,
+    },
+    /// A further full-resolution grid (a PROJ subgrid hierarchy).
+    #[error(
+        "IFD {ifd} is a second full-resolution grid (a PROJ subgrid hierarchy), which insgen does not \
+         interpolate; use PROJ's own path ([geoid] model = \"proj\") for this grid"
+    )]
+    Subgrid {
+        /// Index of the image file directory.
+        ifd: usize,
+    },
 }
