@@ -186,7 +186,7 @@ impl PreparedScene {
         if let Some(rec) = &scene.manifest.alignment {
             let c = rec.correction;
             c.validate()
-                .map_err(|what| super::SceneError::Artifact { path: dir.join(MANIFEST_FILE), what })?;
+                .map_err(|source| super::SceneError::Correction { path: dir.join(MANIFEST_FILE), source })?;
             if !c.is_identity() {
                 let o = scene.manifest.origin;
                 let enu = crate::geo::EnuFrame::new(crate::geo::Geodetic::new(o.lat_deg, o.lon_deg, o.h_m));

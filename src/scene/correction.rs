@@ -24,6 +24,7 @@ use glam::{DMat4, DVec3};
 use serde::{Deserialize, Serialize};
 
 use super::artifact::BuildingRecord;
+pub use super::error::CorrectionError;
 use super::mesh::SceneMesh;
 
 /// A rigid correction of the LoD model in the area's ENU frame (see the module doc).
@@ -54,8 +55,8 @@ impl Correction {
     /// Checks every number is finite.
     ///
     /// # Errors
-    /// A message naming the first non-finite field.
-    pub fn validate(&self) -> Result<(), String> {
+    /// [`CorrectionError::NotFinite`] naming the first non-finite field.
+    pub fn validate(&self) -> Result<(), CorrectionError> {
         let fields = [
             ("east_m", self.east_m),
             ("north_m", self.north_m),
@@ -66,7 +67,7 @@ impl Correction {
         ];
         for (name, v) in fields {
             if !v.is_finite() {
-                return Err(format!("alignment {name} = {v} is not a finite number"));
+                return Err(CorrectionError::NotFinite { field: name, value: v });
             }
         }
         Ok(())
@@ -269,6 +270,6 @@ mod tests {
     #[test]
     fn non_finite_values_are_named() {
         let bad = Correction { yaw_deg: f64::NAN, ..Correction::IDENTITY };
-        assert!(bad.validate().unwrap_err().contains("yaw_deg"));
+        assert!(bad.validate().unwrap_err().to_string().contains("yaw_deg"));
     }
 }

@@ -37,6 +37,15 @@ pub enum SceneError {
         #[source]
         source: crate::scene::IdError,
     },
+    /// The alignment record of a prepared scene's manifest (`path`) is unusable.
+    #[error("{}", path.display())]
+    Correction {
+        /// The manifest.
+        path: PathBuf,
+        /// What is wrong with the record.
+        #[source]
+        source: CorrectionError,
+    },
     /// A prepared scene on disk is missing or inconsistent.
     #[error("{}: {what}", path.display())]
     Artifact { path: PathBuf, what: String },
@@ -53,5 +62,33 @@ pub enum SceneError {
     ArtifactGlb {
         #[source]
         source: super::glb::GlbError,
+    },
+}
+
+/// An alignment correction that cannot be applied (see [`crate::scene::correction::Correction::validate`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CorrectionError {
+    /// A number of the correction is NaN or infinite.
+    #[error("alignment {field} = {value} is not a finite number")]
+    NotFinite {
+        /// The field ("east_m", "yaw_deg", "pivot_enu_m[0]", …).
+        field: &'static str,
+        /// Its value.
+        value: f64,
+    },
+}
+
+/// Why synthetic photogrammetry could not be made from the buildings (see
+/// [`crate::scene::photogrammetry::perturb`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PerturbError {
+    /// The ground and clutter pieces need building IDs beyond the 24-bit ID space.
+    #[error(
+        "clutter needs more building IDs: ID {id} does not fit the 24-bit ID space (max {})",
+        crate::scene::MAX_BUILDING_ID
+    )]
+    IdSpace {
+        /// The first ID that does not fit.
+        id: u32,
     },
 }
