@@ -12,8 +12,11 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-# Files whose content is a timing, a date or a host name (everything else must match byte for byte).
-TIMING_FILES='(timing\.json|timings\.json|run\.log|\.log|benchmark.*\.json)$'
+# Files whose content is a timing, a date, provenance (binary path, commit) or Blender's job
+# scheduling, which follows the machine's load: left out. Everything else must match byte for byte,
+# JSON without its timing and provenance keys, Markdown without its timing and commit lines.
+TIMING_FILES='(timing\.json|timings\.json|\.log|benchmark.*\.json|commands\.jsonl|blender/job-[^/]*\.json)$'
+TIMING_LINE='[0-9.]+ ?(s|ms|min) (per|each)|[0-9.]+ ?[a-z]+/s\b|elapsed|wall|commit `|^/.*insgen.* --workdir '
 
 if [[ "${1:-}" == "--compare" ]]; then
   a="$2"; b="$3"; status=0
@@ -24,7 +27,8 @@ if [[ "${1:-}" == "--compare" ]]; then
       # JSON reports carry timings next to results: compare them without the timing keys.
       if [[ "$rel" == *.json || "$rel" == *.jsonl ]] && python3 - "$a/$rel" "$b/$rel" <<'EOF'
 import json, sys
-TIMING = ("seconds", "_s", "_ms", "elapsed", "timing", "created", "date", "host", "per_second", "fps")
+TIMING = ("seconds", "_s", "_ms", "elapsed", "timing", "created", "date", "host", "per_second", "fps",
+          "git_commit", "argv", "commands")
 def strip(v):
     if isinstance(v, dict):
         return {k: strip(x) for k, x in v.items() if not any(t in k.lower() for t in TIMING)}
@@ -40,6 +44,10 @@ def load(p):
 sys.exit(0 if load(sys.argv[1]) == load(sys.argv[2]) else 1)
 EOF
       then echo "same except timings: $rel"; continue; fi
+      # Reports in Markdown state timings in prose: compare them without the lines that do.
+      if [[ "$rel" == *.md ]] && cmp -s <(grep -Ev "$TIMING_LINE" "$a/$rel") <(grep -Ev "$TIMING_LINE" "$b/$rel"); then
+        echo "same except timing lines: $rel"; continue
+      fi
       echo "differs: $rel"; status=1
     fi
   done < <(cd "$a" && find . -type f | sort)
@@ -56,6 +64,9 @@ AREAS=${AREAS:-"demo tokyo"}
 # Outputs name their own paths (manifests, data.yaml, fingerprints): every run writes at the same place
 # and is moved to FINAL afterwards.
 OUT="${TMPDIR:-/tmp}/insgen-same-outputs"
+# One run at a time at that place: a second one waits for the first.
+exec 9>"$OUT.lock"
+flock 9
 rm -rf "$OUT" "$FINAL"; mkdir -p "$OUT"
 IG=("$BIN" --no-progress -q --workdir "$OUT/work")
 for area in $AREAS; do

@@ -138,22 +138,31 @@ impl std::fmt::Display for ClutterLayer {
 /// Parses a comma-separated layer list: layer names, `all` or `none`.
 ///
 /// # Errors
-/// A message naming the unknown word and the accepted names.
-pub fn parse_layers(list: &str) -> Result<Vec<ClutterLayer>, String> {
+/// [`UnknownLayer`] naming the unknown word (its message lists the accepted names).
+pub fn parse_layers(list: &str) -> Result<Vec<ClutterLayer>, UnknownLayer> {
     let mut out = Vec::new();
     for word in list.split(',').map(str::trim).filter(|w| !w.is_empty()) {
         match word {
             "all" => out.extend(ClutterLayer::ALL),
             "none" => {}
-            _ => out.push(ClutterLayer::from_name(word).ok_or_else(|| {
-                let names: Vec<&str> = ClutterLayer::ALL.iter().map(|l| l.name()).collect();
-                format!("unknown clutter layer {word:?}; expected all, none or any of {}", names.join(", "))
-            })?),
+            _ => out
+                .push(ClutterLayer::from_name(word).ok_or_else(|| UnknownLayer { word: word.to_string() })?),
         }
     }
     out.sort();
     out.dedup();
     Ok(out)
+}
+
+/// A word of a layer list that is not a layer name, `all` or `none`.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "unknown clutter layer {word:?}; expected all, none or any of {}",
+    ClutterLayer::ALL.map(ClutterLayer::name).join(", ")
+)]
+pub struct UnknownLayer {
+    /// The word as given.
+    pub word: String,
 }
 
 /// What to generate.
@@ -1447,7 +1456,10 @@ mod tests {
             }
             assert_eq!(parse_layers("cars, trees").unwrap(), vec![ClutterLayer::Trees, ClutterLayer::Cars]);
             assert_eq!(parse_layers("none").unwrap(), vec![]);
-            assert!(parse_layers("tree").unwrap_err().contains("expected all, none or any of roads"));
+            assert!(parse_layers("tree")
+                .unwrap_err()
+                .to_string()
+                .contains("expected all, none or any of roads"));
         }
     }
 }
