@@ -29,6 +29,7 @@ pub enum LookStyle {
 }
 
 impl LookStyle {
+    /// The style's name in files and on the command line.
     pub fn name(self) -> &'static str {
         match self {
             LookStyle::Varied => "varied",
@@ -55,15 +56,31 @@ pub enum Sky {
 pub enum SunRange {
     /// A day of the year and a local solar time drawn uniformly, the sun's position computed at the
     /// area's latitude; draws with the sun below `min_elevation_deg` are redrawn.
-    Dates { latitude_deg: f64, days: [u32; 2], solar_hours: [f64; 2], min_elevation_deg: f64 },
+    Dates {
+        /// Latitude the sun is computed at, degrees.
+        latitude_deg: f64,
+        /// First and last day of the year (1..=366).
+        days: [u32; 2],
+        /// First and last local solar time, hours.
+        solar_hours: [f64; 2],
+        /// Lowest accepted sun elevation, degrees.
+        min_elevation_deg: f64,
+    },
     /// Azimuth (clockwise from north) and elevation drawn uniformly in the ranges, degrees.
-    Angles { azimuth_deg: [f64; 2], elevation_deg: [f64; 2] },
+    Angles {
+        /// Azimuth range, degrees clockwise from north.
+        azimuth_deg: [f64; 2],
+        /// Elevation range, degrees above the horizon.
+        elevation_deg: [f64; 2],
+    },
 }
 
 /// Ranges the varied look draws from (the `render-rgb` flags).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct LookRanges {
+    /// Varied or plain.
     pub style: LookStyle,
+    /// Where the sun comes from.
     pub sun: SunRange,
     /// Relative weights of clear, hazy and overcast skies.
     pub sky_weights: [f64; 3],
@@ -187,6 +204,7 @@ impl CameraEffects {
         jpeg_quality: None,
     };
 
+    /// Whether no effect is applied at all.
     pub fn is_none(&self) -> bool {
         *self == Self::NONE
     }
@@ -195,18 +213,23 @@ impl CameraEffects {
 /// One frame's drawn look: what Blender sets before rendering it and what insgen applies after.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct FrameLook {
+    /// Varied or plain.
     pub style: LookStyle,
     /// Sun azimuth clockwise from north and elevation above the horizon, degrees.
     pub sun_azimuth_deg: f64,
+    /// Sun elevation above the horizon, degrees.
     pub sun_elevation_deg: f64,
     /// The day of the year and local solar time (hours) the sun was computed for, when drawn by date.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub day_of_year: Option<u32>,
+    /// Local solar time, hours (drawn by date only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub solar_time_h: Option<f64>,
+    /// The weather.
     pub sky: Sky,
     /// Sun lamp irradiance (Blender's sun strength) and sky strength.
     pub sun_strength: f64,
+    /// Sky strength (Blender's world background strength).
     pub sky_strength: f64,
     /// Meteorological visibility, metres (haze reaches 95 % at this distance); `None` = no haze.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -215,6 +238,7 @@ pub struct FrameLook {
     pub haze_rgb: [f64; 3],
     /// Exposure, stops.
     pub exposure_ev: f64,
+    /// Camera effects insgen applies to the 8-bit frame.
     pub camera: CameraEffects,
 }
 
@@ -226,6 +250,7 @@ pub fn sun_from_seed(seed: u64) -> (f64, f64) {
 
 /// Sun lamp irradiance and sky strength of the plain look.
 pub const PLAIN_SUN_STRENGTH: f64 = 4.0;
+/// Sky strength of the plain look.
 pub const PLAIN_SKY_STRENGTH: f64 = 0.18;
 
 /// Solar position (azimuth clockwise from north, elevation), degrees, for a latitude, a day of the year

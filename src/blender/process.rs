@@ -32,9 +32,15 @@ pub const TAIL_LINES: usize = 40;
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Launcher {
     /// A Python interpreter with the `bpy` module installed.
-    Python { interpreter: PathBuf },
+    Python {
+        /// The interpreter's path.
+        interpreter: PathBuf,
+    },
     /// A Blender executable, run in background mode.
-    Blender { binary: PathBuf },
+    Blender {
+        /// The Blender executable's path.
+        binary: PathBuf,
+    },
 }
 
 impl Launcher {
@@ -118,17 +124,34 @@ pub enum Event {
     /// Workbench), `blender` Blender's version; `bounds` (when the job asked) gives each model's ENU
     /// bounds [min, max] in metres.
     Ready {
+        /// Models imported.
         models: usize,
+        /// Seconds spent building the scene.
         seconds: f64,
+        /// The Cycles device chosen (`None` for Workbench).
         device: Option<String>,
+        /// Blender's version string.
         blender: Option<String>,
+        /// Each model's ENU bounds [min, max], metres, when the job asked (`None` for a model without geometry).
         bounds: Option<Vec<Option<[[f64; 3]; 2]>>>,
     },
     /// A frame's files are written to its temporary paths; wall-clock seconds and CPU seconds (all
     /// threads of the process) spent on it.
-    Done { frame: String, seconds: f64, cpu_seconds: f64 },
+    Done {
+        /// The frame.
+        frame: String,
+        /// Wall-clock seconds spent on it.
+        seconds: f64,
+        /// CPU seconds spent on it (all threads).
+        cpu_seconds: f64,
+    },
     /// The script failed (it exits non-zero afterwards).
-    Error { message: String, frame: Option<String> },
+    Error {
+        /// The script's message.
+        message: String,
+        /// The frame being rendered, when known.
+        frame: Option<String>,
+    },
 }
 
 #[derive(Deserialize)]

@@ -38,9 +38,21 @@ pub enum SceneSource {
     /// The prepared scene's `scene.glb` (the instanced LoD model, procedural look), placed by
     /// `enu_from_gltf` (row-major): [`super::tileset::ENU_FROM_SCENE_GLTF`], preceded by the area's alignment correction
     /// when it has one ([`crate::scene::PreparedScene::enu_from_scene_gltf`]).
-    Lod { glb: PathBuf, enu_from_gltf: Mat4 },
+    Lod {
+        /// The prepared `scene.glb`.
+        glb: PathBuf,
+        /// ENU-from-glTF transform (row-major, metres).
+        enu_from_gltf: Mat4,
+    },
     /// A photogrammetry tileset, placed with the area's ENU frame; tiles chosen per frame.
-    Tileset { tileset: PathBuf, enu: EnuFrame, select: SelectOptions },
+    Tileset {
+        /// The tileset JSON.
+        tileset: PathBuf,
+        /// The area's ENU frame.
+        enu: EnuFrame,
+        /// How tiles are chosen per frame.
+        select: SelectOptions,
+    },
 }
 
 /// Default settings for the procedural look of the LoD model, chosen by measurement on cam2 1920×1080
@@ -92,16 +104,22 @@ impl SceneSource {
 /// One frame to render.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrameRequest {
+    /// Frame name (the stem of its output files).
     pub name: String,
+    /// The pinhole camera.
     pub intrinsics: Intrinsics,
+    /// Camera pose in the area's ENU frame.
     pub pose: Pose,
 }
 
 /// Everything a render run needs (built once by the CLI from its flags).
 #[derive(Debug, Clone)]
 pub struct RenderPlan {
+    /// How Blender is started.
     pub launcher: Launcher,
+    /// RGB or ID rendering.
     pub mode: Mode,
+    /// The render engine.
     pub engine: Engine,
     /// Samples, denoiser, bounces and lighting (RGB mode).
     pub rgb: RgbSettings,
@@ -113,6 +131,7 @@ pub struct RenderPlan {
     pub threads: u32,
     /// RGB mode: also write a linear float32 EXR per frame.
     pub exr: bool,
+    /// What is rendered: the prepared scene or a tileset.
     pub source: SceneSource,
     /// Seed of the per-building material variation and of each frame's look.
     pub look_seed: u64,
@@ -130,6 +149,7 @@ pub struct RenderPlan {
     pub force: bool,
     /// Camera clipping range, metres.
     pub clip_start_m: f64,
+    /// Far clipping distance, metres.
     pub clip_end_m: f64,
     /// Ask the script for each model's ENU bounds (tests).
     pub report_bounds: bool,
@@ -141,6 +161,7 @@ pub struct RenderPlan {
 /// Time spent on one frame, as Blender reported it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrameTiming {
+    /// Frame name.
     pub name: String,
     /// Wall-clock seconds (depends on other load on the machine).
     pub seconds: f64,
@@ -181,6 +202,7 @@ struct ProcessInfo {
 /// bytes.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FrameMeta {
+    /// Frame name.
     pub frame: String,
     /// `cycles` or `workbench`.
     pub engine: String,
@@ -188,8 +210,10 @@ pub struct FrameMeta {
     pub device: String,
     /// The device asked for (`auto`, `cpu`, …).
     pub device_requested: String,
+    /// Samples, denoiser, bounces and lighting.
     #[serde(flatten)]
     pub settings: RgbSettings,
+    /// Cycles sampling seed.
     pub seed: u32,
     /// The frame's drawn look (sun, sky, haze, exposure, camera effects).
     pub look: FrameLook,
@@ -229,8 +253,11 @@ pub enum OutputKind {
 /// One output of a frame: final path, temporary path and kind.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Output {
+    /// Final path.
     pub path: PathBuf,
+    /// Temporary path Blender writes (renamed to `path` after verification).
     pub tmp: PathBuf,
+    /// What the file holds.
     pub kind: OutputKind,
 }
 

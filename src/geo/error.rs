@@ -10,6 +10,7 @@ pub enum GeoError {
          scene file)"
     )]
     UnknownCrs {
+        /// The CRS name as given.
         name: String,
         /// Boxed: PROJ's reasons make it large, and errors travel by value.
         #[source]
@@ -18,10 +19,22 @@ pub enum GeoError {
     /// A coordinate could not be converted (outside the projection's domain, NaN…); `why` is PROJ's
     /// reason or ours.
     #[error("cannot convert {point:?} from {crs}: {why}")]
-    Transform { crs: String, point: [f64; 3], why: String },
+    Transform {
+        /// The source CRS.
+        crs: String,
+        /// The coordinate, in the CRS's axis order and units.
+        point: [f64; 3],
+        /// PROJ's reason or ours.
+        why: String,
+    },
     /// A geoid grid is malformed, or a position lies outside it.
     #[error("geoid grid {path}: {why}")]
-    Geoid { path: String, why: String },
+    Geoid {
+        /// The grid file.
+        path: String,
+        /// What is wrong.
+        why: String,
+    },
     /// A GeoTIFF geoid grid cannot be used; `source` says why.
     #[error("geoid grid {path}")]
     GeoTiff {
@@ -45,8 +58,10 @@ pub(crate) const EXPECTED: &str = "expected an EPSG code such as EPSG:6697, urn:
 /// not know it, or it is of a kind that cannot be placed on the globe.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CrsError {
+    /// The name is empty.
     #[error("empty CRS name; {EXPECTED}")]
     Empty,
+    /// The name is none of the accepted spellings.
     #[error("not a recognised CRS name; {EXPECTED}")]
     NotRecognised,
     /// A part of a compound URN (`urn:ogc:def:crs,crs:…,crs:…`) that does not start with `crs:`.
@@ -64,11 +79,13 @@ pub enum CrsError {
     /// An authority other than EPSG (upper-cased as given).
     #[error("authority {0:?} is not supported (only EPSG codes are)")]
     Authority(String),
+    /// A URN without a code.
     #[error("URN has no code; {EXPECTED}")]
     UrnWithoutCode,
     /// An OGC URL whose path is not `<authority>/<version>/<code>`.
     #[error("URL path {0:?} is not <authority>/<version>/<code>; {EXPECTED}")]
     UrlPath(String),
+    /// A URL that is not an OGC CRS URL.
     #[error("not an OGC CRS URL; {EXPECTED}")]
     NotOgcUrl,
     /// The code part is not made of digits.
@@ -91,6 +108,7 @@ pub enum CrsError {
         }
     )]
     Unsupported {
+        /// The EPSG code.
         code: u32,
         /// PROJ's name of the CRS.
         name: String,
@@ -103,15 +121,24 @@ pub enum CrsError {
     #[error(
         "the first component of a compound CRS must be a 2D geographic or projected CRS, but {name} is {kind}"
     )]
-    CompoundHorizontal { name: String, kind: String },
+    CompoundHorizontal {
+        /// PROJ's name of the component.
+        name: String,
+        /// Its kind ("vertical", "engineering", …).
+        kind: String,
+    },
     /// The second component of a compound CRS is not a vertical CRS.
     #[error("the second component of a compound CRS must be a vertical CRS, but {name} is not")]
-    CompoundVertical { name: String },
+    CompoundVertical {
+        /// PROJ's name of the component.
+        name: String,
+    },
     /// A component of a compound CRS has no EPSG identifier.
     #[error("the {part} component {name} has no EPSG code")]
     NoEpsgCode {
         /// "horizontal" or "vertical".
         part: &'static str,
+        /// PROJ's name of the component.
         name: String,
     },
     /// PROJ failed (the code is not in its database, no operation exists, …).
@@ -123,34 +150,75 @@ pub enum CrsError {
 /// of its error number (PROJ reports errors only as text, so that is what is kept).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ProjError {
+    /// No PROJ context could be created.
     #[error("PROJ could not create a context (out of memory?)")]
     NoContext,
     /// A string handed to PROJ contains a NUL byte, which C strings cannot carry.
     #[error("{what} {value:?} contains NUL")]
-    Nul { what: &'static str, value: String },
+    Nul {
+        /// What the string is (a CRS name, a definition).
+        what: &'static str,
+        /// The string.
+        value: String,
+    },
     /// `proj_create_from_database` found no CRS with this code.
     #[error("{auth}:{code} is not in PROJ's database ({database}): {reason}")]
-    NotInDatabase { auth: String, code: u32, database: String, reason: String },
+    NotInDatabase {
+        /// The authority.
+        auth: String,
+        /// The code.
+        code: u32,
+        /// PROJ's database file.
+        database: String,
+        /// PROJ's reason.
+        reason: String,
+    },
     /// A component of a compound CRS could not be extracted.
     #[error("component {index} of compound CRS {crs}: {reason}")]
-    SubCrs { crs: String, index: i32, reason: String },
+    SubCrs {
+        /// The compound CRS.
+        crs: String,
+        /// Index of the component (0 horizontal, 1 vertical).
+        index: i32,
+        /// PROJ's reason.
+        reason: String,
+    },
     /// A CRS has no coordinate system, or its axes cannot be read.
     #[error("{what} of {crs}: {reason}")]
     Axes {
         /// "coordinate system", "axis count", "axis 2".
         what: String,
+        /// The CRS.
         crs: String,
+        /// PROJ's reason.
         reason: String,
     },
     /// `proj_create_crs_to_crs` found no coordinate operation.
     #[error("no coordinate operation from {from} to {to}: {reason}")]
-    NoOperation { from: String, to: String, reason: String },
+    NoOperation {
+        /// The source CRS.
+        from: String,
+        /// The target CRS.
+        to: String,
+        /// PROJ's reason.
+        reason: String,
+    },
     /// `proj_normalize_for_visualization` failed.
     #[error("normalising the axis order of {operation}: {reason}")]
-    Normalize { operation: String, reason: String },
+    Normalize {
+        /// The operation.
+        operation: String,
+        /// PROJ's reason.
+        reason: String,
+    },
     /// `proj_create` refused a definition.
     #[error("PROJ cannot create {definition:?}: {reason}")]
-    Create { definition: String, reason: String },
+    Create {
+        /// The definition.
+        definition: String,
+        /// PROJ's reason.
+        reason: String,
+    },
 }
 
 /// Why a GeoTIFF vertical grid cannot be used (see [`GeoError::GeoTiff`], which names the file).

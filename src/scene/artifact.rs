@@ -23,7 +23,9 @@ use super::mesh::SceneMesh;
 
 /// File names inside a scene directory.
 pub const GLB_FILE: &str = "scene.glb";
+/// The manifest's file name.
 pub const MANIFEST_FILE: &str = "manifest.json";
+/// The building table's file name.
 pub const BUILDINGS_FILE: &str = "buildings.json";
 
 /// One row of the building table.
@@ -46,9 +48,11 @@ pub struct BuildingRecord {
     pub footprint_area_m2: f64,
     /// Footprint centroid, WGS84 degrees.
     pub centroid_lat_deg: f64,
+    /// Footprint centroid longitude, WGS84 degrees.
     pub centroid_lon_deg: f64,
     /// Bounds in the area's ENU frame, metres: [min_e, min_n, min_u], [max_e, max_n, max_u].
     pub bbox_min_enu_m: [f64; 3],
+    /// Upper bounds in the area's ENU frame, metres.
     pub bbox_max_enu_m: [f64; 3],
     /// Triangles in the scene mesh.
     pub triangles: u64,
@@ -57,22 +61,30 @@ pub struct BuildingRecord {
 /// The area's geodetic origin (WGS84, ellipsoidal height).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Origin {
+    /// Latitude, degrees.
     pub lat_deg: f64,
+    /// Longitude, degrees.
     pub lon_deg: f64,
+    /// Ellipsoidal height, metres.
     pub h_m: f64,
 }
 
 /// Where a source came from, for provenance and reruns.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SourceEntry {
+    /// The source file (or tileset.json) as the scene file gives it.
     pub path: String,
+    /// The format it was read as (`citygml`, `cityjson`, `obj`, `tiles3d`, `procedural`).
     pub format: String,
     /// SHA-256 of the file (for a tileset: of tileset.json).
     pub sha256: String,
     /// The CRS chain applied, e.g. "EPSG:6697 (lat, lon, h; orthometric) → EPSG:4979 → EPSG:4978 → ENU".
     pub crs_chain: String,
+    /// Buildings read from it.
     pub buildings: u64,
+    /// Faces dropped as degenerate (collinear, zero area).
     pub degenerate_faces: u64,
+    /// The source's attribution line, if the scene file gives one.
     #[serde(default)]
     pub attribution: Option<String>,
     /// How the source's heights were read when not absolute, e.g. `"above_ground: + TerrainHeight per
@@ -91,9 +103,11 @@ pub struct AppearanceEntry {
     pub themes: Vec<String>,
     /// The theme textures / materials were taken from (the scene file's `theme`, else the first).
     pub texture_theme: Option<String>,
+    /// The theme flat colours were taken from.
     pub material_theme: Option<String>,
     /// Faces of the read buildings with a texture / a colour in the chosen themes.
     pub textured_faces: u64,
+    /// Faces with a flat colour in the chosen theme.
     pub coloured_faces: u64,
     /// Distinct images the textured faces of the read buildings use.
     pub images: u64,
@@ -134,10 +148,13 @@ pub struct GeoidUsed {
 /// `manifest.json` of a prepared scene.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Manifest {
+    /// Version of insgen that prepared the scene.
     pub insgen_version: String,
+    /// The area's name.
     pub area: String,
     /// "train", "val" or "test": the geographic split this area belongs to.
     pub split: String,
+    /// The area's geodetic origin (the ENU frame's).
     pub origin: Origin,
     /// ECEF-from-ENU transform (metres); rows in the file.
     #[serde(with = "crate::util::row_major")]
@@ -146,10 +163,15 @@ pub struct Manifest {
     pub area_polygon_enu_m: Vec<[f64; 2]>,
     /// Estimated ground level of the area in ENU metres (see `scene::prepare` for how).
     pub ground_enu_m: f64,
+    /// The geoid used.
     pub geoid: GeoidUsed,
+    /// The sources read.
     pub sources: Vec<SourceEntry>,
+    /// Building instances.
     pub buildings: u64,
+    /// Triangles in the scene mesh.
     pub triangles: u64,
+    /// Faces dropped as degenerate, over all sources.
     pub degenerate_faces: u64,
     /// Attribution lines to carry into datasets (e.g. PLATEAU's CC BY 4.0 notice).
     pub attributions: Vec<String>,
@@ -166,8 +188,11 @@ pub struct Manifest {
 /// A loaded scene: manifest, building table and mesh.
 #[derive(Debug, Clone)]
 pub struct PreparedScene {
+    /// `manifest.json`.
     pub manifest: Manifest,
+    /// `buildings.json`, ordered by ID.
     pub buildings: Vec<BuildingRecord>,
+    /// The instanced building mesh (ENU metres, one building ID per vertex).
     pub mesh: SceneMesh,
     /// Clutter layers (empty when the scene has none); never part of `mesh`.
     pub clutter: super::clutter::Clutter,

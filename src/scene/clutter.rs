@@ -198,12 +198,16 @@ impl Default for ClutterSpec {
 /// One layer's triangles: ENU metres relative to the area origin, one sRGB colour per vertex.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct LayerMesh {
+    /// Vertex positions, ENU metres relative to the area origin.
     pub positions_m: Vec<[f32; 3]>,
+    /// Vertex colours, sRGB.
     pub colors_srgb: Vec<[u8; 3]>,
+    /// Triangle vertex indices, three per triangle.
     pub indices: Vec<u32>,
 }
 
 impl LayerMesh {
+    /// Number of triangles.
     pub fn triangle_count(&self) -> usize {
         self.indices.len() / 3
     }
@@ -317,6 +321,7 @@ fn rectangle(centre: [f64; 2], dir: [f64; 2], half_len_m: f64, half_wid_m: f64) 
 pub struct LayerSummary {
     /// Layer name ([`ClutterLayer::name`]); also the glTF node `insgen_clutter_<name>`.
     pub name: ClutterLayer,
+    /// Triangles in the layer.
     pub triangles: u64,
     /// Objects in the layer (trees, cars, units; merged rectangles for ground layers).
     pub instances: u64,
@@ -327,9 +332,11 @@ pub struct LayerSummary {
 /// The manifest's `clutter` section.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ClutterSummary {
+    /// Seed of every random draw.
     pub seed: u64,
     /// Plan grid cell used, metres.
     pub cell_m: f64,
+    /// The non-empty layers, in file order.
     pub layers: Vec<LayerSummary>,
     /// Trees per species.
     pub tree_species: BTreeMap<String, u64>,
@@ -340,6 +347,7 @@ pub struct ClutterSummary {
 /// The generated layers (non-empty ones only, in [`ClutterLayer::ALL`] order) and their summary.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Clutter {
+    /// The non-empty layers and their meshes, in [`ClutterLayer::ALL`] order.
     pub layers: Vec<(ClutterLayer, LayerMesh)>,
 }
 

@@ -33,7 +33,9 @@ use super::mesh::SceneMesh;
 pub struct Correction {
     /// Translation, metres (ENU axes).
     pub east_m: f64,
+    /// Translation north, metres.
     pub north_m: f64,
+    /// Translation up, metres.
     pub up_m: f64,
     /// Rotation about the vertical through the pivot, degrees, counter-clockwise seen from above.
     pub yaw_deg: f64,
@@ -166,9 +168,13 @@ pub enum CorrectionSource {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CorrectionSigma {
+    /// One sigma of the east translation, metres.
     pub east_m: f64,
+    /// One sigma of the north translation, metres.
     pub north_m: f64,
+    /// One sigma of the up translation, metres.
     pub up_m: f64,
+    /// One sigma of the yaw, degrees.
     pub yaw_deg: f64,
 }
 
@@ -189,6 +195,7 @@ pub struct Agreement {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AlignmentRecord {
+    /// Where the correction came from (estimated or pinned in the scene file).
     pub source: CorrectionSource,
     /// The correction applied to the LoD model at load time.
     pub correction: Correction,
@@ -199,6 +206,7 @@ pub struct AlignmentRecord {
     /// ([`crate::lod::tiles3d::fingerprint`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tileset: Option<String>,
+    /// SHA-256 fingerprint of the reference tileset.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tileset_sha256: Option<String>,
     /// ECEF-from-ENU of the LoD model as prepared (equal to the manifest's `ecef_from_enu`).
@@ -210,6 +218,7 @@ pub struct AlignmentRecord {
     /// Agreement with the reference before and after (estimated corrections only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub before: Option<Agreement>,
+    /// Agreement after the correction.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub after: Option<Agreement>,
 }

@@ -2,18 +2,27 @@
 
 use std::path::PathBuf;
 
+/// Errors of the scene stage.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
+    /// A file could not be read or written.
     #[error(transparent)]
     File(#[from] crate::util::FileError),
+    /// A source could not be read.
     #[error(transparent)]
     Lod(#[from] crate::lod::LodError),
     /// The scene file breaks a rule (name mismatch, no sources, bad geoid settings, an invalid area).
     #[error("{}: {what}", path.display())]
-    Config { path: PathBuf, what: String },
+    Config {
+        /// The scene file.
+        path: PathBuf,
+        /// The rule broken.
+        what: String,
+    },
     /// The scene file is not TOML, or has unknown keys, missing keys or wrong types.
     #[error("{}: invalid scene file", path.display())]
     ConfigToml {
+        /// The scene file.
         path: PathBuf,
         /// Boxed: TOML's error is large, and errors travel by value.
         #[source]
@@ -22,18 +31,28 @@ pub enum SceneError {
     /// A source could not be geo-referenced.
     #[error("{}: {what}", path.display())]
     Georef {
+        /// The source file.
         path: PathBuf,
+        /// What could not be done.
         what: String,
+        /// The geo stage's error, when it is the cause.
         #[source]
         source: Option<crate::geo::GeoError>,
     },
     /// The area has no buildings, or otherwise cannot be instanced.
     #[error("area {area}: {what}")]
-    Area { area: String, what: String },
+    Area {
+        /// The area's name.
+        area: String,
+        /// Why it cannot be instanced.
+        what: String,
+    },
     /// The area's buildings cannot all get a 24-bit ID.
     #[error("area {area}")]
     Ids {
+        /// The area's name.
         area: String,
+        /// The ID error.
         #[source]
         source: crate::scene::IdError,
     },
@@ -48,18 +67,27 @@ pub enum SceneError {
     },
     /// A prepared scene on disk is missing or inconsistent.
     #[error("{}: {what}", path.display())]
-    Artifact { path: PathBuf, what: String },
+    Artifact {
+        /// The file of the prepared scene.
+        path: PathBuf,
+        /// What is missing or inconsistent.
+        what: String,
+    },
     /// A JSON file of a prepared scene (`what`: manifest, building table) does not parse.
     #[error("{}: not a valid {what}; run `insgen prepare --area <name>` again", path.display())]
     ArtifactJson {
+        /// The JSON file.
         path: PathBuf,
+        /// What the file is (manifest, building table).
         what: &'static str,
+        /// The JSON parser's error.
         #[source]
         source: serde_json::Error,
     },
     /// The prepared scene's mesh (`scene.glb`) cannot be read; the source names the file.
     #[error("the prepared scene's mesh cannot be read; run `insgen prepare --area <name>` again")]
     ArtifactGlb {
+        /// The GLB reader's error (it names the file).
         #[source]
         source: super::glb::GlbError,
     },

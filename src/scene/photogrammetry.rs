@@ -25,9 +25,11 @@ pub struct Perturbation {
     pub jitter_m: f64,
     /// Box trees to scatter (4 × 4 m, 6–12 m tall) and whether to add the 45 m crane.
     pub trees: usize,
+    /// Whether to add the 45 m crane.
     pub crane: bool,
     /// Height of the ground surface to add (ENU metres), or none.
     pub ground_enu_m: Option<f64>,
+    /// Seed of the jitter and the clutter placement.
     pub seed: u64,
 }
 

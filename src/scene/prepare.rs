@@ -53,8 +53,11 @@ struct EcefBuilding {
 /// Summary of a `prepare` run.
 #[derive(Debug, Clone)]
 pub struct PrepareReport {
+    /// The prepared scene as written.
     pub scene: PreparedScene,
+    /// Directory it was written to.
     pub out_dir: PathBuf,
+    /// Wall-clock seconds the run took.
     pub seconds: f64,
 }
 
