@@ -17,17 +17,23 @@ use crate::scene::{BuildingId, IdMap};
 
 /// Targets of issue 6: median IoU ≥ 0.995 and 5th percentile ≥ 0.98.
 pub const TARGET_MEDIAN_IOU: f64 = 0.995;
+/// 5th-percentile IoU target of the alignment check.
 pub const TARGET_P5_IOU: f64 = 0.98;
 
 /// Overlap of one building between two ID images.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct BuildingIou {
+    /// The building compared.
     pub building_id: BuildingId,
     /// Pixels of the building in image A (Blender), in image B (reference), in both, in either.
     pub a_px: u64,
+    /// Pixels of the building in image B (reference).
     pub b_px: u64,
+    /// Pixels of the building in both images.
     pub intersection_px: u64,
+    /// Pixels of the building in either image.
     pub union_px: u64,
+    /// Intersection over union, 0..=1.
     pub iou: f64,
 }
 
@@ -101,15 +107,20 @@ pub fn quantile(sorted: &[f64], q: f64) -> Option<f64> {
 /// One frame's comparison.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FrameAlignment {
+    /// Frame name.
     pub frame: String,
+    /// Fraction of pixels with the same ID in both images (background included), 0..=1.
     pub pixel_agreement: f64,
+    /// Per-building overlaps, ordered by building ID.
     pub buildings: Vec<BuildingIou>,
 }
 
 /// A building of a frame, for the worst-case list.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct WorstCase {
+    /// Frame name.
     pub frame: String,
+    /// The building's overlap in that frame.
     #[serde(flatten)]
     pub building: BuildingIou,
 }
@@ -117,23 +128,33 @@ pub struct WorstCase {
 /// The alignment report (written as `alignment/report.json` and `report.md`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct AlignmentReport {
+    /// Frames compared.
     pub frames: usize,
     /// (frame, building) pairs seen, and those with a union of at least `min_union_px` (the statistics).
     pub pairs_total: usize,
+    /// Pairs with a union of at least `min_union_px` (those the statistics use).
     pub pairs_counted: usize,
+    /// Smallest union, pixels, for a pair to be counted.
     pub min_union_px: u64,
+    /// Median IoU of the counted pairs (`None` when none was counted).
     pub median_iou: Option<f64>,
+    /// 5th-percentile IoU of the counted pairs.
     pub p5_iou: Option<f64>,
+    /// Lowest IoU of the counted pairs.
     pub min_iou: Option<f64>,
+    /// Mean IoU of the counted pairs.
     pub mean_iou: Option<f64>,
     /// Pixel agreement over all frames (background included).
     pub pixel_agreement: f64,
+    /// Median IoU target ([`TARGET_MEDIAN_IOU`]).
     pub target_median_iou: f64,
+    /// 5th-percentile IoU target ([`TARGET_P5_IOU`]).
     pub target_p5_iou: f64,
     /// Whether both targets are met (false when nothing was counted).
     pub pass: bool,
     /// The counted pairs with the lowest IoU (up to 20).
     pub worst: Vec<WorstCase>,
+    /// Every frame's comparison.
     pub per_frame: Vec<FrameAlignment>,
 }
 

@@ -49,12 +49,15 @@ pub struct BlenderCamera {
     pub lens_mm: f64,
     /// `Camera.shift_x`, `Camera.shift_y`, in units of the view-plane width.
     pub shift_x: f64,
+    /// `Camera.shift_y`, in units of the view-plane width.
     pub shift_y: f64,
     /// `RenderSettings.pixel_aspect_x/y` (one of them is 1).
     pub pixel_aspect_x: f64,
+    /// `RenderSettings.pixel_aspect_y`.
     pub pixel_aspect_y: f64,
     /// Clipping distances in metres.
     pub clip_start_m: f64,
+    /// Far clipping distance, metres.
     pub clip_end_m: f64,
 }
 

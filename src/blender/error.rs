@@ -12,6 +12,7 @@ use crate::util::FileError;
 pub struct JobIssue {
     /// Location in the job, e.g. `frames[3].exr` or `models[0].glb`.
     pub path: String,
+    /// What is wrong there.
     pub what: String,
 }
 
@@ -80,50 +81,86 @@ pub enum ProtocolError {
     /// The JSON after the prefix does not parse.
     #[error("malformed protocol line {line:?}")]
     Malformed {
+        /// The line as printed.
         line: String,
+        /// The JSON parser's error.
         #[source]
         source: serde_json::Error,
     },
     /// The JSON parses but has none of the `ready`, `done`, `error` fields.
     #[error("protocol line {line:?} has no ready/done/error field")]
-    Unknown { line: String },
+    Unknown {
+        /// The line as printed.
+        line: String,
+    },
 }
 
 /// What is wrong with one output file of a frame (see [`BlenderError::Output`]).
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
+    /// The file cannot be opened.
     #[error("cannot open it")]
     Open(#[source] std::io::Error),
+    /// The file is not a PNG.
     #[error("not a PNG")]
     NotPng(#[source] png::DecodingError),
+    /// The PNG is not 8-bit RGB.
     #[error("the PNG is {bit_depth:?} {color:?}, expected 8-bit RGB")]
-    PngFormat { bit_depth: png::BitDepth, color: png::ColorType },
+    PngFormat {
+        /// The PNG's bit depth.
+        bit_depth: png::BitDepth,
+        /// The PNG's colour type.
+        color: png::ColorType,
+    },
+    /// The file does not decode as EXR.
     #[error("does not decode as EXR")]
     Exr(#[source] exr::error::Error),
+    /// The EXR lacks a channel (named).
     #[error("the EXR has no {0} channel")]
     MissingChannel(&'static str),
+    /// An EXR channel (named) is not float32.
     #[error("EXR channel {0} is not float32")]
     NotF32(&'static str),
+    /// The EXR is not an ID map.
     #[error("not an ID map")]
     Ids(#[source] crate::scene::IdError),
+    /// The image size differs from the camera's.
     #[error("is {width_px}×{height_px} px, expected {expected_width_px}×{expected_height_px}")]
-    Size { width_px: u32, height_px: u32, expected_width_px: u32, expected_height_px: u32 },
-    #[error("applying the camera effects: {0}")]
-    Effects(String),
+    Size {
+        /// Width found, pixels.
+        width_px: u32,
+        /// Height found, pixels.
+        height_px: u32,
+        /// Width expected, pixels.
+        expected_width_px: u32,
+        /// Height expected, pixels.
+        expected_height_px: u32,
+    },
+    /// The camera effects failed (the source says how).
+    #[error("applying the camera effects")]
+    Effects(#[source] EffectsError),
+    /// The PNG cannot be re-encoded after the camera effects.
     #[error("re-encoding the PNG")]
     EncodePng(#[source] png::EncodingError),
+    /// The EXR cannot be re-encoded.
     #[error("re-encoding the EXR")]
     EncodeExr(#[source] exr::error::Error),
+    /// No temporary file can be created next to the output.
     #[error("creating a temporary file next to it")]
     TempFile(#[source] std::io::Error),
+    /// The temporary file cannot be renamed into place.
     #[error("renaming it into place")]
     Rename(#[source] tempfile::PathPersistError),
+    /// The output cannot be written.
     #[error("writing it")]
     Write(#[source] FileError),
+    /// Blender's temporary file cannot be removed.
     #[error("removing Blender's temporary file")]
     RemoveTmp(#[source] std::io::Error),
+    /// Blender reported a frame the job does not have.
     #[error("Blender reported a frame that is not in the job")]
     NotInJob,
+    /// Blender exited successfully without reporting the frame.
     #[error("Blender exited successfully without reporting this frame")]
     NotReported,
 }
@@ -131,39 +168,64 @@ pub enum OutputError {
 /// Errors of [`crate::blender`].
 #[derive(Debug, thiserror::Error)]
 pub enum BlenderError {
+    /// A file could not be read or written.
     #[error(transparent)]
     File(#[from] FileError),
     /// The job (or the request it was built from) has problems; all of them are listed.
     #[error("invalid Blender job {}:\n  {}", path.display(), issues.iter().map(|i| i.to_string()).collect::<Vec<_>>().join("\n  "))]
-    InvalidJob { path: PathBuf, issues: Vec<JobIssue> },
+    InvalidJob {
+        /// The job file (or the work directory when no job was written).
+        path: PathBuf,
+        /// Every problem found.
+        issues: Vec<JobIssue>,
+    },
     /// The intrinsics cannot be reproduced by a Blender camera.
     #[error("camera for frame {frame:?}: {what}")]
-    Camera { frame: String, what: String },
+    Camera {
+        /// The frame.
+        frame: String,
+        /// Why the camera cannot be reproduced.
+        what: String,
+    },
     /// A tileset (or one of its subtree files) is unreadable or breaks the 3D Tiles spec.
     #[error(transparent)]
     Tiles(#[from] crate::lod::LodError),
     /// A tileset JSON cannot be used for rendering.
     #[error("tileset {}: {what}", path.display())]
-    Tileset { path: PathBuf, what: String },
+    Tileset {
+        /// The tileset JSON.
+        path: PathBuf,
+        /// Why it cannot be used.
+        what: String,
+    },
     /// A selected tile's content (b3dm/glb/glTF/cmpt) cannot be turned into a GLB Blender imports: it
     /// is malformed, or of a kind or with an extension insgen refuses (named in `source`).
     #[error("tile content {} (tile {tile_at} of {})", content.display(), tileset.display())]
     Tile {
+        /// The content file.
         content: PathBuf,
+        /// The tileset JSON holding the tile.
         tileset: PathBuf,
         /// JSON path of the tile in `tileset` (`root.children[2]`).
         tile_at: String,
+        /// What is wrong with the content.
         #[source]
         source: Box<ContentError>,
     },
     /// No interpreter with bpy or Blender binary was found.
     #[error("no Blender found: {what}\nhint: run scripts/setup.sh (it calls scripts/setup_blender.sh, which creates .venv-blender with bpy), or pass --blender-python PATH / --blender PATH, or set INSGEN_BLENDER_PYTHON / INSGEN_BLENDER")]
-    NotFound { what: String },
+    NotFound {
+        /// Where insgen looked, and what it found there.
+        what: String,
+    },
     /// The Blender process could not be started.
     #[error("cannot start `{command}`{}", hint.as_ref().map(|h| format!("\nhint: {h}")).unwrap_or_default())]
     Spawn {
+        /// The command line as it would be typed.
         command: String,
+        /// A hint for a recognised cause (the program does not exist).
         hint: Option<String>,
+        /// The operating system's error.
         #[source]
         source: std::io::Error,
     },
@@ -173,15 +235,20 @@ pub enum BlenderError {
     /// Blender reported a frame done but its output is missing or wrong.
     #[error("frame {frame:?}: output {}", path.display())]
     Output {
+        /// The frame.
         frame: String,
+        /// The output file (its temporary path).
         path: PathBuf,
+        /// What is wrong with it.
         #[source]
         source: OutputError,
     },
     /// An output directory does not accept new files.
     #[error("{} is not writable", dir.display())]
     NotWritable {
+        /// The directory.
         dir: PathBuf,
+        /// The error creating a probe file in it.
         #[source]
         source: std::io::Error,
     },
@@ -193,5 +260,126 @@ pub enum BlenderError {
     Ids(#[from] crate::scene::IdError),
     /// Two ID maps of one frame differ in size.
     #[error("{}: ID maps of different sizes, {}×{} vs {}×{}", path.display(), a[0], a[1], b[0], b[1])]
-    SizeMismatch { path: PathBuf, a: [u32; 2], b: [u32; 2] },
+    SizeMismatch {
+        /// The frame's ID map.
+        path: PathBuf,
+        /// Width and height of the first map, pixels.
+        a: [u32; 2],
+        /// Width and height of the second map, pixels.
+        b: [u32; 2],
+    },
+}
+
+/// Look ranges that cannot be drawn from (see [`crate::blender::look::LookRanges::check`]), or a sun
+/// that never rises high enough in them.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LookError {
+    /// A range (`name`: "sun hours", "sun azimuth", "white balance", …) that is not finite or decreases.
+    #[error("{name}: {}..{} is not an increasing finite range", range[0], range[1])]
+    NotIncreasing {
+        /// What the range is, as the flags name it.
+        name: &'static str,
+        /// The range as given (units of the quantity: hours, degrees, kelvin).
+        range: [f64; 2],
+    },
+    /// The latitude the sun is computed at is outside −90..90°.
+    #[error("latitude {latitude_deg}° is outside −90..90")]
+    Latitude {
+        /// The latitude given, degrees.
+        latitude_deg: f64,
+    },
+    /// The days of the year are outside 1..366 or decrease.
+    #[error("sun days {}..{} must lie in 1..366, increasing", days[0], days[1])]
+    SunDays {
+        /// First and last day of the year given.
+        days: [u32; 2],
+    },
+    /// The solar hours are outside 0..24.
+    #[error("sun hours {}..{} must lie in 0..24", solar_hours[0], solar_hours[1])]
+    SunHours {
+        /// First and last local solar time given, hours.
+        solar_hours: [f64; 2],
+    },
+    /// The minimum sun elevation is outside −90..90°.
+    #[error("minimum sun elevation {min_elevation_deg}° is outside −90..90")]
+    MinElevation {
+        /// The minimum elevation given, degrees.
+        min_elevation_deg: f64,
+    },
+    /// The drawn sun elevations are outside 0..90°.
+    #[error("sun elevation {}..{}° must lie in 0..90°", elevation_deg[0], elevation_deg[1])]
+    SunElevation {
+        /// The elevation range given, degrees.
+        elevation_deg: [f64; 2],
+    },
+    /// A sky weight is negative or not finite, or they sum to 0.
+    #[error("sky weights {weights:?} must be ≥ 0 with a positive sum")]
+    SkyWeights {
+        /// Weights of clear, hazy and overcast skies.
+        weights: [f64; 3],
+    },
+    /// The exposure jitter is negative or not finite.
+    #[error("exposure jitter {jitter_ev} must be ≥ 0")]
+    ExposureJitter {
+        /// The jitter given, stops.
+        jitter_ev: f64,
+    },
+    /// The white balance range is outside 1000..40000 K.
+    #[error("white balance {}..{} K must lie in 1000..40000 K", kelvin[0], kelvin[1])]
+    WhiteBalance {
+        /// The colour temperature range given, kelvin.
+        kelvin: [f64; 2],
+    },
+    /// The JPEG quality range is outside 1..100 or decreases.
+    #[error("JPEG quality {}..{} must lie in 1..100, increasing", quality[0], quality[1])]
+    JpegQuality {
+        /// The quality range given.
+        quality: [u8; 2],
+    },
+    /// No draw of day and hour put the sun above the minimum elevation.
+    #[error(
+        "the sun does not rise {min_elevation_deg}° above the horizon on days {}..{} between {}h and {}h solar \
+         time at latitude {latitude_deg:.2}°; widen --sun-days/--sun-hours or give --sun-azimuth/--sun-elevation",
+        days[0],
+        days[1],
+        solar_hours[0],
+        solar_hours[1]
+    )]
+    SunNeverUp {
+        /// The latitude the sun was computed at, degrees.
+        latitude_deg: f64,
+        /// First and last day of the year drawn from.
+        days: [u32; 2],
+        /// First and last local solar time drawn from, hours.
+        solar_hours: [f64; 2],
+        /// The elevation the sun had to reach, degrees.
+        min_elevation_deg: f64,
+    },
+}
+
+/// Why the camera effects could not be applied to a frame (see
+/// [`crate::blender::look::apply_camera_effects`]).
+#[derive(Debug, thiserror::Error)]
+pub enum EffectsError {
+    /// The sensor noise's standard deviation is not usable (NaN).
+    #[error("sensor noise σ {sigma} is not a valid standard deviation")]
+    Noise {
+        /// The noise standard deviation, 8-bit levels.
+        sigma: f64,
+        /// The distribution's refusal.
+        #[source]
+        source: rand_distr::NormalError,
+    },
+    /// The JPEG encoder failed.
+    #[error("JPEG encoding at quality {quality}")]
+    JpegEncode {
+        /// The JPEG quality asked for.
+        quality: u8,
+        /// The codec's error.
+        #[source]
+        source: image::ImageError,
+    },
+    /// The re-encoded JPEG does not decode.
+    #[error("JPEG decoding")]
+    JpegDecode(#[source] image::ImageError),
 }

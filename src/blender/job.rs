@@ -48,6 +48,7 @@ pub enum Engine {
 }
 
 impl Engine {
+    /// The engine's name in job files and on the command line.
     pub fn name(self) -> &'static str {
         match self {
             Engine::Cycles => "cycles",
@@ -75,6 +76,7 @@ pub enum Device {
 }
 
 impl Device {
+    /// The device's name in job files and on the command line.
     pub fn name(self) -> &'static str {
         match self {
             Device::Auto => "auto",
@@ -92,8 +94,11 @@ impl Device {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum DenoiseQuality {
+    /// `FAST` denoising and prefilter.
     Fast,
+    /// `BALANCED` denoising, `FAST` prefilter.
     Balanced,
+    /// `HIGH` denoising, `ACCURATE` prefilter.
     High,
 }
 
@@ -112,6 +117,7 @@ pub enum Lighting {
 }
 
 impl Lighting {
+    /// The lighting's name in job files and on the command line.
     pub fn name(self) -> &'static str {
         match self {
             Lighting::Direct => "direct",
@@ -139,6 +145,7 @@ pub struct JobModel {
     /// any importer axis conversion) to the area's ENU frame. For the prepared `scene.glb` it is the
     /// axis swap ENU (e, n, u) = glTF (x, −z, y).
     pub enu_from_gltf: Mat4,
+    /// How the model is shaded.
     pub kind: ModelKind,
 }
 
@@ -153,12 +160,15 @@ pub struct Look {
     pub ground_plane: bool,
     /// Centre (east, north) and half side of the square ground plane, metres.
     pub ground_centre_enu_m: [f64; 2],
+    /// Half side of the square ground plane, metres.
     pub ground_half_extent_m: f64,
     /// Sun direction: azimuth clockwise from north and elevation above the horizon, degrees.
     pub sun_azimuth_deg: f64,
+    /// Sun elevation above the horizon, degrees.
     pub sun_elevation_deg: f64,
     /// Sun lamp irradiance (W/m², Blender's sun strength) and sky background strength.
     pub sun_strength: f64,
+    /// Sky background strength.
     pub sky_strength: f64,
     /// Exposure of the Standard view transform, in stops.
     pub exposure: f64,
@@ -169,6 +179,7 @@ pub struct Look {
 pub struct JobFrame {
     /// Frame name (the stem of its output files).
     pub name: String,
+    /// The pinhole camera of the frame.
     pub intrinsics: Intrinsics,
     /// The Blender camera reproducing `intrinsics`.
     pub camera: BlenderCamera,
@@ -184,6 +195,7 @@ pub struct JobFrame {
     /// Temporary output paths (renamed into place by insgen after verification).
     #[serde(default)]
     pub png: Option<PathBuf>,
+    /// Temporary path of the EXR (linear RGB, or building IDs in ID mode).
     #[serde(default)]
     pub exr: Option<PathBuf>,
 }
@@ -211,7 +223,9 @@ pub struct Job {
     pub format: String,
     /// Always [`JOB_VERSION`].
     pub version: u32,
+    /// RGB or ID rendering.
     pub mode: Mode,
+    /// The render engine.
     pub engine: Engine,
     /// Samples, denoiser, bounces and lighting of RGB renders (ID renders always take 1 sample).
     #[serde(flatten)]
@@ -230,8 +244,11 @@ pub struct Job {
     /// clutter layers occlude. RGB mode draws every layer with its material.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub clutter_occluders: Option<Vec<crate::scene::clutter::ClutterLayer>>,
+    /// The glTF/GLB files to import.
     pub models: Vec<JobModel>,
+    /// The procedural look (RGB mode).
     pub look: Look,
+    /// The frames to render, in order.
     pub frames: Vec<JobFrame>,
 }
 

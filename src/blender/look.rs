@@ -15,6 +15,8 @@
 use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
+pub use super::error::{EffectsError, LookError};
+
 /// Whether frames vary.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -27,6 +29,7 @@ pub enum LookStyle {
 }
 
 impl LookStyle {
+    /// The style's name in files and on the command line.
     pub fn name(self) -> &'static str {
         match self {
             LookStyle::Varied => "varied",
@@ -53,15 +56,31 @@ pub enum Sky {
 pub enum SunRange {
     /// A day of the year and a local solar time drawn uniformly, the sun's position computed at the
     /// area's latitude; draws with the sun below `min_elevation_deg` are redrawn.
-    Dates { latitude_deg: f64, days: [u32; 2], solar_hours: [f64; 2], min_elevation_deg: f64 },
+    Dates {
+        /// Latitude the sun is computed at, degrees.
+        latitude_deg: f64,
+        /// First and last day of the year (1..=366).
+        days: [u32; 2],
+        /// First and last local solar time, hours.
+        solar_hours: [f64; 2],
+        /// Lowest accepted sun elevation, degrees.
+        min_elevation_deg: f64,
+    },
     /// Azimuth (clockwise from north) and elevation drawn uniformly in the ranges, degrees.
-    Angles { azimuth_deg: [f64; 2], elevation_deg: [f64; 2] },
+    Angles {
+        /// Azimuth range, degrees clockwise from north.
+        azimuth_deg: [f64; 2],
+        /// Elevation range, degrees above the horizon.
+        elevation_deg: [f64; 2],
+    },
 }
 
 /// Ranges the varied look draws from (the `render-rgb` flags).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct LookRanges {
+    /// Varied or plain.
     pub style: LookStyle,
+    /// Where the sun comes from.
     pub sun: SunRange,
     /// Relative weights of clear, hazy and overcast skies.
     pub sky_weights: [f64; 3],
@@ -100,57 +119,59 @@ impl LookRanges {
         LookRanges { style: LookStyle::Plain, ..Self::defaults(latitude_deg) }
     }
 
-    /// Checks the ranges; returns the problem in words.
-    pub fn check(&self) -> Result<(), String> {
-        let ordered = |name: &str, [a, b]: [f64; 2]| {
+    /// Checks the ranges.
+    ///
+    /// # Errors
+    /// The first range that is out of bounds or not increasing, with its values.
+    pub fn check(&self) -> Result<(), LookError> {
+        let ordered = |name: &'static str, range: [f64; 2]| {
+            let [a, b] = range;
             if a.is_finite() && b.is_finite() && a <= b {
                 Ok(())
             } else {
-                Err(format!("{name}: {a}..{b} is not an increasing finite range"))
+                Err(LookError::NotIncreasing { name, range })
             }
         };
         match self.sun {
             SunRange::Dates { latitude_deg, days, solar_hours, min_elevation_deg } => {
                 if !(-90.0..=90.0).contains(&latitude_deg) {
-                    return Err(format!("latitude {latitude_deg}° is outside −90..90"));
+                    return Err(LookError::Latitude { latitude_deg });
                 }
                 if days[0] < 1 || days[1] > 366 || days[0] > days[1] {
-                    return Err(format!("sun days {}..{} must lie in 1..366, increasing", days[0], days[1]));
+                    return Err(LookError::SunDays { days });
                 }
                 ordered("sun hours", solar_hours)?;
                 if solar_hours[0] < 0.0 || solar_hours[1] > 24.0 {
-                    return Err(format!(
-                        "sun hours {}..{} must lie in 0..24",
-                        solar_hours[0], solar_hours[1]
-                    ));
+                    return Err(LookError::SunHours { solar_hours });
                 }
                 if !(-90.0..90.0).contains(&min_elevation_deg) {
-                    return Err(format!("minimum sun elevation {min_elevation_deg}° is outside −90..90"));
+                    return Err(LookError::MinElevation { min_elevation_deg });
                 }
             }
             SunRange::Angles { azimuth_deg, elevation_deg } => {
                 ordered("sun azimuth", azimuth_deg)?;
                 ordered("sun elevation", elevation_deg)?;
                 if elevation_deg[0] < 0.0 || elevation_deg[1] > 90.0 {
-                    return Err("sun elevation must lie in 0..90°".into());
+                    return Err(LookError::SunElevation { elevation_deg });
                 }
             }
         }
         if self.sky_weights.iter().any(|w| !(w.is_finite() && *w >= 0.0))
             || self.sky_weights.iter().sum::<f64>() <= 0.0
         {
-            return Err(format!("sky weights {:?} must be ≥ 0 with a positive sum", self.sky_weights));
+            return Err(LookError::SkyWeights { weights: self.sky_weights });
         }
         if !(self.exposure_jitter_ev.is_finite() && self.exposure_jitter_ev >= 0.0) {
-            return Err(format!("exposure jitter {} must be ≥ 0", self.exposure_jitter_ev));
+            return Err(LookError::ExposureJitter { jitter_ev: self.exposure_jitter_ev });
         }
         ordered("white balance", self.white_balance_k)?;
         if self.white_balance_k[0] < 1000.0 || self.white_balance_k[1] > 40000.0 {
-            return Err("white balance must lie in 1000..40000 K".into());
+            return Err(LookError::WhiteBalance { kelvin: self.white_balance_k });
         }
-        if let Some([a, b]) = self.jpeg_quality {
+        if let Some(quality) = self.jpeg_quality {
+            let [a, b] = quality;
             if a == 0 || b > 100 || a > b {
-                return Err(format!("JPEG quality {a}..{b} must lie in 1..100, increasing"));
+                return Err(LookError::JpegQuality { quality });
             }
         }
         Ok(())
@@ -183,6 +204,7 @@ impl CameraEffects {
         jpeg_quality: None,
     };
 
+    /// Whether no effect is applied at all.
     pub fn is_none(&self) -> bool {
         *self == Self::NONE
     }
@@ -191,18 +213,23 @@ impl CameraEffects {
 /// One frame's drawn look: what Blender sets before rendering it and what insgen applies after.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct FrameLook {
+    /// Varied or plain.
     pub style: LookStyle,
     /// Sun azimuth clockwise from north and elevation above the horizon, degrees.
     pub sun_azimuth_deg: f64,
+    /// Sun elevation above the horizon, degrees.
     pub sun_elevation_deg: f64,
     /// The day of the year and local solar time (hours) the sun was computed for, when drawn by date.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub day_of_year: Option<u32>,
+    /// Local solar time, hours (drawn by date only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub solar_time_h: Option<f64>,
+    /// The weather.
     pub sky: Sky,
     /// Sun lamp irradiance (Blender's sun strength) and sky strength.
     pub sun_strength: f64,
+    /// Sky strength (Blender's world background strength).
     pub sky_strength: f64,
     /// Meteorological visibility, metres (haze reaches 95 % at this distance); `None` = no haze.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -211,6 +238,7 @@ pub struct FrameLook {
     pub haze_rgb: [f64; 3],
     /// Exposure, stops.
     pub exposure_ev: f64,
+    /// Camera effects insgen applies to the 8-bit frame.
     pub camera: CameraEffects,
 }
 
@@ -222,6 +250,7 @@ pub fn sun_from_seed(seed: u64) -> (f64, f64) {
 
 /// Sun lamp irradiance and sky strength of the plain look.
 pub const PLAIN_SUN_STRENGTH: f64 = 4.0;
+/// Sky strength of the plain look.
 pub const PLAIN_SKY_STRENGTH: f64 = 0.18;
 
 /// Solar position (azimuth clockwise from north, elevation), degrees, for a latitude, a day of the year
@@ -252,76 +281,17 @@ impl FrameLook {
     /// The look of frame `name` under `ranges` and `look_seed` (the plan's seed of the sun and materials).
     ///
     /// # Errors
-    /// The sun never rises above the minimum elevation in the given days and hours at that latitude.
-    pub fn draw(ranges: &LookRanges, look_seed: u64, name: &str) -> Result<FrameLook, String> {
+    /// [`LookError::SunNeverUp`]: the sun never rises above the minimum elevation in the given days and
+    /// hours at that latitude.
+    pub fn draw(ranges: &LookRanges, look_seed: u64, name: &str) -> Result<FrameLook, LookError> {
         if ranges.style == LookStyle::Plain {
-            let (az, el) = sun_from_seed(look_seed);
-            return Ok(FrameLook {
-                style: LookStyle::Plain,
-                sun_azimuth_deg: az,
-                sun_elevation_deg: el,
-                day_of_year: None,
-                solar_time_h: None,
-                sky: Sky::Clear,
-                sun_strength: PLAIN_SUN_STRENGTH,
-                sky_strength: PLAIN_SKY_STRENGTH,
-                visibility_m: None,
-                haze_rgb: [0.0; 3],
-                exposure_ev: 0.0,
-                camera: CameraEffects::NONE,
-            });
+            return Ok(FrameLook::plain(look_seed));
         }
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(look_seed ^ fnv1a(name).rotate_left(17));
-        let (az, el, day, hour) = match ranges.sun {
-            SunRange::Dates { latitude_deg, days, solar_hours, min_elevation_deg } => {
-                let mut found = None;
-                for _ in 0..1000 {
-                    let day = rng.gen_range(days[0]..=days[1]);
-                    let hour = if solar_hours[0] < solar_hours[1] {
-                        rng.gen_range(solar_hours[0]..solar_hours[1])
-                    } else {
-                        solar_hours[0]
-                    };
-                    // Recorded to the millisecond-hour: the position is that of the recorded time.
-                    let hour = (hour * 1000.0).round() / 1000.0;
-                    let (az, el) = solar_position_deg(latitude_deg, day, hour);
-                    if el >= min_elevation_deg {
-                        found = Some((az, el, Some(day), Some(hour)));
-                        break;
-                    }
-                }
-                found.ok_or_else(|| {
-                    format!(
-                        "the sun does not rise {min_elevation_deg}° above the horizon on days {}..{} between \
-                         {}h and {}h solar time at latitude {latitude_deg:.2}°; widen --sun-days/--sun-hours \
-                         or give --sun-azimuth/--sun-elevation",
-                        days[0], days[1], solar_hours[0], solar_hours[1]
-                    )
-                })?
-            }
-            SunRange::Angles { azimuth_deg, elevation_deg } => {
-                let draw = |rng: &mut rand_chacha::ChaCha8Rng, [a, b]: [f64; 2]| {
-                    if a < b {
-                        rng.gen_range(a..b)
-                    } else {
-                        a
-                    }
-                };
-                let az = draw(&mut rng, azimuth_deg).rem_euclid(360.0);
-                (az, draw(&mut rng, elevation_deg), None, None)
-            }
-        };
-        let total: f64 = ranges.sky_weights.iter().sum();
-        let pick = rng.gen_range(0.0..total);
-        let sky = if pick < ranges.sky_weights[0] {
-            Sky::Clear
-        } else if pick < ranges.sky_weights[0] + ranges.sky_weights[1] {
-            Sky::Hazy
-        } else {
-            Sky::Overcast
-        };
+        let sun = draw_sun(&ranges.sun, &mut rng)?;
+        let sky = draw_sky(&ranges.sky_weights, &mut rng);
         // Sun weaker through a longer air path at low elevation, and through haze and cloud.
-        let air = (el.to_radians().sin()).max(0.05).powf(0.25);
+        let air = (sun.elevation_deg.to_radians().sin()).max(0.05).powf(0.25);
         let (sun_k, sky_k, vis_km, haze) = match sky {
             Sky::Clear => (
                 rng.gen_range(0.95..1.1),
@@ -347,38 +317,131 @@ impl FrameLook {
         } else {
             0.0
         };
-        let [k0, k1] = ranges.white_balance_k;
-        let white_balance_k = if k0 < k1 { rng.gen_range(k0..k1) } else { k0 };
-        let (vignetting, blur_sigma_px, noise_sigma) = if ranges.camera_effects {
-            (rng.gen_range(0.0..0.3), rng.gen_range(0.0..0.7), rng.gen_range(0.5..3.0))
-        } else {
-            (0.0, 0.0, 0.0)
-        };
-        let jpeg_quality = ranges.jpeg_quality.map(|[a, b]| rng.gen_range(a..=b));
-        let round = |v: f64, digits: i32| {
-            let s = 10f64.powi(digits);
-            (v * s).round() / s
-        };
+        let camera = draw_camera_effects(ranges, &mut rng);
         Ok(FrameLook {
             style: LookStyle::Varied,
-            sun_azimuth_deg: round(az, 3),
-            sun_elevation_deg: round(el, 3),
-            day_of_year: day,
-            solar_time_h: hour,
+            sun_azimuth_deg: round_to(sun.azimuth_deg, 3),
+            sun_elevation_deg: round_to(sun.elevation_deg, 3),
+            day_of_year: sun.day_of_year,
+            solar_time_h: sun.solar_time_h,
             sky,
-            sun_strength: round(PLAIN_SUN_STRENGTH * sun_k * air, 4),
-            sky_strength: round(PLAIN_SKY_STRENGTH * sky_k, 4),
-            visibility_m: Some(round(vis_km * 1000.0, 0)),
+            sun_strength: round_to(PLAIN_SUN_STRENGTH * sun_k * air, 4),
+            sky_strength: round_to(PLAIN_SKY_STRENGTH * sky_k, 4),
+            visibility_m: Some(round_to(vis_km * 1000.0, 0)),
             haze_rgb: haze,
-            exposure_ev: round(exposure_ev, 3),
-            camera: CameraEffects {
-                white_balance_k: round(white_balance_k, 0),
-                vignetting: round(vignetting, 3),
-                blur_sigma_px: round(blur_sigma_px, 3),
-                noise_sigma: round(noise_sigma, 3),
-                jpeg_quality,
-            },
+            exposure_ev: round_to(exposure_ev, 3),
+            camera,
         })
+    }
+
+    /// The plain look: the seed's sun, a clear sky, no haze, no effects.
+    fn plain(look_seed: u64) -> FrameLook {
+        let (az, el) = sun_from_seed(look_seed);
+        FrameLook {
+            style: LookStyle::Plain,
+            sun_azimuth_deg: az,
+            sun_elevation_deg: el,
+            day_of_year: None,
+            solar_time_h: None,
+            sky: Sky::Clear,
+            sun_strength: PLAIN_SUN_STRENGTH,
+            sky_strength: PLAIN_SKY_STRENGTH,
+            visibility_m: None,
+            haze_rgb: [0.0; 3],
+            exposure_ev: 0.0,
+            camera: CameraEffects::NONE,
+        }
+    }
+}
+
+/// `v` rounded to `digits` decimals (what the frame records).
+fn round_to(v: f64, digits: i32) -> f64 {
+    let s = 10f64.powi(digits);
+    (v * s).round() / s
+}
+
+/// A drawn sun: its position, and the date and time it was computed for when drawn by date.
+struct DrawnSun {
+    azimuth_deg: f64,
+    elevation_deg: f64,
+    day_of_year: Option<u32>,
+    solar_time_h: Option<f64>,
+}
+
+/// Draws the sun: by date and solar time (redrawn up to 1000 times while below the minimum elevation),
+/// or by angles.
+fn draw_sun(sun: &SunRange, rng: &mut rand_chacha::ChaCha8Rng) -> Result<DrawnSun, LookError> {
+    match *sun {
+        SunRange::Dates { latitude_deg, days, solar_hours, min_elevation_deg } => {
+            for _ in 0..1000 {
+                let day = rng.gen_range(days[0]..=days[1]);
+                let hour = if solar_hours[0] < solar_hours[1] {
+                    rng.gen_range(solar_hours[0]..solar_hours[1])
+                } else {
+                    solar_hours[0]
+                };
+                // Recorded to the millisecond-hour: the position is that of the recorded time.
+                let hour = (hour * 1000.0).round() / 1000.0;
+                let (az, el) = solar_position_deg(latitude_deg, day, hour);
+                if el >= min_elevation_deg {
+                    return Ok(DrawnSun {
+                        azimuth_deg: az,
+                        elevation_deg: el,
+                        day_of_year: Some(day),
+                        solar_time_h: Some(hour),
+                    });
+                }
+            }
+            Err(LookError::SunNeverUp { latitude_deg, days, solar_hours, min_elevation_deg })
+        }
+        SunRange::Angles { azimuth_deg, elevation_deg } => {
+            let draw = |rng: &mut rand_chacha::ChaCha8Rng, [a, b]: [f64; 2]| {
+                if a < b {
+                    rng.gen_range(a..b)
+                } else {
+                    a
+                }
+            };
+            let az = draw(rng, azimuth_deg).rem_euclid(360.0);
+            Ok(DrawnSun {
+                azimuth_deg: az,
+                elevation_deg: draw(rng, elevation_deg),
+                day_of_year: None,
+                solar_time_h: None,
+            })
+        }
+    }
+}
+
+/// Draws the sky by the relative weights of clear, hazy and overcast.
+fn draw_sky(weights: &[f64; 3], rng: &mut rand_chacha::ChaCha8Rng) -> Sky {
+    let total: f64 = weights.iter().sum();
+    let pick = rng.gen_range(0.0..total);
+    if pick < weights[0] {
+        Sky::Clear
+    } else if pick < weights[0] + weights[1] {
+        Sky::Hazy
+    } else {
+        Sky::Overcast
+    }
+}
+
+/// Draws white balance, vignetting, blur, noise and JPEG quality (in that order).
+fn draw_camera_effects(ranges: &LookRanges, rng: &mut rand_chacha::ChaCha8Rng) -> CameraEffects {
+    let [k0, k1] = ranges.white_balance_k;
+    let white_balance_k = if k0 < k1 { rng.gen_range(k0..k1) } else { k0 };
+    let (vignetting, blur_sigma_px, noise_sigma) = if ranges.camera_effects {
+        (rng.gen_range(0.0..0.3), rng.gen_range(0.0..0.7), rng.gen_range(0.5..3.0))
+    } else {
+        (0.0, 0.0, 0.0)
+    };
+    let jpeg_quality = ranges.jpeg_quality.map(|[a, b]| rng.gen_range(a..=b));
+    CameraEffects {
+        white_balance_k: round_to(white_balance_k, 0),
+        vignetting: round_to(vignetting, 3),
+        blur_sigma_px: round_to(blur_sigma_px, 3),
+        noise_sigma: round_to(noise_sigma, 3),
+        jpeg_quality,
     }
 }
 
@@ -461,14 +524,14 @@ fn blur(img: &mut [f32], w: usize, h: usize, sigma: f64) {
 /// same bytes.
 ///
 /// # Errors
-/// The JPEG codec's error, when re-encoding is asked for.
+/// [`EffectsError`]: the noise σ is not a valid standard deviation, or the JPEG codec failed.
 pub fn apply_camera_effects(
     rgb: &mut [u8],
     width: u32,
     height: u32,
     fx: &CameraEffects,
     seed: u64,
-) -> Result<(), String> {
+) -> Result<(), EffectsError> {
     if fx.is_none() {
         return Ok(());
     }
@@ -492,7 +555,8 @@ pub fn apply_camera_effects(
         blur(&mut img, w, h, fx.blur_sigma_px);
     }
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let normal = rand_distr::Normal::new(0.0f64, fx.noise_sigma.max(0.0)).map_err(|e| e.to_string())?;
+    let normal = rand_distr::Normal::new(0.0f64, fx.noise_sigma.max(0.0))
+        .map_err(|source| EffectsError::Noise { sigma: fx.noise_sigma, source })?;
     for (o, v) in rgb.iter_mut().zip(&img) {
         let s = linear_to_srgb(*v as f64) * 255.0;
         let n = if fx.noise_sigma > 0.0 { rng.sample(normal) } else { 0.0 };
@@ -502,9 +566,9 @@ pub fn apply_camera_effects(
         let mut bytes = Vec::new();
         image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, q)
             .encode(rgb, width, height, image::ExtendedColorType::Rgb8)
-            .map_err(|e| format!("JPEG encoding: {e}"))?;
+            .map_err(|source| EffectsError::JpegEncode { quality: q, source })?;
         let decoded = image::load_from_memory_with_format(&bytes, image::ImageFormat::Jpeg)
-            .map_err(|e| format!("JPEG decoding: {e}"))?
+            .map_err(EffectsError::JpegDecode)?
             .into_rgb8();
         rgb.copy_from_slice(decoded.as_raw());
     }
@@ -580,10 +644,10 @@ mod tests {
             solar_hours: [7.0, 18.0],
             min_elevation_deg: 15.0,
         };
-        let e = FrameLook::draw(&r, 0, "f").unwrap_err();
+        let e = FrameLook::draw(&r, 0, "f").unwrap_err().to_string();
         assert!(e.contains("does not rise") && e.contains("80.00"), "{e}");
         r.white_balance_k = [7000.0, 6000.0];
-        assert!(r.check().unwrap_err().contains("white balance"));
+        assert!(r.check().unwrap_err().to_string().contains("white balance"));
     }
 
     #[test]

@@ -32,9 +32,15 @@ pub const TAIL_LINES: usize = 40;
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Launcher {
     /// A Python interpreter with the `bpy` module installed.
-    Python { interpreter: PathBuf },
+    Python {
+        /// The interpreter's path.
+        interpreter: PathBuf,
+    },
     /// A Blender executable, run in background mode.
-    Blender { binary: PathBuf },
+    Blender {
+        /// The Blender executable's path.
+        binary: PathBuf,
+    },
 }
 
 impl Launcher {
@@ -118,17 +124,34 @@ pub enum Event {
     /// Workbench), `blender` Blender's version; `bounds` (when the job asked) gives each model's ENU
     /// bounds [min, max] in metres.
     Ready {
+        /// Models imported.
         models: usize,
+        /// Seconds spent building the scene.
         seconds: f64,
+        /// The Cycles device chosen (`None` for Workbench).
         device: Option<String>,
+        /// Blender's version string.
         blender: Option<String>,
+        /// Each model's ENU bounds [min, max], metres, when the job asked (`None` for a model without geometry).
         bounds: Option<Vec<Option<[[f64; 3]; 2]>>>,
     },
     /// A frame's files are written to its temporary paths; wall-clock seconds and CPU seconds (all
     /// threads of the process) spent on it.
-    Done { frame: String, seconds: f64, cpu_seconds: f64 },
+    Done {
+        /// The frame.
+        frame: String,
+        /// Wall-clock seconds spent on it.
+        seconds: f64,
+        /// CPU seconds spent on it (all threads).
+        cpu_seconds: f64,
+    },
     /// The script failed (it exits non-zero afterwards).
-    Error { message: String, frame: Option<String> },
+    Error {
+        /// The script's message.
+        message: String,
+        /// The frame being rendered, when known.
+        frame: Option<String>,
+    },
 }
 
 #[derive(Deserialize)]
@@ -289,6 +312,94 @@ fn kill(child: &mut Child) {
     let _ = child.wait();
 }
 
+/// Drains stderr on its own thread into a shared tail, so the tail can be read even when the process is
+/// killed and some grandchild keeps the pipe open (the thread then ends on its own).
+fn drain_stderr(
+    stderr: std::process::ChildStderr,
+) -> (std::sync::Arc<std::sync::Mutex<Tail>>, std::thread::JoinHandle<()>) {
+    let err_tail = std::sync::Arc::new(std::sync::Mutex::new(Tail::new()));
+    let err_thread = {
+        let err_tail = std::sync::Arc::clone(&err_tail);
+        std::thread::spawn(move || {
+            for line in BufReader::new(stderr).lines() {
+                match line {
+                    Ok(l) => {
+                        log::debug!("blender stderr: {l}");
+                        if let Ok(mut t) = err_tail.lock() {
+                            t.push(l);
+                        }
+                    }
+                    Err(_) => break,
+                }
+            }
+        })
+    };
+    (err_tail, err_thread)
+}
+
+/// What the stdout of a Blender process told, read to its end (or until the process was killed).
+struct Relayed {
+    /// The last lines that were not protocol lines.
+    out_tail: Tail,
+    /// The message and frame of a reported `error` event.
+    reported: Option<(String, Option<String>)>,
+    /// Whether the `ready` line came.
+    ready: bool,
+    /// The last frame reported done.
+    current: Option<String>,
+    /// The error `on_event` returned (the process was then killed).
+    relay_error: Option<BlenderError>,
+    /// The malformed protocol line (the process was then killed).
+    protocol_error: Option<ProtocolError>,
+}
+
+/// Reads Blender's stdout line by line, handing every protocol event to `on_event`; kills the process
+/// on a malformed protocol line or an error from `on_event`.
+fn relay_stdout(
+    stdout: std::process::ChildStdout,
+    child: &mut Child,
+    on_event: &mut impl FnMut(Event) -> Result<(), BlenderError>,
+) -> Relayed {
+    let mut r = Relayed {
+        out_tail: Tail::new(),
+        reported: None,
+        ready: false,
+        current: None,
+        relay_error: None,
+        protocol_error: None,
+    };
+    for line in BufReader::new(stdout).lines() {
+        let line = match line {
+            Ok(l) => l,
+            Err(_) => break,
+        };
+        match parse_event(&line) {
+            None => {
+                log::debug!("blender: {line}");
+                r.out_tail.push(line);
+            }
+            Some(Err(e)) => {
+                r.protocol_error = Some(e);
+                kill(child);
+                break;
+            }
+            Some(Ok(ev)) => {
+                match &ev {
+                    Event::Ready { .. } => r.ready = true,
+                    Event::Done { frame, .. } => r.current = Some(frame.clone()),
+                    Event::Error { message, frame } => r.reported = Some((message.clone(), frame.clone())),
+                }
+                if let Err(e) = on_event(ev) {
+                    r.relay_error = Some(e);
+                    kill(child);
+                    break;
+                }
+            }
+        }
+    }
+    r
+}
+
 /// Runs one job: starts the process, hands every protocol event to `on_event` as it arrives, and waits.
 ///
 /// When `on_event` returns an error (e.g. an output failed verification) the process is killed and that
@@ -317,60 +428,9 @@ pub fn run_job(
     })?;
     let stderr = child.stderr.take().expect("stderr was piped above");
     let stdout = child.stdout.take().expect("stdout was piped above");
-    // Stderr is drained on its own thread into a shared tail, so the tail can be read even when the
-    // process is killed and some grandchild keeps the pipe open (the thread then ends on its own).
-    let err_tail = std::sync::Arc::new(std::sync::Mutex::new(Tail::new()));
-    let err_thread = {
-        let err_tail = std::sync::Arc::clone(&err_tail);
-        std::thread::spawn(move || {
-            for line in BufReader::new(stderr).lines() {
-                match line {
-                    Ok(l) => {
-                        log::debug!("blender stderr: {l}");
-                        if let Ok(mut t) = err_tail.lock() {
-                            t.push(l);
-                        }
-                    }
-                    Err(_) => break,
-                }
-            }
-        })
-    };
-    let mut out_tail = Tail::new();
-    let mut reported: Option<(String, Option<String>)> = None;
-    let mut ready = false;
-    let mut current: Option<String> = None;
-    let mut relay_error: Option<BlenderError> = None;
-    let mut protocol_error: Option<ProtocolError> = None;
-    for line in BufReader::new(stdout).lines() {
-        let line = match line {
-            Ok(l) => l,
-            Err(_) => break,
-        };
-        match parse_event(&line) {
-            None => {
-                log::debug!("blender: {line}");
-                out_tail.push(line);
-            }
-            Some(Err(e)) => {
-                protocol_error = Some(e);
-                kill(&mut child);
-                break;
-            }
-            Some(Ok(ev)) => {
-                match &ev {
-                    Event::Ready { .. } => ready = true,
-                    Event::Done { frame, .. } => current = Some(frame.clone()),
-                    Event::Error { message, frame } => reported = Some((message.clone(), frame.clone())),
-                }
-                if let Err(e) = on_event(ev) {
-                    relay_error = Some(e);
-                    kill(&mut child);
-                    break;
-                }
-            }
-        }
-    }
+    let (err_tail, err_thread) = drain_stderr(stderr);
+    let Relayed { out_tail, reported, ready, current, relay_error, protocol_error } =
+        relay_stdout(stdout, &mut child, &mut on_event);
     if let Some(e) = relay_error {
         return Err(e);
     }

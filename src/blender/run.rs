@@ -38,9 +38,21 @@ pub enum SceneSource {
     /// The prepared scene's `scene.glb` (the instanced LoD model, procedural look), placed by
     /// `enu_from_gltf` (row-major): [`super::tileset::ENU_FROM_SCENE_GLTF`], preceded by the area's alignment correction
     /// when it has one ([`crate::scene::PreparedScene::enu_from_scene_gltf`]).
-    Lod { glb: PathBuf, enu_from_gltf: Mat4 },
+    Lod {
+        /// The prepared `scene.glb`.
+        glb: PathBuf,
+        /// ENU-from-glTF transform (row-major, metres).
+        enu_from_gltf: Mat4,
+    },
     /// A photogrammetry tileset, placed with the area's ENU frame; tiles chosen per frame.
-    Tileset { tileset: PathBuf, enu: EnuFrame, select: SelectOptions },
+    Tileset {
+        /// The tileset JSON.
+        tileset: PathBuf,
+        /// The area's ENU frame.
+        enu: EnuFrame,
+        /// How tiles are chosen per frame.
+        select: SelectOptions,
+    },
 }
 
 /// Default settings for the procedural look of the LoD model, chosen by measurement on cam2 1920×1080
@@ -92,16 +104,22 @@ impl SceneSource {
 /// One frame to render.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrameRequest {
+    /// Frame name (the stem of its output files).
     pub name: String,
+    /// The pinhole camera.
     pub intrinsics: Intrinsics,
+    /// Camera pose in the area's ENU frame.
     pub pose: Pose,
 }
 
 /// Everything a render run needs (built once by the CLI from its flags).
 #[derive(Debug, Clone)]
 pub struct RenderPlan {
+    /// How Blender is started.
     pub launcher: Launcher,
+    /// RGB or ID rendering.
     pub mode: Mode,
+    /// The render engine.
     pub engine: Engine,
     /// Samples, denoiser, bounces and lighting (RGB mode).
     pub rgb: RgbSettings,
@@ -113,6 +131,7 @@ pub struct RenderPlan {
     pub threads: u32,
     /// RGB mode: also write a linear float32 EXR per frame.
     pub exr: bool,
+    /// What is rendered: the prepared scene or a tileset.
     pub source: SceneSource,
     /// Seed of the per-building material variation and of each frame's look.
     pub look_seed: u64,
@@ -130,6 +149,7 @@ pub struct RenderPlan {
     pub force: bool,
     /// Camera clipping range, metres.
     pub clip_start_m: f64,
+    /// Far clipping distance, metres.
     pub clip_end_m: f64,
     /// Ask the script for each model's ENU bounds (tests).
     pub report_bounds: bool,
@@ -141,6 +161,7 @@ pub struct RenderPlan {
 /// Time spent on one frame, as Blender reported it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrameTiming {
+    /// Frame name.
     pub name: String,
     /// Wall-clock seconds (depends on other load on the machine).
     pub seconds: f64,
@@ -181,6 +202,7 @@ struct ProcessInfo {
 /// bytes.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FrameMeta {
+    /// Frame name.
     pub frame: String,
     /// `cycles` or `workbench`.
     pub engine: String,
@@ -188,8 +210,10 @@ pub struct FrameMeta {
     pub device: String,
     /// The device asked for (`auto`, `cpu`, …).
     pub device_requested: String,
+    /// Samples, denoiser, bounces and lighting.
     #[serde(flatten)]
     pub settings: RgbSettings,
+    /// Cycles sampling seed.
     pub seed: u32,
     /// The frame's drawn look (sun, sky, haze, exposure, camera effects).
     pub look: FrameLook,
@@ -229,8 +253,11 @@ pub enum OutputKind {
 /// One output of a frame: final path, temporary path and kind.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Output {
+    /// Final path.
     pub path: PathBuf,
+    /// Temporary path Blender writes (renamed to `path` after verification).
     pub tmp: PathBuf,
+    /// What the file holds.
     pub kind: OutputKind,
 }
 
@@ -482,12 +509,12 @@ fn check_request(plan: &RenderPlan, frames: &[FrameRequest]) -> Vec<JobIssue> {
         }
     }
     if plan.mode == Mode::Rgb {
-        if let Err(what) = plan.look.check() {
-            issues.push(JobIssue { path: "look".into(), what });
-        } else if let Some(Err(what)) =
+        if let Err(e) = plan.look.check() {
+            issues.push(JobIssue { path: "look".into(), what: e.to_string() });
+        } else if let Some(Err(e)) =
             frames.iter().map(|f| FrameLook::draw(&plan.look, plan.look_seed, &f.name)).find(Result::is_err)
         {
-            issues.push(JobIssue { path: "look.sun".into(), what });
+            issues.push(JobIssue { path: "look.sun".into(), what: e.to_string() });
         }
     }
     if plan.restart_every == 0 {
@@ -573,15 +600,14 @@ pub fn render_frames(
     result.map(|()| summary)
 }
 
-fn run_batch(
+/// The models of a batch's job: the prepared scene, or the tiles its frames select (with each frame's
+/// share of them; skipped contents are counted in `summary`).
+fn batch_models(
     plan: &RenderPlan,
-    script: &Path,
-    look: &Look,
     batch: &[FrameRequest],
-    progress: &dyn Progress,
     summary: &mut RenderSummary,
-) -> Result<(), BlenderError> {
-    let (models, per_frame): (Vec<JobModel>, Option<Vec<Vec<u32>>>) = match &plan.source {
+) -> Result<(Vec<JobModel>, Option<Vec<Vec<u32>>>), BlenderError> {
+    Ok(match &plan.source {
         SceneSource::Lod { glb, enu_from_gltf } => {
             (vec![JobModel { glb: absolute(glb), enu_from_gltf: *enu_from_gltf, kind: ModelKind::Lod }], None)
         }
@@ -596,16 +622,32 @@ fn run_batch(
                 sel.tiles.iter().map(|t| prepare_tile(t, enu, &cache)).collect::<Result<Vec<_>, _>>()?;
             (models, Some(sel.per_frame))
         }
-    };
-    let outputs: Vec<Vec<Output>> = batch.iter().map(|f| frame_outputs(plan, &f.name)).collect();
-    let looks: Vec<FrameLook> = batch
+    })
+}
+
+/// The look of every frame of a batch.
+///
+/// # Errors
+/// [`BlenderError::InvalidJob`] when the sun cannot be drawn for a frame.
+fn draw_looks(plan: &RenderPlan, batch: &[FrameRequest]) -> Result<Vec<FrameLook>, BlenderError> {
+    batch
         .iter()
         .map(|f| FrameLook::draw(&plan.look, plan.look_seed, &f.name))
         .collect::<Result<_, _>>()
-        .map_err(|what| BlenderError::InvalidJob {
+        .map_err(|e| BlenderError::InvalidJob {
             path: plan.work_dir.clone(),
-            issues: vec![JobIssue { path: "look.sun".into(), what }],
-        })?;
+            issues: vec![JobIssue { path: "look.sun".into(), what: e.to_string() }],
+        })
+}
+
+/// The job's frames: camera, pose, models, look and output files of each frame of the batch.
+fn job_frames(
+    plan: &RenderPlan,
+    batch: &[FrameRequest],
+    outputs: &[Vec<Output>],
+    looks: &[FrameLook],
+    per_frame: Option<&[Vec<u32>]>,
+) -> Result<Vec<JobFrame>, BlenderError> {
     let mut job_frames = Vec::with_capacity(batch.len());
     for (i, f) in batch.iter().enumerate() {
         let camera =
@@ -617,12 +659,29 @@ fn run_batch(
             camera,
             cam_to_world_enu: cam_to_world_enu(&f.pose),
             blender_matrix_world: blender_matrix_world(&f.pose),
-            models: per_frame.as_ref().map(|p| p[i].clone()),
+            models: per_frame.map(|p| p[i].clone()),
             look: looks[i],
             png: find(OutputKind::Png),
             exr: find(OutputKind::RgbExr).or_else(|| find(OutputKind::IdExr)),
         });
     }
+    Ok(job_frames)
+}
+
+/// Renders one batch of frames in one Blender process: writes its job, runs Blender, and finalises
+/// each frame's outputs as Blender reports it done (temporary files are removed on failure).
+fn run_batch(
+    plan: &RenderPlan,
+    script: &Path,
+    look: &Look,
+    batch: &[FrameRequest],
+    progress: &dyn Progress,
+    summary: &mut RenderSummary,
+) -> Result<(), BlenderError> {
+    let (models, per_frame) = batch_models(plan, batch, summary)?;
+    let outputs: Vec<Vec<Output>> = batch.iter().map(|f| frame_outputs(plan, &f.name)).collect();
+    let looks = draw_looks(plan, batch)?;
+    let job_frames = job_frames(plan, batch, &outputs, &looks, per_frame.as_deref())?;
     let job = Job {
         format: JOB_FORMAT.into(),
         version: JOB_VERSION,

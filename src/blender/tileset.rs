@@ -63,11 +63,13 @@ pub struct SelectedTile {
     pub content: PathBuf,
     /// The tileset JSON holding the tile, and the tile's JSON path in it (`root.children[2]`).
     pub tileset: PathBuf,
+    /// The tile's JSON path in `tileset` (`root.children[2]`).
     pub tile_at: String,
     /// The tile's refinement.
     pub refine: Refine,
     /// ECEF-from-tile transform, all ancestors' transforms included.
     pub ecef_from_tile: DMat4,
+    /// The up axis of the content's glTF.
     pub up_axis: UpAxis,
 }
 

@@ -165,7 +165,7 @@ pub struct LayerList(pub Vec<ClutterLayer>);
 
 /// Parses `--occluders`.
 pub fn parse_occluders(s: &str) -> Result<LayerList, String> {
-    crate::scene::clutter::parse_layers(s).map(LayerList)
+    crate::scene::clutter::parse_layers(s).map(LayerList).map_err(|e| e.to_string())
 }
 
 /// The plan and the scene directory, resolved from the arguments (no I/O).

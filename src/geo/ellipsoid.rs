@@ -25,12 +25,16 @@ pub const WGS84_E2: f64 = WGS84_F * (2.0 - WGS84_F);
 /// A geodetic position on WGS84: latitude and longitude in degrees, ellipsoidal height in metres.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Geodetic {
+    /// Latitude, degrees (WGS84).
     pub lat_deg: f64,
+    /// Longitude, degrees (WGS84).
     pub lon_deg: f64,
+    /// Ellipsoidal height, metres.
     pub h_m: f64,
 }
 
 impl Geodetic {
+    /// A position from latitude and longitude (degrees) and ellipsoidal height (metres).
     pub fn new(lat_deg: f64, lon_deg: f64, h_m: f64) -> Self {
         Geodetic { lat_deg, lon_deg, h_m }
     }

@@ -13,6 +13,7 @@ use super::ellipsoid::{ecef_to_geodetic, geodetic_to_ecef, Geodetic};
 /// A local tangent frame (ENU) at a geodetic origin.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EnuFrame {
+    /// The frame's origin.
     pub origin: Geodetic,
     /// The origin in ECEF metres.
     pub origin_ecef_m: DVec3,
@@ -21,6 +22,7 @@ pub struct EnuFrame {
 }
 
 impl EnuFrame {
+    /// The ENU frame at `origin`.
     pub fn new(origin: Geodetic) -> Self {
         let (sl, cl) = origin.lat_deg.to_radians().sin_cos();
         let (so, co) = origin.lon_deg.to_radians().sin_cos();

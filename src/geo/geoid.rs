@@ -286,11 +286,11 @@ impl GeoidGrid {
     /// used in error messages.
     ///
     /// # Errors
-    /// [`GeoError::Geoid`] naming the file and what is wrong: not a TIFF, no georeferencing, a
+    /// [`GeoError::GeoTiff`] naming the file and what is wrong: not a TIFF, no georeferencing, a
     /// projected CRS, integer samples, several full-resolution grids, no geoid band, …
     pub fn from_tiff_bytes(path: &Path, bytes: &[u8]) -> Result<GeoidGrid, GeoError> {
         let g = super::geotiff::read(bytes)
-            .map_err(|why| GeoError::Geoid { path: path.display().to_string(), why })?;
+            .map_err(|source| GeoError::GeoTiff { path: path.display().to_string(), source })?;
         Ok(GeoidGrid {
             path: path.to_path_buf(),
             nodata: NoData::Tiff(g.nodata),

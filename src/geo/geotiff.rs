@@ -15,6 +15,8 @@ use std::io::Cursor;
 use tiff::decoder::{Decoder, DecodingResult, Limits};
 use tiff::tags::{PlanarConfiguration, Tag};
 
+use super::error::GeoTiffError;
+
 /// A decoded grid: nodes `[west, south]` + steps, `rows × cols` values south row first.
 pub(crate) struct TiffGrid {
     pub west_deg: f64,
@@ -85,83 +87,134 @@ fn metadata_items(xml: &str) -> Vec<MetaItem> {
     items
 }
 
-/// Decodes the grid; `Err` is the reason (the caller names the file).
-pub(crate) fn read(bytes: &[u8]) -> Result<TiffGrid, String> {
-    let terr = |what: &str, e: tiff::TiffError| format!("{what}: {e}");
-    let mut dec = Decoder::new(Cursor::new(bytes))
-        .map_err(|e| terr("not a readable TIFF", e))?
-        .with_limits(Limits::unlimited());
+/// The decoder over the file's bytes.
+type Dec<'a> = Decoder<Cursor<&'a [u8]>>;
 
+/// A [`GeoTiffError::Tiff`] at `what` (a tag or a step).
+fn tiff_err(what: &'static str) -> impl FnOnce(tiff::TiffError) -> GeoTiffError {
+    move |source| GeoTiffError::Tiff { what, source }
+}
+
+/// Decodes the grid (the caller names the file in its error).
+pub(crate) fn read(bytes: &[u8]) -> Result<TiffGrid, GeoTiffError> {
+    let mut dec = Decoder::new(Cursor::new(bytes))
+        .map_err(tiff_err("not a readable TIFF"))?
+        .with_limits(Limits::unlimited());
+    let (cols, rows, spp) = image_shape(&mut dec)?;
+    let pixel_is_area = geo_keys(&mut dec)?;
+    let nodes = node_extent(&mut dec, pixel_is_area, cols, rows)?;
+    let band = geoid_band(&mut dec, spp)?;
+    let values_m = read_values(&mut dec, &band, nodes.bottom_up, rows, cols, spp)?;
+    check_no_subgrids(&mut dec)?;
+    Ok(TiffGrid {
+        west_deg: nodes.west_deg,
+        south_deg: nodes.south_deg,
+        dlon_deg: nodes.h_res_deg,
+        dlat_deg: nodes.v_res_deg.abs(),
+        rows,
+        cols,
+        values_m,
+        nodata: band.nodata,
+    })
+}
+
+/// The first image's columns, rows and samples per pixel; it must be a full-resolution grid.
+fn image_shape(dec: &mut Dec) -> Result<(usize, usize, usize), GeoTiffError> {
     let subfile: u32 =
-        dec.find_tag_unsigned(Tag::NewSubfileType).map_err(|e| terr("NewSubfileType", e))?.unwrap_or(0);
+        dec.find_tag_unsigned(Tag::NewSubfileType).map_err(tiff_err("NewSubfileType"))?.unwrap_or(0);
     if subfile != 0 && subfile != FILETYPE_PAGE {
-        return Err(format!(
-            "the first image has NewSubfileType {subfile} (PROJ refuses it: \"Invalid subfileType\")"
-        ));
+        return Err(GeoTiffError::SubfileType { subfile });
     }
-    let (width, height) = dec.dimensions().map_err(|e| terr("image size", e))?;
+    let (width, height) = dec.dimensions().map_err(tiff_err("image size"))?;
     let (cols, rows) = (width as usize, height as usize);
     if cols == 0 || rows == 0 {
-        return Err(format!("image size {width} × {height} is empty"));
+        return Err(GeoTiffError::EmptyImage { width_px: width, height_px: height });
     }
     let spp: usize =
-        dec.find_tag_unsigned(Tag::SamplesPerPixel).map_err(|e| terr("SamplesPerPixel", e))?.unwrap_or(1);
+        dec.find_tag_unsigned(Tag::SamplesPerPixel).map_err(tiff_err("SamplesPerPixel"))?.unwrap_or(1);
     if spp == 0 {
-        return Err("SamplesPerPixel is 0".into());
+        return Err(GeoTiffError::NoSamples);
     }
+    Ok((cols, rows, spp))
+}
 
-    // GeoKeys: model type (must be geographic) and raster type (area or point).
+/// GeoKeys: the model type must be geographic; returns whether the raster type is "pixel is area".
+fn geo_keys(dec: &mut Dec) -> Result<bool, GeoTiffError> {
     let mut pixel_is_area = false;
-    if let Some(v) = dec.find_tag(Tag::GeoKeyDirectoryTag).map_err(|e| terr("GeoKeyDirectory", e))? {
-        let keys = v.into_u16_vec().map_err(|e| terr("GeoKeyDirectory", e))?;
+    if let Some(v) = dec.find_tag(Tag::GeoKeyDirectoryTag).map_err(tiff_err("GeoKeyDirectory"))? {
+        let keys = v.into_u16_vec().map_err(tiff_err("GeoKeyDirectory"))?;
         if keys.len() < 4 || keys.len() % 4 != 0 {
-            return Err(format!("GeoKeyDirectory has {} values, not a multiple of 4", keys.len()));
+            return Err(GeoTiffError::GeoKeyCount { count: keys.len() });
         }
         if keys[0] != 1 {
-            return Err(format!("GeoTIFF major version {} is not supported", keys[0]));
+            return Err(GeoTiffError::GeoKeyVersion { major: keys[0] });
         }
         for k in keys[4..].chunks_exact(4) {
             match (k[0], k[3]) {
                 (GT_MODEL_TYPE, MODEL_TYPE_GEOGRAPHIC) => {}
-                (GT_MODEL_TYPE, MODEL_TYPE_PROJECTED) => {
-                    return Err("the grid is in a projected CRS; geoid grids must be in latitude/longitude \
-                                (PROJ: \"Can only handle grids referenced in a geographic CRS\")"
-                        .into())
-                }
-                (GT_MODEL_TYPE, t) => {
-                    return Err(format!("GTModelTypeGeoKey {t} is neither geographic nor projected"))
-                }
+                (GT_MODEL_TYPE, MODEL_TYPE_PROJECTED) => return Err(GeoTiffError::Projected),
+                (GT_MODEL_TYPE, t) => return Err(GeoTiffError::ModelType { model_type: t }),
                 (GT_RASTER_TYPE, t) => pixel_is_area = t == RASTER_PIXEL_IS_AREA,
                 _ => {}
             }
         }
     }
+    Ok(pixel_is_area)
+}
 
-    // Georeferencing, in degrees: west/north of node (0, 0) and the steps (v_res < 0: bottom-up).
-    let f64s = |dec: &mut Decoder<Cursor<&[u8]>>, tag: Tag, name: &str| -> Result<Option<Vec<f64>>, String> {
-        match dec.find_tag(tag).map_err(|e| terr(name, e))? {
-            Some(v) => Ok(Some(v.into_f64_vec().map_err(|e| terr(name, e))?)),
-            None => Ok(None),
-        }
-    };
+/// The f64 values of a tag, if present.
+fn f64s(dec: &mut Dec, tag: Tag, name: &'static str) -> Result<Option<Vec<f64>>, GeoTiffError> {
+    match dec.find_tag(tag).map_err(tiff_err(name))? {
+        Some(v) => Ok(Some(v.into_f64_vec().map_err(tiff_err(name))?)),
+        None => Ok(None),
+    }
+}
+
+/// Where the grid's nodes lie, degrees.
+struct NodeExtent {
+    west_deg: f64,
+    south_deg: f64,
+    h_res_deg: f64,
+    /// Negative when the rows run south to north.
+    v_res_deg: f64,
+    /// Whether the first row is the southernmost.
+    bottom_up: bool,
+}
+
+/// Georeferencing, in degrees: west/north of node (0, 0) and the steps (v_res < 0: bottom-up), from
+/// `ModelTransformation` or `ModelPixelScale` + `ModelTiepoint`, checked for consistency.
+fn node_extent(
+    dec: &mut Dec,
+    pixel_is_area: bool,
+    cols: usize,
+    rows: usize,
+) -> Result<NodeExtent, GeoTiffError> {
     let (mut west, mut north, h_res, v_res) =
-        match f64s(&mut dec, Tag::Unknown(MODEL_TRANSFORMATION), "ModelTransformation")? {
+        match f64s(dec, Tag::Unknown(MODEL_TRANSFORMATION), "ModelTransformation")? {
             Some(m) if m.len() == 16 => {
                 if m[1] != 0.0 || m[4] != 0.0 {
-                    return Err("ModelTransformation has rotation terms (not supported, as in PROJ)".into());
+                    return Err(GeoTiffError::Rotation);
                 }
                 (m[3], m[7], m[0], -m[5])
             }
             _ => {
-                let scale = f64s(&mut dec, Tag::ModelPixelScaleTag, "ModelPixelScale")?
-                    .ok_or("no ModelPixelScale tag: not a georeferenced GeoTIFF")?;
+                let scale = f64s(dec, Tag::ModelPixelScaleTag, "ModelPixelScale")?
+                    .ok_or(GeoTiffError::MissingTag { tag: "ModelPixelScale" })?;
                 if scale.len() != 3 {
-                    return Err(format!("ModelPixelScale has {} values, expected 3", scale.len()));
+                    return Err(GeoTiffError::TagLength {
+                        tag: "ModelPixelScale",
+                        count: scale.len(),
+                        expected: "3",
+                    });
                 }
-                let tie = f64s(&mut dec, Tag::ModelTiepointTag, "ModelTiepoint")?
-                    .ok_or("no ModelTiepoint tag: not a georeferenced GeoTIFF")?;
+                let tie = f64s(dec, Tag::ModelTiepointTag, "ModelTiepoint")?
+                    .ok_or(GeoTiffError::MissingTag { tag: "ModelTiepoint" })?;
                 if tie.len() != 6 {
-                    return Err(format!("ModelTiepoint has {} values, expected 6 (one tiepoint)", tie.len()));
+                    return Err(GeoTiffError::TagLength {
+                        tag: "ModelTiepoint",
+                        count: tie.len(),
+                        expected: "6 (one tiepoint)",
+                    });
                 }
                 (tie[3] - tie[0] * scale[0], tie[4] + tie[1] * scale[1], scale[0], scale[1])
             }
@@ -186,15 +239,33 @@ pub(crate) fn read(bytes: &[u8]) -> Result<TiffGrid, String> {
         && h_res > MIN_RES_DEG
         && v_res.abs() > MIN_RES_DEG;
     if !ok {
-        return Err(format!(
-            "inconsistent georeferencing: nodes from {west}° to {east}° E, {south}° to {north}° N, steps \
-             {h_res}° × {v_res}°"
-        ));
+        return Err(GeoTiffError::Georeferencing {
+            west_deg: west,
+            east_deg: east,
+            south_deg: south,
+            north_deg: north,
+            h_res_deg: h_res,
+            v_res_deg: v_res,
+        });
     }
+    Ok(NodeExtent { west_deg: west, south_deg: south, h_res_deg: h_res, v_res_deg: v_res, bottom_up })
+}
 
-    // Band selection and scale/offset from GDAL_METADATA, nodata from GDAL_NODATA.
-    let items = match dec.find_tag(Tag::Unknown(GDAL_METADATA)).map_err(|e| terr("GDAL_METADATA", e))? {
-        Some(v) => metadata_items(&v.into_string().map_err(|e| terr("GDAL_METADATA", e))?),
+/// The band holding the geoid and how its values are stored.
+struct GeoidBand {
+    /// Sample index within a pixel.
+    band: usize,
+    /// Value = stored × scale + offset (GDAL's `scale` and `offset` roles).
+    scale: f64,
+    offset: f64,
+    /// The `GDAL_NODATA` value, if the file has one.
+    nodata: Option<f32>,
+}
+
+/// Band selection and scale/offset from `GDAL_METADATA`, nodata from `GDAL_NODATA`.
+fn geoid_band(dec: &mut Dec, spp: usize) -> Result<GeoidBand, GeoTiffError> {
+    let items = match dec.find_tag(Tag::Unknown(GDAL_METADATA)).map_err(tiff_err("GDAL_METADATA"))? {
+        Some(v) => metadata_items(&v.into_string().map_err(tiff_err("GDAL_METADATA"))?),
         None => Vec::new(),
     };
     let descriptions: Vec<&MetaItem> = items
@@ -206,16 +277,12 @@ pub(crate) fn read(bytes: &[u8]) -> Result<TiffGrid, String> {
             Some(i) => i.sample.unwrap_or(0),
             None if descriptions.is_empty() => 0,
             None => {
-                let names: Vec<&str> = descriptions.iter().map(|i| i.value.as_str()).collect();
-                return Err(format!(
-                    "its bands are described as {names:?} but none as geoid_undulation or vertical_offset"
-                ));
+                let names = descriptions.iter().map(|i| i.value.clone()).collect();
+                return Err(GeoTiffError::NoGeoidBand { names });
             }
         };
     if band >= spp {
-        return Err(format!(
-            "band {band} is described as the geoid, but the file has {spp} samples per pixel"
-        ));
+        return Err(GeoTiffError::BandOutOfRange { band, samples_per_pixel: spp });
     }
     let role_value = |role: &str| {
         items
@@ -224,31 +291,39 @@ pub(crate) fn read(bytes: &[u8]) -> Result<TiffGrid, String> {
             .and_then(|i| i.value.parse::<f64>().ok())
     };
     let (scale, offset) = (role_value("scale").unwrap_or(1.0), role_value("offset").unwrap_or(0.0));
-    let nodata: Option<f32> = match dec.find_tag(Tag::GdalNodata).map_err(|e| terr("GDAL_NODATA", e))? {
+    let nodata: Option<f32> = match dec.find_tag(Tag::GdalNodata).map_err(tiff_err("GDAL_NODATA"))? {
         Some(v) => {
-            let text = v.into_string().map_err(|e| terr("GDAL_NODATA", e))?;
+            let text = v.into_string().map_err(tiff_err("GDAL_NODATA"))?;
             let t = text.trim_end_matches('\0').trim();
-            Some(t.parse::<f64>().map_err(|_| format!("GDAL_NODATA {t:?} is not a number"))? as f32)
+            Some(t.parse::<f64>().map_err(|_| GeoTiffError::Nodata { text: t.to_string() })? as f32)
         }
         None => None,
     };
+    Ok(GeoidBand { band, scale, offset, nodata })
+}
 
+/// The geoid band's values, metres, south row first, scale and offset applied (not to nodata values).
+fn read_values(
+    dec: &mut Dec,
+    b: &GeoidBand,
+    bottom_up: bool,
+    rows: usize,
+    cols: usize,
+    spp: usize,
+) -> Result<Vec<f32>, GeoTiffError> {
+    let GeoidBand { band, scale, offset, nodata } = *b;
     let planar = dec
         .find_tag_unsigned::<u16>(Tag::PlanarConfiguration)
-        .map_err(|e| terr("PlanarConfiguration", e))?
+        .map_err(tiff_err("PlanarConfiguration"))?
         .and_then(PlanarConfiguration::from_u16)
         .unwrap_or(PlanarConfiguration::Chunky);
     let mut data = DecodingResult::F32(Vec::new());
-    dec.read_image_to_buffer(&mut data).map_err(|e| terr("reading the samples", e))?;
+    dec.read_image_to_buffer(&mut data).map_err(tiff_err("reading the samples"))?;
     let n = rows * cols;
     let all: Vec<f64> = match data {
         DecodingResult::F32(v) => v.into_iter().map(f64::from).collect(),
         DecodingResult::F64(v) => v,
-        _ => {
-            return Err("the samples are integers; only float32/float64 grids are supported (PROJ-data \
-                        geoid grids are float32)"
-                .into())
-        }
+        _ => return Err(GeoTiffError::IntegerSamples),
     };
     let at = |i: usize| -> Option<f64> {
         match planar {
@@ -257,7 +332,7 @@ pub(crate) fn read(bytes: &[u8]) -> Result<TiffGrid, String> {
         }
     };
     if at(n - 1).is_none() {
-        return Err(format!("the image holds {} samples, fewer than {rows} × {cols} × {spp}", all.len()));
+        return Err(GeoTiffError::TooFewSamples { found: all.len(), rows, cols, samples_per_pixel: spp });
     }
     let mut values_m = vec![0f32; n];
     for y_tiff in 0..rows {
@@ -270,29 +345,19 @@ pub(crate) fn read(bytes: &[u8]) -> Result<TiffGrid, String> {
                 if is_nodata { v } else { (f64::from(v) * scale + offset) as f32 };
         }
     }
+    Ok(values_m)
+}
 
-    // Further IFDs: overviews are fine, more full-resolution grids (PROJ subgrids) are not.
+/// Further IFDs: overviews are fine, more full-resolution grids (PROJ subgrids) are not.
+fn check_no_subgrids(dec: &mut Dec) -> Result<(), GeoTiffError> {
     let mut ifd = 1;
     while dec.more_images() {
-        dec.next_image().map_err(|e| terr(&format!("IFD {ifd}"), e))?;
+        dec.next_image().map_err(|source| GeoTiffError::Ifd { ifd, source })?;
         let t: u32 = dec.find_tag_unsigned(Tag::NewSubfileType).ok().flatten().unwrap_or(0);
         if t & REDUCED_RESOLUTION == 0 {
-            return Err(format!(
-                "IFD {ifd} is a second full-resolution grid (a PROJ subgrid hierarchy), which insgen does \
-                 not interpolate; use PROJ's own path ([geoid] model = \"proj\") for this grid"
-            ));
+            return Err(GeoTiffError::Subgrid { ifd });
         }
         ifd += 1;
     }
-
-    Ok(TiffGrid {
-        west_deg: west,
-        south_deg: south,
-        dlon_deg: h_res,
-        dlat_deg: v_res.abs(),
-        rows,
-        cols,
-        values_m,
-        nodata,
-    })
+    Ok(())
 }

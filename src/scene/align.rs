@@ -66,12 +66,25 @@ impl Default for AlignOptions {
 /// Errors of the estimate.
 #[derive(Debug, thiserror::Error)]
 pub enum AlignError {
+    /// The model (named) has no surface over the area.
     #[error("the {what} model has no surface over the area: the models do not overlap")]
-    Empty { what: &'static str },
+    Empty {
+        /// "LoD" or "reference".
+        what: &'static str,
+    },
+    /// The models do not overlap.
     #[error("the models do not overlap: {what}")]
-    NoOverlap { what: String },
+    NoOverlap {
+        /// How they miss each other.
+        what: String,
+    },
+    /// The refinement is degenerate.
     #[error("the refinement is degenerate ({what}): the surfaces do not fix all four parameters")]
-    Degenerate { what: String },
+    Degenerate {
+        /// Which parameters are not fixed.
+        what: String,
+    },
+    /// An option is out of range (named in the message).
     #[error("invalid option: {0}")]
     Option(String),
 }
@@ -79,7 +92,9 @@ pub enum AlignError {
 /// The estimate and how it was reached.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Estimate {
+    /// The estimated correction.
     pub correction: Correction,
+    /// Its one-sigma uncertainty.
     pub sigma: CorrectionSigma,
     /// Result of the coarse search (before the refinement).
     pub coarse: Correction,
@@ -87,7 +102,9 @@ pub struct Estimate {
     pub coarse_inlier_fraction: f64,
     /// Refinement iterations, LoD samples, and correspondences kept in the last step.
     pub iterations: u32,
+    /// LoD samples of the last step.
     pub samples: u64,
+    /// Correspondences kept in the last step.
     pub correspondences: u64,
     /// Robust scale of the point-to-plane residuals in the last step, metres.
     pub residual_sigma_m: f64,
@@ -183,10 +200,15 @@ pub fn pivot_of(lod: &TriMesh) -> [f64; 2] {
 /// `(min_e + (i + ½)·cell, min_n + (j + ½)·cell)`; rows go north.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HeightMap {
+    /// East and north of the map's south-west corner, metres.
     pub min_m: [f64; 2],
+    /// Cell size, metres.
     pub cell_m: f64,
+    /// Cells along east.
     pub nx: usize,
+    /// Cells along north.
     pub ny: usize,
+    /// Height of each cell, ENU metres, row-major from the south row (NaN where nothing covers it).
     pub h_m: Vec<f32>,
 }
 

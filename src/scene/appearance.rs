@@ -43,9 +43,17 @@ impl VertexAppearance {
 #[derive(Debug, Clone, PartialEq)]
 pub enum AppearanceMaterial {
     /// An image: where it was read from and its file name under [`TEXTURES_DIR`].
-    Texture { source: PathBuf, file_name: String },
+    Texture {
+        /// Where the image was read from.
+        source: PathBuf,
+        /// Its file name under [`TEXTURES_DIR`].
+        file_name: String,
+    },
     /// A flat colour, linear RGB in 0..=1.
-    Colour { rgb: [f64; 3] },
+    Colour {
+        /// Linear RGB, 0..=1.
+        rgb: [f64; 3],
+    },
 }
 
 /// The distinct images and colours of an area, numbered from 1 in order of first use.

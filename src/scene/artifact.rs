@@ -44,9 +44,11 @@ pub struct BuildingRecord {
     pub footprint_area_m2: f64,
     /// Footprint centroid, WGS84 degrees.
     pub centroid_lat_deg: f64,
+    /// Footprint centroid longitude, WGS84 degrees.
     pub centroid_lon_deg: f64,
     /// Bounds in the area's ENU frame, metres: [min_e, min_n, min_u], [max_e, max_n, max_u].
     pub bbox_min_enu_m: [f64; 3],
+    /// Upper bounds in the area's ENU frame, metres.
     pub bbox_max_enu_m: [f64; 3],
     /// Triangles in the scene mesh.
     pub triangles: u64,
@@ -55,22 +57,30 @@ pub struct BuildingRecord {
 /// The area's geodetic origin (WGS84, ellipsoidal height).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Origin {
+    /// Latitude, degrees.
     pub lat_deg: f64,
+    /// Longitude, degrees.
     pub lon_deg: f64,
+    /// Ellipsoidal height, metres.
     pub h_m: f64,
 }
 
 /// Where a source came from, for provenance and reruns.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SourceEntry {
+    /// The source file (or tileset.json) as the scene file gives it.
     pub path: String,
+    /// The format it was read as (`citygml`, `cityjson`, `obj`, `tiles3d`, `procedural`).
     pub format: String,
     /// SHA-256 of the file (for a tileset: of tileset.json).
     pub sha256: String,
     /// The CRS chain applied, e.g. "EPSG:6697 (lat, lon, h; orthometric) → EPSG:4979 → EPSG:4978 → ENU".
     pub crs_chain: String,
+    /// Buildings read from it.
     pub buildings: u64,
+    /// Faces dropped as degenerate (collinear, zero area).
     pub degenerate_faces: u64,
+    /// The source's attribution line, if the scene file gives one.
     #[serde(default)]
     pub attribution: Option<String>,
     /// How the source's heights were read when not absolute, e.g. `"above_ground: + TerrainHeight per
@@ -89,9 +99,11 @@ pub struct AppearanceEntry {
     pub themes: Vec<String>,
     /// The theme textures / materials were taken from (the scene file's `theme`, else the first).
     pub texture_theme: Option<String>,
+    /// The theme flat colours were taken from.
     pub material_theme: Option<String>,
     /// Faces of the read buildings with a texture / a colour in the chosen themes.
     pub textured_faces: u64,
+    /// Faces with a flat colour in the chosen theme.
     pub coloured_faces: u64,
     /// Distinct images the textured faces of the read buildings use.
     pub images: u64,
@@ -132,10 +144,13 @@ pub struct GeoidUsed {
 /// `manifest.json` of a prepared scene.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Manifest {
+    /// Version of insgen that prepared the scene.
     pub insgen_version: String,
+    /// The area's name.
     pub area: String,
     /// "train", "val" or "test": the geographic split this area belongs to.
     pub split: String,
+    /// The area's geodetic origin (the ENU frame's).
     pub origin: Origin,
     /// ECEF-from-ENU transform (metres); rows in the file.
     #[serde(with = "crate::util::row_major")]
@@ -144,10 +159,15 @@ pub struct Manifest {
     pub area_polygon_enu_m: Vec<[f64; 2]>,
     /// Estimated ground level of the area in ENU metres (see `scene::prepare` for how).
     pub ground_enu_m: f64,
+    /// The geoid used.
     pub geoid: GeoidUsed,
+    /// The sources read.
     pub sources: Vec<SourceEntry>,
+    /// Building instances.
     pub buildings: u64,
+    /// Triangles in the scene mesh.
     pub triangles: u64,
+    /// Faces dropped as degenerate, over all sources.
     pub degenerate_faces: u64,
     /// Attribution lines to carry into datasets (e.g. PLATEAU's CC BY 4.0 notice).
     pub attributions: Vec<String>,
@@ -164,8 +184,11 @@ pub struct Manifest {
 /// A loaded scene: manifest, building table and mesh.
 #[derive(Debug, Clone)]
 pub struct PreparedScene {
+    /// `manifest.json`.
     pub manifest: Manifest,
+    /// `buildings.json`, ordered by ID.
     pub buildings: Vec<BuildingRecord>,
+    /// The instanced building mesh (ENU metres, one building ID per vertex).
     pub mesh: SceneMesh,
     /// Clutter layers (empty when the scene has none); never part of `mesh`.
     pub clutter: super::clutter::Clutter,
@@ -184,7 +207,7 @@ impl PreparedScene {
         if let Some(rec) = &scene.manifest.alignment {
             let c = rec.correction;
             c.validate()
-                .map_err(|what| super::SceneError::Artifact { path: dir.join(MANIFEST_FILE), what })?;
+                .map_err(|source| super::SceneError::Correction { path: dir.join(MANIFEST_FILE), source })?;
             if !c.is_identity() {
                 let o = scene.manifest.origin;
                 let enu = crate::geo::EnuFrame::new(crate::geo::Geodetic::new(o.lat_deg, o.lon_deg, o.h_m));

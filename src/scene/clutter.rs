@@ -138,22 +138,31 @@ impl std::fmt::Display for ClutterLayer {
 /// Parses a comma-separated layer list: layer names, `all` or `none`.
 ///
 /// # Errors
-/// A message naming the unknown word and the accepted names.
-pub fn parse_layers(list: &str) -> Result<Vec<ClutterLayer>, String> {
+/// [`UnknownLayer`] naming the unknown word (its message lists the accepted names).
+pub fn parse_layers(list: &str) -> Result<Vec<ClutterLayer>, UnknownLayer> {
     let mut out = Vec::new();
     for word in list.split(',').map(str::trim).filter(|w| !w.is_empty()) {
         match word {
             "all" => out.extend(ClutterLayer::ALL),
             "none" => {}
-            _ => out.push(ClutterLayer::from_name(word).ok_or_else(|| {
-                let names: Vec<&str> = ClutterLayer::ALL.iter().map(|l| l.name()).collect();
-                format!("unknown clutter layer {word:?}; expected all, none or any of {}", names.join(", "))
-            })?),
+            _ => out
+                .push(ClutterLayer::from_name(word).ok_or_else(|| UnknownLayer { word: word.to_string() })?),
         }
     }
     out.sort();
     out.dedup();
     Ok(out)
+}
+
+/// A word of a layer list that is not a layer name, `all` or `none`.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "unknown clutter layer {word:?}; expected all, none or any of {}",
+    ClutterLayer::ALL.map(ClutterLayer::name).join(", ")
+)]
+pub struct UnknownLayer {
+    /// The word as given.
+    pub word: String,
 }
 
 /// What to generate.
@@ -189,12 +198,16 @@ impl Default for ClutterSpec {
 /// One layer's triangles: ENU metres relative to the area origin, one sRGB colour per vertex.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct LayerMesh {
+    /// Vertex positions, ENU metres relative to the area origin.
     pub positions_m: Vec<[f32; 3]>,
+    /// Vertex colours, sRGB.
     pub colors_srgb: Vec<[u8; 3]>,
+    /// Triangle vertex indices, three per triangle.
     pub indices: Vec<u32>,
 }
 
 impl LayerMesh {
+    /// Number of triangles.
     pub fn triangle_count(&self) -> usize {
         self.indices.len() / 3
     }
@@ -308,6 +321,7 @@ fn rectangle(centre: [f64; 2], dir: [f64; 2], half_len_m: f64, half_wid_m: f64) 
 pub struct LayerSummary {
     /// Layer name ([`ClutterLayer::name`]); also the glTF node `insgen_clutter_<name>`.
     pub name: ClutterLayer,
+    /// Triangles in the layer.
     pub triangles: u64,
     /// Objects in the layer (trees, cars, units; merged rectangles for ground layers).
     pub instances: u64,
@@ -318,9 +332,11 @@ pub struct LayerSummary {
 /// The manifest's `clutter` section.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ClutterSummary {
+    /// Seed of every random draw.
     pub seed: u64,
     /// Plan grid cell used, metres.
     pub cell_m: f64,
+    /// The non-empty layers, in file order.
     pub layers: Vec<LayerSummary>,
     /// Trees per species.
     pub tree_species: BTreeMap<String, u64>,
@@ -331,6 +347,7 @@ pub struct ClutterSummary {
 /// The generated layers (non-empty ones only, in [`ClutterLayer::ALL`] order) and their summary.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Clutter {
+    /// The non-empty layers and their meshes, in [`ClutterLayer::ALL`] order.
     pub layers: Vec<(ClutterLayer, LayerMesh)>,
 }
 
@@ -520,7 +537,58 @@ pub fn generate(
     ground_enu_m: f64,
 ) -> (Clutter, ClutterSummary) {
     let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
-    // The grid spans the area polygon and the buildings.
+    let mut summary = ClutterSummary {
+        seed: spec.seed,
+        cell_m: spec.cell_m,
+        layers: Vec::new(),
+        tree_species: BTreeMap::new(),
+        ground_area_m2: BTreeMap::new(),
+    };
+    let Some(g) = plan_grid(spec, buildings, area_polygon_enu_m) else {
+        return (Clutter::default(), summary);
+    };
+    summary.cell_m = g.cell_m;
+    let plan = Plan::new(g, mesh, buildings, area_polygon_enu_m, ground_enu_m);
+    let ground = GroundLayers::build(&plan, spec.seed);
+    let (markings, n_mark) = lane_markings(&plan);
+    summary.ground_area_m2 = plan.ground_areas_m2();
+    let mut occupied = vec![false; plan.class.len()]; // cells taken by a tree trunk zone or a car
+    let (trees, n_trees) = plant_trees(&plan, spec, &mut rng, &mut occupied, &mut summary.tree_species);
+    let (cars, n_cars) = place_cars(&plan, spec, &mut rng, &mut occupied);
+    let (rooftop, n_units) = place_rooftop_units(mesh, buildings, &mut rng);
+
+    let mut clutter = Clutter::default();
+    let counts = [
+        (ClutterLayer::Roads, ground.roads, ground.n_road),
+        (ClutterLayer::Markings, markings, n_mark),
+        (ClutterLayer::Pavements, ground.pavements, ground.n_pave),
+        (ClutterLayer::GroundCover, ground.cover, ground.n_cover),
+        (ClutterLayer::Trees, trees, n_trees),
+        (ClutterLayer::Cars, cars, n_cars),
+        (ClutterLayer::Rooftop, rooftop, n_units),
+    ];
+    for (layer, m, count) in counts {
+        if m.indices.is_empty() {
+            continue;
+        }
+        summary.layers.push(LayerSummary {
+            name: layer,
+            triangles: m.triangle_count() as u64,
+            instances: count,
+            default_occluder: ClutterLayer::DEFAULT_OCCLUDERS.contains(&layer),
+        });
+        clutter.layers.push((layer, m));
+    }
+    (clutter, summary)
+}
+
+/// The plan grid spanning the area polygon and the buildings (plus 1 m on every side), its cell grown
+/// past [`ClutterSpec::cell_m`] so it stays under [`MAX_CELLS`]; `None` when there is nothing to span.
+fn plan_grid(
+    spec: &ClutterSpec,
+    buildings: &[BuildingRecord],
+    area_polygon_enu_m: &[[f64; 2]],
+) -> Option<Grid> {
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     for p in area_polygon_enu_m {
         lo = [lo[0].min(p[0]), lo[1].min(p[1])];
@@ -530,29 +598,108 @@ pub fn generate(
         lo = [lo[0].min(b.bbox_min_enu_m[0]), lo[1].min(b.bbox_min_enu_m[1])];
         hi = [hi[0].max(b.bbox_max_enu_m[0]), hi[1].max(b.bbox_max_enu_m[1])];
     }
-    let mut summary = ClutterSummary {
-        seed: spec.seed,
-        cell_m: spec.cell_m,
-        layers: Vec::new(),
-        tree_species: BTreeMap::new(),
-        ground_area_m2: BTreeMap::new(),
-    };
     if !(lo[0].is_finite() && hi[0].is_finite() && hi[0] > lo[0] && hi[1] > lo[1]) {
-        return (Clutter::default(), summary);
+        return None;
     }
     let (w, h) = (hi[0] - lo[0] + 2.0, hi[1] - lo[1] + 2.0);
     let cell_m = spec.cell_m.max((w * h / MAX_CELLS as f64).sqrt());
-    summary.cell_m = cell_m;
-    let g = Grid {
+    Some(Grid {
         x0_m: lo[0] - 1.0,
         y0_m: lo[1] - 1.0,
         cell_m,
         nx: (w / cell_m).ceil() as usize,
         ny: (h / cell_m).ceil() as usize,
-    };
-    let n = g.nx * g.ny;
+    })
+}
 
-    // 1. Footprints: cell centres inside an up-facing triangle; carry the building's base height.
+/// The classified plan grid (steps 1–3 of the module doc), row-major like [`Grid`].
+struct Plan {
+    g: Grid,
+    /// Chamfer distance to the (dilated) footprints, metres; 0 on them.
+    dist: Vec<f32>,
+    /// The local ground level: the nearest building's base height, metres.
+    ground: Vec<f32>,
+    class: Vec<Class>,
+}
+
+impl Plan {
+    fn new(
+        g: Grid,
+        mesh: &SceneMesh,
+        buildings: &[BuildingRecord],
+        area_polygon_enu_m: &[[f64; 2]],
+        ground_enu_m: f64,
+    ) -> Plan {
+        let (mut dist, mut ground) = rasterise_footprints(&g, mesh, buildings, ground_enu_m);
+        dilate_footprints(&g, &mut dist, &mut ground);
+        // 2. Distance to the (dilated) footprints, and the nearest building's base as the local ground.
+        chamfer(&g, &mut dist, &mut ground);
+        let mut plan = Plan { class: vec![Class::None; g.nx * g.ny], g, dist, ground };
+        plan.classify(area_polygon_enu_m);
+        plan
+    }
+
+    /// Distance of cell `k` to the nearest footprint, metres. The dilation already took one cell:
+    /// distances are from its outer edge, so it is added back.
+    fn d_at(&self, k: usize) -> f64 {
+        if self.dist[k] == 0.0 {
+            0.0
+        } else {
+            self.dist[k] as f64 + 0.5 * self.g.cell_m
+        }
+    }
+
+    /// 3. Classes: pavement, road and park cells inside the area, clear of the facades.
+    fn classify(&mut self, area_polygon_enu_m: &[[f64; 2]]) {
+        let g = &self.g;
+        let n = g.nx * g.ny;
+        let mut inside = vec![false; g.nx];
+        let mut core = vec![f32::INFINITY; n];
+        let mut core_carry = vec![0f32; n];
+        for j in 0..g.ny {
+            row_inside(g, area_polygon_enu_m, j, &mut inside);
+            for (i, &in_area) in inside.iter().enumerate() {
+                let k = j * g.nx + i;
+                if !in_area || self.d_at(k) < CLEARANCE_M {
+                    continue;
+                }
+                self.class[k] = if self.d_at(k) < PAVEMENT_WIDTH_M { Class::Pavement } else { Class::Road };
+                if self.d_at(k) >= PARK_CORE_M {
+                    core[k] = 0.0;
+                }
+            }
+        }
+        chamfer(g, &mut core, &mut core_carry);
+        for k in 0..n {
+            if self.class[k] == Class::Road && self.d_at(k) >= 4.0 && (core[k] as f64) <= PARK_REACH_M {
+                self.class[k] = Class::Park;
+            }
+        }
+    }
+
+    /// Open area per ground class, m² (rounded), as the manifest records it.
+    fn ground_areas_m2(&self) -> BTreeMap<String, f64> {
+        let cell_area = self.g.cell_m * self.g.cell_m;
+        let mut out = BTreeMap::new();
+        for (name, c) in
+            [("roads", Class::Road), ("pavements", Class::Pavement), ("ground_cover", Class::Park)]
+        {
+            let cells = self.class.iter().filter(|&&x| x == c).count();
+            out.insert(name.into(), (cells as f64 * cell_area).round());
+        }
+        out
+    }
+}
+
+/// 1. Footprints: cell centres inside an up-facing triangle get distance 0 and their building's base
+/// height; every other cell gets +∞ and `ground_enu_m`. Returns (distance, ground).
+fn rasterise_footprints(
+    g: &Grid,
+    mesh: &SceneMesh,
+    buildings: &[BuildingRecord],
+    ground_enu_m: f64,
+) -> (Vec<f32>, Vec<f32>) {
+    let (cell_m, n) = (g.cell_m, g.nx * g.ny);
     let base_of: BTreeMap<u32, f64> = buildings.iter().map(|b| (b.id.get(), b.bbox_min_enu_m[2])).collect();
     let mut dist = vec![f32::INFINITY; n];
     let mut ground = vec![ground_enu_m as f32; n];
@@ -580,8 +727,13 @@ pub fn generate(
             }
         }
     }
+    (dist, ground)
+}
+
+/// Dilates the footprints by one cell so a footprint edge between two cell centres still counts as
+/// taken (the new cells carry their neighbour's ground).
+fn dilate_footprints(g: &Grid, dist: &mut [f32], ground: &mut [f32]) {
     let footprint: Vec<bool> = dist.iter().map(|&d| d == 0.0).collect();
-    // Dilate by one cell so a footprint edge between two cell centres still counts as taken.
     for j in 0..g.ny {
         for i in 0..g.nx {
             if footprint[j * g.nx + i] {
@@ -598,57 +750,48 @@ pub fn generate(
             }
         }
     }
-    // 2. Distance to the (dilated) footprints, and the nearest building's base as the local ground.
-    chamfer(&g, &mut dist, &mut ground);
-    // The dilation already took one cell: distances are from its outer edge, so add it back.
-    let d_at = |k: usize| -> f64 {
-        if dist[k] == 0.0 {
-            0.0
-        } else {
-            dist[k] as f64 + 0.5 * cell_m
-        }
-    };
+}
 
-    // 3. Classes.
-    let mut inside = vec![false; g.nx];
-    let mut class = vec![Class::None; n];
-    let mut core = vec![f32::INFINITY; n];
-    let mut core_carry = vec![0f32; n];
-    for j in 0..g.ny {
-        row_inside(&g, area_polygon_enu_m, j, &mut inside);
-        for (i, &in_area) in inside.iter().enumerate() {
-            let k = j * g.nx + i;
-            if !in_area || d_at(k) < CLEARANCE_M {
-                continue;
+/// A run of same-class cells in one row: (x0, x1, class, z (decimetres), tone).
+type Run = (usize, usize, Class, i64, usize);
+
+/// The flat ground layers, made of merged rectangles of (class, height, tone) runs, and the number of
+/// rectangles in each.
+#[derive(Default)]
+struct GroundLayers {
+    roads: LayerMesh,
+    pavements: LayerMesh,
+    cover: LayerMesh,
+    n_road: u64,
+    n_pave: u64,
+    n_cover: u64,
+}
+
+impl GroundLayers {
+    /// Merges the runs of every row with the identical runs of the rows below into rectangles.
+    fn build(plan: &Plan, seed: u64) -> GroundLayers {
+        let g = &plan.g;
+        let mut layers = GroundLayers::default();
+        // Open rectangles keyed by their run → the row they started at.
+        let mut open: BTreeMap<Run, usize> = BTreeMap::new();
+        for j in 0..=g.ny {
+            let runs = if j < g.ny { row_runs(plan, j, seed) } else { Vec::new() };
+            let mut next: BTreeMap<Run, usize> = BTreeMap::new();
+            for r in runs {
+                let j0 = open.remove(&r).unwrap_or(j);
+                next.insert(r, j0);
             }
-            class[k] = if d_at(k) < PAVEMENT_WIDTH_M { Class::Pavement } else { Class::Road };
-            if d_at(k) >= PARK_CORE_M {
-                core[k] = 0.0;
+            for (r, j0) in std::mem::take(&mut open) {
+                layers.emit(g, r, j0, j);
             }
+            open = next;
         }
+        layers
     }
-    chamfer(&g, &mut core, &mut core_carry);
-    for k in 0..n {
-        if class[k] == Class::Road && d_at(k) >= 4.0 && (core[k] as f64) <= PARK_REACH_M {
-            class[k] = Class::Park;
-        }
-    }
-    // Ground layers from merged rectangles of (class, height) runs.
-    let mut roads = LayerMesh::default();
-    let mut pavements = LayerMesh::default();
-    let mut cover = LayerMesh::default();
-    let mut markings = LayerMesh::default();
-    let (mut n_road, mut n_pave, mut n_cover) = (0u64, 0u64, 0u64);
-    let cover_tone = |i: usize, j: usize, seed: u64| -> usize {
-        // Low-frequency value noise (~12 m patches) picks the grass tone: ground-cover variety.
-        let cell = (12.0 / cell_m).max(1.0) as usize;
-        hash3(i / cell, j / cell, seed) as usize % GRASS.len()
-    };
-    let quant = |z: f32| (z as f64 * 10.0).round() as i64;
-    // Open rectangles keyed by their run: (x0, x1, class, z, tone) → (j0).
-    type Run = (usize, usize, Class, i64, usize);
-    let mut open: BTreeMap<Run, usize> = BTreeMap::new();
-    let mut emit = |run: Run, j0: usize, j1: usize| {
+
+    /// Adds the rectangle of `run` over rows `j0..j1` to its layer.
+    fn emit(&mut self, g: &Grid, run: Run, j0: usize, j1: usize) {
+        let cell_m = g.cell_m;
         let (i0, i1, c, zq, tone) = run;
         let x0 = g.x0_m + i0 as f64 * cell_m;
         let x1 = g.x0_m + i1 as f64 * cell_m;
@@ -658,77 +801,87 @@ pub fn generate(
         let corners = [[x0, y0], [x1, y0], [x1, y1], [x0, y1]];
         match c {
             Class::Road => {
-                roads.quad(corners, z + ROAD_Z_M, ASPHALT[tone % ASPHALT.len()]);
-                n_road += 1;
+                self.roads.quad(corners, z + ROAD_Z_M, ASPHALT[tone % ASPHALT.len()]);
+                self.n_road += 1;
             }
             Class::Pavement => {
-                pavements.quad(corners, z + PAVEMENT_Z_M, PAVEMENT[tone % PAVEMENT.len()]);
-                n_pave += 1;
+                self.pavements.quad(corners, z + PAVEMENT_Z_M, PAVEMENT[tone % PAVEMENT.len()]);
+                self.n_pave += 1;
             }
             Class::Park => {
-                cover.quad(corners, z + GROUND_COVER_Z_M, GRASS[tone % GRASS.len()]);
-                n_cover += 1;
+                self.cover.quad(corners, z + GROUND_COVER_Z_M, GRASS[tone % GRASS.len()]);
+                self.n_cover += 1;
             }
             Class::None => {}
         }
-    };
-    for j in 0..=g.ny {
-        let mut runs: Vec<Run> = Vec::new();
-        if j < g.ny {
-            let mut i = 0;
-            while i < g.nx {
-                let k = j * g.nx + i;
-                let c = class[k];
-                if c == Class::None {
-                    i += 1;
-                    continue;
-                }
-                let zq = quant(ground[k]);
-                let tone = match c {
-                    Class::Park => cover_tone(i, j, spec.seed),
-                    Class::Road => hash3(i / 64, j / 64, spec.seed ^ 1) as usize % ASPHALT.len(),
-                    _ => hash3(i / 64, j / 64, spec.seed ^ 2) as usize % PAVEMENT.len(),
-                };
-                let start = i;
-                while i < g.nx {
-                    let k2 = j * g.nx + i;
-                    let tone2 = match class[k2] {
-                        Class::Park => cover_tone(i, j, spec.seed),
-                        Class::Road => hash3(i / 64, j / 64, spec.seed ^ 1) as usize % ASPHALT.len(),
-                        _ => hash3(i / 64, j / 64, spec.seed ^ 2) as usize % PAVEMENT.len(),
-                    };
-                    if class[k2] != c || quant(ground[k2]) != zq || tone2 != tone {
-                        break;
-                    }
-                    i += 1;
-                }
-                runs.push((start, i, c, zq, tone));
-            }
-        }
-        let mut next: BTreeMap<Run, usize> = BTreeMap::new();
-        for r in runs {
-            let j0 = open.remove(&r).unwrap_or(j);
-            next.insert(r, j0);
-        }
-        for (r, j0) in std::mem::take(&mut open) {
-            emit(r, j0, j);
-        }
-        open = next;
     }
-    // Lane markings: dashes on the distance ridge of wide roads, along the street.
+}
+
+/// Ground height quantised to decimetres (cells of one run share it).
+fn quantise_z(z: f32) -> i64 {
+    (z as f64 * 10.0).round() as i64
+}
+
+/// The colour tone of cell (i, j) of class `c`: low-frequency value noise, ~12 m patches for grass
+/// (ground-cover variety), 64 cells for asphalt and pavement.
+fn tone_at(c: Class, i: usize, j: usize, seed: u64, cell_m: f64) -> usize {
+    match c {
+        Class::Park => {
+            let cell = (12.0 / cell_m).max(1.0) as usize;
+            hash3(i / cell, j / cell, seed) as usize % GRASS.len()
+        }
+        Class::Road => hash3(i / 64, j / 64, seed ^ 1) as usize % ASPHALT.len(),
+        _ => hash3(i / 64, j / 64, seed ^ 2) as usize % PAVEMENT.len(),
+    }
+}
+
+/// The runs of row `j`: maximal spans of cells with the same class, height and tone.
+fn row_runs(plan: &Plan, j: usize, seed: u64) -> Vec<Run> {
+    let g = &plan.g;
+    let mut runs = Vec::new();
+    let mut i = 0;
+    while i < g.nx {
+        let k = j * g.nx + i;
+        let c = plan.class[k];
+        if c == Class::None {
+            i += 1;
+            continue;
+        }
+        let zq = quantise_z(plan.ground[k]);
+        let tone = tone_at(c, i, j, seed, g.cell_m);
+        let start = i;
+        while i < g.nx {
+            let k2 = j * g.nx + i;
+            let tone2 = tone_at(plan.class[k2], i, j, seed, g.cell_m);
+            if plan.class[k2] != c || quantise_z(plan.ground[k2]) != zq || tone2 != tone {
+                break;
+            }
+            i += 1;
+        }
+        runs.push((start, i, c, zq, tone));
+    }
+    runs
+}
+
+/// Lane markings: dashes on the distance ridge of wide roads, along the street. Returns the layer and
+/// the number of dashes.
+fn lane_markings(plan: &Plan) -> (LayerMesh, u64) {
+    let (g, dist) = (&plan.g, &plan.dist);
+    let cell_m = g.cell_m;
+    let mut markings = LayerMesh::default();
     let mut n_mark = 0u64;
     let dash_m = 3.0;
     for j in 1..g.ny.saturating_sub(1) {
         for i in 1..g.nx.saturating_sub(1) {
             let k = j * g.nx + i;
-            if class[k] != Class::Road || d_at(k) < MARKING_MIN_HALF_WIDTH_M {
+            if plan.class[k] != Class::Road || plan.d_at(k) < MARKING_MIN_HALF_WIDTH_M {
                 continue;
             }
             let d = dist[k];
             let ridge_y = d >= dist[k - g.nx] && d > dist[k + g.nx]; // street runs along x
             let ridge_x = d >= dist[k - 1] && d > dist[k + 1]; // street runs along y
             let [x, y] = g.centre(i, j);
-            let z = ground[k] as f64 + MARKING_Z_M;
+            let z = plan.ground[k] as f64 + MARKING_Z_M;
             if ridge_y && !ridge_x && ((x / dash_m).floor() as i64).rem_euclid(2) == 0 {
                 markings.quad(
                     [
@@ -756,14 +909,19 @@ pub fn generate(
             }
         }
     }
-    let cell_area = cell_m * cell_m;
-    for (name, c) in [("roads", Class::Road), ("pavements", Class::Pavement), ("ground_cover", Class::Park)] {
-        let cells = class.iter().filter(|&&x| x == c).count();
-        summary.ground_area_m2.insert(name.into(), (cells as f64 * cell_area).round());
-    }
+    (markings, n_mark)
+}
 
-    // 4a. Trees: jittered lattice in parks and along pavements; crowns clear of every footprint.
-    let mut occupied = vec![false; n]; // cells taken by a tree trunk zone or a car
+/// 4a. Trees: a jittered lattice in parks and along pavements, crowns clear of every footprint. Marks
+/// the trunk zones in `occupied`, counts the species in `species`; returns the layer and the tree count.
+fn plant_trees(
+    plan: &Plan,
+    spec: &ClutterSpec,
+    rng: &mut ChaCha8Rng,
+    occupied: &mut [bool],
+    species: &mut BTreeMap<String, u64>,
+) -> (LayerMesh, u64) {
+    let (g, cell_m) = (&plan.g, plan.g.cell_m);
     let mut trees = LayerMesh::default();
     let mut n_trees = 0u64;
     let spacing_m = (10.0 / spec.park_trees_per_100m2.max(0.01).sqrt()).max(3.0);
@@ -786,27 +944,17 @@ pub fn generate(
                 ];
                 let Some((i, j)) = g.cell_of(p) else { continue };
                 let k = j * g.nx + i;
-                let d = d_at(k);
+                let d = plan.d_at(k);
                 let ok = if park {
                     // One lattice point in four stays empty: glades, not a plantation.
-                    class[k] == Class::Park && keep < 0.75
+                    plan.class[k] == Class::Park && keep < 0.75
                 } else {
-                    class[k] == Class::Pavement && d >= 1.8 && keep < spec.street_tree_chance
+                    plan.class[k] == Class::Pavement && d >= 1.8 && keep < spec.street_tree_chance
                 };
                 if !ok || occupied[k] {
                     continue;
                 }
-                let sp = if park {
-                    &SPECIES[if species_pick < 0.55 {
-                        0
-                    } else if species_pick < 0.8 {
-                        1
-                    } else {
-                        2
-                    }]
-                } else {
-                    &SPECIES[if species_pick < 0.7 { 0 } else { 2 }]
-                };
+                let sp = tree_species(park, species_pick);
                 // The crown must stay CLEARANCE_M clear of the footprints (d is from the nearest one).
                 let max_r = d - CLEARANCE_M - cell_m;
                 let r = (sp.crown_r_m[0] + size[0] * (sp.crown_r_m[1] - sp.crown_r_m[0])).min(max_r);
@@ -814,16 +962,42 @@ pub fn generate(
                     continue;
                 }
                 let height = (sp.height_m[0] + size[1] * (sp.height_m[1] - sp.height_m[0])).max(2.2 * r);
-                let z0 = ground[k] as f64;
+                let z0 = plan.ground[k] as f64;
                 add_tree(&mut trees, sp, p, z0, height, r, tone);
-                *summary.tree_species.entry(sp.name.to_string()).or_insert(0) += 1;
+                *species.entry(sp.name.to_string()).or_insert(0) += 1;
                 n_trees += 1;
-                stamp(&g, &mut occupied, p, 1.5);
+                stamp(g, occupied, p, 1.5);
             }
         }
     }
+    (trees, n_trees)
+}
 
-    // 4b. Cars: parked at the kerb, driving in the lanes; on road cells only, never overlapping.
+/// The species of a tree from a uniform draw in [0, 1): parks mix all three, streets have broadleaf
+/// and small round trees only.
+fn tree_species(park: bool, pick: f64) -> &'static Species {
+    if park {
+        &SPECIES[if pick < 0.55 {
+            0
+        } else if pick < 0.8 {
+            1
+        } else {
+            2
+        }]
+    } else {
+        &SPECIES[if pick < 0.7 { 0 } else { 2 }]
+    }
+}
+
+/// 4b. Cars: parked at the kerb, driving in the lanes; on free road cells only (marked in `occupied`),
+/// never overlapping. Returns the layer and the car count.
+fn place_cars(
+    plan: &Plan,
+    spec: &ClutterSpec,
+    rng: &mut ChaCha8Rng,
+    occupied: &mut [bool],
+) -> (LayerMesh, u64) {
+    let (g, dist, class) = (&plan.g, &plan.dist, &plan.class);
     let mut cars = LayerMesh::default();
     let mut n_cars = 0u64;
     for j in 1..g.ny.saturating_sub(1) {
@@ -832,7 +1006,7 @@ pub fn generate(
             if class[k] != Class::Road {
                 continue;
             }
-            let d = d_at(k);
+            let d = plan.d_at(k);
             let parked = (PAVEMENT_WIDTH_M + 0.3..PAVEMENT_WIDTH_M + 1.0).contains(&d);
             let driving = (5.0..5.8).contains(&d);
             if !parked && !driving {
@@ -857,14 +1031,14 @@ pub fn generate(
             let (half_len, half_wid) = (2.0 + 0.5 * dims[0], 0.85 + 0.1 * dims[1]);
             // Every cell under the car (plus 0.3 m) must be free road.
             let ring = rectangle(p, dir, half_len + 0.3, half_wid + 0.3);
-            let Some(under) = rect_cells(&g, &ring) else { continue };
+            let Some(under) = rect_cells(g, &ring) else { continue };
             if !under.iter().all(|&kk| class[kk] == Class::Road && !occupied[kk]) {
                 continue;
             }
             for kk in under {
                 occupied[kk] = true;
             }
-            let z0 = ground[k] as f64 + ROAD_Z_M;
+            let z0 = plan.ground[k] as f64 + ROAD_Z_M;
             let body_h = 0.75 + 0.2 * dims[2];
             cars.oriented_box(p, dir, half_len, half_wid, z0 + 0.2, body_h, CAR_PAINT[paint]);
             let cabin_c = [p[0] - 0.2 * half_len * dir[0], p[1] - 0.2 * half_len * dir[1]];
@@ -872,8 +1046,16 @@ pub fn generate(
             n_cars += 1;
         }
     }
+    (cars, n_cars)
+}
 
-    // 4c. Rooftop units on the highest flat part of each building.
+/// 4c. Rooftop units on the highest flat part of each building with at least [`ROOF_MIN_AREA_M2`] of
+/// it. Returns the layer and the unit count.
+fn place_rooftop_units(
+    mesh: &SceneMesh,
+    buildings: &[BuildingRecord],
+    rng: &mut ChaCha8Rng,
+) -> (LayerMesh, u64) {
     let mut rooftop = LayerMesh::default();
     let mut n_units = 0u64;
     let roofs = flat_roofs(mesh);
@@ -883,94 +1065,81 @@ pub fn generate(
         if area < ROOF_MIN_AREA_M2 {
             continue;
         }
-        let z_roof = roof.iter().map(|t| t[0][2].max(t[1][2]).max(t[2][2])).fold(f64::NEG_INFINITY, f64::max);
-        // Align units with the longest roof edge.
-        let dir = roof
-            .iter()
-            .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
-            .map(|(a, b)| [b[0] - a[0], b[1] - a[1]])
-            .max_by(|u, v| (u[0] * u[0] + u[1] * u[1]).total_cmp(&(v[0] * v[0] + v[1] * v[1])))
-            .map(|v| {
-                let l = (v[0] * v[0] + v[1] * v[1]).sqrt();
-                [v[0] / l, v[1] / l]
-            })
-            .unwrap_or([1.0, 0.0]);
-        let want = ((area / 180.0).ceil() as usize).clamp(1, 6);
-        let mut placed: Vec<([f64; 2], f64)> = Vec::new();
-        for _ in 0..want * 4 {
-            if placed.len() >= want {
-                break;
-            }
-            let pick: f64 = rng.gen::<f64>() * area;
-            let (u, v): (f64, f64) = (rng.gen(), rng.gen());
-            let dims: [f64; 3] = [rng.gen(), rng.gen(), rng.gen()];
-            let tank = rng.gen::<f64>() < 0.25;
-            let shade = rng.gen_range(0..UNIT.len());
-            let mut acc = 0.0;
-            let t = roof
-                .iter()
-                .find(|t| {
-                    acc += tri_area(t);
-                    acc >= pick
-                })
-                .unwrap_or(&roof[roof.len() - 1]);
-            let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
-            let p = [
-                t[0][0] + u * (t[1][0] - t[0][0]) + v * (t[2][0] - t[0][0]),
-                t[0][1] + u * (t[1][1] - t[0][1]) + v * (t[2][1] - t[0][1]),
-            ];
-            let (hl, hw, hh) = (0.6 + 1.0 * dims[0], 0.5 + 0.8 * dims[1], 0.8 + 1.2 * dims[2]);
-            let reach = (hl * hl + hw * hw).sqrt();
-            if placed
-                .iter()
-                .any(|(q, r)| ((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)).sqrt() < r + reach + 0.5)
-            {
-                continue;
-            }
-            // The whole unit, plus 0.5 m, stands on the roof.
-            let corners = rectangle(p, dir, hl + 0.5, hw + 0.5);
-            if !corners.iter().all(|c| roof.iter().any(|t| in_triangle(*c, t))) {
-                continue;
-            }
-            if tank {
-                let ring: Vec<[f64; 2]> = (0..8)
-                    .map(|s| {
-                        let a = std::f64::consts::TAU * s as f64 / 8.0;
-                        [p[0] + hw * a.cos(), p[1] + hw * a.sin()]
-                    })
-                    .collect();
-                rooftop.prism(&ring, p, z_roof, z_roof + hh * 1.3, 1.0, UNIT[shade]);
-            } else {
-                rooftop.oriented_box(p, dir, hl, hw, z_roof, hh, UNIT[shade]);
-            }
-            placed.push((p, reach));
-            n_units += 1;
-        }
+        n_units += roof_units(roof, area, rng, &mut rooftop);
     }
+    (rooftop, n_units)
+}
 
-    let mut clutter = Clutter::default();
-    let counts = [
-        (ClutterLayer::Roads, roads, n_road),
-        (ClutterLayer::Markings, markings, n_mark),
-        (ClutterLayer::Pavements, pavements, n_pave),
-        (ClutterLayer::GroundCover, cover, n_cover),
-        (ClutterLayer::Trees, trees, n_trees),
-        (ClutterLayer::Cars, cars, n_cars),
-        (ClutterLayer::Rooftop, rooftop, n_units),
-    ];
-    for (layer, m, count) in counts {
-        if m.indices.is_empty() {
+/// The unit direction of the longest edge of a roof (units are aligned with it); +x for no edge.
+fn longest_edge_dir(roof: &[[[f64; 3]; 3]]) -> [f64; 2] {
+    roof.iter()
+        .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+        .map(|(a, b)| [b[0] - a[0], b[1] - a[1]])
+        .max_by(|u, v| (u[0] * u[0] + u[1] * u[1]).total_cmp(&(v[0] * v[0] + v[1] * v[1])))
+        .map(|v| {
+            let l = (v[0] * v[0] + v[1] * v[1]).sqrt();
+            [v[0] / l, v[1] / l]
+        })
+        .unwrap_or([1.0, 0.0])
+}
+
+/// Places up to one unit per 180 m² (1 to 6) on one flat roof of `area_m2`, in at most four tries per
+/// unit; returns how many were placed.
+fn roof_units(roof: &[[[f64; 3]; 3]], area_m2: f64, rng: &mut ChaCha8Rng, rooftop: &mut LayerMesh) -> u64 {
+    let area = area_m2;
+    let z_roof = roof.iter().map(|t| t[0][2].max(t[1][2]).max(t[2][2])).fold(f64::NEG_INFINITY, f64::max);
+    let dir = longest_edge_dir(roof);
+    let want = ((area / 180.0).ceil() as usize).clamp(1, 6);
+    let mut placed: Vec<([f64; 2], f64)> = Vec::new();
+    for _ in 0..want * 4 {
+        if placed.len() >= want {
+            break;
+        }
+        let pick: f64 = rng.gen::<f64>() * area;
+        let (u, v): (f64, f64) = (rng.gen(), rng.gen());
+        let dims: [f64; 3] = [rng.gen(), rng.gen(), rng.gen()];
+        let tank = rng.gen::<f64>() < 0.25;
+        let shade = rng.gen_range(0..UNIT.len());
+        let mut acc = 0.0;
+        let t = roof
+            .iter()
+            .find(|t| {
+                acc += tri_area(t);
+                acc >= pick
+            })
+            .unwrap_or(&roof[roof.len() - 1]);
+        let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
+        let p = [
+            t[0][0] + u * (t[1][0] - t[0][0]) + v * (t[2][0] - t[0][0]),
+            t[0][1] + u * (t[1][1] - t[0][1]) + v * (t[2][1] - t[0][1]),
+        ];
+        let (hl, hw, hh) = (0.6 + 1.0 * dims[0], 0.5 + 0.8 * dims[1], 0.8 + 1.2 * dims[2]);
+        let reach = (hl * hl + hw * hw).sqrt();
+        if placed
+            .iter()
+            .any(|(q, r)| ((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)).sqrt() < r + reach + 0.5)
+        {
             continue;
         }
-        summary.layers.push(LayerSummary {
-            name: layer,
-            triangles: m.triangle_count() as u64,
-            instances: count,
-            default_occluder: ClutterLayer::DEFAULT_OCCLUDERS.contains(&layer),
-        });
-        clutter.layers.push((layer, m));
+        // The whole unit, plus 0.5 m, stands on the roof.
+        let corners = rectangle(p, dir, hl + 0.5, hw + 0.5);
+        if !corners.iter().all(|c| roof.iter().any(|t| in_triangle(*c, t))) {
+            continue;
+        }
+        if tank {
+            let ring: Vec<[f64; 2]> = (0..8)
+                .map(|s| {
+                    let a = std::f64::consts::TAU * s as f64 / 8.0;
+                    [p[0] + hw * a.cos(), p[1] + hw * a.sin()]
+                })
+                .collect();
+            rooftop.prism(&ring, p, z_roof, z_roof + hh * 1.3, 1.0, UNIT[shade]);
+        } else {
+            rooftop.oriented_box(p, dir, hl, hw, z_roof, hh, UNIT[shade]);
+        }
+        placed.push((p, reach));
     }
-    (clutter, summary)
+    placed.len() as u64
 }
 
 /// Tree species names, in the order [`tree_instance`] takes them.
@@ -1295,7 +1464,10 @@ mod tests {
             }
             assert_eq!(parse_layers("cars, trees").unwrap(), vec![ClutterLayer::Trees, ClutterLayer::Cars]);
             assert_eq!(parse_layers("none").unwrap(), vec![]);
-            assert!(parse_layers("tree").unwrap_err().contains("expected all, none or any of roads"));
+            assert!(parse_layers("tree")
+                .unwrap_err()
+                .to_string()
+                .contains("expected all, none or any of roads"));
         }
     }
 }

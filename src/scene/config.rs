@@ -49,19 +49,26 @@ use super::SceneError;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SceneConfig {
+    /// The area's name (must match the scene file's name).
     pub name: String,
+    /// The geographic split the area belongs to.
     #[serde(default = "default_split")]
     pub split: Split,
+    /// Free text describing the area.
     #[serde(default)]
     pub description: Option<String>,
     /// Attribution carried into datasets (e.g. PLATEAU requires CC BY 4.0 attribution).
     #[serde(default)]
     pub attribution: Option<String>,
+    /// The sources of building models (at least one).
     pub sources: Vec<SourceConfig>,
+    /// How orthometric heights become ellipsoidal (`[geoid]`).
     #[serde(default)]
     pub geoid: GeoidConfig,
+    /// An explicit area origin (default: the centre of the buildings).
     #[serde(default)]
     pub origin: Option<OriginConfig>,
+    /// The area's extent (default: the bounding box of the buildings).
     #[serde(default)]
     pub area: Option<AreaConfig>,
     /// Camera sampling parameters; parsed by the camera stage.
@@ -78,12 +85,16 @@ pub struct SceneConfig {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Split {
+    /// Training data.
     Train,
+    /// Validation data.
     Val,
+    /// Test data.
     Test,
 }
 
 impl Split {
+    /// The split's name in files (`train`, `val`, `test`).
     pub fn as_str(self) -> &'static str {
         match self {
             Split::Train => "train",
@@ -105,12 +116,16 @@ pub struct SourceConfig {
     /// `format = "procedural"`.
     #[serde(default)]
     pub path: Option<PathBuf>,
+    /// `citygml`, `cityjson`, `obj`, `3dtiles` or `procedural` (default: from the file name).
     #[serde(default)]
     pub format: Option<String>,
+    /// The source's CRS (`EPSG:NNNN`, URN or URL), overriding the one the file declares.
     #[serde(default)]
     pub crs: Option<String>,
+    /// The LoD to read (`"2"`, `"1"`, …; default: the highest the file has).
     #[serde(default)]
     pub lod: Option<String>,
+    /// Vertices closer than this are welded when reading, metres.
     #[serde(default)]
     pub weld_tolerance_m: Option<f64>,
     /// Parameters of the procedural generator (`format = "procedural"`).
@@ -156,8 +171,10 @@ pub enum Heights {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GeoidConfig {
+    /// Which geoid.
     #[serde(default = "default_geoid_model")]
     pub model: GeoidModel,
+    /// The undulation of `model = "constant"`, metres.
     #[serde(default)]
     pub undulation_m: Option<f64>,
     /// Path of a vertical grid PROJ can read (`.gtx` or GeoTIFF `.tif`) to use instead of the EGM96
@@ -196,8 +213,11 @@ pub enum GeoidModel {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct OriginConfig {
+    /// Latitude, degrees (WGS84).
     pub lat_deg: f64,
+    /// Longitude, degrees (WGS84).
     pub lon_deg: f64,
+    /// Ellipsoidal height, metres (default: the median building base).
     #[serde(default)]
     pub h_m: Option<f64>,
 }

@@ -24,6 +24,7 @@ use glam::{DMat4, DVec3};
 use serde::{Deserialize, Serialize};
 
 use super::artifact::BuildingRecord;
+pub use super::error::CorrectionError;
 use super::mesh::SceneMesh;
 
 /// A rigid correction of the LoD model in the area's ENU frame (see the module doc).
@@ -32,7 +33,9 @@ use super::mesh::SceneMesh;
 pub struct Correction {
     /// Translation, metres (ENU axes).
     pub east_m: f64,
+    /// Translation north, metres.
     pub north_m: f64,
+    /// Translation up, metres.
     pub up_m: f64,
     /// Rotation about the vertical through the pivot, degrees, counter-clockwise seen from above.
     pub yaw_deg: f64,
@@ -54,8 +57,8 @@ impl Correction {
     /// Checks every number is finite.
     ///
     /// # Errors
-    /// A message naming the first non-finite field.
-    pub fn validate(&self) -> Result<(), String> {
+    /// [`CorrectionError::NotFinite`] naming the first non-finite field.
+    pub fn validate(&self) -> Result<(), CorrectionError> {
         let fields = [
             ("east_m", self.east_m),
             ("north_m", self.north_m),
@@ -66,7 +69,7 @@ impl Correction {
         ];
         for (name, v) in fields {
             if !v.is_finite() {
-                return Err(format!("alignment {name} = {v} is not a finite number"));
+                return Err(CorrectionError::NotFinite { field: name, value: v });
             }
         }
         Ok(())
@@ -165,9 +168,13 @@ pub enum CorrectionSource {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CorrectionSigma {
+    /// One sigma of the east translation, metres.
     pub east_m: f64,
+    /// One sigma of the north translation, metres.
     pub north_m: f64,
+    /// One sigma of the up translation, metres.
     pub up_m: f64,
+    /// One sigma of the yaw, degrees.
     pub yaw_deg: f64,
 }
 
@@ -188,6 +195,7 @@ pub struct Agreement {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AlignmentRecord {
+    /// Where the correction came from (estimated or pinned in the scene file).
     pub source: CorrectionSource,
     /// The correction applied to the LoD model at load time.
     pub correction: Correction,
@@ -198,6 +206,7 @@ pub struct AlignmentRecord {
     /// ([`crate::lod::tiles3d::fingerprint`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tileset: Option<String>,
+    /// SHA-256 fingerprint of the reference tileset.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tileset_sha256: Option<String>,
     /// ECEF-from-ENU of the LoD model as prepared (equal to the manifest's `ecef_from_enu`).
@@ -209,6 +218,7 @@ pub struct AlignmentRecord {
     /// Agreement with the reference before and after (estimated corrections only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub before: Option<Agreement>,
+    /// Agreement after the correction.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub after: Option<Agreement>,
 }
@@ -269,6 +279,6 @@ mod tests {
     #[test]
     fn non_finite_values_are_named() {
         let bad = Correction { yaw_deg: f64::NAN, ..Correction::IDENTITY };
-        assert!(bad.validate().unwrap_err().contains("yaw_deg"));
+        assert!(bad.validate().unwrap_err().to_string().contains("yaw_deg"));
     }
 }

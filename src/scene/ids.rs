@@ -128,42 +128,73 @@ impl std::fmt::Display for BuildingId {
 /// Errors of building IDs and ID maps.
 #[derive(Debug, thiserror::Error)]
 pub enum IdError {
+    /// A file could not be read or written.
     #[error(transparent)]
     File(#[from] FileError),
     /// An ID does not fit in 24 bits (a caller bug or a corrupt render).
     #[error("pixel {index} holds ID {id}, which does not fit the 24-bit ID map (max {MAX_BUILDING_ID})")]
-    TooLarge { index: usize, id: u32 },
+    TooLarge {
+        /// Pixel index (row-major).
+        index: usize,
+        /// The ID found.
+        id: u32,
+    },
     /// More buildings than 24-bit IDs.
     #[error(
         "{count} buildings exceed the 24-bit instance ID space (at most {MAX_BUILDING_ID}); split the area into \
          smaller ones"
     )]
-    TooManyBuildings { count: u64 },
+    TooManyBuildings {
+        /// Number of buildings.
+        count: u64,
+    },
     /// The pixel buffer does not match the stated size.
     #[error("ID buffer of {len} pixels does not match {width}×{height}")]
-    SizeMismatch { len: usize, width: u32, height: u32 },
+    SizeMismatch {
+        /// Pixels in the buffer.
+        len: usize,
+        /// Width stated, pixels.
+        width: u32,
+        /// Height stated, pixels.
+        height: u32,
+    },
+    /// The PNG encoder failed.
     #[error("encoding the ID PNG failed")]
     PngEncode(#[source] png::EncodingError),
     /// The file is not a PNG or is truncated.
     #[error("{}: not a readable PNG", path.display())]
     PngDecode {
+        /// The file.
         path: PathBuf,
+        /// The PNG decoder's error.
         #[source]
         source: png::DecodingError,
     },
     /// The PNG is valid but is not a 24-bit RGB ID map.
     #[error("{}: expected an 8-bit RGB ID map (R<<16 | G<<8 | B), found {what}", path.display())]
-    NotAnIdMap { path: PathBuf, what: String },
+    NotAnIdMap {
+        /// The file.
+        path: PathBuf,
+        /// What it holds instead.
+        what: String,
+    },
     /// The EXR cannot be read.
     #[error("{}: not a readable EXR", path.display())]
     ExrDecode {
+        /// The file.
         path: PathBuf,
+        /// The EXR decoder's error.
         #[source]
         source: exr::error::Error,
     },
     /// The EXR is readable but does not hold IDs in a float32 `R` channel.
     #[error("{}: {what}", path.display())]
-    NotAnIdExr { path: PathBuf, what: String },
+    NotAnIdExr {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        what: String,
+    },
 }
 
 /// A frame of building IDs: row-major from the top-left pixel, [`BuildingId::BACKGROUND`] where no

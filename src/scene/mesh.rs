@@ -19,6 +19,7 @@ pub struct SceneMesh {
 }
 
 impl SceneMesh {
+    /// Number of triangles.
     pub fn triangle_count(&self) -> usize {
         self.indices.len() / 3
     }

@@ -12,6 +12,7 @@
 use glam::DVec3;
 
 use super::correction::Correction;
+pub use super::error::PerturbError;
 use super::ids::BuildingId;
 use crate::scene::mesh::CityBuilding;
 
@@ -24,9 +25,11 @@ pub struct Perturbation {
     pub jitter_m: f64,
     /// Box trees to scatter (4 × 4 m, 6–12 m tall) and whether to add the 45 m crane.
     pub trees: usize,
+    /// Whether to add the 45 m crane.
     pub crane: bool,
     /// Height of the ground surface to add (ENU metres), or none.
     pub ground_enu_m: Option<f64>,
+    /// Seed of the jitter and the clutter placement.
     pub seed: u64,
 }
 
@@ -92,8 +95,8 @@ pub fn box_building(id: BuildingId, lo: [f64; 3], hi: [f64; 3]) -> CityBuilding 
 /// largest input ID.
 ///
 /// # Errors
-/// A message when the new pieces would need IDs beyond 24 bits.
-pub fn perturb(buildings: &[CityBuilding], p: &Perturbation) -> Result<Vec<CityBuilding>, String> {
+/// [`PerturbError::IdSpace`] when the new pieces would need IDs beyond 24 bits.
+pub fn perturb(buildings: &[CityBuilding], p: &Perturbation) -> Result<Vec<CityBuilding>, PerturbError> {
     let mut out: Vec<CityBuilding> = buildings
         .iter()
         .map(|b| CityBuilding {
@@ -119,8 +122,8 @@ pub fn perturb(buildings: &[CityBuilding], p: &Perturbation) -> Result<Vec<CityB
         return Ok(out);
     }
     let mut next = buildings.iter().map(|b| b.id.get()).max().unwrap_or(0) + 1;
-    let mut new_id = || -> Result<BuildingId, String> {
-        let id = BuildingId::new(next).map_err(|e| format!("clutter needs more building IDs: {e}"))?;
+    let mut new_id = || -> Result<BuildingId, PerturbError> {
+        let id = BuildingId::new(next).map_err(|_| PerturbError::IdSpace { id: next })?;
         next += 1;
         Ok(id)
     };

@@ -53,8 +53,11 @@ struct EcefBuilding {
 /// Summary of a `prepare` run.
 #[derive(Debug, Clone)]
 pub struct PrepareReport {
+    /// The prepared scene as written.
     pub scene: PreparedScene,
+    /// Directory it was written to.
     pub out_dir: PathBuf,
+    /// Wall-clock seconds the run took.
     pub seconds: f64,
 }
 
@@ -212,7 +215,22 @@ fn procedural_source(scene_file: &Path, mut table: toml::Table) -> Result<Source
     Ok(generate(&spec, origin)?)
 }
 
-/// Converts one source model's buildings to ECEF.
+/// How one source's coordinates reach ECEF.
+#[allow(clippy::large_enum_variant)] // one per source, never copied
+enum Conversion {
+    /// The source is ECEF already (3D Tiles).
+    Ecef,
+    /// Through PROJ to geodetic coordinates; `orthometric`: the geoid undulation is added to the heights.
+    Crs { tf: geo::CrsTransform, axes: AxisConvention, orthometric: bool },
+}
+
+/// A [`SceneError::Georef`] for the source at `path`.
+fn georef_err(path: &Path, what: String, source: Option<geo::GeoError>) -> SceneError {
+    SceneError::Georef { path: path.to_path_buf(), what, source }
+}
+
+/// Converts one source model's buildings to ECEF. Returns the buildings, the conversion chain as the
+/// manifest describes it, and the number of degenerate faces dropped.
 fn georeference(
     scene_file: &Path,
     src: &SourceConfig,
@@ -225,113 +243,12 @@ fn georeference(
     let images = model.appearance.images.clone();
     let path = model.path.clone();
     let mut dropped = 0u64;
-    let georef_err =
-        |what: String, e: Option<geo::GeoError>| SceneError::Georef { path: path.clone(), what, source: e };
-
-    #[allow(clippy::large_enum_variant)] // one per source, never copied
-    enum Conv {
-        Ecef,
-        Crs { tf: geo::CrsTransform, axes: AxisConvention, orthometric: bool },
-    }
     let (conv, chain) = match &model.frame {
-        Frame::Ecef => (Conv::Ecef, "EPSG:4978 (ECEF, ellipsoidal) → ENU".to_string()),
-        Frame::Crs { name, axes } => {
-            let name = match (&src.crs, name) {
-                (Some(over), file) => {
-                    if let Some(f) = file {
-                        if f != over {
-                            log::warn!(
-                                "{}: file declares CRS {f}, scene file overrides with {over}",
-                                path.display()
-                            );
-                        }
-                    }
-                    over.clone()
-                }
-                (None, Some(f)) => f.clone(),
-                (None, None) => {
-                    return Err(georef_err(
-                        format!(
-                            "the file declares no CRS; set `crs = \"EPSG:NNNN\"` for this source in {}",
-                            scene_file.display()
-                        ),
-                        None,
-                    ))
-                }
-            };
-            let crs = Crs::parse(&name).map_err(|e| georef_err(format!("CRS {name:?}"), Some(e)))?;
-            let orthometric = crs.heights() == HeightKind::Orthometric;
-            let axes_s = match axes {
-                AxisConvention::Authority => "authority axis order",
-                AxisConvention::EastNorth => "east/north axis order",
-            };
-            // [geoid] model = "proj": PROJ converts compound CRSs heights included when it has a real
-            // vertical transformation (a national geoid grid) for them.
-            let mut by_proj = None;
-            if orthometric && geoid.cfg.geoid.model == GeoidModel::Proj {
-                let mut missing = Vec::new();
-                if crs.vertical_epsg.is_some() {
-                    let tf3 = crs
-                        .transform_with_heights()
-                        .map_err(|e| georef_err(format!("CRS {name:?}"), Some(e)))?;
-                    let probe = first_vertex(&model).map(|p| {
-                        let lift = model.buildings.first().map_or(0.0, |b| {
-                            if src.heights == Some(Heights::AboveGround) {
-                                ground_height_m(src, b)
-                            } else {
-                                0.0
-                            }
-                        });
-                        [p[0], p[1], p[2] + lift]
-                    });
-                    if let Some(probe) = probe {
-                        let choice = tf3
-                            .vertical_choice_at(probe, *axes)
-                            .map_err(|e| georef_err(format!("CRS {name:?}"), Some(e)))?
-                            .expect("a converter made by transform_with_heights reports its choice");
-                        if choice.ballpark {
-                            missing = choice.missing_grids;
-                        } else {
-                            by_proj = Some((tf3, choice));
-                        }
-                    }
-                }
-                if by_proj.is_none() {
-                    geoid.warn_fallback(&crs, &missing)?;
-                }
-            }
-            match by_proj {
-                Some((tf3, choice)) => {
-                    let chain = format!(
-                        "{} ({axes_s}, orthometric heights) → WGS84 3D (PROJ: {}) → EPSG:4978 → ENU",
-                        crs.describe(),
-                        choice.operation
-                    );
-                    log::info!("{}: heights through PROJ: {}", path.display(), choice.operation);
-                    if geoid.proj.is_none() {
-                        let tf_origin = crs
-                            .transform_with_heights()
-                            .map_err(|e| georef_err(format!("CRS {name:?}"), Some(e)))?;
-                        geoid.proj = Some(ProjHeights { tf: tf_origin, axes: *axes, choice });
-                    }
-                    (Conv::Crs { tf: tf3, axes: *axes, orthometric: false }, chain)
-                }
-                None => {
-                    let tf = crs.transform().map_err(|e| georef_err(format!("CRS {name:?}"), Some(e)))?;
-                    let g = if orthometric { geoid.get()?.name() } else { "none" };
-                    let chain = format!(
-                        "{} ({axes_s}, {} heights) → WGS84 lat/lon (PROJ){} → EPSG:4978 → ENU",
-                        crs.describe(),
-                        if orthometric { "orthometric" } else { "ellipsoidal" },
-                        if orthometric { format!(" + geoid {g}") } else { String::new() }
-                    );
-                    (Conv::Crs { tf, axes: *axes, orthometric }, chain)
-                }
-            }
-        }
+        Frame::Ecef => (Conversion::Ecef, "EPSG:4978 (ECEF, ellipsoidal) → ENU".to_string()),
+        Frame::Crs { name, axes } => crs_conversion(scene_file, src, &model, name.as_ref(), *axes, geoid)?,
     };
     let geoid_ref: Option<Geoid> = match &conv {
-        Conv::Crs { orthometric: true, .. } => Some(geoid.get()?.clone()),
+        Conversion::Crs { orthometric: true, .. } => Some(geoid.get()?.clone()),
         _ => None,
     };
 
@@ -341,34 +258,11 @@ fn georeference(
     for b in model.buildings {
         // heights = "above_ground": the building's ground height is added to every vertex.
         let lift_m = if above_ground { ground_height_m(src, &b) } else { 0.0 };
-        let to_ecef = |p: [f64; 3]| -> Result<[f64; 3], SceneError> {
-            let p = [p[0], p[1], p[2] + lift_m];
-            match &conv {
-                Conv::Ecef => {
-                    if p.iter().all(|v| v.is_finite()) {
-                        Ok(p)
-                    } else {
-                        Err(georef_err(
-                            format!("building {}: non-finite coordinate {p:?}", b.source_id),
-                            None,
-                        ))
-                    }
-                }
-                Conv::Crs { tf, axes, .. } => {
-                    let mut g = tf
-                        .to_geodetic(p, *axes)
-                        .map_err(|e| georef_err(format!("building {}", b.source_id), Some(e)))?;
-                    if let Some(geoid) = &geoid_ref {
-                        g.h_m += geoid.undulation_m(g.lat_deg, g.lon_deg);
-                    }
-                    Ok(geo::geodetic_to_ecef(g))
-                }
-            }
-        };
-        let mut vertex_app: Option<VertexAppearance> = None;
-        let (positions_ecef, triangles) = match b.geometry {
+        let to_ecef =
+            ToEcef { conv: &conv, geoid: geoid_ref.as_ref(), lift_m, path: &path, source_id: &b.source_id };
+        let (positions_ecef, triangles, vertex_app) = match b.geometry {
             Geometry::Mesh(m) => {
-                let pos = m.positions.iter().map(|&p| to_ecef(p)).collect::<Result<Vec<_>, _>>()?;
+                let pos = m.positions.iter().map(|&p| to_ecef.point(p)).collect::<Result<Vec<_>, _>>()?;
                 let n_before = m.triangles.len();
                 let tris: Vec<[u32; 3]> = m
                     .triangles
@@ -378,78 +272,20 @@ fn georeference(
                     })
                     .collect();
                 dropped += (n_before - tris.len()) as u64;
-                (pos, tris)
+                (pos, tris, None)
             }
             Geometry::Polygons(polys) => {
-                // Convert rings to ECEF first, then triangulate in ECEF (planarity is preserved by the
-                // affine ECEF → ENU step that follows, and the triangulation works relative to each
-                // polygon's first vertex, so magnitudes do not cost precision).
-                let mut pos = Vec::new();
-                let mut tris = Vec::new();
-                let mut va = (!b.appearance.is_empty()).then(VertexAppearance::default);
-                for (k, poly) in polys.iter().enumerate() {
-                    let ext = poly.exterior.iter().map(|&p| to_ecef(p)).collect::<Result<Vec<_>, _>>()?;
-                    let holes = poly
-                        .interiors
-                        .iter()
-                        .map(|r| r.iter().map(|&p| to_ecef(p)).collect::<Result<Vec<_>, _>>())
-                        .collect::<Result<Vec<_>, _>>()?;
-                    // Degenerate polygons (collinear, zero area) are dropped and counted.
-                    let ok = match (va.as_mut(), b.appearance.get(k).and_then(Option::as_ref)) {
-                        (
-                            Some(va),
-                            Some(lod::FaceAppearance::Texture { image, uv_exterior, uv_interiors }),
-                        ) => {
-                            let ok = triangulate_polygon_uv(
-                                &ext,
-                                &holes,
-                                uv_exterior,
-                                uv_interiors,
-                                &mut pos,
-                                &mut va.uvs,
-                                &mut tris,
-                            );
-                            // A missing or unreadable image: the face keeps the procedural look.
-                            let id = images.get(*image).map_or(0, |p| appearance.texture(p));
-                            va.ids.resize(pos.len(), id);
-                            ok
-                        }
-                        (Some(va), face) => {
-                            let ok = triangulate_polygon(&ext, &holes, &mut pos, &mut tris);
-                            let id = match face {
-                                Some(lod::FaceAppearance::Colour { rgb }) => appearance.colour(*rgb),
-                                _ => 0,
-                            };
-                            va.uvs.resize(pos.len(), [0.0, 0.0]);
-                            va.ids.resize(pos.len(), id);
-                            ok
-                        }
-                        (None, _) => triangulate_polygon(&ext, &holes, &mut pos, &mut tris),
-                    };
-                    debug_assert!(va
-                        .as_ref()
-                        .is_none_or(|v| v.uvs.len() == pos.len() && v.ids.len() == pos.len()));
-                    if !ok {
-                        dropped += 1;
-                    }
-                }
-                vertex_app = va.filter(|v| v.ids.iter().any(|&i| i != 0));
-                (pos, tris)
+                let faces = FaceSources { appearance: &b.appearance, images: &images };
+                let t = triangulate_faces(&polys, &faces, &to_ecef, appearance)?;
+                dropped += t.dropped;
+                (t.positions_ecef, t.triangles, t.appearance)
             }
         };
         progress.inc(1);
         if triangles.is_empty() {
             continue;
         }
-        let mut base_h_m = f64::INFINITY;
-        let mut lat_range = [f64::INFINITY, f64::NEG_INFINITY];
-        let mut lon_range = [f64::INFINITY, f64::NEG_INFINITY];
-        for &p in &positions_ecef {
-            let g = geo::ecef_to_geodetic(p);
-            base_h_m = base_h_m.min(g.h_m);
-            lat_range = [lat_range[0].min(g.lat_deg), lat_range[1].max(g.lat_deg)];
-            lon_range = [lon_range[0].min(g.lon_deg), lon_range[1].max(g.lon_deg)];
-        }
+        let (base_h_m, lat_range, lon_range) = geodetic_extents(&positions_ecef);
         out.push(EcefBuilding {
             source_id: b.source_id,
             source_file: source_label.to_string(),
@@ -465,6 +301,269 @@ fn georeference(
     }
     progress.finish();
     Ok((out, chain, dropped))
+}
+
+/// The CRS a source is read in: the scene file's `crs` (warning when the file declares another one),
+/// else the file's own.
+///
+/// # Errors
+/// [`SceneError::Georef`] when neither names one.
+fn source_crs_name(
+    scene_file: &Path,
+    src: &SourceConfig,
+    path: &Path,
+    file_crs: Option<&String>,
+) -> Result<String, SceneError> {
+    match (&src.crs, file_crs) {
+        (Some(over), file) => {
+            if let Some(f) = file {
+                if f != over {
+                    log::warn!("{}: file declares CRS {f}, scene file overrides with {over}", path.display());
+                }
+            }
+            Ok(over.clone())
+        }
+        (None, Some(f)) => Ok(f.clone()),
+        (None, None) => Err(georef_err(
+            path,
+            format!(
+                "the file declares no CRS; set `crs = \"EPSG:NNNN\"` for this source in {}",
+                scene_file.display()
+            ),
+            None,
+        )),
+    }
+}
+
+/// The conversion of a source in a CRS, and its chain as the manifest describes it: PROJ heights
+/// included when `[geoid] model = "proj"` and PROJ has a real vertical transformation, else PROJ to
+/// latitude/longitude plus the geoid for orthometric heights.
+fn crs_conversion(
+    scene_file: &Path,
+    src: &SourceConfig,
+    model: &SourceModel,
+    file_crs: Option<&String>,
+    axes: AxisConvention,
+    geoid: &mut GeoidSlot,
+) -> Result<(Conversion, String), SceneError> {
+    let path = &model.path;
+    let name = source_crs_name(scene_file, src, path, file_crs)?;
+    let crs_err = |e| georef_err(path, format!("CRS {name:?}"), Some(e));
+    let crs = Crs::parse(&name).map_err(crs_err)?;
+    let orthometric = crs.heights() == HeightKind::Orthometric;
+    let axes_s = match axes {
+        AxisConvention::Authority => "authority axis order",
+        AxisConvention::EastNorth => "east/north axis order",
+    };
+    let by_proj = if orthometric && geoid.cfg.geoid.model == GeoidModel::Proj {
+        proj_vertical(src, model, &crs, &name, axes, geoid)?
+    } else {
+        None
+    };
+    Ok(match by_proj {
+        Some((tf3, choice)) => {
+            let chain = format!(
+                "{} ({axes_s}, orthometric heights) → WGS84 3D (PROJ: {}) → EPSG:4978 → ENU",
+                crs.describe(),
+                choice.operation
+            );
+            log::info!("{}: heights through PROJ: {}", path.display(), choice.operation);
+            if geoid.proj.is_none() {
+                let tf_origin = crs.transform_with_heights().map_err(crs_err)?;
+                geoid.proj = Some(ProjHeights { tf: tf_origin, axes, choice });
+            }
+            (Conversion::Crs { tf: tf3, axes, orthometric: false }, chain)
+        }
+        None => {
+            let tf = crs.transform().map_err(crs_err)?;
+            let g = if orthometric { geoid.get()?.name() } else { "none" };
+            let chain = format!(
+                "{} ({axes_s}, {} heights) → WGS84 lat/lon (PROJ){} → EPSG:4978 → ENU",
+                crs.describe(),
+                if orthometric { "orthometric" } else { "ellipsoidal" },
+                if orthometric { format!(" + geoid {g}") } else { String::new() }
+            );
+            (Conversion::Crs { tf, axes, orthometric }, chain)
+        }
+    })
+}
+
+/// `[geoid] model = "proj"` for a source with orthometric heights: PROJ converts a compound CRS
+/// heights included when it has a real vertical transformation (a national geoid grid) for it, probed
+/// at the first vertex. `None` (after the one fallback warning) when it has not.
+fn proj_vertical(
+    src: &SourceConfig,
+    model: &SourceModel,
+    crs: &Crs,
+    name: &str,
+    axes: AxisConvention,
+    geoid: &mut GeoidSlot,
+) -> Result<Option<(geo::CrsTransform, geo::VerticalChoice)>, SceneError> {
+    let crs_err = |e| georef_err(&model.path, format!("CRS {name:?}"), Some(e));
+    let mut missing = Vec::new();
+    let mut by_proj = None;
+    if crs.vertical_epsg.is_some() {
+        let tf3 = crs.transform_with_heights().map_err(crs_err)?;
+        let probe = first_vertex(model).map(|p| {
+            let lift = model.buildings.first().map_or(0.0, |b| {
+                if src.heights == Some(Heights::AboveGround) {
+                    ground_height_m(src, b)
+                } else {
+                    0.0
+                }
+            });
+            [p[0], p[1], p[2] + lift]
+        });
+        if let Some(probe) = probe {
+            let choice = tf3
+                .vertical_choice_at(probe, axes)
+                .map_err(crs_err)?
+                .expect("a converter made by transform_with_heights reports its choice");
+            if choice.ballpark {
+                missing = choice.missing_grids;
+            } else {
+                by_proj = Some((tf3, choice));
+            }
+        }
+    }
+    if by_proj.is_none() {
+        geoid.warn_fallback(crs, &missing)?;
+    }
+    Ok(by_proj)
+}
+
+/// Converts the points of one building to ECEF.
+struct ToEcef<'a> {
+    conv: &'a Conversion,
+    /// The geoid whose undulation is added to orthometric heights.
+    geoid: Option<&'a Geoid>,
+    /// Added to every height first (`heights = "above_ground"`), metres.
+    lift_m: f64,
+    /// The source file and the building, for error messages.
+    path: &'a Path,
+    source_id: &'a str,
+}
+
+impl ToEcef<'_> {
+    fn point(&self, p: [f64; 3]) -> Result<[f64; 3], SceneError> {
+        let p = [p[0], p[1], p[2] + self.lift_m];
+        match self.conv {
+            Conversion::Ecef => {
+                if p.iter().all(|v| v.is_finite()) {
+                    Ok(p)
+                } else {
+                    Err(georef_err(
+                        self.path,
+                        format!("building {}: non-finite coordinate {p:?}", self.source_id),
+                        None,
+                    ))
+                }
+            }
+            Conversion::Crs { tf, axes, .. } => {
+                let mut g = tf
+                    .to_geodetic(p, *axes)
+                    .map_err(|e| georef_err(self.path, format!("building {}", self.source_id), Some(e)))?;
+                if let Some(geoid) = self.geoid {
+                    g.h_m += geoid.undulation_m(g.lat_deg, g.lon_deg);
+                }
+                Ok(geo::geodetic_to_ecef(g))
+            }
+        }
+    }
+
+    fn ring(&self, ring: &[[f64; 3]]) -> Result<Vec<[f64; 3]>, SceneError> {
+        ring.iter().map(|&p| self.point(p)).collect()
+    }
+}
+
+/// Where the appearance of a building's faces comes from.
+struct FaceSources<'a> {
+    /// One entry per polygon.
+    appearance: &'a [Option<lod::FaceAppearance>],
+    /// The source's texture images (`FaceAppearance::Texture::image` indexes it).
+    images: &'a [PathBuf],
+}
+
+/// A building's polygons triangulated in ECEF.
+struct Triangulated {
+    positions_ecef: Vec<[f64; 3]>,
+    triangles: Vec<[u32; 3]>,
+    /// Per-vertex appearance, when some face has one.
+    appearance: Option<VertexAppearance>,
+    /// Degenerate polygons (collinear, zero area), dropped.
+    dropped: u64,
+}
+
+/// Converts a building's rings to ECEF, then triangulates them in ECEF (planarity is preserved by the
+/// affine ECEF → ENU step that follows, and the triangulation works relative to each polygon's first
+/// vertex, so magnitudes do not cost precision), carrying each face's texture or colour.
+fn triangulate_faces(
+    polys: &[lod::Polygon],
+    faces: &FaceSources,
+    to_ecef: &ToEcef,
+    appearance: &mut AppearanceTable,
+) -> Result<Triangulated, SceneError> {
+    let mut pos = Vec::new();
+    let mut tris = Vec::new();
+    let mut dropped = 0u64;
+    let mut va = (!faces.appearance.is_empty()).then(VertexAppearance::default);
+    for (k, poly) in polys.iter().enumerate() {
+        let ext = to_ecef.ring(&poly.exterior)?;
+        let holes = poly.interiors.iter().map(|r| to_ecef.ring(r)).collect::<Result<Vec<_>, _>>()?;
+        // Degenerate polygons (collinear, zero area) are dropped and counted.
+        let ok = match (va.as_mut(), faces.appearance.get(k).and_then(Option::as_ref)) {
+            (Some(va), Some(lod::FaceAppearance::Texture { image, uv_exterior, uv_interiors })) => {
+                let ok = triangulate_polygon_uv(
+                    &ext,
+                    &holes,
+                    uv_exterior,
+                    uv_interiors,
+                    &mut pos,
+                    &mut va.uvs,
+                    &mut tris,
+                );
+                // A missing or unreadable image: the face keeps the procedural look.
+                let id = faces.images.get(*image).map_or(0, |p| appearance.texture(p));
+                va.ids.resize(pos.len(), id);
+                ok
+            }
+            (Some(va), face) => {
+                let ok = triangulate_polygon(&ext, &holes, &mut pos, &mut tris);
+                let id = match face {
+                    Some(lod::FaceAppearance::Colour { rgb }) => appearance.colour(*rgb),
+                    _ => 0,
+                };
+                va.uvs.resize(pos.len(), [0.0, 0.0]);
+                va.ids.resize(pos.len(), id);
+                ok
+            }
+            (None, _) => triangulate_polygon(&ext, &holes, &mut pos, &mut tris),
+        };
+        debug_assert!(va.as_ref().is_none_or(|v| v.uvs.len() == pos.len() && v.ids.len() == pos.len()));
+        if !ok {
+            dropped += 1;
+        }
+    }
+    Ok(Triangulated {
+        positions_ecef: pos,
+        triangles: tris,
+        appearance: va.filter(|v| v.ids.iter().any(|&i| i != 0)),
+        dropped,
+    })
+}
+
+/// A building's lowest ellipsoidal height (metres) and its latitude and longitude ranges (degrees).
+fn geodetic_extents(positions_ecef: &[[f64; 3]]) -> (f64, [f64; 2], [f64; 2]) {
+    let mut base_h_m = f64::INFINITY;
+    let mut lat_range = [f64::INFINITY, f64::NEG_INFINITY];
+    let mut lon_range = [f64::INFINITY, f64::NEG_INFINITY];
+    for &p in positions_ecef {
+        let g = geo::ecef_to_geodetic(p);
+        base_h_m = base_h_m.min(g.h_m);
+        lat_range = [lat_range[0].min(g.lat_deg), lat_range[1].max(g.lat_deg)];
+        lon_range = [lon_range[0].min(g.lon_deg), lon_range[1].max(g.lon_deg)];
+    }
+    (base_h_m, lat_range, lon_range)
 }
 
 /// The ground height added to a building of a source read with `heights = "above_ground"`, in

@@ -562,6 +562,55 @@ fn extrude(fp: &Footprint, ground_m: f64, top_m: f64, place: &dyn Fn([f64; 2]) -
     out
 }
 
+/// The layout of every block (row-major, `blocks_x` per row): plazas nearest the grid centre first,
+/// towers scattered, the rest drawn by weight. `sizes`, `starts` and `extent` are the blocks' widths and
+/// depths, their starts and the grid's extent along x and y, metres.
+fn block_layouts(
+    rng: &mut ChaCha8Rng,
+    spec: &ProceduralSpec,
+    sizes: [&[f64]; 2],
+    starts: [&[f64]; 2],
+    extent: [f64; 2],
+) -> Vec<Layout> {
+    let [widths, depths] = sizes;
+    let [x_starts, y_starts] = starts;
+    let [extent_x, extent_y] = extent;
+    let n_blocks = widths.len() * depths.len();
+    let centre_block = |b: usize| {
+        let (i, j) = (b % widths.len(), b / widths.len());
+        let dx = x_starts[i] + widths[i] / 2.0 - extent_x / 2.0;
+        let dy = y_starts[j] + depths[j] / 2.0 - extent_y / 2.0;
+        dx * dx + dy * dy
+    };
+    let mut layouts = vec![Layout::Perimeter; n_blocks];
+    let mut order: Vec<usize> = (0..n_blocks).collect();
+    order.shuffle(rng);
+    let mut by_centre = order.clone();
+    by_centre.sort_by(|&a, &b| centre_block(a).total_cmp(&centre_block(b)));
+    for &b in by_centre.iter().take(spec.plaza_blocks as usize) {
+        layouts[b] = Layout::Plaza;
+    }
+    let mut towers = 0;
+    for &b in &order {
+        if towers == spec.tower_blocks {
+            break;
+        }
+        if layouts[b] == Layout::Perimeter {
+            layouts[b] = Layout::Tower;
+            towers += 1;
+        }
+    }
+    for layout in layouts.iter_mut().filter(|l| **l == Layout::Perimeter) {
+        *layout = match rng.gen_range(0..100u32) {
+            0..=44 => Layout::Perimeter,
+            45..=59 => Layout::Courtyard,
+            60..=84 => Layout::Detached,
+            _ => Layout::Slabs,
+        };
+    }
+    layouts
+}
+
 /// Generates the demo city described by `spec`, centred on `origin` (EPSG:6677).
 ///
 /// # Units
@@ -604,40 +653,8 @@ pub fn generate(spec: &ProceduralSpec, origin: PlaneOrigin) -> Result<SourceMode
     let (x_starts, extent_x) = starts(&widths);
     let (y_starts, extent_y) = starts(&depths);
 
-    // Layouts: plazas nearest the centre first, towers scattered, the rest drawn by weight.
-    let n_blocks = widths.len() * depths.len();
-    let centre_block = |b: usize| {
-        let (i, j) = (b % widths.len(), b / widths.len());
-        let dx = x_starts[i] + widths[i] / 2.0 - extent_x / 2.0;
-        let dy = y_starts[j] + depths[j] / 2.0 - extent_y / 2.0;
-        dx * dx + dy * dy
-    };
-    let mut layouts = vec![Layout::Perimeter; n_blocks];
-    let mut order: Vec<usize> = (0..n_blocks).collect();
-    order.shuffle(&mut rng);
-    let mut by_centre = order.clone();
-    by_centre.sort_by(|&a, &b| centre_block(a).total_cmp(&centre_block(b)));
-    for &b in by_centre.iter().take(spec.plaza_blocks as usize) {
-        layouts[b] = Layout::Plaza;
-    }
-    let mut towers = 0;
-    for &b in &order {
-        if towers == spec.tower_blocks {
-            break;
-        }
-        if layouts[b] == Layout::Perimeter {
-            layouts[b] = Layout::Tower;
-            towers += 1;
-        }
-    }
-    for layout in layouts.iter_mut().filter(|l| **l == Layout::Perimeter) {
-        *layout = match rng.gen_range(0..100u32) {
-            0..=44 => Layout::Perimeter,
-            45..=59 => Layout::Courtyard,
-            60..=84 => Layout::Detached,
-            _ => Layout::Slabs,
-        };
-    }
+    let layouts =
+        block_layouts(&mut rng, spec, [&widths, &depths], [&x_starts, &y_starts], [extent_x, extent_y]);
 
     let (sin, cos) = spec.grid_rotation_deg.to_radians().sin_cos();
     let (cx, cy) = (extent_x / 2.0, extent_y / 2.0);
