@@ -111,18 +111,37 @@ impl SearchBounds {
     /// Checks the half-ranges: each positive (not NaN), the yaw's at most 180°.
     ///
     /// # Errors
-    /// A message naming the half-range and its value.
-    pub fn validate(&self) -> Result<(), String> {
-        for (name, v) in [("radius", self.radius_m), ("height", self.height_m), ("yaw", self.yaw_deg)] {
-            if v.is_nan() || v <= 0.0 {
-                return Err(format!("search {name} {v}: a half-range is > 0"));
+    /// [`SearchBoundsError`] naming the half-range and its value.
+    pub fn validate(&self) -> Result<(), SearchBoundsError> {
+        for (half_range, value) in [("radius", self.radius_m), ("height", self.height_m), ("yaw", self.yaw_deg)] {
+            if value.is_nan() || value <= 0.0 {
+                return Err(SearchBoundsError::NotPositive { half_range, value });
             }
         }
         if self.yaw_deg > 180.0 {
-            return Err(format!("search yaw {}°: at most 180°", self.yaw_deg));
+            return Err(SearchBoundsError::YawOver180 { yaw_deg: self.yaw_deg });
         }
         Ok(())
     }
+}
+
+/// Unusable [`SearchBounds`].
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum SearchBoundsError {
+    /// A half-range is zero, negative or NaN.
+    #[error("search {half_range} {value}: a half-range is > 0")]
+    NotPositive {
+        /// `radius`, `height` or `yaw`.
+        half_range: &'static str,
+        /// The half-range given (metres, or degrees for the yaw).
+        value: f64,
+    },
+    /// The yaw half-range exceeds 180°.
+    #[error("search yaw {yaw_deg}°: at most 180°")]
+    YawOver180 {
+        /// The yaw half-range given, degrees.
+        yaw_deg: f64,
+    },
 }
 
 /// [`SearchBounds`] placed around a prior: the poses a search may score.
@@ -1533,7 +1552,7 @@ mod tests {
             assert_eq!(p, prior());
             assert!(v.on_boundary(&nan));
             let bad = SearchBounds { radius_m: 0.0, ..SearchBounds::default() };
-            assert!(bad.validate().unwrap_err().contains("radius 0"));
+            assert!(bad.validate().unwrap_err().to_string().contains("radius 0"));
             assert!(SearchBounds { yaw_deg: 200.0, ..SearchBounds::default() }.validate().is_err());
         }
 
