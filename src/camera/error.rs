@@ -45,9 +45,15 @@ pub enum CameraError {
         #[source]
         source: std::string::FromUtf8Error,
     },
-    /// The area polygon is unusable (fewer than 3 vertices, zero area, non-finite coordinates).
-    #[error("area {area}: {what}")]
-    Area { area: String, what: String },
+    /// The area polygon is unusable (fewer than 3 vertices, zero area, non-finite coordinates) or
+    /// leaves no room for the strategy.
+    #[error("area {area}: {problem}{}", problem.hint(area))]
+    Area {
+        /// The area's name.
+        area: String,
+        /// What is wrong with it.
+        problem: AreaProblem,
+    },
     /// The strategy could not place as many poses as asked within its attempt budget.
     #[error(
         "area {area}: placed only {placed} of {wanted} {strategy} poses after {candidates} candidates \
@@ -100,6 +106,63 @@ pub enum CameraError {
         #[source]
         source: png::EncodingError,
     },
+}
+
+/// Why an area cannot be sampled ([`CameraError::Area`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum AreaProblem {
+    /// A polygon vertex with a non-finite coordinate (ENU metres).
+    #[error("the area polygon has a non-finite vertex {vertex:?}")]
+    NonFiniteVertex {
+        /// The vertex, ENU metres.
+        vertex: [f64; 2],
+    },
+    /// Fewer than 3 distinct vertices.
+    #[error("the area polygon (manifest.json area_polygon_enu_m) has {vertices} vertices; at least 3 are needed")]
+    TooFewVertices {
+        /// Distinct vertices found.
+        vertices: usize,
+    },
+    /// The polygon encloses (almost) nothing.
+    #[error("the area polygon (manifest.json area_polygon_enu_m) is empty: its area is {area_m2:.3} m²")]
+    Empty {
+        /// Its area, square metres.
+        area_m2: f64,
+    },
+    /// The manifest's ground height is not finite.
+    #[error("ground_enu_m = {ground_enu_m} is not finite")]
+    GroundNotFinite {
+        /// The ground height found, ENU metres.
+        ground_enu_m: f64,
+    },
+    /// No node of the grid strategy's lattice lies inside the polygon.
+    #[error(
+        "no grid node fits inside the area polygon ({area_m2:.0} m²) at grid.spacing_m = {spacing_m} and \
+         grid.margin_m = {margin_m}; lower them in the scene file's [sampling.grid] table"
+    )]
+    NoGridNode {
+        /// The polygon's area, square metres.
+        area_m2: f64,
+        /// `grid.spacing_m`, metres.
+        spacing_m: f64,
+        /// `grid.margin_m`, metres.
+        margin_m: f64,
+    },
+    /// The irregular strategy found no point inside the polygon to fly to.
+    #[error("no point inside the area polygon found for a trajectory (is the polygon a sliver?)")]
+    NoTrajectoryRoom,
+}
+
+impl AreaProblem {
+    /// What to do about it, where that depends on the area's name (appended to the message).
+    fn hint(&self, area: &str) -> String {
+        match self {
+            AreaProblem::TooFewVertices { .. } => {
+                format!(" (re-run `insgen prepare --area {area}` after fixing the scene file's area)")
+            }
+            _ => String::new(),
+        }
+    }
 }
 
 /// One broken rule of a camera file or a `[sampling]` table: where it is (the TOML key), the value

@@ -36,7 +36,7 @@ use super::area::AreaPolygon;
 use super::colmap::{ColmapCamera, ColmapImage};
 use super::config::SamplingConfig;
 use super::visibility::{BuildingIndex, ViewCensus};
-use super::{CameraError, CameraSpec, Pose, PoseRecord, Trajectory};
+use super::{AreaProblem, CameraError, CameraSpec, Pose, PoseRecord, Trajectory};
 use crate::geo::{EnuFrame, Geodetic};
 use crate::scene::PreparedScene;
 use crate::util::Progress;
@@ -347,7 +347,7 @@ pub fn sample_area(
     if !m.ground_enu_m.is_finite() {
         return Err(CameraError::Area {
             area: area.into(),
-            what: format!("ground_enu_m = {} is not finite", m.ground_enu_m),
+            problem: AreaProblem::GroundNotFinite { ground_enu_m: m.ground_enu_m },
         });
     }
     let ctx = Ctx {
