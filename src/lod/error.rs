@@ -53,6 +53,15 @@ pub enum LodError {
         source: Option<ParseError>,
     },
 
+    /// [`super::ReadOptions::weld_tolerance_m`] is negative or not finite.
+    #[error("{}: weld_tolerance_m: weld tolerance {tolerance_m} m must be a finite number ≥ 0", path.display())]
+    WeldTolerance {
+        /// The file being read.
+        path: PathBuf,
+        /// The tolerance given, metres.
+        tolerance_m: f64,
+    },
+
     /// A specific object (building, geometry, tile) is invalid; `at` locates it (gml:id, JSON path,
     /// line, tile URI).
     #[error("{}: {at}: {what}", path.display())]

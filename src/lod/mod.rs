@@ -283,14 +283,12 @@ impl ReadOptions {
     /// Checks the weld tolerance before a mesh reader uses it; `path` is the file being read.
     ///
     /// # Errors
-    /// [`LodError::Invalid`] at `weld_tolerance_m` when it is negative or not finite.
+    /// [`LodError::WeldTolerance`] when it is negative or not finite.
     pub fn check_weld_tolerance(&self, path: &Path) -> Result<(), LodError> {
         match self.weld_tolerance_m {
-            Some(t) if !(t.is_finite() && t >= 0.0) => Err(LodError::invalid(
-                path,
-                "weld_tolerance_m",
-                format!("weld tolerance {t} m must be a finite number ≥ 0"),
-            )),
+            Some(t) if !(t.is_finite() && t >= 0.0) => {
+                Err(LodError::WeldTolerance { path: path.to_path_buf(), tolerance_m: t })
+            }
             _ => Ok(()),
         }
     }

@@ -194,15 +194,7 @@ pub fn fingerprint(path: &Path) -> Result<String, LodError> {
 /// # Errors
 /// As [`read`].
 pub fn read_with_report(path: &Path, opts: &ReadOptions) -> Result<(SourceModel, TilesReport), LodError> {
-    if let Some(t) = opts.weld_tolerance_m {
-        if !(t.is_finite() && t >= 0.0) {
-            return Err(LodError::invalid(
-                path,
-                "weld_tolerance_m",
-                format!("weld tolerance {t} m must be a finite number ≥ 0"),
-            ));
-        }
-    }
+    opts.check_weld_tolerance(path)?;
     let mut report = TilesReport::default();
     let jobs = content_jobs(path, &mut report)?;
     // Decode in parallel; keep traversal order and report the first failure in that order.
