@@ -11,6 +11,7 @@ pub struct AreaPolygon {
     ring: Vec<[f64; 2]>,
     /// Bounds [min_e, min_n], [max_e, max_n].
     pub min_m: [f64; 2],
+    /// Bounds' maximum corner [max_e, max_n], metres.
     pub max_m: [f64; 2],
 }
 

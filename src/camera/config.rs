@@ -96,9 +96,13 @@ pub struct SamplingConfig {
     pub visibility_rays: [u32; 2],
     /// Candidate draws allowed per accepted pose before the strategy gives up.
     pub max_attempts_per_pose: u32,
+    /// `[sampling.grid]`: the uniform-grid strategy.
     pub grid: GridConfig,
+    /// `[sampling.regular]`: the survey-line strategy.
     pub regular: RegularConfig,
+    /// `[sampling.irregular]`: the free-trajectory strategy.
     pub irregular: IrregularConfig,
+    /// `[sampling.prior]`: the noise model of the pose priors.
     pub prior: PriorNoise,
 }
 

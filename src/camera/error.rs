@@ -5,6 +5,7 @@ use std::path::PathBuf;
 /// Everything that can go wrong while choosing cameras, sampling poses or reading/writing pose files.
 #[derive(Debug, thiserror::Error)]
 pub enum CameraError {
+    /// A file cannot be read or written.
     #[error(transparent)]
     File(#[from] crate::util::FileError),
     /// `--camera` names neither a preset nor an existing camera file.
@@ -12,13 +13,24 @@ pub enum CameraError {
         "unknown camera {name:?}: expected one of the presets {available} or the path of a camera TOML file \
          (see scenes/cameras/example.toml), e.g. `insgen sample --area <AREA> --camera cam2`"
     )]
-    UnknownPreset { name: String, available: String },
+    UnknownPreset {
+        /// The `--camera` value.
+        name: String,
+        /// The preset names, comma-separated.
+        available: String,
+    },
     /// A custom camera file breaks one or more rules (all are listed, each with its field).
     #[error("{}: invalid camera file:{}", path.display(), list(issues))]
-    CameraFile { path: PathBuf, issues: Vec<ConfigIssue> },
+    CameraFile {
+        /// The camera file.
+        path: PathBuf,
+        /// Every broken rule.
+        issues: Vec<ConfigIssue>,
+    },
     /// A custom camera file is not TOML, or not the camera table (unknown or missing key, wrong type).
     #[error("{}: invalid camera file", path.display())]
     CameraToml {
+        /// The camera file.
         path: PathBuf,
         /// Boxed: TOML's error is large, and errors travel by value.
         #[source]
@@ -26,10 +38,16 @@ pub enum CameraError {
     },
     /// The `[sampling]` configuration breaks one or more rules (all are listed, each with its field).
     #[error("invalid [sampling] configuration{}:{}", origin_suffix(origin), list(issues))]
-    Config { origin: Option<PathBuf>, issues: Vec<ConfigIssue> },
+    Config {
+        /// The scene file the table comes from, when known.
+        origin: Option<PathBuf>,
+        /// Every broken rule.
+        issues: Vec<ConfigIssue>,
+    },
     /// The scene file is not TOML, or its `[sampling]` table does not have the expected keys and types.
     #[error("invalid [sampling] configuration{}", origin_suffix(origin))]
     ConfigToml {
+        /// The scene file, when known.
         origin: Option<PathBuf>,
         /// Boxed: TOML's error is large, and errors travel by value.
         #[source]
@@ -41,7 +59,9 @@ pub enum CameraError {
     /// A text file (camera TOML, COLMAP model) is not UTF-8.
     #[error("{}: not UTF-8 text", path.display())]
     NotUtf8 {
+        /// The file.
         path: PathBuf,
+        /// The decoding error (where the first bad byte is).
         #[source]
         source: std::string::FromUtf8Error,
     },
@@ -61,48 +81,76 @@ pub enum CameraError {
          seeing too few buildings); {hint}"
     )]
     TooFewPoses {
+        /// The area's name.
         area: String,
+        /// The strategy (`grid`, `regular`, `irregular`).
         strategy: String,
+        /// Poses placed.
         placed: usize,
+        /// Poses asked for.
         wanted: usize,
+        /// Candidate poses tried.
         candidates: u64,
+        /// Candidates rejected outside the area polygon.
         outside: u64,
+        /// Candidates rejected too close to buildings.
         clearance: u64,
+        /// Candidates rejected for seeing too few buildings.
         visibility: u64,
+        /// Which setting to change, for this strategy.
         hint: String,
     },
     /// A line of a COLMAP text file (or of a LoD-Loc list) is malformed; `source` says how.
     #[error("{}:{line}", path.display())]
     Colmap {
+        /// The file.
         path: PathBuf,
         /// 1-based line number.
         line: usize,
+        /// What is wrong with the line.
         #[source]
         source: ColmapIssue,
     },
     /// A `poses.jsonl`/`priors.jsonl` line is not a valid pose record.
     #[error("{}:{line}: not a valid pose record", path.display())]
     Jsonl {
+        /// The file.
         path: PathBuf,
+        /// 1-based line number.
         line: usize,
+        /// The JSON error.
         #[source]
         source: serde_json::Error,
     },
     /// A pose record's frame name cannot be a file stem.
     #[error("{}:{line}", path.display())]
     FrameName {
+        /// The file.
         path: PathBuf,
+        /// 1-based line number.
         line: usize,
+        /// The name and why it is refused.
         #[source]
         source: super::record::BadFrameName,
     },
     /// Two pose records share a frame name.
     #[error("{}:{line}: frame name {name:?} was already used on line {first_line}", path.display())]
-    DuplicateFrame { path: PathBuf, line: usize, name: String, first_line: usize },
+    DuplicateFrame {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number of the second use.
+        line: usize,
+        /// The frame name.
+        name: String,
+        /// 1-based line number of the first use.
+        first_line: usize,
+    },
     /// The flight-plan PNG could not be encoded.
     #[error("encoding {}", path.display())]
     Png {
+        /// The PNG being written.
         path: PathBuf,
+        /// The encoder's error.
         #[source]
         source: png::EncodingError,
     },
@@ -197,30 +245,68 @@ impl ConfigIssue {
 pub enum ColmapIssue {
     /// Too few (or too many) fields; `expected` spells the line format.
     #[error("expected {expected}, got {line:?}")]
-    Fields { expected: &'static str, line: String },
+    Fields {
+        /// The line format, e.g. `CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]`.
+        expected: &'static str,
+        /// The line as read.
+        line: String,
+    },
+    /// A camera model COLMAP does not define (the name as read).
     #[error("unknown camera model {0:?}")]
     UnknownModel(String),
     /// An id or size field that is not a non-negative integer.
     #[error("{field}: {value:?} is not a valid non-negative integer")]
-    NotInteger { field: &'static str, value: String },
+    NotInteger {
+        /// The field's name in the line format.
+        field: &'static str,
+        /// The text found.
+        value: String,
+    },
     /// A parameter, quaternion or translation field that is not a finite number.
     #[error("{field}: {value:?} is not a finite number")]
-    NotFinite { field: &'static str, value: String },
+    NotFinite {
+        /// The field's name in the line format.
+        field: &'static str,
+        /// The text found.
+        value: String,
+    },
+    /// A camera with a zero width or height.
     #[error("image size {width_px}×{height_px} is empty")]
-    EmptyImage { width_px: u32, height_px: u32 },
+    EmptyImage {
+        /// Width, pixels.
+        width_px: u32,
+        /// Height, pixels.
+        height_px: u32,
+    },
+    /// The number of parameters does not fit the camera model.
     #[error("model {model} takes {expected} parameters, found {found}")]
-    ParamCount { model: String, expected: usize, found: usize },
+    ParamCount {
+        /// The camera model.
+        model: String,
+        /// Parameters the model takes.
+        expected: usize,
+        /// Parameters found.
+        found: usize,
+    },
+    /// An image's rotation quaternion is all zeros.
     #[error("the quaternion (QW QX QY QZ) is zero")]
     ZeroQuaternion,
+    /// Two cameras share an id.
     #[error("duplicate CAMERA_ID {0}")]
     DuplicateCamera(u32),
+    /// Two images share an id.
     #[error("duplicate IMAGE_ID {0}")]
     DuplicateImage(u32),
     /// The line after an image line is not its POINTS2D list.
     #[error(
         "expected the POINTS2D line (X Y POINT3D_ID triples, or empty) of image {image_id}, got {line:?}"
     )]
-    Points2D { image_id: u32, line: String },
+    Points2D {
+        /// The image's `IMAGE_ID`.
+        image_id: u32,
+        /// The line as read.
+        line: String,
+    },
 }
 
 /// Issues as an indented list, one per line.

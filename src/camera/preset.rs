@@ -36,10 +36,15 @@ pub const PRESET_NAMES: [&str; 3] = ["cam1", "cam2", "cam3"];
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Distortion {
+    /// Radial coefficient k1.
     pub k1: f64,
+    /// Radial coefficient k2.
     pub k2: f64,
+    /// Tangential coefficient p1.
     pub p1: f64,
+    /// Tangential coefficient p2.
     pub p2: f64,
+    /// Radial coefficient k3.
     pub k3: f64,
 }
 
@@ -48,10 +53,13 @@ pub struct Distortion {
 pub struct CameraSpec {
     /// Preset or custom name; also the output directory name (`<workdir>/<area>/<name>/`).
     pub name: String,
+    /// Image width, pixels.
     pub width_px: u32,
+    /// Image height, pixels.
     pub height_px: u32,
     /// Physical sensor size, millimetres.
     pub sensor_width_mm: f64,
+    /// Physical sensor height, millimetres.
     pub sensor_height_mm: f64,
     /// Horizontal field of view, degrees.
     pub hfov_deg: f64,

@@ -43,10 +43,15 @@ use crate::util::Progress;
 
 /// File names written by [`write_sample`] inside the camera directory.
 pub const POSES_FILE: &str = "poses.jsonl";
+/// Noisy pose priors, one JSON line per frame.
 pub const PRIORS_FILE: &str = "priors.jsonl";
+/// Folder of the COLMAP text model (`cameras.txt`, `images.txt`, `points3D.txt`).
 pub const COLMAP_DIR: &str = "colmap";
+/// The [`CameraSpec`] used.
 pub const CAMERA_FILE: &str = "camera.json";
+/// The sampling configuration, seed and [`SampleStats`].
 pub const SAMPLING_FILE: &str = "sampling.json";
+/// A top view of the area with the poses drawn.
 pub const FLIGHT_PLAN_FILE: &str = "flight_plan.png";
 
 /// Counters of one sampling run.
@@ -82,23 +87,30 @@ pub struct SampleStats {
     pub mean_building_fraction: f64,
     /// Median errors of the priors against the poses.
     pub prior_median_translation_m: f64,
+    /// Median rotation error of the priors against the poses, degrees.
     pub prior_median_rotation_deg: f64,
 }
 
 /// Result of [`sample_area`].
 #[derive(Debug, Clone)]
 pub struct SampleOutput {
+    /// The area (scene) name.
     pub area: String,
+    /// The camera the poses are for.
     pub camera: CameraSpec,
+    /// The strategy that placed them.
     pub strategy: Trajectory,
+    /// Seed of the random draws.
     pub seed: u64,
     /// The `--count` asked for (`None`: the strategy's natural coverage).
     pub count: Option<usize>,
+    /// The `[sampling]` configuration used.
     pub config: SamplingConfig,
     /// Ground-truth poses, in flight order.
     pub poses: Vec<PoseRecord>,
     /// Noisy priors, paired with `poses` by position and name.
     pub priors: Vec<PoseRecord>,
+    /// Counters of the run.
     pub stats: SampleStats,
 }
 

@@ -78,8 +78,11 @@ impl MapPerturbation {
 pub struct PerturbationReport {
     /// Buildings in the map before and after (drops and merges remove some).
     pub buildings_before: usize,
+    /// Buildings in the map after the perturbation.
     pub buildings_after: usize,
+    /// Buildings dropped.
     pub dropped: usize,
+    /// Buildings merged into a neighbour.
     pub merged: usize,
 }
 
@@ -393,14 +396,23 @@ pub enum MapError {
          {query_lon_deg:.9}°, {query_h_m:.3} m) (lat, lon, ellipsoidal height); give both scene files the \
          same [origin] and prepare them again"
     )]
+    /// The map scene's ENU origin differs from the query scene's.
     DifferentFrame {
+        /// The query area's name.
         query_area: String,
+        /// The map area's name.
         map_area: String,
+        /// Latitude of the query area's ENU origin, degrees.
         query_lat_deg: f64,
+        /// Longitude of the query area's ENU origin, degrees.
         query_lon_deg: f64,
+        /// Ellipsoidal height of the query area's ENU origin, metres.
         query_h_m: f64,
+        /// Latitude of the map area's ENU origin, degrees.
         map_lat_deg: f64,
+        /// Longitude of the map area's ENU origin, degrees.
         map_lon_deg: f64,
+        /// Ellipsoidal height of the map area's ENU origin, metres.
         map_h_m: f64,
     },
 }

@@ -22,11 +22,14 @@ use glam::DVec3;
 /// A 4-DoF hypothesis: camera centre (ENU metres) and yaw (degrees); pitch/roll are fixed per query.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Hypothesis {
+    /// Camera centre, ENU metres.
     pub centre_m: DVec3,
+    /// Yaw, degrees.
     pub yaw_deg: f64,
 }
 
 impl Hypothesis {
+    /// The camera pose with the query's pitch and roll (degrees).
     pub fn pose(&self, pitch_deg: f64, roll_deg: f64) -> Pose {
         Pose::from_ypr_deg(self.yaw_deg, pitch_deg, roll_deg, self.centre_m)
     }
@@ -147,10 +150,13 @@ pub enum SearchBoundsError {
 /// [`SearchBounds`] placed around a prior: the poses a search may score.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Volume {
+    /// The prior the volume is centred on.
     pub prior: Hypothesis,
-    /// Half-ranges as in [`SearchBounds`]: metres, metres, degrees.
+    /// Horizontal half-range (radius around the prior's centre), metres.
     pub radius_m: f64,
+    /// Vertical half-range, metres.
     pub height_m: f64,
+    /// Yaw half-range, degrees.
     pub yaw_deg: f64,
 }
 
@@ -224,7 +230,12 @@ impl Volume {
 
 /// Scores batches of hypotheses (higher is better).
 pub trait Evaluate {
+    /// What scoring can fail with.
     type Error;
+    /// The score of each hypothesis, in order.
+    ///
+    /// # Errors
+    /// Whatever scoring fails with (a render, a file).
     fn evaluate(&mut self, hyps: &[Hypothesis]) -> Result<Vec<f64>, Self::Error>;
 
     /// Called once the polish has refined the particle filter's best pose `at` in the filter's cost:
@@ -251,11 +262,17 @@ pub trait Evaluate {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct CoarseParams {
+    /// East and north half-range, metres.
     pub xy_range_m: f64,
+    /// East and north step, metres.
     pub xy_step_m: f64,
+    /// Vertical half-range, metres.
     pub z_range_m: f64,
+    /// Vertical step, metres.
     pub z_step_m: f64,
+    /// Yaw half-range, degrees.
     pub yaw_range_deg: f64,
+    /// Yaw step, degrees.
     pub yaw_step_deg: f64,
 }
 
@@ -278,14 +295,20 @@ impl Default for CoarseParams {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct FineParams {
+    /// Particle-filter iterations.
     pub iterations: u32,
+    /// Beams (groups of kept poses).
     pub beams: u32,
     /// Best poses kept per beam.
     pub keep_per_beam: u32,
     /// Perturbations drawn around each kept pose per iteration.
     pub perturbations: u32,
+    /// σ of the position perturbations at the first iteration, metres (scaled down by the decay).
     pub sigma_m: f64,
+    /// Half-width of the uniform yaw perturbations at the first iteration, degrees (scaled down
+    /// by the decay).
     pub yaw_deg: f64,
+    /// Floor of the perturbations' linear decay (share of the first iteration's size).
     pub gamma: f64,
     /// The first this many iterations score at the coarse stage's (lower) resolution; the pool is
     /// re-scored at the fine resolution when the switch happens. `None`: until the decay reaches its
@@ -356,8 +379,11 @@ pub enum BeamMode {
     /// With `prune`, the beams are judged at the fine resolution once before the switch as well, and
     /// only the best [`Prune::keep`] go on at the coarse resolution.
     Basins {
+        /// Basins (beams) seeded from the coarse grid.
         count: u32,
+        /// Beams that go on at the fine resolution.
         survivors: u32,
+        /// An early judgement of the beams, if any.
         #[serde(default)]
         prune: Option<Prune>,
     },
@@ -371,7 +397,9 @@ pub enum BeamMode {
 /// `keep_per_beam × perturbations`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Prune {
+    /// Coarse-resolution iterations before the judgement.
     pub after_iterations: u32,
+    /// Beams kept.
     pub keep: u32,
 }
 
@@ -444,8 +472,11 @@ pub enum Stages {
 /// How the search runs: both stages' parameters and which stages run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SearchOptions {
+    /// The coarse grid.
     pub coarse: CoarseParams,
+    /// The particle filter and polish.
     pub fine: FineParams,
+    /// Which stages run.
     pub stages: Stages,
     /// The volume around the prior every stage keeps to.
     #[serde(default)]
@@ -466,11 +497,15 @@ impl Default for SearchOptions {
 /// What the search found.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SearchResult {
+    /// The estimate.
     pub best: Hypothesis,
+    /// Its score.
     pub best_score: f64,
     /// The coarse stage's best (equal to the prior with `--no-select`).
     pub coarse_best: Hypothesis,
+    /// The coarse best's score.
     pub coarse_score: f64,
+    /// Hypotheses scored in all.
     pub hypotheses_scored: u64,
     /// Hypotheses and seconds per stage (where a query's time goes).
     #[serde(default)]
@@ -485,7 +520,9 @@ pub struct SearchResult {
 /// Hypotheses scored and wall-clock seconds spent scoring them in one stage of the search.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct StageCost {
+    /// Hypotheses scored.
     pub hypotheses: u64,
+    /// Wall-clock seconds spent scoring them.
     pub seconds: f64,
 }
 

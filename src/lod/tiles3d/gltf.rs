@@ -48,8 +48,11 @@ const MAX_ZERO_ACCESSOR: usize = 1 << 26;
 /// The glTF up axis of a tileset's content (`asset.gltfUpAxis`, default Y as 3D Tiles specifies).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum UpAxis {
+    /// X up.
     X,
+    /// Y up (the glTF and 3D Tiles default).
     Y,
+    /// Z up.
     Z,
 }
 
@@ -203,10 +206,15 @@ impl Buffer {
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(rename_all = "camelCase")]
 pub struct Material {
+    /// `name`.
     pub name: Option<String>,
+    /// `pbrMetallicRoughness`: base colour factor and texture.
     pub pbr_metallic_roughness: Option<PbrMetallicRoughness>,
+    /// `emissiveTexture`.
     pub emissive_texture: Option<TextureInfo>,
+    /// `emissiveFactor`, linear RGB.
     pub emissive_factor: Option<[f64; 3]>,
+    /// `doubleSided`.
     #[serde(default)]
     pub double_sided: bool,
     /// `KHR_materials_unlit` (an empty object) and others.
@@ -233,7 +241,9 @@ impl Material {
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(rename_all = "camelCase")]
 pub struct PbrMetallicRoughness {
+    /// `baseColorFactor`, linear RGBA.
     pub base_color_factor: Option<[f64; 4]>,
+    /// `baseColorTexture`.
     pub base_color_texture: Option<TextureInfo>,
 }
 
@@ -241,9 +251,12 @@ pub struct PbrMetallicRoughness {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(rename_all = "camelCase")]
 pub struct TextureInfo {
+    /// Index into `textures`.
     pub index: usize,
+    /// `texCoord`: the UV set (`TEXCOORD_n`).
     #[serde(default)]
     pub tex_coord: usize,
+    /// `KHR_texture_transform` and others.
     #[serde(default)]
     pub extensions: BTreeMap<String, Value>,
 }
@@ -253,13 +266,16 @@ pub struct TextureInfo {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(rename_all = "camelCase")]
 pub struct TextureTransform {
+    /// Translation, UV units.
     #[serde(default)]
     pub offset: [f64; 2],
     /// Radians, counter-clockwise in UV space.
     #[serde(default)]
     pub rotation: f64,
+    /// Scale factors (u, v).
     #[serde(default = "unit_scale")]
     pub scale: [f64; 2],
+    /// The UV set it applies to instead of the texture info's `texCoord`.
     pub tex_coord: Option<usize>,
 }
 
@@ -309,7 +325,9 @@ impl TextureInfo {
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(rename_all = "camelCase")]
 pub struct Texture {
+    /// Index into `images`.
     pub source: Option<usize>,
+    /// Index into `samplers`.
     pub sampler: Option<usize>,
     /// `EXT_texture_webp`, `KHR_texture_basisu`, `MSFT_texture_dds`: `{"source": i}`.
     #[serde(default)]
@@ -320,9 +338,13 @@ pub struct Texture {
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(rename_all = "camelCase")]
 pub struct Image {
+    /// Relative path or `data:` URI.
     pub uri: Option<String>,
+    /// Buffer view holding the bytes (GLB-embedded images).
     pub buffer_view: Option<usize>,
+    /// `image/png`, `image/jpeg`, `image/webp`, …
     pub mime_type: Option<String>,
+    /// `name`.
     pub name: Option<String>,
 }
 
