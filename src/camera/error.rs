@@ -166,7 +166,9 @@ pub enum AreaProblem {
         vertex: [f64; 2],
     },
     /// Fewer than 3 distinct vertices.
-    #[error("the area polygon (manifest.json area_polygon_enu_m) has {vertices} vertices; at least 3 are needed")]
+    #[error(
+        "the area polygon (manifest.json area_polygon_enu_m) has {vertices} vertices; at least 3 are needed"
+    )]
     TooFewVertices {
         /// Distinct vertices found.
         vertices: usize,

@@ -194,7 +194,8 @@ pub fn perturb_mesh(
     let dropped: Vec<bool> = draws.iter().map(|d| d.drop_u < p.drop_fraction).collect();
     let (lo, hi) = building_bounds(&positions, ids, &slot, records.len());
     let (parent, merged) = merge_groups(&lo, &hi, &draws, &dropped, p.merge_fraction);
-    let mesh = kept_mesh(scene_mesh, &positions, &slot, &dropped, |i| records[root(&parent, i)].id, p.offset_enu_m);
+    let mesh =
+        kept_mesh(scene_mesh, &positions, &slot, &dropped, |i| records[root(&parent, i)].id, p.offset_enu_m);
     let buildings = recompute_records(records, &mesh);
     let report = PerturbationReport {
         buildings_before: records.len(),

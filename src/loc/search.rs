@@ -116,7 +116,9 @@ impl SearchBounds {
     /// # Errors
     /// [`SearchBoundsError`] naming the half-range and its value.
     pub fn validate(&self) -> Result<(), SearchBoundsError> {
-        for (half_range, value) in [("radius", self.radius_m), ("height", self.height_m), ("yaw", self.yaw_deg)] {
+        for (half_range, value) in
+            [("radius", self.radius_m), ("height", self.height_m), ("yaw", self.yaw_deg)]
+        {
             if value.is_nan() || value <= 0.0 {
                 return Err(SearchBoundsError::NotPositive { half_range, value });
             }

@@ -552,7 +552,9 @@ fn ground_heights_m(obj: &CityObject) -> Vec<(String, f64)> {
         .iter()
         .flat_map(|a| a.other.iter())
         .filter(|(k, _)| super::is_ground_attribute(k))
-        .filter_map(|(k, v)| attribute_number(v).filter(|h| h.is_finite() && h.abs() < 1e4).map(|h| (k.clone(), h)))
+        .filter_map(|(k, v)| {
+            attribute_number(v).filter(|h| h.is_finite() && h.abs() < 1e4).map(|h| (k.clone(), h))
+        })
         .collect()
 }
 
@@ -1019,7 +1021,9 @@ impl<'p> Reader<'p> {
                 .iter()
                 .flatten()
                 .filter(|c| lod_in_range(c, lo) && (!need_usable || usable(c)))
-                .max_by(|a, b| a.lod.number().partial_cmp(&b.lod.number()).unwrap_or(std::cmp::Ordering::Equal))
+                .max_by(|a, b| {
+                    a.lod.number().partial_cmp(&b.lod.number()).unwrap_or(std::cmp::Ordering::Equal)
+                })
                 .map(|c| c.lod.clone())
         };
         best(MIN_DEFAULT_LOD, true).or_else(|| best(0.0, true)).or_else(|| best(0.0, false))
@@ -1048,7 +1052,8 @@ impl<'p> Reader<'p> {
                     Some(v) => c.lod.number() == Some(v),
                 };
                 if !take {
-                    self.stats.degenerate_faces_unused += c.polygons.iter().filter(|p| p.is_err()).count() as u64;
+                    self.stats.degenerate_faces_unused +=
+                        c.polygons.iter().filter(|p| p.is_err()).count() as u64;
                     continue;
                 }
                 if faces.lod_name.is_none() && c.lod.matches(&top.0) {

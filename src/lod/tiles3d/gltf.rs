@@ -1154,9 +1154,8 @@ impl Validator<'_, '_> {
         for (i, v) in g.root.buffer_views.iter().enumerate() {
             let compressed = v.extensions.contains_key("EXT_meshopt_compression");
             match g.buffers.get(v.buffer) {
-                None => {
-                    self.issue(format!("bufferViews[{i}].buffer"), format!("buffer {} does not exist", v.buffer))
-                }
+                None => self
+                    .issue(format!("bufferViews[{i}].buffer"), format!("buffer {} does not exist", v.buffer)),
                 Some(_) if compressed => {}
                 Some(buf) => {
                     if v.byte_offset.checked_add(v.byte_length).is_none_or(|end| end > buf.len()) {
@@ -1250,7 +1249,10 @@ impl Validator<'_, '_> {
             match self.gltf.root.buffer_views.get(bv) {
                 None => self.issue(format!("{at}.sparse.{what}.bufferView"), format!("{bv} does not exist")),
                 Some(view) => {
-                    if s.count.checked_mul(len).and_then(|x| x.checked_add(off)).is_none_or(|e| e > view.byte_length)
+                    if s.count
+                        .checked_mul(len)
+                        .and_then(|x| x.checked_add(off))
+                        .is_none_or(|e| e > view.byte_length)
                     {
                         self.issue(
                             format!("{at}.sparse.{what}"),
@@ -1351,7 +1353,11 @@ struct RawPrimitive {
 /// index existing vertices.
 fn check_geometry(at: &str, positions: &[[f64; 3]], triangles: &[[u32; 3]]) -> Result<(), ContentError> {
     if let Some(bad) = positions.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
-        return Err(ContentError::NonFiniteVertex { at: at.to_string(), vertex: bad, position: positions[bad] });
+        return Err(ContentError::NonFiniteVertex {
+            at: at.to_string(),
+            vertex: bad,
+            position: positions[bad],
+        });
     }
     let n_vertices = positions.len();
     if let Some(t) = triangles.iter().find(|t| t.iter().any(|&i| i as usize >= n_vertices)) {
