@@ -3,7 +3,7 @@
 
 use rand::Rng;
 
-use super::CameraError;
+use super::{AreaProblem, CameraError};
 
 /// A simple polygon (open ring, either orientation) in ENU metres (east, north).
 #[derive(Debug, Clone, PartialEq)]
@@ -11,6 +11,7 @@ pub struct AreaPolygon {
     ring: Vec<[f64; 2]>,
     /// Bounds [min_e, min_n], [max_e, max_n].
     pub min_m: [f64; 2],
+    /// Bounds' maximum corner [max_e, max_n], metres.
     pub max_m: [f64; 2],
 }
 
@@ -20,20 +21,16 @@ impl AreaPolygon {
     /// # Errors
     /// [`CameraError::Area`] for fewer than 3 distinct vertices, non-finite coordinates or zero area.
     pub fn new(area: &str, ring: &[[f64; 2]]) -> Result<Self, CameraError> {
-        let fail = |what: String| CameraError::Area { area: area.to_string(), what };
+        let fail = |problem| CameraError::Area { area: area.to_string(), problem };
         let mut pts: Vec<[f64; 2]> = ring.to_vec();
         if pts.len() > 1 && pts.first() == pts.last() {
             pts.pop();
         }
         if let Some(p) = pts.iter().find(|p| !(p[0].is_finite() && p[1].is_finite())) {
-            return Err(fail(format!("the area polygon has a non-finite vertex {p:?}")));
+            return Err(fail(AreaProblem::NonFiniteVertex { vertex: *p }));
         }
         if pts.len() < 3 {
-            return Err(fail(format!(
-                "the area polygon (manifest.json area_polygon_enu_m) has {} vertices; at least 3 are needed \
-                 (re-run `insgen prepare --area {area}` after fixing the scene file's area)",
-                pts.len()
-            )));
+            return Err(fail(AreaProblem::TooFewVertices { vertices: pts.len() }));
         }
         let mut min_m = [f64::INFINITY; 2];
         let mut max_m = [f64::NEG_INFINITY; 2];
@@ -45,10 +42,7 @@ impl AreaPolygon {
         }
         let poly = AreaPolygon { ring: pts, min_m, max_m };
         if poly.area_m2() < 1.0 {
-            return Err(fail(format!(
-                "the area polygon (manifest.json area_polygon_enu_m) is empty: its area is {:.3} m²",
-                poly.area_m2()
-            )));
+            return Err(fail(AreaProblem::Empty { area_m2: poly.area_m2() }));
         }
         Ok(poly)
     }

@@ -25,10 +25,13 @@ use super::{CameraError, ColmapIssue, Intrinsics, Pose};
 /// One camera of `cameras.txt` (or one line of a query list, whose id is then 0).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ColmapCamera {
+    /// `CAMERA_ID`.
     pub camera_id: u32,
     /// COLMAP model name (`PINHOLE`, `SIMPLE_PINHOLE`, `OPENCV`, …).
     pub model: String,
+    /// Image width, pixels.
     pub width_px: u32,
+    /// Image height, pixels.
     pub height_px: u32,
     /// Model parameters in COLMAP's order (PINHOLE: fx, fy, cx, cy in pixels).
     pub params: Vec<f64>,
@@ -65,12 +68,15 @@ impl ColmapCamera {
 /// One image of `images.txt` (or one line of a pose list, whose ids are then 0).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ColmapImage {
+    /// `IMAGE_ID`.
     pub image_id: u32,
     /// World-to-camera rotation quaternion (qw, qx, qy, qz).
     pub qvec: [f64; 4],
     /// World-to-camera translation, metres.
     pub tvec: [f64; 3],
+    /// `CAMERA_ID` of the camera that took it.
     pub camera_id: u32,
+    /// Image file name (`NAME`).
     pub name: String,
 }
 

@@ -96,9 +96,13 @@ pub struct SamplingConfig {
     pub visibility_rays: [u32; 2],
     /// Candidate draws allowed per accepted pose before the strategy gives up.
     pub max_attempts_per_pose: u32,
+    /// `[sampling.grid]`: the uniform-grid strategy.
     pub grid: GridConfig,
+    /// `[sampling.regular]`: the survey-line strategy.
     pub regular: RegularConfig,
+    /// `[sampling.irregular]`: the free-trajectory strategy.
     pub irregular: IrregularConfig,
+    /// `[sampling.prior]`: the noise model of the pose priors.
     pub prior: PriorNoise,
 }
 
@@ -287,6 +291,21 @@ impl SamplingConfig {
     /// [`CameraError::Config`] with one entry per problem (e.g. an impossible height range).
     pub fn validate(&self) -> Result<(), CameraError> {
         let mut issues = Vec::new();
+        self.check_spacings(&mut issues);
+        self.check_acceptance(&mut issues);
+        self.check_ranges(&mut issues);
+        self.check_view_angles(&mut issues);
+        self.check_sequences(&mut issues);
+        self.check_prior(&mut issues);
+        if issues.is_empty() {
+            Ok(())
+        } else {
+            Err(CameraError::Config { origin: None, issues })
+        }
+    }
+
+    /// Distances, spacings and per-frame limits: positive, or ≥ 0 for clearances and margins.
+    fn check_spacings(&self, issues: &mut Vec<ConfigIssue>) {
         let mut positive = |field: &str, v: f64| {
             if !(v.is_finite() && v > 0.0) {
                 issues.push(ConfigIssue::value(field, v, "must be a positive number"));
@@ -309,6 +328,10 @@ impl SamplingConfig {
         non_negative("clearance_m", self.clearance_m);
         non_negative("grid.margin_m", self.grid.margin_m);
         non_negative("irregular.waypoint_margin_m", self.irregular.waypoint_margin_m);
+    }
+
+    /// The rules a pose must pass to be kept: shares, covered cells, visibility rays, attempts.
+    fn check_acceptance(&self, issues: &mut Vec<ConfigIssue>) {
         if !(0.0..=1.0).contains(&self.min_building_fraction) {
             issues.push(ConfigIssue::value(
                 "min_building_fraction",
@@ -333,6 +356,10 @@ impl SamplingConfig {
         if self.max_attempts_per_pose == 0 {
             issues.push(ConfigIssue::value("max_attempts_per_pose", 0, "must be at least 1"));
         }
+    }
+
+    /// Height ranges (metres) and the irregular pitch range (degrees).
+    fn check_ranges(&self, issues: &mut Vec<ConfigIssue>) {
         for (field, r) in [
             ("grid.height_range_m", self.grid.height_range_m),
             ("regular.height_range_m", self.regular.height_range_m),
@@ -351,6 +378,10 @@ impl SamplingConfig {
                 why,
             ));
         }
+    }
+
+    /// The grid and regular view angles, grid yaws and the regular line heading.
+    fn check_view_angles(&self, issues: &mut Vec<ConfigIssue>) {
         for (field, list) in
             [("grid.pitch_deg", &self.grid.pitch_deg), ("regular.pitch_deg", &self.regular.pitch_deg)]
         {
@@ -376,6 +407,10 @@ impl SamplingConfig {
                 issues.push(ConfigIssue::value("regular.line_heading_deg", h, "must be finite"));
             }
         }
+    }
+
+    /// Irregular sequence lengths (frames).
+    fn check_sequences(&self, issues: &mut Vec<ConfigIssue>) {
         if self.irregular.frames_per_sequence == 0 {
             issues.push(ConfigIssue::value("irregular.frames_per_sequence", 0, "must be at least 1"));
         }
@@ -386,6 +421,10 @@ impl SamplingConfig {
                 format!("exceeds irregular.frames_per_sequence = {}", self.irregular.frames_per_sequence),
             ));
         }
+    }
+
+    /// The pose prior's standard deviations (≥ 0) and biases (finite).
+    fn check_prior(&self, issues: &mut Vec<ConfigIssue>) {
         let p = &self.prior;
         for (field, v) in [("prior.sigma_enu_m", p.sigma_enu_m), ("prior.sigma_ypr_deg", p.sigma_ypr_deg)] {
             if v.iter().any(|s| !(s.is_finite() && *s >= 0.0)) {
@@ -396,11 +435,6 @@ impl SamplingConfig {
             if v.iter().any(|s| !s.is_finite()) {
                 issues.push(ConfigIssue::value(field, format!("{v:?}"), "must be finite"));
             }
-        }
-        if issues.is_empty() {
-            Ok(())
-        } else {
-            Err(CameraError::Config { origin: None, issues })
         }
     }
 }

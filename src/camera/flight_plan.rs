@@ -35,7 +35,9 @@ const PATHS: [Rgb; 6] =
 
 /// An RGB raster with a world (ENU) → pixel mapping, north up.
 pub struct Canvas {
+    /// Width, pixels.
     pub width_px: u32,
+    /// Height, pixels.
     pub height_px: u32,
     /// RGB8, row-major from the top row.
     pub rgb: Vec<u8>,

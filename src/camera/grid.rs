@@ -19,7 +19,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
 use super::sample::{Ctx, Frame, SampleStats, Sampled};
-use super::{CameraError, Pose, Trajectory};
+use super::{AreaProblem, CameraError, Pose, Trajectory};
 
 /// Lattice nodes inside the polygon (south to north, west to east). The lattice is cell-centred on
 /// the polygon's bounding box: n = max(1, ⌊extent / spacing⌋) nodes per axis, their span centred, so
@@ -52,13 +52,11 @@ pub(crate) fn sample(ctx: &Ctx, rng: &mut ChaCha8Rng) -> Result<Sampled, CameraE
     if nodes.is_empty() {
         return Err(CameraError::Area {
             area: ctx.area.to_string(),
-            what: format!(
-                "no grid node fits inside the area polygon ({:.0} m²) at grid.spacing_m = {} and grid.margin_m = \
-                 {}; lower them in the scene file's [sampling.grid] table",
-                ctx.poly.area_m2(),
-                g.spacing_m,
-                g.margin_m
-            ),
+            problem: AreaProblem::NoGridNode {
+                area_m2: ctx.poly.area_m2(),
+                spacing_m: g.spacing_m,
+                margin_m: g.margin_m,
+            },
         });
     }
     let pairs: Vec<(usize, usize)> =

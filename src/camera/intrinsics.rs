@@ -10,13 +10,17 @@ use serde::{Deserialize, Serialize};
 /// Pinhole camera intrinsics in pixels.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Intrinsics {
+    /// Image width, pixels.
     pub width_px: u32,
+    /// Image height, pixels.
     pub height_px: u32,
     /// Focal lengths in pixels.
     pub fx_px: f64,
+    /// Vertical focal length, pixels.
     pub fy_px: f64,
     /// Principal point in pixels (see the module doc for the pixel-centre convention).
     pub cx_px: f64,
+    /// Principal point's row, pixels.
     pub cy_px: f64,
 }
 

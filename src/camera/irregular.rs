@@ -21,7 +21,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
 use super::sample::{Ctx, RunCollector, SampleStats, Sampled};
-use super::{CameraError, Pose, Trajectory};
+use super::{AreaProblem, CameraError, Pose, Trajectory};
 
 /// Proportional gain of the heading pursuit (turn rate commanded per degree of heading error).
 const PURSUIT_GAIN: f64 = 0.2;
@@ -72,11 +72,7 @@ pub(crate) fn sample(ctx: &Ctx, rng: &mut ChaCha8Rng) -> Result<Sampled, CameraE
     let step = ic.frame_spacing_m;
     let turn_radius_m = step / ic.max_turn_deg_per_frame.to_radians();
     let margin = ic.waypoint_margin_m;
-    let no_room = || CameraError::Area {
-        area: ctx.area.to_string(),
-        what: "no point inside the area polygon found for a trajectory (is the polygon a sliver?)"
-            .to_string(),
-    };
+    let no_room = || CameraError::Area { area: ctx.area.to_string(), problem: AreaProblem::NoTrajectoryRoom };
     let draw = |rng: &mut ChaCha8Rng, lo: f64, hi: f64| if lo < hi { rng.gen_range(lo..=hi) } else { lo };
     let new_targets = |rng: &mut ChaCha8Rng, from: [f64; 2]| -> Result<Targets, CameraError> {
         // Far enough that the pursuit cannot orbit it: 3 turn radii, keeping the farthest of 30 draws.

@@ -30,7 +30,7 @@ pub mod sample;
 pub mod visibility;
 
 pub use config::SamplingConfig;
-pub use error::{CameraError, ColmapIssue, ConfigIssue};
+pub use error::{AreaProblem, CameraError, ColmapIssue, ConfigIssue};
 pub use intrinsics::Intrinsics;
 pub use pose::Pose;
 pub use preset::CameraSpec;

@@ -36,10 +36,15 @@ pub const PRESET_NAMES: [&str; 3] = ["cam1", "cam2", "cam3"];
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Distortion {
+    /// Radial coefficient k1.
     pub k1: f64,
+    /// Radial coefficient k2.
     pub k2: f64,
+    /// Tangential coefficient p1.
     pub p1: f64,
+    /// Tangential coefficient p2.
     pub p2: f64,
+    /// Radial coefficient k3.
     pub k3: f64,
 }
 
@@ -48,10 +53,13 @@ pub struct Distortion {
 pub struct CameraSpec {
     /// Preset or custom name; also the output directory name (`<workdir>/<area>/<name>/`).
     pub name: String,
+    /// Image width, pixels.
     pub width_px: u32,
+    /// Image height, pixels.
     pub height_px: u32,
     /// Physical sensor size, millimetres.
     pub sensor_width_mm: f64,
+    /// Physical sensor height, millimetres.
     pub sensor_height_mm: f64,
     /// Horizontal field of view, degrees.
     pub hfov_deg: f64,
@@ -215,6 +223,20 @@ impl RawCamera {
     /// The camera, or every broken rule with its field.
     fn into_spec(self) -> Result<CameraSpec, Vec<ConfigIssue>> {
         let mut issues = Vec::new();
+        self.check_name(&mut issues);
+        self.check_size(&mut issues);
+        let hfov_deg = self.hfov_deg(&mut issues);
+        self.check_intrinsics(&mut issues);
+        self.check_distortion(&mut issues);
+        let Some(hfov_deg) = hfov_deg else { return Err(issues) };
+        if !issues.is_empty() {
+            return Err(issues);
+        }
+        Ok(self.build(hfov_deg))
+    }
+
+    /// `name`: a usable directory name that is not a preset's.
+    fn check_name(&self, issues: &mut Vec<ConfigIssue>) {
         let name_ok = !self.name.is_empty()
             && self.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
         let name = format!("{:?}", self.name);
@@ -227,6 +249,10 @@ impl RawCamera {
         } else if PRESET_NAMES.contains(&self.name.as_str()) {
             issues.push(ConfigIssue::value("name", name, "is a built-in preset name; choose another"));
         }
+    }
+
+    /// `width_px`/`height_px` in range and the sensor size positive.
+    fn check_size(&self, issues: &mut Vec<ConfigIssue>) {
         for (field, v) in [("width_px", self.width_px), ("height_px", self.height_px)] {
             if !(1..=MAX_SIDE_PX).contains(&v) {
                 issues.push(ConfigIssue::value(field, v, format!("must be in 1..={MAX_SIDE_PX}")));
@@ -239,7 +265,12 @@ impl RawCamera {
                 issues.push(ConfigIssue::value(field, v, "must be a positive number of millimetres"));
             }
         }
-        let hfov_deg = match (self.hfov_deg, self.focal_mm) {
+    }
+
+    /// The horizontal field of view in degrees, from `hfov_deg` or else `focal_mm` (which must agree
+    /// when both are given); `None` when neither is usable.
+    fn hfov_deg(&self, issues: &mut Vec<ConfigIssue>) -> Option<f64> {
+        match (self.hfov_deg, self.focal_mm) {
             (None, None) => {
                 issues.push(ConfigIssue::field(
                     "hfov_deg",
@@ -247,41 +278,37 @@ impl RawCamera {
                 ));
                 None
             }
+            (Some(h), _) if !(h.is_finite() && h > 0.0 && h < 180.0) => {
+                issues.push(ConfigIssue::value("hfov_deg", h, "must be in (0, 180) degrees"));
+                None
+            }
             (Some(h), f) => {
-                if !(h.is_finite() && h > 0.0 && h < 180.0) {
-                    issues.push(ConfigIssue::value("hfov_deg", h, "must be in (0, 180) degrees"));
-                    None
-                } else {
-                    if let Some(f) = f {
-                        let expect = focal_mm_from_hfov(self.sensor_width_mm, h);
-                        if !(f.is_finite() && (f - expect).abs() <= 1e-3 * expect) {
-                            issues.push(ConfigIssue::value(
-                                "focal_mm",
-                                f,
-                                format!(
-                                    "disagrees with hfov_deg = {h} and sensor_width_mm = {} (which give \
-                                     {expect:.4} mm); give only one of them",
-                                    self.sensor_width_mm
-                                ),
-                            ));
-                        }
+                if let Some(f) = f {
+                    let expect = focal_mm_from_hfov(self.sensor_width_mm, h);
+                    if !(f.is_finite() && (f - expect).abs() <= 1e-3 * expect) {
+                        issues.push(ConfigIssue::value(
+                            "focal_mm",
+                            f,
+                            format!(
+                                "disagrees with hfov_deg = {h} and sensor_width_mm = {} (which give \
+                                 {expect:.4} mm); give only one of them",
+                                self.sensor_width_mm
+                            ),
+                        ));
                     }
-                    Some(h)
                 }
+                Some(h)
             }
-            (None, Some(f)) => {
-                if !(f.is_finite() && f > 0.0) {
-                    issues.push(ConfigIssue::value(
-                        "focal_mm",
-                        f,
-                        "must be a positive number of millimetres",
-                    ));
-                    None
-                } else {
-                    Some(2.0 * (0.5 * self.sensor_width_mm / f).atan().to_degrees())
-                }
+            (None, Some(f)) if !(f.is_finite() && f > 0.0) => {
+                issues.push(ConfigIssue::value("focal_mm", f, "must be a positive number of millimetres"));
+                None
             }
-        };
+            (None, Some(f)) => Some(2.0 * (0.5 * self.sensor_width_mm / f).atan().to_degrees()),
+        }
+    }
+
+    /// Explicit focal lengths positive and the principal point inside the image.
+    fn check_intrinsics(&self, issues: &mut Vec<ConfigIssue>) {
         for (field, v) in [("fx_px", self.fx_px), ("fy_px", self.fy_px)] {
             if let Some(v) = v {
                 if !(v.is_finite() && v > 0.0) {
@@ -301,6 +328,10 @@ impl RawCamera {
                 }
             }
         }
+    }
+
+    /// Distortion coefficients finite.
+    fn check_distortion(&self, issues: &mut Vec<ConfigIssue>) {
         if let Some(d) = &self.distortion {
             for (field, v) in [("k1", d.k1), ("k2", d.k2), ("p1", d.p1), ("p2", d.p2), ("k3", d.k3)] {
                 if !v.is_finite() {
@@ -312,10 +343,11 @@ impl RawCamera {
                 }
             }
         }
-        let Some(hfov_deg) = hfov_deg else { return Err(issues) };
-        if !issues.is_empty() {
-            return Err(issues);
-        }
+    }
+
+    /// The validated camera with field of view `hfov_deg` (degrees): the centred pinhole camera of
+    /// its sensor, with the explicit intrinsics and distortion applied.
+    fn build(self, hfov_deg: f64) -> CameraSpec {
         let mut spec = CameraSpec::from_sensor(
             &self.name,
             self.width_px as u32,
@@ -334,7 +366,7 @@ impl RawCamera {
         spec.hfov_deg = spec.intrinsics.hfov_deg();
         spec.focal_mm = spec.intrinsics.fx_px * spec.sensor_width_mm / spec.width_px as f64;
         spec.distortion = self.distortion;
-        Ok(spec)
+        spec
     }
 }
 

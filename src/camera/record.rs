@@ -27,13 +27,16 @@ pub enum Trajectory {
 pub struct PoseRecord {
     /// Unique frame name, also the stem of every per-frame output file.
     pub name: String,
+    /// The area (scene) name.
     pub area: String,
     /// Camera preset name (cam1, cam2, cam3 or a custom one).
     pub preset: String,
+    /// The sampling strategy that placed the frame.
     pub trajectory: Trajectory,
     /// Sequence (flight line/trajectory) id and the frame's index in it; grid frames are each their
     /// own sequence of length 1.
     pub sequence: u32,
+    /// The frame's index in its sequence.
     pub index: u32,
     /// Intrinsics and pose in the area's ENU frame (`intrinsics`, `cam_to_world_enu`, `colmap_qvec`,
     /// `colmap_tvec` in the JSON).
@@ -64,12 +67,14 @@ pub struct PoseRecord {
 /// form. Flattened into `poses.jsonl` records and COCO images (the same four keys in both).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct EnuCamera {
+    /// Pinhole intrinsics, pixels.
     pub intrinsics: Intrinsics,
     /// Camera-to-world in the area's ENU frame (OpenCV camera axes), metres; rows in the file.
     #[serde(with = "crate::util::row_major")]
     pub cam_to_world_enu: DMat4,
     /// COLMAP world-to-camera quaternion (qw, qx, qy, qz) and translation, ENU world frame.
     pub colmap_qvec: [f64; 4],
+    /// COLMAP world-to-camera translation, metres.
     pub colmap_tvec: [f64; 3],
 }
 
@@ -79,16 +84,22 @@ pub struct EnuCamera {
 pub struct GeoPose {
     /// Camera centre in WGS84 with ellipsoidal height: degrees, degrees, metres.
     pub lat_deg: f64,
+    /// Longitude, degrees (WGS84).
     pub lon_deg: f64,
+    /// Ellipsoidal height, metres.
     pub h_m: f64,
     /// Yaw (heading of the image top, clockwise from north), pitch (tilt from nadir), roll, in degrees;
     /// see `camera::pose` for the exact convention.
     pub yaw_deg: f64,
+    /// Pitch (tilt from nadir), degrees.
     pub pitch_deg: f64,
+    /// Roll, degrees.
     pub roll_deg: f64,
 }
 
 impl PoseRecord {
+    /// A record from its parts: the frame's identity, its camera and pose in ENU, and the area's
+    /// ENU frame (for the geodetic pose, ECEF centre and height above ground).
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         name: String,
@@ -186,7 +197,9 @@ pub fn write_jsonl(path: &std::path::Path, records: &[PoseRecord]) -> Result<(),
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("frame name {name:?} {why}")]
 pub struct BadFrameName {
+    /// The name as given.
     pub name: String,
+    /// Why it cannot be a file stem.
     pub why: &'static str,
 }
 

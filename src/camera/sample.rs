@@ -36,7 +36,7 @@ use super::area::AreaPolygon;
 use super::colmap::{ColmapCamera, ColmapImage};
 use super::config::SamplingConfig;
 use super::visibility::{BuildingIndex, ViewCensus};
-use super::{CameraError, CameraSpec, Pose, PoseRecord, Trajectory};
+use super::{AreaProblem, CameraError, CameraSpec, Pose, PoseRecord, Trajectory};
 use crate::geo::{EnuFrame, Geodetic};
 use crate::scene::PreparedScene;
 use crate::util::Progress;
@@ -77,23 +77,30 @@ pub struct SampleStats {
     pub mean_building_fraction: f64,
     /// Median errors of the priors against the poses.
     pub prior_median_translation_m: f64,
+    /// Median rotation error of the priors against the poses, degrees.
     pub prior_median_rotation_deg: f64,
 }
 
 /// Result of [`sample_area`].
 #[derive(Debug, Clone)]
 pub struct SampleOutput {
+    /// The area (scene) name.
     pub area: String,
+    /// The camera the poses are for.
     pub camera: CameraSpec,
+    /// The strategy that placed them.
     pub strategy: Trajectory,
+    /// Seed of the random draws.
     pub seed: u64,
     /// The `--count` asked for (`None`: the strategy's natural coverage).
     pub count: Option<usize>,
+    /// The `[sampling]` configuration used.
     pub config: SamplingConfig,
     /// Ground-truth poses, in flight order.
     pub poses: Vec<PoseRecord>,
     /// Noisy priors, paired with `poses` by position and name.
     pub priors: Vec<PoseRecord>,
+    /// Counters of the run.
     pub stats: SampleStats,
 }
 
@@ -342,7 +349,7 @@ pub fn sample_area(
     if !m.ground_enu_m.is_finite() {
         return Err(CameraError::Area {
             area: area.into(),
-            what: format!("ground_enu_m = {} is not finite", m.ground_enu_m),
+            problem: AreaProblem::GroundNotFinite { ground_enu_m: m.ground_enu_m },
         });
     }
     let ctx = Ctx {

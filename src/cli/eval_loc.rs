@@ -347,7 +347,7 @@ fn search_bounds(args: &Args, noise: &PriorNoise, source: &str) -> anyhow::Resul
     if !given.is_empty() {
         b.origin = format!("{}; {}", given.join(", "), b.origin);
     }
-    b.validate().map_err(anyhow::Error::msg)?;
+    b.validate()?;
     Ok(b)
 }
 

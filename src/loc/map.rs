@@ -29,7 +29,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde::{Deserialize, Serialize};
 
-use crate::scene::{BuildingRecord, PreparedScene, SceneMesh};
+use crate::scene::{BuildingId, BuildingRecord, PreparedScene, SceneMesh};
 
 /// Vertices within this height above a building's lowest vertex are its ground outline and stay put
 /// when the building is coarsened to LoD1, metres. Wider than the numeric noise of real footprints,
@@ -78,8 +78,11 @@ impl MapPerturbation {
 pub struct PerturbationReport {
     /// Buildings in the map before and after (drops and merges remove some).
     pub buildings_before: usize,
+    /// Buildings in the map after the perturbation.
     pub buildings_after: usize,
+    /// Buildings dropped.
     pub dropped: usize,
+    /// Buildings merged into a neighbour.
     pub merged: usize,
 }
 
@@ -90,6 +93,23 @@ struct Draws {
     shift_m: [f64; 2],
     drop_u: f64,
     merge_u: f64,
+}
+
+impl Draws {
+    /// The draws of `n` buildings from a generator seeded with `seed`, building by building.
+    fn all(n: usize, seed: u64) -> Vec<Draws> {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let unit = Normal::new(0.0, 1.0).expect("σ = 1 is valid");
+        (0..n)
+            .map(|_| Draws {
+                height_m: unit.sample(&mut rng),
+                scale: unit.sample(&mut rng),
+                shift_m: [unit.sample(&mut rng), unit.sample(&mut rng)],
+                drop_u: rng.gen_range(0.0..1.0),
+                merge_u: rng.gen_range(0.0..1.0),
+            })
+            .collect()
+    }
 }
 
 /// Returns `scene` with `p` applied (the manifest is kept; building records are recomputed).
@@ -155,87 +175,115 @@ pub fn perturb_mesh(
     records: &[BuildingRecord],
     p: &MapPerturbation,
 ) -> (SceneMesh, Vec<BuildingRecord>, PerturbationReport) {
-    let mut rng = ChaCha8Rng::seed_from_u64(p.seed);
-    let unit = Normal::new(0.0, 1.0).expect("σ = 1 is valid");
-    let max_id = records.iter().map(|b| b.id.get()).max().unwrap_or(0) as usize;
-    // Record index of every building ID.
-    let mut slot = vec![usize::MAX; max_id + 1];
-    for (i, b) in records.iter().enumerate() {
-        slot[b.id.get() as usize] = i;
-    }
-    let draws: Vec<Draws> = records
-        .iter()
-        .map(|_| Draws {
-            height_m: unit.sample(&mut rng),
-            scale: unit.sample(&mut rng),
-            shift_m: [unit.sample(&mut rng), unit.sample(&mut rng)],
-            drop_u: rng.gen_range(0.0..1.0),
-            merge_u: rng.gen_range(0.0..1.0),
-        })
-        .collect();
+    let draws = Draws::all(records.len(), p.seed);
+    let slot = record_slots(records);
     let mut positions: Vec<[f64; 3]> =
         scene_mesh.positions_m.iter().map(|v| [v[0] as f64, v[1] as f64, v[2] as f64]).collect();
-    // Vertex bounds per building, from the mesh itself (the records' boxes are rounded the same way).
-    let bounds = |positions: &[[f64; 3]]| {
-        let mut lo = vec![[f64::INFINITY; 3]; records.len()];
-        let mut hi = vec![[f64::NEG_INFINITY; 3]; records.len()];
-        for (v, id) in positions.iter().zip(&scene_mesh.building_ids) {
-            let i = slot.get(id.get() as usize).copied().unwrap_or(usize::MAX);
-            if i == usize::MAX {
-                continue;
-            }
-            for k in 0..3 {
-                lo[i][k] = lo[i][k].min(v[k]);
-                hi[i][k] = hi[i][k].max(v[k]);
-            }
-        }
-        (lo, hi)
-    };
-    let (lo, hi) = bounds(&positions);
+    let ids = &scene_mesh.building_ids;
+    let (lo, hi) = building_bounds(&positions, ids, &slot, records.len());
     // Each building's top: its highest vertex, or its LoD1 roof height.
     let tops: Vec<f64> = match (p.lod1, p.lod1_roof_percentile) {
         (true, Some(pct)) => lod1_roof_heights(&positions, scene_mesh, &slot, &lo, &hi, pct),
         _ => hi.iter().map(|h| h[2]).collect(),
     };
-    for (v, id) in positions.iter_mut().zip(&scene_mesh.building_ids) {
+    for (v, id) in positions.iter_mut().zip(ids) {
         let i = slot[id.get() as usize];
-        let (l, h, d) = (lo[i], hi[i], &draws[i]);
-        let top = tops[i];
-        if p.lod1 && v[2] > l[2] + LOD1_GROUND_BAND_M {
-            v[2] = top;
-        }
-        if p.height_sigma_m > 0.0 {
-            let height = top - l[2];
-            if height > 0.0 {
-                let new_height = (height + p.height_sigma_m * d.height_m).max(MIN_HEIGHT_M.min(height));
-                v[2] = l[2] + (v[2] - l[2]) * new_height / height;
-            }
-        }
-        let centre = [(l[0] + h[0]) / 2.0, (l[1] + h[1]) / 2.0];
-        let scale = (1.0 + p.scale_sigma * d.scale).max(0.1);
-        for k in 0..2 {
-            v[k] = centre[k] + (v[k] - centre[k]) * scale + p.shift_sigma_m * d.shift_m[k];
-        }
+        move_vertex(v, lo[i], hi[i], tops[i], &draws[i], p);
     }
     // Drops, then merges into the nearest building still in the map.
     let dropped: Vec<bool> = draws.iter().map(|d| d.drop_u < p.drop_fraction).collect();
-    let (lo, hi) = bounds(&positions);
+    let (lo, hi) = building_bounds(&positions, ids, &slot, records.len());
+    let (parent, merged) = merge_groups(&lo, &hi, &draws, &dropped, p.merge_fraction);
+    let mesh =
+        kept_mesh(scene_mesh, &positions, &slot, &dropped, |i| records[root(&parent, i)].id, p.offset_enu_m);
+    let buildings = recompute_records(records, &mesh);
+    let report = PerturbationReport {
+        buildings_before: records.len(),
+        buildings_after: buildings.len(),
+        dropped: dropped.iter().filter(|&&d| d).count(),
+        merged,
+    };
+    (mesh, buildings, report)
+}
+
+/// The record index of every building ID (`usize::MAX` for IDs without a record).
+fn record_slots(records: &[BuildingRecord]) -> Vec<usize> {
+    let max_id = records.iter().map(|b| b.id.get()).max().unwrap_or(0) as usize;
+    let mut slot = vec![usize::MAX; max_id + 1];
+    for (i, b) in records.iter().enumerate() {
+        slot[b.id.get() as usize] = i;
+    }
+    slot
+}
+
+/// Vertex bounds (lowest, highest corner) per building record, from the mesh itself (the records'
+/// boxes are rounded the same way); infinite for a record without vertices.
+fn building_bounds(
+    positions: &[[f64; 3]],
+    ids: &[BuildingId],
+    slot: &[usize],
+    n_records: usize,
+) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
+    let mut lo = vec![[f64::INFINITY; 3]; n_records];
+    let mut hi = vec![[f64::NEG_INFINITY; 3]; n_records];
+    for (v, id) in positions.iter().zip(ids) {
+        let i = slot.get(id.get() as usize).copied().unwrap_or(usize::MAX);
+        if i == usize::MAX {
+            continue;
+        }
+        for k in 0..3 {
+            lo[i][k] = lo[i][k].min(v[k]);
+            hi[i][k] = hi[i][k].max(v[k]);
+        }
+    }
+    (lo, hi)
+}
+
+/// Applies steps 1–3 of the module doc (LoD1, height error, footprint scale and shift) to one
+/// vertex of the building with bounds `l`/`h`, top `top` and draws `d`.
+fn move_vertex(v: &mut [f64; 3], l: [f64; 3], h: [f64; 3], top: f64, d: &Draws, p: &MapPerturbation) {
+    if p.lod1 && v[2] > l[2] + LOD1_GROUND_BAND_M {
+        v[2] = top;
+    }
+    if p.height_sigma_m > 0.0 {
+        let height = top - l[2];
+        if height > 0.0 {
+            let new_height = (height + p.height_sigma_m * d.height_m).max(MIN_HEIGHT_M.min(height));
+            v[2] = l[2] + (v[2] - l[2]) * new_height / height;
+        }
+    }
+    let centre = [(l[0] + h[0]) / 2.0, (l[1] + h[1]) / 2.0];
+    let scale = (1.0 + p.scale_sigma * d.scale).max(0.1);
+    for k in 0..2 {
+        v[k] = centre[k] + (v[k] - centre[k]) * scale + p.shift_sigma_m * d.shift_m[k];
+    }
+}
+
+/// Merges each building drawn for it (not dropped, with vertices) into the nearest other remaining
+/// building by box centre. Returns the union-find parents (see [`root`]) and the number of merges.
+fn merge_groups(
+    lo: &[[f64; 3]],
+    hi: &[[f64; 3]],
+    draws: &[Draws],
+    dropped: &[bool],
+    merge_fraction: f64,
+) -> (Vec<usize>, usize) {
+    let n = lo.len();
     let centre = |i: usize| [(lo[i][0] + hi[i][0]) / 2.0, (lo[i][1] + hi[i][1]) / 2.0];
-    let mut parent: Vec<usize> = (0..records.len()).collect();
+    let mut parent: Vec<usize> = (0..n).collect();
     let mut merged = 0;
-    for i in 0..records.len() {
-        if dropped[i] || draws[i].merge_u >= p.merge_fraction || !lo[i][0].is_finite() {
+    for i in 0..n {
+        if dropped[i] || draws[i].merge_u >= merge_fraction || !lo[i][0].is_finite() {
             continue;
         }
         let c = centre(i);
-        let nearest =
-            (0..records.len()).filter(|&j| j != i && !dropped[j] && lo[j][0].is_finite()).min_by(|&a, &b| {
-                let d = |j: usize| {
-                    let cj = centre(j);
-                    (cj[0] - c[0]).powi(2) + (cj[1] - c[1]).powi(2)
-                };
-                d(a).total_cmp(&d(b))
-            });
+        let nearest = (0..n).filter(|&j| j != i && !dropped[j] && lo[j][0].is_finite()).min_by(|&a, &b| {
+            let d = |j: usize| {
+                let cj = centre(j);
+                (cj[0] - c[0]).powi(2) + (cj[1] - c[1]).powi(2)
+            };
+            d(a).total_cmp(&d(b))
+        });
         if let Some(j) = nearest {
             // Merge into j's group, avoiding cycles (i's root becomes j's root unless they already are one).
             let (ri, rj) = (root(&parent, i), root(&parent, j));
@@ -245,8 +293,19 @@ pub fn perturb_mesh(
             }
         }
     }
-    // The kept vertices in their order, then the triangles of kept buildings.
-    let offset = p.offset_enu_m;
+    (parent, merged)
+}
+
+/// The kept vertices (of buildings not dropped) in their order, moved by `offset` (ENU metres)
+/// and labelled with `id_of(record index)`, then the triangles of kept buildings.
+fn kept_mesh(
+    scene_mesh: &SceneMesh,
+    positions: &[[f64; 3]],
+    slot: &[usize],
+    dropped: &[bool],
+    id_of: impl Fn(usize) -> BuildingId,
+    offset: [f64; 3],
+) -> SceneMesh {
     let mut mesh = SceneMesh::default();
     let mut remap = vec![u32::MAX; positions.len()];
     let ids = &scene_mesh.building_ids;
@@ -261,7 +320,7 @@ pub fn perturb_mesh(
             (q[1] + offset[1]) as f32,
             (q[2] + offset[2]) as f32,
         ]);
-        mesh.building_ids.push(records[root(&parent, i)].id);
+        mesh.building_ids.push(id_of(i));
     }
     for tri in scene_mesh.indices.chunks_exact(3) {
         if tri.iter().any(|&v| remap[v as usize] == u32::MAX) {
@@ -269,16 +328,10 @@ pub fn perturb_mesh(
         }
         mesh.indices.extend(tri.iter().map(|&v| remap[v as usize]));
     }
-    let buildings = recompute_records(records, &mesh);
-    let report = PerturbationReport {
-        buildings_before: records.len(),
-        buildings_after: buildings.len(),
-        dropped: dropped.iter().filter(|&&d| d).count(),
-        merged,
-    };
-    (mesh, buildings, report)
+    mesh
 }
 
+/// The representative of `i`'s merge group in the union-find `parent`.
 fn root(parent: &[usize], mut i: usize) -> usize {
     while parent[i] != i {
         i = parent[i];
@@ -344,14 +397,23 @@ pub enum MapError {
          {query_lon_deg:.9}°, {query_h_m:.3} m) (lat, lon, ellipsoidal height); give both scene files the \
          same [origin] and prepare them again"
     )]
+    /// The map scene's ENU origin differs from the query scene's.
     DifferentFrame {
+        /// The query area's name.
         query_area: String,
+        /// The map area's name.
         map_area: String,
+        /// Latitude of the query area's ENU origin, degrees.
         query_lat_deg: f64,
+        /// Longitude of the query area's ENU origin, degrees.
         query_lon_deg: f64,
+        /// Ellipsoidal height of the query area's ENU origin, metres.
         query_h_m: f64,
+        /// Latitude of the map area's ENU origin, degrees.
         map_lat_deg: f64,
+        /// Longitude of the map area's ENU origin, degrees.
         map_lon_deg: f64,
+        /// Ellipsoidal height of the map area's ENU origin, metres.
         map_h_m: f64,
     },
 }

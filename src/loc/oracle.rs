@@ -5,6 +5,8 @@
 //! Degradations apply in a fixed order (morphology → merge → split → drop → false positives → scores)
 //! on a label image (0 = background, j ≥ 1 = instance j − 1), and the result is a [`Query`].
 
+use std::collections::BTreeSet;
+
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -31,6 +33,7 @@ pub struct Degradation {
 }
 
 impl Degradation {
+    /// Whether nothing is degraded (a perfect oracle).
     pub fn is_perfect(&self) -> bool {
         *self == Degradation::default()
     }
@@ -40,12 +43,46 @@ impl Degradation {
 pub fn degrade(width: u32, height: u32, labels: &[u32], n: u32, d: &Degradation, seed: u64) -> Query {
     let (w, h) = (width as usize, height as usize);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let mut lab = super::morph::morph(labels, w, h, d.morph_px);
-    let mut n = n;
-
-    // Merge: relabel a chosen instance to a touching neighbour's label.
+    let mut img = LabelImage { lab: super::morph::morph(labels, w, h, d.morph_px), w, h, n };
     if d.merge_fraction > 0.0 {
-        let mut touching: Vec<std::collections::BTreeSet<u32>> = vec![Default::default(); n as usize + 1];
+        img.merge(d.merge_fraction, &mut rng);
+    }
+    if d.split_fraction > 0.0 {
+        img.split(d.split_fraction, &mut rng);
+    }
+    if d.drop_fraction > 0.0 {
+        img.drop_instances(d.drop_fraction, &mut rng);
+    }
+    for _ in 0..d.false_positives {
+        img.add_false_positive(&mut rng);
+    }
+    let scores: Vec<f64> = (0..img.n)
+        .map(|_| {
+            if d.score_jitter > 0.0 {
+                let z: f64 = rand_distr::Distribution::sample(&rand_distr::StandardNormal, &mut rng);
+                (1.0 - (z * d.score_jitter).abs()).clamp(0.05, 1.0)
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    Query::from_labels(width, height, &img.lab, &scores)
+}
+
+/// A label image being degraded: `w × h` pixels, row-major, 0 = background, labels `1..=n`.
+struct LabelImage {
+    lab: Vec<u32>,
+    w: usize,
+    h: usize,
+    /// Highest label in use (new instances take `n + 1`).
+    n: u32,
+}
+
+impl LabelImage {
+    /// For each label, the labels it touches (4-neighbourhood).
+    fn touching(&self) -> Vec<BTreeSet<u32>> {
+        let (w, h, lab) = (self.w, self.h, &self.lab);
+        let mut touching: Vec<BTreeSet<u32>> = vec![Default::default(); self.n as usize + 1];
         for y in 0..h {
             for x in 0..w {
                 let a = lab[y * w + x];
@@ -63,10 +100,18 @@ pub fn degrade(width: u32, height: u32, labels: &[u32], n: u32, d: &Degradation,
                 }
             }
         }
+        touching
+    }
+
+    /// Merge: relabels a `fraction` of the instances (in shuffled order) to a touching neighbour's
+    /// label.
+    fn merge(&mut self, fraction: f64, rng: &mut ChaCha8Rng) {
+        let n = self.n;
+        let touching = self.touching();
         let mut target: Vec<u32> = (0..=n).collect();
         let mut order: Vec<u32> = (1..=n).collect();
-        order.shuffle(&mut rng);
-        let count = (d.merge_fraction * n as f64).round() as usize;
+        order.shuffle(rng);
+        let count = (fraction * n as f64).round() as usize;
         let mut merged = 0;
         for a in order {
             if merged >= count {
@@ -80,85 +125,86 @@ pub fn degrade(width: u32, height: u32, labels: &[u32], n: u32, d: &Degradation,
                 merged += 1;
             }
         }
-        for l in lab.iter_mut() {
+        for l in self.lab.iter_mut() {
             *l = target[*l as usize];
         }
     }
 
-    // Split: pixels beyond the box midline (of the longer side) get a new label.
-    if d.split_fraction > 0.0 {
-        let mut boxes = vec![[usize::MAX, usize::MAX, 0usize, 0usize]; n as usize + 1];
-        for y in 0..h {
+    /// Bounding box `[x0, y0, x1, y1]` (inclusive, pixels) of each label; `usize::MAX` corners for
+    /// absent labels.
+    fn boxes(&self) -> Vec<[usize; 4]> {
+        let w = self.w;
+        let mut boxes = vec![[usize::MAX, usize::MAX, 0usize, 0usize]; self.n as usize + 1];
+        for y in 0..self.h {
             for x in 0..w {
-                let l = lab[y * w + x] as usize;
+                let l = self.lab[y * w + x] as usize;
                 if l != 0 {
                     let b = &mut boxes[l];
                     *b = [b[0].min(x), b[1].min(y), b[2].max(x), b[3].max(y)];
                 }
             }
         }
-        let mut order: Vec<u32> = (1..=n).filter(|&l| boxes[l as usize][0] != usize::MAX).collect();
-        order.shuffle(&mut rng);
-        let count = (d.split_fraction * n as f64).round() as usize;
+        boxes
+    }
+
+    /// Split: in a `fraction` of the instances, the pixels beyond the box midline (of the longer
+    /// side) get a new label.
+    fn split(&mut self, fraction: f64, rng: &mut ChaCha8Rng) {
+        let boxes = self.boxes();
+        let mut order: Vec<u32> = (1..=self.n).filter(|&l| boxes[l as usize][0] != usize::MAX).collect();
+        order.shuffle(rng);
+        let count = (fraction * self.n as f64).round() as usize;
+        let w = self.w;
         for &l in order.iter().take(count) {
             let b = boxes[l as usize];
             let vertical = b[2] - b[0] >= b[3] - b[1];
             let mid = if vertical { (b[0] + b[2]) / 2 } else { (b[1] + b[3]) / 2 };
-            n += 1;
+            self.n += 1;
             for y in b[1]..=b[3] {
                 for x in b[0]..=b[2] {
                     let i = y * w + x;
-                    if lab[i] == l && (if vertical { x > mid } else { y > mid }) {
-                        lab[i] = n;
+                    if self.lab[i] == l && (if vertical { x > mid } else { y > mid }) {
+                        self.lab[i] = self.n;
                     }
                 }
             }
         }
     }
 
-    // Drop.
-    if d.drop_fraction > 0.0 {
+    /// Drop: a `fraction` of the labels (chosen in shuffled order) become background.
+    fn drop_instances(&mut self, fraction: f64, rng: &mut ChaCha8Rng) {
+        let n = self.n;
         let mut order: Vec<u32> = (1..=n).collect();
-        order.shuffle(&mut rng);
-        let count = (d.drop_fraction * n as f64).round() as usize;
+        order.shuffle(rng);
+        let count = (fraction * n as f64).round() as usize;
         let mut dropped = vec![false; n as usize + 1];
         for &l in order.iter().take(count) {
             dropped[l as usize] = true;
         }
-        for l in lab.iter_mut() {
+        for l in self.lab.iter_mut() {
             if dropped[*l as usize] {
                 *l = 0;
             }
         }
     }
 
-    // False positives: rectangles of 2–6 % of the image side on background.
-    for _ in 0..d.false_positives {
+    /// False positive: a new label on the background pixels of a rectangle of 2–6 % of the image
+    /// side.
+    fn add_false_positive(&mut self, rng: &mut ChaCha8Rng) {
+        let (w, h) = (self.w, self.h);
         let bw = ((w as f64) * rng.gen_range(0.02..0.06)).max(2.0) as usize;
         let bh = ((h as f64) * rng.gen_range(0.02..0.06)).max(2.0) as usize;
         let x0 = rng.gen_range(0..w.saturating_sub(bw).max(1));
         let y0 = rng.gen_range(0..h.saturating_sub(bh).max(1));
-        n += 1;
+        self.n += 1;
         for y in y0..(y0 + bh).min(h) {
             for x in x0..(x0 + bw).min(w) {
-                if lab[y * w + x] == 0 {
-                    lab[y * w + x] = n;
+                if self.lab[y * w + x] == 0 {
+                    self.lab[y * w + x] = self.n;
                 }
             }
         }
     }
-
-    let scores: Vec<f64> = (0..n)
-        .map(|_| {
-            if d.score_jitter > 0.0 {
-                let z: f64 = rand_distr::Distribution::sample(&rand_distr::StandardNormal, &mut rng);
-                (1.0 - (z * d.score_jitter).abs()).clamp(0.05, 1.0)
-            } else {
-                1.0
-            }
-        })
-        .collect();
-    Query::from_labels(width, height, &lab, &scores)
 }
 
 #[cfg(test)]

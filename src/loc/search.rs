@@ -22,11 +22,14 @@ use glam::DVec3;
 /// A 4-DoF hypothesis: camera centre (ENU metres) and yaw (degrees); pitch/roll are fixed per query.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Hypothesis {
+    /// Camera centre, ENU metres.
     pub centre_m: DVec3,
+    /// Yaw, degrees.
     pub yaw_deg: f64,
 }
 
 impl Hypothesis {
+    /// The camera pose with the query's pitch and roll (degrees).
     pub fn pose(&self, pitch_deg: f64, roll_deg: f64) -> Pose {
         Pose::from_ypr_deg(self.yaw_deg, pitch_deg, roll_deg, self.centre_m)
     }
@@ -111,27 +114,51 @@ impl SearchBounds {
     /// Checks the half-ranges: each positive (not NaN), the yaw's at most 180°.
     ///
     /// # Errors
-    /// A message naming the half-range and its value.
-    pub fn validate(&self) -> Result<(), String> {
-        for (name, v) in [("radius", self.radius_m), ("height", self.height_m), ("yaw", self.yaw_deg)] {
-            if v.is_nan() || v <= 0.0 {
-                return Err(format!("search {name} {v}: a half-range is > 0"));
+    /// [`SearchBoundsError`] naming the half-range and its value.
+    pub fn validate(&self) -> Result<(), SearchBoundsError> {
+        for (half_range, value) in
+            [("radius", self.radius_m), ("height", self.height_m), ("yaw", self.yaw_deg)]
+        {
+            if value.is_nan() || value <= 0.0 {
+                return Err(SearchBoundsError::NotPositive { half_range, value });
             }
         }
         if self.yaw_deg > 180.0 {
-            return Err(format!("search yaw {}°: at most 180°", self.yaw_deg));
+            return Err(SearchBoundsError::YawOver180 { yaw_deg: self.yaw_deg });
         }
         Ok(())
     }
 }
 
+/// Unusable [`SearchBounds`].
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum SearchBoundsError {
+    /// A half-range is zero, negative or NaN.
+    #[error("search {half_range} {value}: a half-range is > 0")]
+    NotPositive {
+        /// `radius`, `height` or `yaw`.
+        half_range: &'static str,
+        /// The half-range given (metres, or degrees for the yaw).
+        value: f64,
+    },
+    /// The yaw half-range exceeds 180°.
+    #[error("search yaw {yaw_deg}°: at most 180°")]
+    YawOver180 {
+        /// The yaw half-range given, degrees.
+        yaw_deg: f64,
+    },
+}
+
 /// [`SearchBounds`] placed around a prior: the poses a search may score.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Volume {
+    /// The prior the volume is centred on.
     pub prior: Hypothesis,
-    /// Half-ranges as in [`SearchBounds`]: metres, metres, degrees.
+    /// Horizontal half-range (radius around the prior's centre), metres.
     pub radius_m: f64,
+    /// Vertical half-range, metres.
     pub height_m: f64,
+    /// Yaw half-range, degrees.
     pub yaw_deg: f64,
 }
 
@@ -205,7 +232,12 @@ impl Volume {
 
 /// Scores batches of hypotheses (higher is better).
 pub trait Evaluate {
+    /// What scoring can fail with.
     type Error;
+    /// The score of each hypothesis, in order.
+    ///
+    /// # Errors
+    /// Whatever scoring fails with (a render, a file).
     fn evaluate(&mut self, hyps: &[Hypothesis]) -> Result<Vec<f64>, Self::Error>;
 
     /// Called once the polish has refined the particle filter's best pose `at` in the filter's cost:
@@ -232,11 +264,17 @@ pub trait Evaluate {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct CoarseParams {
+    /// East and north half-range, metres.
     pub xy_range_m: f64,
+    /// East and north step, metres.
     pub xy_step_m: f64,
+    /// Vertical half-range, metres.
     pub z_range_m: f64,
+    /// Vertical step, metres.
     pub z_step_m: f64,
+    /// Yaw half-range, degrees.
     pub yaw_range_deg: f64,
+    /// Yaw step, degrees.
     pub yaw_step_deg: f64,
 }
 
@@ -259,14 +297,20 @@ impl Default for CoarseParams {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct FineParams {
+    /// Particle-filter iterations.
     pub iterations: u32,
+    /// Beams (groups of kept poses).
     pub beams: u32,
     /// Best poses kept per beam.
     pub keep_per_beam: u32,
     /// Perturbations drawn around each kept pose per iteration.
     pub perturbations: u32,
+    /// σ of the position perturbations at the first iteration, metres (scaled down by the decay).
     pub sigma_m: f64,
+    /// Half-width of the uniform yaw perturbations at the first iteration, degrees (scaled down
+    /// by the decay).
     pub yaw_deg: f64,
+    /// Floor of the perturbations' linear decay (share of the first iteration's size).
     pub gamma: f64,
     /// The first this many iterations score at the coarse stage's (lower) resolution; the pool is
     /// re-scored at the fine resolution when the switch happens. `None`: until the decay reaches its
@@ -337,8 +381,11 @@ pub enum BeamMode {
     /// With `prune`, the beams are judged at the fine resolution once before the switch as well, and
     /// only the best [`Prune::keep`] go on at the coarse resolution.
     Basins {
+        /// Basins (beams) seeded from the coarse grid.
         count: u32,
+        /// Beams that go on at the fine resolution.
         survivors: u32,
+        /// An early judgement of the beams, if any.
         #[serde(default)]
         prune: Option<Prune>,
     },
@@ -352,7 +399,9 @@ pub enum BeamMode {
 /// `keep_per_beam × perturbations`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Prune {
+    /// Coarse-resolution iterations before the judgement.
     pub after_iterations: u32,
+    /// Beams kept.
     pub keep: u32,
 }
 
@@ -425,8 +474,11 @@ pub enum Stages {
 /// How the search runs: both stages' parameters and which stages run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SearchOptions {
+    /// The coarse grid.
     pub coarse: CoarseParams,
+    /// The particle filter and polish.
     pub fine: FineParams,
+    /// Which stages run.
     pub stages: Stages,
     /// The volume around the prior every stage keeps to.
     #[serde(default)]
@@ -447,11 +499,15 @@ impl Default for SearchOptions {
 /// What the search found.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SearchResult {
+    /// The estimate.
     pub best: Hypothesis,
+    /// Its score.
     pub best_score: f64,
     /// The coarse stage's best (equal to the prior with `--no-select`).
     pub coarse_best: Hypothesis,
+    /// The coarse best's score.
     pub coarse_score: f64,
+    /// Hypotheses scored in all.
     pub hypotheses_scored: u64,
     /// Hypotheses and seconds per stage (where a query's time goes).
     #[serde(default)]
@@ -466,7 +522,9 @@ pub struct SearchResult {
 /// Hypotheses scored and wall-clock seconds spent scoring them in one stage of the search.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct StageCost {
+    /// Hypotheses scored.
     pub hypotheses: u64,
+    /// Wall-clock seconds spent scoring them.
     pub seconds: f64,
 }
 
@@ -1533,7 +1591,7 @@ mod tests {
             assert_eq!(p, prior());
             assert!(v.on_boundary(&nan));
             let bad = SearchBounds { radius_m: 0.0, ..SearchBounds::default() };
-            assert!(bad.validate().unwrap_err().contains("radius 0"));
+            assert!(bad.validate().unwrap_err().to_string().contains("radius 0"));
             assert!(SearchBounds { yaw_deg: 200.0, ..SearchBounds::default() }.validate().is_err());
         }
 

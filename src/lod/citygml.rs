@@ -143,6 +143,57 @@ struct Building {
     ring: Option<RingAcc>,
 }
 
+/// Per LoD and component: polygon indices into [`Building::polygons`].
+type LodLists = [Vec<Vec<usize>>; 3];
+
+/// A building's surface lists with references resolved.
+struct SurfaceLists {
+    /// Per LoD and component: the polygon indices, each polygon once per building and LoD.
+    lists: LodLists,
+    /// Per LoD: the `xlink:href` ids that name no element of the building.
+    unresolved: [Vec<String>; 3],
+}
+
+impl Building {
+    /// Resolves every component's entries to polygon indices.
+    fn surface_lists(&self) -> SurfaceLists {
+        let n = self.polygons.len();
+        let mut lists: LodLists = [Vec::new(), Vec::new(), Vec::new()];
+        let mut unresolved: [Vec<String>; 3] = [Vec::new(), Vec::new(), Vec::new()];
+        for lod in 0..3 {
+            let mut seen = vec![false; n];
+            for comp in &self.components {
+                let mut list = Vec::new();
+                for entry in &comp.entries[lod] {
+                    let range = match entry {
+                        Entry::Inline(i) => *i..*i + 1,
+                        Entry::Ref(id) => match self.id_ranges.get(id) {
+                            Some(&(s, e)) => s..e,
+                            None => {
+                                unresolved[lod].push(id.clone());
+                                0..0
+                            }
+                        },
+                    };
+                    for i in range {
+                        if !seen[i] {
+                            seen[i] = true;
+                            list.push(i);
+                        }
+                    }
+                }
+                lists[lod].push(list);
+            }
+        }
+        SurfaceLists { lists, unresolved }
+    }
+
+    /// Whether any polygon of `list` is usable.
+    fn any_usable(&self, list: &[usize]) -> bool {
+        list.iter().any(|&i| self.polygons[i].is_ok())
+    }
+}
+
 #[derive(Debug, Default)]
 struct PolygonAcc {
     id: Option<String>,
@@ -1093,60 +1144,65 @@ impl<'p> Parser<'p> {
     /// Resolves references, chooses the LoD and emits the building (or counts it as empty).
     fn finish_building(&mut self) {
         let Some(mut b) = self.building.take() else { return };
-        let n = b.polygons.len();
-        // Per LoD and component: the polygon indices, each polygon once per building and LoD.
-        let mut lists: [Vec<Vec<usize>>; 3] = [Vec::new(), Vec::new(), Vec::new()];
-        let mut unresolved: [Vec<String>; 3] = [Vec::new(), Vec::new(), Vec::new()];
-        for lod in 0..3 {
-            let mut seen = vec![false; n];
-            for comp in &b.components {
-                let mut list = Vec::new();
-                for entry in &comp.entries[lod] {
-                    let range = match entry {
-                        Entry::Inline(i) => *i..*i + 1,
-                        Entry::Ref(id) => match b.id_ranges.get(id) {
-                            Some(&(s, e)) => s..e,
-                            None => {
-                                unresolved[lod].push(id.clone());
-                                0..0
-                            }
-                        },
-                    };
-                    for i in range {
-                        if !seen[i] {
-                            seen[i] = true;
-                            list.push(i);
-                        }
-                    }
-                }
-                lists[lod].push(list);
+        let SurfaceLists { lists, unresolved } = b.surface_lists();
+        let chosen = self.choose_lod(&b, &lists);
+        let picks = self.component_picks(&b, &lists, chosen);
+        self.count_unused_degenerate(&b, &lists, &picks);
+        let (polygons, metas, degenerate) = self.take_picked(&mut b, &lists, &picks);
+        self.warn_unresolved(&b, &unresolved, &picks);
+        self.stats.degenerate_faces += degenerate;
+        if polygons.is_empty() {
+            self.stats.buildings_without_geometry += 1;
+            if degenerate > 0 {
+                self.dropping.buildings_degenerate += 1;
+            } else {
+                self.dropping.buildings_empty += 1;
             }
+            return;
         }
-        let usable = |list: &Vec<usize>| list.iter().any(|&i| b.polygons[i].is_ok());
-        let has_lod = |lod: usize| lists[lod].iter().any(usable);
-        // The building's LoD: forced, else the highest with a usable polygon, else (to count what was
-        // dropped) the highest with any polygon at all.
-        let chosen: Option<usize> = match self.forced_lod {
+        self.stats.faces += polygons.len() as u64;
+        let lod = chosen.map_or("", |l| LOD_NAMES[l]).to_string();
+        self.poly_meta.push(metas);
+        self.buildings.push(SourceBuilding {
+            source_id: b.id,
+            lod,
+            measured_height_m: b.measured_height_m,
+            ground_heights_m: Vec::new(),
+            geometry: Geometry::Polygons(polygons),
+            appearance: Vec::new(),
+        });
+    }
+
+    /// The building's LoD: forced, else the highest with a usable polygon, else (to count what was
+    /// dropped) the highest with any polygon at all.
+    fn choose_lod(&self, b: &Building, lists: &LodLists) -> Option<usize> {
+        match self.forced_lod {
             Some(lod) => Some(lod),
             None => (0..3)
                 .rev()
-                .find(|&lod| has_lod(lod))
+                .find(|&lod| lists[lod].iter().any(|l| b.any_usable(l)))
                 .or_else(|| (0..3).rev().find(|&lod| lists[lod].iter().any(|l| !l.is_empty()))),
-        };
-        // Which LoD each component contributes: the chosen one, or (by default) its best lower one.
-        let mut picks: Vec<(usize, usize)> = Vec::new(); // (component, lod)
-        if let Some(top) = chosen {
-            picks = (0..b.components.len())
-                .map(|c| match self.forced_lod {
-                    Some(_) => (c, top),
-                    // LoD0 (flat) only when the building has nothing better.
-                    None => (c, (top.min(1)..=top).rev().find(|&l| usable(&lists[l][c])).unwrap_or(top)),
-                })
-                .collect();
         }
-        // Degenerate faces of the LoDs not chosen: reported, not silently lost.
+    }
+
+    /// Which LoD each component contributes, as (component, LoD): the chosen one, or (by default)
+    /// its best lower one.
+    fn component_picks(&self, b: &Building, lists: &LodLists, chosen: Option<usize>) -> Vec<(usize, usize)> {
+        let Some(top) = chosen else { return Vec::new() };
+        (0..b.components.len())
+            .map(|c| match self.forced_lod {
+                Some(_) => (c, top),
+                // LoD0 (flat) only when the building has nothing better.
+                None => (c, (top.min(1)..=top).rev().find(|&l| b.any_usable(&lists[l][c])).unwrap_or(top)),
+            })
+            .collect()
+    }
+
+    /// Counts the degenerate faces of the LoDs not picked: reported, not silently lost.
+    fn count_unused_degenerate(&mut self, b: &Building, lists: &LodLists, picks: &[(usize, usize)]) {
+        let n = b.polygons.len();
         let mut picked = vec![false; n];
-        for &(c, l) in &picks {
+        for &(c, l) in picks {
             lists[l][c].iter().for_each(|&i| picked[i] = true);
         }
         let mut counted = vec![false; n];
@@ -1156,10 +1212,20 @@ impl<'p> Parser<'p> {
                 self.stats.degenerate_faces_unused += 1;
             }
         }
+    }
+
+    /// Moves the picked polygons out of `b`, registering their `gml:id`s for appearances; returns
+    /// them with their metadata and the number dropped (degenerate or outside the envelope).
+    fn take_picked(
+        &mut self,
+        b: &mut Building,
+        lists: &LodLists,
+        picks: &[(usize, usize)],
+    ) -> (Vec<Polygon>, Vec<Option<PolyMeta>>, u64) {
         let mut polygons = Vec::new();
         let mut metas = Vec::new();
         let mut degenerate = 0u64;
-        for &(c, l) in &picks {
+        for &(c, l) in picks {
             for &i in &lists[l][c] {
                 match std::mem::replace(&mut b.polygons[i], Err(Dropped::Degenerate)) {
                     Ok(p) => {
@@ -1185,6 +1251,11 @@ impl<'p> Parser<'p> {
                 }
             }
         }
+        (polygons, metas, degenerate)
+    }
+
+    /// Warns about (and counts) the unresolved `xlink:href`s of the picked LoDs.
+    fn warn_unresolved(&mut self, b: &Building, unresolved: &[Vec<String>; 3], picks: &[(usize, usize)]) {
         let mut picked_lods: Vec<usize> = picks.iter().map(|&(_, l)| l).collect();
         picked_lods.dedup();
         for l in picked_lods {
@@ -1197,27 +1268,6 @@ impl<'p> Parser<'p> {
                 );
             }
         }
-        self.stats.degenerate_faces += degenerate;
-        if polygons.is_empty() {
-            self.stats.buildings_without_geometry += 1;
-            if degenerate > 0 {
-                self.dropping.buildings_degenerate += 1;
-            } else {
-                self.dropping.buildings_empty += 1;
-            }
-            return;
-        }
-        self.stats.faces += polygons.len() as u64;
-        let lod = chosen.map_or("", |l| LOD_NAMES[l]).to_string();
-        self.poly_meta.push(metas);
-        self.buildings.push(SourceBuilding {
-            source_id: b.id,
-            lod,
-            measured_height_m: b.measured_height_m,
-            ground_heights_m: Vec::new(),
-            geometry: Geometry::Polygons(polygons),
-            appearance: Vec::new(),
-        });
     }
 
     fn finish(mut self) -> Result<SourceModel, LodError> {

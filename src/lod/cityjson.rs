@@ -508,6 +508,56 @@ impl VertexSource<'_> {
     }
 }
 
+/// The faces a building keeps at its chosen LoD.
+#[derive(Default)]
+struct Faces {
+    polygons: Vec<Polygon>,
+    appearance: Vec<Option<FaceAppearance>>,
+    /// Faces of the chosen LoD dropped as degenerate.
+    degenerate: u64,
+    /// The LoD as the file spells it (a forced "2.0" may match the file's "2").
+    lod_name: Option<String>,
+}
+
+/// Whether a converted geometry has at least one usable polygon.
+fn usable(c: &Converted) -> bool {
+    c.polygons.iter().any(|p| p.is_ok())
+}
+
+/// Whether a converted geometry's LoD is a number in `[lo, MAX_DEFAULT_LOD]`.
+fn lod_in_range(c: &Converted, lo: f64) -> bool {
+    c.lod.number().is_some_and(|v| (lo..=MAX_DEFAULT_LOD).contains(&v))
+}
+
+/// A number attribute that may be written as a string (`"12.5"`).
+fn attribute_number(v: &serde_json::Value) -> Option<f64> {
+    match v {
+        serde_json::Value::Number(n) => n.as_f64(),
+        serde_json::Value::String(s) => s.trim().parse::<f64>().ok(),
+        _ => None,
+    }
+}
+
+/// The object's finite `measuredHeight` attribute, metres.
+fn measured_height_m(obj: &CityObject) -> Option<f64> {
+    obj.attributes
+        .as_ref()
+        .and_then(|a| a.measured_height.as_ref())
+        .and_then(|v| attribute_number(v).filter(|h| h.is_finite()))
+}
+
+/// The object's plausible ground-height attributes (name, metres; finite, |h| < 10 km).
+fn ground_heights_m(obj: &CityObject) -> Vec<(String, f64)> {
+    obj.attributes
+        .iter()
+        .flat_map(|a| a.other.iter())
+        .filter(|(k, _)| super::is_ground_attribute(k))
+        .filter_map(|(k, v)| {
+            attribute_number(v).filter(|h| h.is_finite() && h.abs() < 1e4).map(|h| (k.clone(), h))
+        })
+        .collect()
+}
+
 /// One geometry turned into polygons (`Err(())` = dropped as degenerate).
 struct Converted {
     lod: LodValue,
@@ -895,86 +945,13 @@ impl<'p> Reader<'p> {
     ) -> Result<(), LodError> {
         self.buildings_seen += 1;
         let (key, root) = &objects[members[0]];
-        // Per component: its geometries converted.
-        let mut components: Vec<Vec<Converted>> = Vec::with_capacity(members.len());
-        for &m in members {
-            let (mkey, obj) = &objects[m];
-            let mut converted = Vec::new();
-            for (g, geom) in obj.geometry.iter().enumerate() {
-                let gpath = format!("{at}CityObjects[{mkey:?}].geometry[{g}]");
-                let app = self.geometry_appearance(geom);
-                if let Some(c) = self.convert(geom, source, &gpath, &app)? {
-                    converted.push(c);
-                }
-            }
-            components.push(converted);
-        }
-        let usable = |c: &Converted| c.polygons.iter().any(|p| p.is_ok());
-        let in_range =
-            |c: &Converted, lo: f64| c.lod.number().is_some_and(|v| (lo..=MAX_DEFAULT_LOD).contains(&v));
-        // The building's LoD: forced, else the highest in [1, 2.2] with a usable polygon, else a usable
-        // LoD0 (footprint, roof edges) when nothing better exists, else the highest with any polygon
-        // (so that dropped faces are counted).
-        let top: Option<LodValue> = match &self.forced_lod {
-            Some(f) => Some(LodValue(f.clone())),
-            None => {
-                let best = |lo: f64, need_usable: bool| {
-                    components
-                        .iter()
-                        .flatten()
-                        .filter(|c| in_range(c, lo) && (!need_usable || usable(c)))
-                        .max_by(|a, b| {
-                            a.lod.number().partial_cmp(&b.lod.number()).unwrap_or(std::cmp::Ordering::Equal)
-                        })
-                        .map(|c| c.lod.clone())
-                };
-                best(MIN_DEFAULT_LOD, true).or_else(|| best(0.0, true)).or_else(|| best(0.0, false))
-            }
+        let components = self.convert_components(objects, members, source, at)?;
+        let top = self.building_lod(&components);
+        let faces = match &top {
+            Some(top) => self.take_faces(components, top),
+            None => Faces::default(),
         };
-        let mut polygons = Vec::new();
-        let mut appearance: Vec<Option<FaceAppearance>> = Vec::new();
-        let mut degenerate = 0u64;
-        // The LoD as the file spells it (a forced "2.0" may match the file's "2").
-        let mut lod_name: Option<String> = None;
-        if let Some(top) = &top {
-            for comp in components {
-                let pick: Option<f64> = match &self.forced_lod {
-                    Some(_) => None,
-                    None => {
-                        let top_v = top.number().unwrap_or(MAX_DEFAULT_LOD);
-                        let lo = if top_v < MIN_DEFAULT_LOD { 0.0 } else { MIN_DEFAULT_LOD };
-                        comp.iter()
-                            .filter(|c| usable(c) && c.lod.number().is_some_and(|v| v >= lo && v <= top_v))
-                            .filter_map(|c| c.lod.number())
-                            .fold(None, |acc: Option<f64>, v| Some(acc.map_or(v, |a| a.max(v))))
-                            .or(Some(top_v))
-                    }
-                };
-                for c in comp {
-                    let take = match pick {
-                        None => c.lod.matches(&top.0),
-                        Some(v) => c.lod.number() == Some(v),
-                    };
-                    if !take {
-                        self.stats.degenerate_faces_unused +=
-                            c.polygons.iter().filter(|p| p.is_err()).count() as u64;
-                        continue;
-                    }
-                    if lod_name.is_none() && c.lod.matches(&top.0) {
-                        lod_name = Some(c.lod.0.clone());
-                    }
-                    for (p, a) in c.polygons.into_iter().zip(c.appearance) {
-                        match p {
-                            Ok(p) => {
-                                polygons.push(p);
-                                appearance.push(a);
-                            }
-                            Err(()) => degenerate += 1,
-                        }
-                    }
-                }
-            }
-        }
+        let Faces { polygons, mut appearance, degenerate, lod_name } = faces;
         self.stats.degenerate_faces += degenerate;
         if polygons.is_empty() {
             self.stats.buildings_without_geometry += 1;
@@ -986,29 +963,8 @@ impl<'p> Reader<'p> {
             return Ok(());
         }
         self.stats.faces += polygons.len() as u64;
-        let measured_height_m =
-            root.attributes.as_ref().and_then(|a| a.measured_height.as_ref()).and_then(|v| {
-                let h = match v {
-                    serde_json::Value::Number(n) => n.as_f64(),
-                    serde_json::Value::String(s) => s.trim().parse::<f64>().ok(),
-                    _ => None,
-                };
-                h.filter(|h| h.is_finite())
-            });
-        let ground_heights_m: Vec<(String, f64)> = root
-            .attributes
-            .iter()
-            .flat_map(|a| a.other.iter())
-            .filter(|(k, _)| super::is_ground_attribute(k))
-            .filter_map(|(k, v)| {
-                let h = match v {
-                    serde_json::Value::Number(n) => n.as_f64(),
-                    serde_json::Value::String(s) => s.trim().parse::<f64>().ok(),
-                    _ => None,
-                };
-                h.filter(|h| h.is_finite() && h.abs() < 1e4).map(|h| (k.clone(), h))
-            })
-            .collect();
+        let measured_height_m = measured_height_m(root);
+        let ground_heights_m = ground_heights_m(root);
         for a in appearance.iter().flatten() {
             match a {
                 FaceAppearance::Texture { .. } => self.appearance.textured_faces += 1,
@@ -1027,6 +983,94 @@ impl<'p> Reader<'p> {
             appearance,
         });
         Ok(())
+    }
+
+    /// Per component (`members` of `objects`), its geometries converted.
+    fn convert_components(
+        &mut self,
+        objects: &[(String, CityObject)],
+        members: &[usize],
+        source: &VertexSource,
+        at: &str,
+    ) -> Result<Vec<Vec<Converted>>, LodError> {
+        let mut components: Vec<Vec<Converted>> = Vec::with_capacity(members.len());
+        for &m in members {
+            let (mkey, obj) = &objects[m];
+            let mut converted = Vec::new();
+            for (g, geom) in obj.geometry.iter().enumerate() {
+                let gpath = format!("{at}CityObjects[{mkey:?}].geometry[{g}]");
+                let app = self.geometry_appearance(geom);
+                if let Some(c) = self.convert(geom, source, &gpath, &app)? {
+                    converted.push(c);
+                }
+            }
+            components.push(converted);
+        }
+        Ok(components)
+    }
+
+    /// The building's LoD: forced, else the highest in [1, 2.2] with a usable polygon, else a usable
+    /// LoD0 (footprint, roof edges) when nothing better exists, else the highest with any polygon
+    /// (so that dropped faces are counted).
+    fn building_lod(&self, components: &[Vec<Converted>]) -> Option<LodValue> {
+        if let Some(f) = &self.forced_lod {
+            return Some(LodValue(f.clone()));
+        }
+        let best = |lo: f64, need_usable: bool| {
+            components
+                .iter()
+                .flatten()
+                .filter(|c| lod_in_range(c, lo) && (!need_usable || usable(c)))
+                .max_by(|a, b| {
+                    a.lod.number().partial_cmp(&b.lod.number()).unwrap_or(std::cmp::Ordering::Equal)
+                })
+                .map(|c| c.lod.clone())
+        };
+        best(MIN_DEFAULT_LOD, true).or_else(|| best(0.0, true)).or_else(|| best(0.0, false))
+    }
+
+    /// The faces of LoD `top` from every component (each falls back to its best usable LoD up to
+    /// `top` unless the LoD is forced); faces of other LoDs that failed are counted as unused.
+    fn take_faces(&mut self, components: Vec<Vec<Converted>>, top: &LodValue) -> Faces {
+        let mut faces = Faces::default();
+        for comp in components {
+            let pick: Option<f64> = match &self.forced_lod {
+                Some(_) => None,
+                None => {
+                    let top_v = top.number().unwrap_or(MAX_DEFAULT_LOD);
+                    let lo = if top_v < MIN_DEFAULT_LOD { 0.0 } else { MIN_DEFAULT_LOD };
+                    comp.iter()
+                        .filter(|c| usable(c) && c.lod.number().is_some_and(|v| v >= lo && v <= top_v))
+                        .filter_map(|c| c.lod.number())
+                        .fold(None, |acc: Option<f64>, v| Some(acc.map_or(v, |a| a.max(v))))
+                        .or(Some(top_v))
+                }
+            };
+            for c in comp {
+                let take = match pick {
+                    None => c.lod.matches(&top.0),
+                    Some(v) => c.lod.number() == Some(v),
+                };
+                if !take {
+                    self.stats.degenerate_faces_unused +=
+                        c.polygons.iter().filter(|p| p.is_err()).count() as u64;
+                    continue;
+                }
+                if faces.lod_name.is_none() && c.lod.matches(&top.0) {
+                    faces.lod_name = Some(c.lod.0.clone());
+                }
+                for (p, a) in c.polygons.into_iter().zip(c.appearance) {
+                    match p {
+                        Ok(p) => {
+                            faces.polygons.push(p);
+                            faces.appearance.push(a);
+                        }
+                        Err(()) => faces.degenerate += 1,
+                    }
+                }
+            }
+        }
+        faces
     }
 
     /// Turns one geometry object into polygons; `None` for geometry without surfaces (points, lines).

@@ -29,14 +29,18 @@ use std::path::{Path, PathBuf};
 /// at least 3 points; coordinates are in the model's [`Frame`], in the axis order the file uses.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Polygon {
+    /// The outer boundary (open ring, ≥ 3 points).
     pub exterior: Vec<[f64; 3]>,
+    /// The holes (open rings).
     pub interiors: Vec<Vec<[f64; 3]>>,
 }
 
 /// An indexed triangle mesh (f64 positions in the model's [`Frame`]).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct TriMesh {
+    /// Vertex positions in the model's frame.
     pub positions: Vec<[f64; 3]>,
+    /// Triangles as indices into `positions`.
     pub triangles: Vec<[u32; 3]>,
 }
 
@@ -64,6 +68,7 @@ pub struct SourceBuilding {
     /// "ground". With heights relative to the ground (geometry starting at z ≈ 0) they are what
     /// `heights = "above_ground"` adds back; see [`relative_heights`].
     pub ground_heights_m: Vec<(String, f64)>,
+    /// The building's surfaces or mesh.
     pub geometry: Geometry,
     /// The appearance of each polygon of [`Geometry::Polygons`] in the chosen theme (parallel to the
     /// polygon list; `None` = the source gives none for that face). Empty when the building has no
@@ -81,9 +86,19 @@ pub enum FaceAppearance {
     /// exterior and of each of its interiors, parallel to [`Polygon::exterior`] / [`Polygon::interiors`]
     /// after the ring clean-up. Texture space as the sources define it: (0, 0) is the image's
     /// lower-left corner, v up.
-    Texture { image: usize, uv_exterior: Vec<[f64; 2]>, uv_interiors: Vec<Vec<[f64; 2]>> },
+    Texture {
+        /// Index into [`ModelAppearance::images`].
+        image: usize,
+        /// (u, v) per vertex of the exterior ring.
+        uv_exterior: Vec<[f64; 2]>,
+        /// (u, v) per vertex of each interior ring.
+        uv_interiors: Vec<Vec<[f64; 2]>>,
+    },
     /// A flat diffuse colour, linear RGB in 0..=1 (X3D `diffuseColor`).
-    Colour { rgb: [f64; 3] },
+    Colour {
+        /// Linear RGB, each in 0..=1.
+        rgb: [f64; 3],
+    },
 }
 
 /// A model's appearances: the themes found, the ones chosen, and the images faces refer to.
@@ -101,6 +116,7 @@ pub struct ModelAppearance {
     pub images: Vec<std::path::PathBuf>,
     /// Faces of the emitted buildings with a texture / with a colour.
     pub textured_faces: u64,
+    /// Faces of the emitted buildings with a colour.
     pub coloured_faces: u64,
     /// Texture targets dropped because their coordinates do not fit the ring (count mismatch) or
     /// point at no emitted face of the chosen geometry.
@@ -183,7 +199,12 @@ pub enum Frame {
     /// A coordinate reference system as the file names it (e.g. `"EPSG:6697"`,
     /// `"urn:ogc:def:crs:EPSG::7415"`, `"http://www.opengis.net/def/crs/EPSG/0/28992"`), or `None` when
     /// the file declares none (the scene file must then give `crs`). Axis order: see [`AxisConvention`].
-    Crs { name: Option<String>, axes: AxisConvention },
+    Crs {
+        /// The CRS as the file names it; `None` when it declares none.
+        name: Option<String>,
+        /// The axis order of the coordinates.
+        axes: AxisConvention,
+    },
     /// Earth-centred, earth-fixed metres (EPSG:4978), as 3D Tiles use after tile transforms.
     Ecef,
 }
@@ -221,8 +242,11 @@ fn is_zero(n: &u64) -> bool {
 pub struct SourceModel {
     /// The file (or tileset.json) that was read.
     pub path: PathBuf,
+    /// The frame the coordinates are in.
     pub frame: Frame,
+    /// The buildings read, in file order.
     pub buildings: Vec<SourceBuilding>,
+    /// What the reader counted besides the buildings.
     pub stats: ReadStats,
     /// Appearances (themes, images) the buildings' [`SourceBuilding::appearance`] refer to.
     pub appearance: ModelAppearance,
@@ -232,9 +256,13 @@ pub struct SourceModel {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Format {
+    /// CityGML 1.0/2.0/3.0 (`.gml`, `.xml`).
     CityGml,
+    /// CityJSON 1.x/2.x and CityJSONSeq (`.json`, `.city.json`, `.jsonl`).
     CityJson,
+    /// Wavefront OBJ with a JSON sidecar (CRS, offset, axes).
     Obj,
+    /// 3D Tiles: a `tileset.json` or one `.b3dm`/`.glb`/`.cmpt` content.
     #[serde(rename = "3dtiles")]
     Tiles3d,
 }
@@ -283,14 +311,12 @@ impl ReadOptions {
     /// Checks the weld tolerance before a mesh reader uses it; `path` is the file being read.
     ///
     /// # Errors
-    /// [`LodError::Invalid`] at `weld_tolerance_m` when it is negative or not finite.
+    /// [`LodError::WeldTolerance`] when it is negative or not finite.
     pub fn check_weld_tolerance(&self, path: &Path) -> Result<(), LodError> {
         match self.weld_tolerance_m {
-            Some(t) if !(t.is_finite() && t >= 0.0) => Err(LodError::invalid(
-                path,
-                "weld_tolerance_m",
-                format!("weld tolerance {t} m must be a finite number ≥ 0"),
-            )),
+            Some(t) if !(t.is_finite() && t >= 0.0) => {
+                Err(LodError::WeldTolerance { path: path.to_path_buf(), tolerance_m: t })
+            }
             _ => Ok(()),
         }
     }

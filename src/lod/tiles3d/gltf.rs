@@ -48,8 +48,11 @@ const MAX_ZERO_ACCESSOR: usize = 1 << 26;
 /// The glTF up axis of a tileset's content (`asset.gltfUpAxis`, default Y as 3D Tiles specifies).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum UpAxis {
+    /// X up.
     X,
+    /// Y up (the glTF and 3D Tiles default).
     Y,
+    /// Z up.
     Z,
 }
 
@@ -203,10 +206,15 @@ impl Buffer {
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(rename_all = "camelCase")]
 pub struct Material {
+    /// `name`.
     pub name: Option<String>,
+    /// `pbrMetallicRoughness`: base colour factor and texture.
     pub pbr_metallic_roughness: Option<PbrMetallicRoughness>,
+    /// `emissiveTexture`.
     pub emissive_texture: Option<TextureInfo>,
+    /// `emissiveFactor`, linear RGB.
     pub emissive_factor: Option<[f64; 3]>,
+    /// `doubleSided`.
     #[serde(default)]
     pub double_sided: bool,
     /// `KHR_materials_unlit` (an empty object) and others.
@@ -233,7 +241,9 @@ impl Material {
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(rename_all = "camelCase")]
 pub struct PbrMetallicRoughness {
+    /// `baseColorFactor`, linear RGBA.
     pub base_color_factor: Option<[f64; 4]>,
+    /// `baseColorTexture`.
     pub base_color_texture: Option<TextureInfo>,
 }
 
@@ -241,9 +251,12 @@ pub struct PbrMetallicRoughness {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(rename_all = "camelCase")]
 pub struct TextureInfo {
+    /// Index into `textures`.
     pub index: usize,
+    /// `texCoord`: the UV set (`TEXCOORD_n`).
     #[serde(default)]
     pub tex_coord: usize,
+    /// `KHR_texture_transform` and others.
     #[serde(default)]
     pub extensions: BTreeMap<String, Value>,
 }
@@ -253,13 +266,16 @@ pub struct TextureInfo {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(rename_all = "camelCase")]
 pub struct TextureTransform {
+    /// Translation, UV units.
     #[serde(default)]
     pub offset: [f64; 2],
     /// Radians, counter-clockwise in UV space.
     #[serde(default)]
     pub rotation: f64,
+    /// Scale factors (u, v).
     #[serde(default = "unit_scale")]
     pub scale: [f64; 2],
+    /// The UV set it applies to instead of the texture info's `texCoord`.
     pub tex_coord: Option<usize>,
 }
 
@@ -309,7 +325,9 @@ impl TextureInfo {
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(rename_all = "camelCase")]
 pub struct Texture {
+    /// Index into `images`.
     pub source: Option<usize>,
+    /// Index into `samplers`.
     pub sampler: Option<usize>,
     /// `EXT_texture_webp`, `KHR_texture_basisu`, `MSFT_texture_dds`: `{"source": i}`.
     #[serde(default)]
@@ -320,9 +338,13 @@ pub struct Texture {
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(rename_all = "camelCase")]
 pub struct Image {
+    /// Relative path or `data:` URI.
     pub uri: Option<String>,
+    /// Buffer view holding the bytes (GLB-embedded images).
     pub buffer_view: Option<usize>,
+    /// `image/png`, `image/jpeg`, `image/webp`, …
     pub mime_type: Option<String>,
+    /// `name`.
     pub name: Option<String>,
 }
 
@@ -673,177 +695,14 @@ fn read_component(bytes: &[u8], component_type: u32, normalized: bool) -> f64 {
 impl<'a> Gltf<'a> {
     /// Checks every index and byte range; returns all problems, each with its JSON path.
     fn validate(&self) -> Vec<GltfIssue> {
-        let r = &self.root;
-        let mut p = Vec::new();
-        let mut issue = |at: String, what: String| p.push(GltfIssue { at, what });
-        for (i, b) in r.buffers.iter().enumerate() {
-            let have = self.buffers[i].len();
-            if have < b.byte_length && !(b.is_meshopt_fallback() && have == 0) {
-                issue(
-                    format!("buffers[{i}]"),
-                    format!("byteLength {} but only {have} bytes available", b.byte_length),
-                );
-            }
-        }
-        for (i, v) in r.buffer_views.iter().enumerate() {
-            let compressed = v.extensions.contains_key("EXT_meshopt_compression");
-            match self.buffers.get(v.buffer) {
-                None => {
-                    issue(format!("bufferViews[{i}].buffer"), format!("buffer {} does not exist", v.buffer))
-                }
-                Some(_) if compressed => {}
-                Some(buf) => {
-                    if v.byte_offset.checked_add(v.byte_length).is_none_or(|end| end > buf.len()) {
-                        issue(
-                            format!("bufferViews[{i}]"),
-                            format!(
-                                "bytes {}..+{} exceed buffer {} ({} bytes)",
-                                v.byte_offset,
-                                v.byte_length,
-                                v.buffer,
-                                buf.len()
-                            ),
-                        );
-                    }
-                }
-            }
-            if let Some(s) = v.byte_stride {
-                if !(4..=252).contains(&s) || !s.is_multiple_of(4) {
-                    issue(
-                        format!("bufferViews[{i}].byteStride"),
-                        format!("{s} is not a multiple of 4 in 4..=252"),
-                    );
-                }
-            }
-        }
-        for (i, a) in r.accessors.iter().enumerate() {
-            let at = format!("accessors[{i}]");
-            let (Some(n), Some(size)) = (components(&a.kind), component_size(a.component_type)) else {
-                issue(at, format!("unknown type {:?} / componentType {}", a.kind, a.component_type));
-                continue;
-            };
-            if let Some(bv) = a.buffer_view {
-                match r.buffer_views.get(bv) {
-                    None => issue(format!("{at}.bufferView"), format!("bufferView {bv} does not exist")),
-                    Some(view) => {
-                        let stride = view.byte_stride.unwrap_or(n * size);
-                        let need = if a.count == 0 {
-                            Some(0)
-                        } else {
-                            (a.count - 1)
-                                .checked_mul(stride)
-                                .and_then(|x| x.checked_add(n * size))
-                                .and_then(|x| x.checked_add(a.byte_offset))
-                        };
-                        if need.is_none_or(|need| need > view.byte_length) {
-                            issue(
-                                at.clone(),
-                                format!(
-                                    "{} elements of {} bytes (stride {stride}) from offset {} exceed bufferView \
-                                     {bv} ({} bytes)",
-                                    a.count,
-                                    n * size,
-                                    a.byte_offset,
-                                    view.byte_length
-                                ),
-                            );
-                        }
-                    }
-                }
-            }
-            if let Some(s) = &a.sparse {
-                let isize = match s.indices.component_type {
-                    5121 => 1,
-                    5123 => 2,
-                    5125 => 4,
-                    t => {
-                        issue(
-                            format!("{at}.sparse.indices.componentType"),
-                            format!("{t} is not an unsigned integer"),
-                        );
-                        continue;
-                    }
-                };
-                for (what, bv, off, len) in [
-                    ("indices", s.indices.buffer_view, s.indices.byte_offset, isize),
-                    ("values", s.values.buffer_view, s.values.byte_offset, n * size),
-                ] {
-                    match r.buffer_views.get(bv) {
-                        None => {
-                            issue(format!("{at}.sparse.{what}.bufferView"), format!("{bv} does not exist"))
-                        }
-                        Some(view) => {
-                            if s.count
-                                .checked_mul(len)
-                                .and_then(|x| x.checked_add(off))
-                                .is_none_or(|e| e > view.byte_length)
-                            {
-                                issue(
-                                    format!("{at}.sparse.{what}"),
-                                    format!("{} entries exceed bufferView {bv}", s.count),
-                                );
-                            }
-                        }
-                    }
-                }
-            }
-        }
-        for (m, mesh) in r.meshes.iter().enumerate() {
-            for (k, prim) in mesh.primitives.iter().enumerate() {
-                let at = format!("meshes[{m}].primitives[{k}]");
-                for (sem, &acc) in &prim.attributes {
-                    if acc >= r.accessors.len() {
-                        issue(
-                            format!("{at}.attributes[\"{sem}\"]"),
-                            format!("accessor {acc} does not exist"),
-                        );
-                    }
-                }
-                if let Some(acc) = prim.indices {
-                    if acc >= r.accessors.len() {
-                        issue(format!("{at}.indices"), format!("accessor {acc} does not exist"));
-                    }
-                }
-            }
-        }
-        let mut parent_of: Vec<Option<usize>> = vec![None; r.nodes.len()];
-        for (i, node) in r.nodes.iter().enumerate() {
-            for &c in &node.children {
-                match parent_of.get_mut(c) {
-                    None => issue(format!("nodes[{i}].children"), format!("node {c} does not exist")),
-                    Some(Some(first)) => issue(
-                        format!("nodes[{i}].children"),
-                        format!("node {c} is already a child of node {first} (glTF nodes form trees)"),
-                    ),
-                    Some(slot) => *slot = Some(i),
-                }
-            }
-            if let Some(m) = node.mesh {
-                if m >= r.meshes.len() {
-                    issue(format!("nodes[{i}].mesh"), format!("mesh {m} does not exist"));
-                }
-            }
-            let finite = node.matrix.iter().flatten().all(|v| v.is_finite())
-                && node.translation.iter().flatten().all(|v| v.is_finite())
-                && node.rotation.iter().flatten().all(|v| v.is_finite())
-                && node.scale.iter().flatten().all(|v| v.is_finite());
-            if !finite {
-                issue(format!("nodes[{i}]"), "transform has non-finite values".into());
-            }
-        }
-        for (s, scene) in r.scenes.iter().enumerate() {
-            for &n in &scene.nodes {
-                if n >= r.nodes.len() {
-                    issue(format!("scenes[{s}].nodes"), format!("node {n} does not exist"));
-                }
-            }
-        }
-        if let Some(s) = r.scene {
-            if s >= r.scenes.len() {
-                issue("scene".into(), format!("scene {s} does not exist"));
-            }
-        }
-        p
+        let mut v = Validator { gltf: self, issues: Vec::new() };
+        v.buffers();
+        v.buffer_views();
+        v.accessors();
+        v.meshes();
+        v.nodes();
+        v.scenes();
+        v.issues
     }
 
     /// The `CESIUM_RTC.center` translation, if any.
@@ -1057,140 +916,43 @@ impl<'a> Gltf<'a> {
         let at = format!("meshes[{m}].primitives[{k}]");
         let attribute_at = |name: &str| format!("{at}.attributes[\"{name}\"]");
         let feature_set = self.feature_set(prim, &at)?;
-        // The base colour texture's UV set and transform, when the surface is wanted.
-        let texture = match (surface, prim.material) {
-            (Surface::Yes, Some(mi)) => {
-                let mat = self.root.materials.get(mi).ok_or_else(|| {
-                    ContentError::Missing { what: "material", index: mi }.at(format!("{at}.material"))
-                })?;
-                match mat.base_color_texture() {
-                    Some(t) => {
-                        let texture_at = || format!("materials[{mi}].pbrMetallicRoughness.baseColorTexture");
-                        let uv_set = t.uv_set().map_err(|e| e.at(texture_at()))?;
-                        let transform = t.transform().map_err(|e| e.at(texture_at()))?;
-                        Some((uv_set, transform))
-                    }
-                    None => None,
-                }
-            }
-            _ => None,
+        let texture = match surface {
+            Surface::Yes => self.base_color_texture(prim, &at)?,
+            Surface::No => None,
         };
         let uv_name = texture.map(|(set, _)| format!("TEXCOORD_{set}"));
-        let fid0_name = "_FEATURE_ID_0";
         let draco_at = format!("{at}.extensions.KHR_draco_mesh_compression");
-        let draco_ext = match prim.extensions.get("KHR_draco_mesh_compression") {
-            None => None,
-            Some(v) => Some(
-                serde_json::from_value::<DracoExtension>(v.clone())
-                    .map_err(|source| ContentError::Json { at: draco_at.clone(), source })?,
-            ),
-        };
-
-        let (positions, triangles, mut feature_values, mut uv_values, mut fid0_values) = match &draco_ext {
-            Some(ext) => {
-                let pos_id = *ext
-                    .attributes
-                    .get("POSITION")
-                    .ok_or_else(|| ContentError::NoPosition { at: format!("{draco_at}.attributes") })?;
-                // (unique id, components) of each wanted attribute, and where it lands.
-                let mut wanted: Vec<(u32, usize)> = Vec::new();
-                let mut slot = |name: Option<&str>, n: usize| -> Option<usize> {
-                    let id = *ext.attributes.get(name?)?;
-                    wanted.push((id, n));
-                    Some(wanted.len() - 1)
-                };
-                let f_slot = slot(feature_set.as_ref().map(|(name, _, _)| name.as_str()), 1);
-                let uv_slot = slot(uv_name.as_deref(), 2);
-                let fid0_slot = if surface == Surface::Yes { slot(Some(fid0_name), 1) } else { None };
-                let bytes =
-                    self.view_bytes(ext.buffer_view).map_err(|e| e.at(format!("{draco_at}.bufferView")))?;
-                let mut d = draco::decode(bytes, pos_id, &wanted)
-                    .map_err(|source| ContentError::Draco { at: draco_at.clone(), source })?;
-                let mut take = |s: Option<usize>| s.map(|i| std::mem::take(&mut d.attributes[i]));
-                let (f, uv, fid0) = (take(f_slot), take(uv_slot), take(fid0_slot));
-                (d.positions, d.triangles, f, uv, fid0)
+        let mut raw = match prim.extensions.get("KHR_draco_mesh_compression") {
+            Some(v) => {
+                let ext = serde_json::from_value::<DracoExtension>(v.clone())
+                    .map_err(|source| ContentError::Json { at: draco_at.clone(), source })?;
+                let feature = feature_set.as_ref().map(|(name, _, _)| name.as_str());
+                self.draco_geometry(&ext, &draco_at, feature, uv_name.as_deref(), surface)?
             }
-            None => {
-                let acc = *prim
-                    .attributes
-                    .get("POSITION")
-                    .ok_or_else(|| ContentError::NoPosition { at: format!("{at}.attributes") })?;
-                let pos_at = attribute_at("POSITION");
-                let (n, flat) = self.read_accessor(acc, &pos_at)?;
-                if n != 3 {
-                    return Err(ContentError::Accessor {
-                        at: pos_at,
-                        accessor: Some(acc),
-                        problem: AccessorProblem::Type { expected: "VEC3" },
-                    });
-                }
-                let positions: Vec<[f64; 3]> = flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-                let indices: Vec<u32> = match prim.indices {
-                    Some(acc) => {
-                        let idx_at = format!("{at}.indices");
-                        let (n, flat) = self.read_accessor(acc, &idx_at)?;
-                        if n != 1 {
-                            return Err(ContentError::Accessor {
-                                at: idx_at,
-                                accessor: Some(acc),
-                                problem: AccessorProblem::Type { expected: "SCALAR" },
-                            });
-                        }
-                        flat.into_iter().map(|v| v as u32).collect()
-                    }
-                    None => (0..positions.len() as u32).collect(),
-                };
-                let triangles = assemble(&indices, prim.mode);
-                (positions, triangles, None, None, None)
-            }
+            None => self.accessor_geometry(prim, &at)?,
         };
         // Attributes stored outside Draco (or all of them, without Draco).
         if let Some(name) = &uv_name {
-            if uv_values.is_none() {
+            if raw.uv.is_none() {
                 if let Some(&acc) = prim.attributes.get(name) {
-                    let (n, flat) = self.read_accessor(acc, &attribute_at(name))?;
-                    if n != 2 {
-                        return Err(ContentError::Accessor {
-                            at: attribute_at(name),
-                            accessor: Some(acc),
-                            problem: AccessorProblem::Type { expected: "VEC2" },
-                        });
-                    }
-                    uv_values = Some(flat);
+                    raw.uv = Some(self.read_typed(acc, attribute_at(name), "VEC2")?);
                 }
             }
         }
-        if surface == Surface::Yes && fid0_values.is_none() {
-            if let Some(&acc) = prim.attributes.get(fid0_name) {
-                let (n, flat) = self.read_accessor(acc, &attribute_at(fid0_name))?;
-                if n != 1 {
-                    return Err(ContentError::Accessor {
-                        at: attribute_at(fid0_name),
-                        accessor: Some(acc),
-                        problem: AccessorProblem::Type { expected: "SCALAR" },
-                    });
-                }
-                fid0_values = Some(flat);
+        if surface == Surface::Yes && raw.feature_id0.is_none() {
+            if let Some(&acc) = prim.attributes.get(FEATURE_ID_0) {
+                raw.feature_id0 = Some(self.read_typed(acc, attribute_at(FEATURE_ID_0), "SCALAR")?);
             }
         }
-        if let Some(bad) = positions.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
-            return Err(ContentError::NonFiniteVertex {
-                at: at.clone(),
-                vertex: bad,
-                position: positions[bad],
-            });
-        }
-        let n_vertices = positions.len();
-        if let Some(t) = triangles.iter().find(|t| t.iter().any(|&i| i as usize >= n_vertices)) {
-            return Err(ContentError::TriangleIndex { at: at.clone(), triangle: *t, vertices: n_vertices });
-        }
+        check_geometry(&at, &raw.positions, &raw.triangles)?;
+        let n_vertices = raw.positions.len();
         // A per-vertex attribute (from an accessor, or from Draco) with the wrong number of values.
         let count_error = |name: &str, values: usize| ContentError::Accessor {
             at: attribute_at(name),
             accessor: prim.attributes.get(name).copied(),
             problem: AccessorProblem::Count { values, vertices: n_vertices },
         };
-        let uv = match uv_values {
+        let uv = match raw.uv {
             None => None,
             Some(flat) => {
                 if flat.len() != 2 * n_vertices {
@@ -1205,49 +967,116 @@ impl<'a> Gltf<'a> {
                 )
             }
         };
-        if let Some(f) = &fid0_values {
+        if let Some(f) = &raw.feature_id0 {
             if f.len() != n_vertices {
-                return Err(count_error(fid0_name, f.len()));
+                return Err(count_error(FEATURE_ID_0, f.len()));
             }
         }
-
         let features = match feature_set {
             None => None,
             Some((name, table, null_id)) => {
-                let values = match feature_values.take() {
+                let values = match raw.features.take() {
                     Some(v) => v,
-                    None => {
-                        let acc = prim.attributes[&name];
-                        let (n, flat) = self.read_accessor(acc, &attribute_at(&name))?;
-                        if n != 1 {
-                            return Err(ContentError::Accessor {
-                                at: attribute_at(&name),
-                                accessor: Some(acc),
-                                problem: AccessorProblem::Type { expected: "SCALAR" },
-                            });
-                        }
-                        flat
-                    }
+                    None => self.read_typed(prim.attributes[&name], attribute_at(&name), "SCALAR")?,
                 };
                 if values.len() != n_vertices {
                     return Err(count_error(&name, values.len()));
                 }
-                let mut ids = Vec::with_capacity(values.len());
-                for v in values {
-                    let id = v.round();
-                    if !(v.is_finite() && (v - id).abs() < 1e-3 && (0.0..=u32::MAX as f64).contains(&id)) {
-                        return Err(ContentError::Accessor {
-                            at: attribute_at(&name),
-                            accessor: prim.attributes.get(&name).copied(),
-                            problem: AccessorProblem::NotFeatureId { value: v },
-                        });
-                    }
-                    ids.push(if Some(id as u64) == null_id { None } else { Some(id as u32) });
-                }
+                let ids = feature_ids(values, null_id).map_err(|value| ContentError::Accessor {
+                    at: attribute_at(&name),
+                    accessor: prim.attributes.get(&name).copied(),
+                    problem: AccessorProblem::NotFeatureId { value },
+                })?;
                 Some(FeatureIds { table, ids })
             }
         };
-        Ok(Some(LocalPrimitive { positions, triangles, features, uv, feature_id0: fid0_values }))
+        let RawPrimitive { positions, triangles, feature_id0, .. } = raw;
+        Ok(Some(LocalPrimitive { positions, triangles, features, uv, feature_id0 }))
+    }
+
+    /// The UV set and `KHR_texture_transform` of the base colour texture of the primitive's (at
+    /// JSON path `at`) material; `None` without material or texture.
+    fn base_color_texture(
+        &self,
+        prim: &Primitive,
+        at: &str,
+    ) -> Result<Option<(usize, Option<TextureTransform>)>, ContentError> {
+        let Some(mi) = prim.material else { return Ok(None) };
+        let mat = self.root.materials.get(mi).ok_or_else(|| {
+            ContentError::Missing { what: "material", index: mi }.at(format!("{at}.material"))
+        })?;
+        let Some(t) = mat.base_color_texture() else { return Ok(None) };
+        let texture_at = || format!("materials[{mi}].pbrMetallicRoughness.baseColorTexture");
+        let uv_set = t.uv_set().map_err(|e| e.at(texture_at()))?;
+        let transform = t.transform().map_err(|e| e.at(texture_at()))?;
+        Ok(Some((uv_set, transform)))
+    }
+
+    /// Positions, triangles and the wanted attributes (feature IDs, UVs named `uv`, and
+    /// `_FEATURE_ID_0` for [`Surface::Yes`]) decoded from `KHR_draco_mesh_compression` (at
+    /// JSON path `draco_at`).
+    fn draco_geometry(
+        &self,
+        ext: &DracoExtension,
+        draco_at: &str,
+        feature: Option<&str>,
+        uv: Option<&str>,
+        surface: Surface,
+    ) -> Result<RawPrimitive, ContentError> {
+        let pos_id = *ext
+            .attributes
+            .get("POSITION")
+            .ok_or_else(|| ContentError::NoPosition { at: format!("{draco_at}.attributes") })?;
+        // (unique id, components) of each wanted attribute, and where it lands.
+        let mut wanted: Vec<(u32, usize)> = Vec::new();
+        let mut slot = |name: Option<&str>, n: usize| -> Option<usize> {
+            let id = *ext.attributes.get(name?)?;
+            wanted.push((id, n));
+            Some(wanted.len() - 1)
+        };
+        let f_slot = slot(feature, 1);
+        let uv_slot = slot(uv, 2);
+        let fid0_slot = if surface == Surface::Yes { slot(Some(FEATURE_ID_0), 1) } else { None };
+        let bytes = self.view_bytes(ext.buffer_view).map_err(|e| e.at(format!("{draco_at}.bufferView")))?;
+        let mut d = draco::decode(bytes, pos_id, &wanted)
+            .map_err(|source| ContentError::Draco { at: draco_at.to_string(), source })?;
+        let mut take = |s: Option<usize>| s.map(|i| std::mem::take(&mut d.attributes[i]));
+        let (features, uv, feature_id0) = (take(f_slot), take(uv_slot), take(fid0_slot));
+        Ok(RawPrimitive { positions: d.positions, triangles: d.triangles, features, uv, feature_id0 })
+    }
+
+    /// Positions and triangles (assembled from `indices` and the mode) of an uncompressed
+    /// primitive at JSON path `at`; its other attributes are read by the caller.
+    fn accessor_geometry(&self, prim: &Primitive, at: &str) -> Result<RawPrimitive, ContentError> {
+        let acc = *prim
+            .attributes
+            .get("POSITION")
+            .ok_or_else(|| ContentError::NoPosition { at: format!("{at}.attributes") })?;
+        let flat = self.read_typed(acc, format!("{at}.attributes[\"POSITION\"]"), "VEC3")?;
+        let positions: Vec<[f64; 3]> = flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        let indices: Vec<u32> = match prim.indices {
+            Some(acc) => {
+                let flat = self.read_typed(acc, format!("{at}.indices"), "SCALAR")?;
+                flat.into_iter().map(|v| v as u32).collect()
+            }
+            None => (0..positions.len() as u32).collect(),
+        };
+        let triangles = assemble(&indices, prim.mode);
+        Ok(RawPrimitive { positions, triangles, features: None, uv: None, feature_id0: None })
+    }
+
+    /// Reads accessor `acc`, referenced at JSON path `at`, which must be of accessor type `kind`
+    /// (`"SCALAR"`, `"VEC2"`, …); returns its values flat.
+    fn read_typed(&self, acc: usize, at: String, kind: &'static str) -> Result<Vec<f64>, ContentError> {
+        let (n, flat) = self.read_accessor(acc, &at)?;
+        if Some(n) != components(kind) {
+            return Err(ContentError::Accessor {
+                at,
+                accessor: Some(acc),
+                problem: AccessorProblem::Type { expected: kind },
+            });
+        }
+        Ok(flat)
     }
 
     /// Which attribute holds the primitive's (at JSON path `at`) feature IDs: the first
@@ -1288,6 +1117,266 @@ impl<'a> Gltf<'a> {
         }
         Ok(None)
     }
+}
+
+/// Walks a parsed glTF one spec object at a time, collecting every broken cross-reference and
+/// byte range as a [`GltfIssue`] (JSON path, problem), in document order.
+struct Validator<'g, 'a> {
+    gltf: &'g Gltf<'a>,
+    issues: Vec<GltfIssue>,
+}
+
+impl Validator<'_, '_> {
+    fn issue(&mut self, at: String, what: String) {
+        self.issues.push(GltfIssue { at, what });
+    }
+
+    /// `buffers[i]`: the bytes loaded for each buffer cover its `byteLength` (a meshopt fallback
+    /// buffer may have none).
+    fn buffers(&mut self) {
+        let g = self.gltf;
+        for (i, b) in g.root.buffers.iter().enumerate() {
+            let have = g.buffers[i].len();
+            if have < b.byte_length && !(b.is_meshopt_fallback() && have == 0) {
+                self.issue(
+                    format!("buffers[{i}]"),
+                    format!("byteLength {} but only {have} bytes available", b.byte_length),
+                );
+            }
+        }
+    }
+
+    /// `bufferViews[i]`: the buffer exists, the byte range lies inside it (unless meshopt-compressed)
+    /// and the stride is valid.
+    fn buffer_views(&mut self) {
+        let g = self.gltf;
+        for (i, v) in g.root.buffer_views.iter().enumerate() {
+            let compressed = v.extensions.contains_key("EXT_meshopt_compression");
+            match g.buffers.get(v.buffer) {
+                None => self
+                    .issue(format!("bufferViews[{i}].buffer"), format!("buffer {} does not exist", v.buffer)),
+                Some(_) if compressed => {}
+                Some(buf) => {
+                    if v.byte_offset.checked_add(v.byte_length).is_none_or(|end| end > buf.len()) {
+                        self.issue(
+                            format!("bufferViews[{i}]"),
+                            format!(
+                                "bytes {}..+{} exceed buffer {} ({} bytes)",
+                                v.byte_offset,
+                                v.byte_length,
+                                v.buffer,
+                                buf.len()
+                            ),
+                        );
+                    }
+                }
+            }
+            if let Some(s) = v.byte_stride {
+                if !(4..=252).contains(&s) || !s.is_multiple_of(4) {
+                    self.issue(
+                        format!("bufferViews[{i}].byteStride"),
+                        format!("{s} is not a multiple of 4 in 4..=252"),
+                    );
+                }
+            }
+        }
+    }
+
+    /// `accessors[i]`: known type, elements inside the buffer view, sparse storage inside its views.
+    fn accessors(&mut self) {
+        for (i, a) in self.gltf.root.accessors.iter().enumerate() {
+            let at = format!("accessors[{i}]");
+            let (Some(n), Some(size)) = (components(&a.kind), component_size(a.component_type)) else {
+                self.issue(at, format!("unknown type {:?} / componentType {}", a.kind, a.component_type));
+                continue;
+            };
+            if let Some(bv) = a.buffer_view {
+                self.accessor_range(&at, a, bv, n * size);
+            }
+            if let Some(s) = &a.sparse {
+                self.sparse(&at, s, n * size);
+            }
+        }
+    }
+
+    /// The `count` elements of `element` bytes of accessor `a` (at `at`) fit in `bufferViews[bv]`.
+    fn accessor_range(&mut self, at: &str, a: &Accessor, bv: usize, element: usize) {
+        let Some(view) = self.gltf.root.buffer_views.get(bv) else {
+            self.issue(format!("{at}.bufferView"), format!("bufferView {bv} does not exist"));
+            return;
+        };
+        let stride = view.byte_stride.unwrap_or(element);
+        let need = if a.count == 0 {
+            Some(0)
+        } else {
+            (a.count - 1)
+                .checked_mul(stride)
+                .and_then(|x| x.checked_add(element))
+                .and_then(|x| x.checked_add(a.byte_offset))
+        };
+        if need.is_none_or(|need| need > view.byte_length) {
+            self.issue(
+                at.to_string(),
+                format!(
+                    "{} elements of {} bytes (stride {stride}) from offset {} exceed bufferView {bv} ({} \
+                     bytes)",
+                    a.count, element, a.byte_offset, view.byte_length
+                ),
+            );
+        }
+    }
+
+    /// The sparse substitution of the accessor at `at` (values of `element` bytes): unsigned
+    /// indices, and indices and values inside their buffer views.
+    fn sparse(&mut self, at: &str, s: &Sparse, element: usize) {
+        let isize = match s.indices.component_type {
+            5121 => 1,
+            5123 => 2,
+            5125 => 4,
+            t => {
+                self.issue(
+                    format!("{at}.sparse.indices.componentType"),
+                    format!("{t} is not an unsigned integer"),
+                );
+                return;
+            }
+        };
+        for (what, bv, off, len) in [
+            ("indices", s.indices.buffer_view, s.indices.byte_offset, isize),
+            ("values", s.values.buffer_view, s.values.byte_offset, element),
+        ] {
+            match self.gltf.root.buffer_views.get(bv) {
+                None => self.issue(format!("{at}.sparse.{what}.bufferView"), format!("{bv} does not exist")),
+                Some(view) => {
+                    if s.count
+                        .checked_mul(len)
+                        .and_then(|x| x.checked_add(off))
+                        .is_none_or(|e| e > view.byte_length)
+                    {
+                        self.issue(
+                            format!("{at}.sparse.{what}"),
+                            format!("{} entries exceed bufferView {bv}", s.count),
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    /// `meshes[m].primitives[k]`: attribute and index accessors exist.
+    fn meshes(&mut self) {
+        let r = &self.gltf.root;
+        for (m, mesh) in r.meshes.iter().enumerate() {
+            for (k, prim) in mesh.primitives.iter().enumerate() {
+                let at = format!("meshes[{m}].primitives[{k}]");
+                for (sem, &acc) in &prim.attributes {
+                    if acc >= r.accessors.len() {
+                        self.issue(
+                            format!("{at}.attributes[\"{sem}\"]"),
+                            format!("accessor {acc} does not exist"),
+                        );
+                    }
+                }
+                if let Some(acc) = prim.indices {
+                    if acc >= r.accessors.len() {
+                        self.issue(format!("{at}.indices"), format!("accessor {acc} does not exist"));
+                    }
+                }
+            }
+        }
+    }
+
+    /// `nodes[i]`: children exist and have one parent each (trees), the mesh exists, the transform
+    /// is finite.
+    fn nodes(&mut self) {
+        let r = &self.gltf.root;
+        let mut parent_of: Vec<Option<usize>> = vec![None; r.nodes.len()];
+        for (i, node) in r.nodes.iter().enumerate() {
+            for &c in &node.children {
+                match parent_of.get_mut(c) {
+                    None => self.issue(format!("nodes[{i}].children"), format!("node {c} does not exist")),
+                    Some(Some(first)) => self.issue(
+                        format!("nodes[{i}].children"),
+                        format!("node {c} is already a child of node {first} (glTF nodes form trees)"),
+                    ),
+                    Some(slot) => *slot = Some(i),
+                }
+            }
+            if let Some(m) = node.mesh {
+                if m >= r.meshes.len() {
+                    self.issue(format!("nodes[{i}].mesh"), format!("mesh {m} does not exist"));
+                }
+            }
+            let finite = node.matrix.iter().flatten().all(|v| v.is_finite())
+                && node.translation.iter().flatten().all(|v| v.is_finite())
+                && node.rotation.iter().flatten().all(|v| v.is_finite())
+                && node.scale.iter().flatten().all(|v| v.is_finite());
+            if !finite {
+                self.issue(format!("nodes[{i}]"), "transform has non-finite values".into());
+            }
+        }
+    }
+
+    /// `scenes[s].nodes` and `scene`: the nodes and the default scene exist.
+    fn scenes(&mut self) {
+        let r = &self.gltf.root;
+        for (s, scene) in r.scenes.iter().enumerate() {
+            for &n in &scene.nodes {
+                if n >= r.nodes.len() {
+                    self.issue(format!("scenes[{s}].nodes"), format!("node {n} does not exist"));
+                }
+            }
+        }
+        if let Some(s) = r.scene {
+            if s >= r.scenes.len() {
+                self.issue("scene".into(), format!("scene {s} does not exist"));
+            }
+        }
+    }
+}
+
+/// The vertex attribute holding `EXT_mesh_features` set 0 as stored (kept for Blender).
+const FEATURE_ID_0: &str = "_FEATURE_ID_0";
+
+/// A primitive as decoded, before its attributes are checked against the vertex count: positions,
+/// triangles and the flat values of the attributes that were read.
+struct RawPrimitive {
+    positions: Vec<[f64; 3]>,
+    triangles: Vec<[u32; 3]>,
+    features: Option<Vec<f64>>,
+    uv: Option<Vec<f64>>,
+    feature_id0: Option<Vec<f64>>,
+}
+
+/// Checks that the positions of the primitive at JSON path `at` are finite and that its triangles
+/// index existing vertices.
+fn check_geometry(at: &str, positions: &[[f64; 3]], triangles: &[[u32; 3]]) -> Result<(), ContentError> {
+    if let Some(bad) = positions.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
+        return Err(ContentError::NonFiniteVertex {
+            at: at.to_string(),
+            vertex: bad,
+            position: positions[bad],
+        });
+    }
+    let n_vertices = positions.len();
+    if let Some(t) = triangles.iter().find(|t| t.iter().any(|&i| i as usize >= n_vertices)) {
+        return Err(ContentError::TriangleIndex { at: at.to_string(), triangle: *t, vertices: n_vertices });
+    }
+    Ok(())
+}
+
+/// Feature IDs from an attribute's float values (`None` for `null_id`); the first value that is
+/// not a non-negative integer in u32 range is the error.
+fn feature_ids(values: Vec<f64>, null_id: Option<u64>) -> Result<Vec<Option<u32>>, f64> {
+    let mut ids = Vec::with_capacity(values.len());
+    for v in values {
+        let id = v.round();
+        if !(v.is_finite() && (v - id).abs() < 1e-3 && (0.0..=u32::MAX as f64).contains(&id)) {
+            return Err(v);
+        }
+        ids.push(if Some(id as u64) == null_id { None } else { Some(id as u32) });
+    }
+    Ok(ids)
 }
 
 /// A node's local matrix: `matrix`, or `T · R · S`.

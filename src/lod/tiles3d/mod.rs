@@ -193,33 +193,9 @@ pub fn fingerprint(path: &Path) -> Result<String, LodError> {
 /// # Errors
 /// As [`read`].
 pub fn read_with_report(path: &Path, opts: &ReadOptions) -> Result<(SourceModel, TilesReport), LodError> {
-    if let Some(t) = opts.weld_tolerance_m {
-        if !(t.is_finite() && t >= 0.0) {
-            return Err(LodError::invalid(
-                path,
-                "weld_tolerance_m",
-                format!("weld tolerance {t} m must be a finite number ≥ 0"),
-            ));
-        }
-    }
-    let is_json = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    opts.check_weld_tolerance(path)?;
     let mut report = TilesReport::default();
-    let jobs = if is_json {
-        let t = tileset::traverse(path)?;
-        report.tilesets_read = t.tilesets_read;
-        report.contents_refined_away = t.contents_skipped;
-        t.jobs
-    } else {
-        let label = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-        vec![ContentJob {
-            file: path.to_path_buf(),
-            label,
-            referenced_by: None,
-            world_from_tile: DMat4::IDENTITY,
-            up: gltf::UpAxis::Y,
-        }]
-    };
-
+    let jobs = content_jobs(path, &mut report)?;
     // Decode in parallel; keep traversal order and report the first failure in that order.
     let decoded: Vec<Result<content::DecodedContent, LodError>> = jobs
         .par_iter()
@@ -230,54 +206,18 @@ pub fn read_with_report(path: &Path, opts: &ReadOptions) -> Result<(SourceModel,
                 .map_err(|e| job.error(e))
         })
         .collect();
-
-    let mut buildings: Vec<SourceBuilding> = Vec::new();
-    let mut index_of: BTreeMap<String, usize> = BTreeMap::new();
+    let mut set = BuildingSet::default();
     let mut counters = content::Counters::default();
     for (job, result) in jobs.iter().zip(decoded) {
         let c = result?;
         counters.add(&c.counters);
         for f in c.features {
-            match index_of.get(&f.source_id) {
-                Some(&k) => {
-                    report.merged_features += 1;
-                    let b = &mut buildings[k];
-                    if b.lod == "unknown" {
-                        if let Some(lod) = f.lod {
-                            b.lod = lod;
-                        }
-                    }
-                    b.measured_height_m = b.measured_height_m.or(f.measured_height_m);
-                    if let Geometry::Mesh(m) = &mut b.geometry {
-                        append(m, &f.mesh);
-                    }
-                }
-                None => {
-                    index_of.insert(f.source_id.clone(), buildings.len());
-                    buildings.push(SourceBuilding {
-                        source_id: f.source_id,
-                        lod: f.lod.unwrap_or_else(|| "unknown".to_string()),
-                        measured_height_m: f.measured_height_m,
-                        ground_heights_m: Vec::new(),
-                        geometry: Geometry::Mesh(f.mesh),
-                        appearance: Vec::new(),
-                    });
-                }
-            }
+            set.add_feature(f, &mut report);
         }
         if !c.idless.triangles.is_empty() {
             for (n, part) in split_connected(&c.idless, opts.weld_tolerance_m).into_iter().enumerate() {
                 report.connected_component_buildings += 1;
-                let id = format!("{}#cc{n}", job.label);
-                index_of.insert(id.clone(), buildings.len());
-                buildings.push(SourceBuilding {
-                    source_id: id,
-                    lod: "unknown".to_string(),
-                    measured_height_m: None,
-                    ground_heights_m: Vec::new(),
-                    geometry: Geometry::Mesh(part),
-                    appearance: Vec::new(),
-                });
+                set.add_component(format!("{}#cc{n}", job.label), part);
             }
         }
     }
@@ -295,11 +235,85 @@ pub fn read_with_report(path: &Path, opts: &ReadOptions) -> Result<(SourceModel,
     let model = SourceModel {
         path: path.to_path_buf(),
         frame: Frame::Ecef,
-        buildings,
+        buildings: set.buildings,
         stats,
         appearance: Default::default(),
     };
     Ok((model, report))
+}
+
+/// The contents to read: those a tileset JSON references (traversed, with its counts added to
+/// `report`), or the one content file `path`.
+fn content_jobs(path: &Path, report: &mut TilesReport) -> Result<Vec<ContentJob>, LodError> {
+    let is_json = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    if is_json {
+        let t = tileset::traverse(path)?;
+        report.tilesets_read = t.tilesets_read;
+        report.contents_refined_away = t.contents_skipped;
+        return Ok(t.jobs);
+    }
+    let label = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    Ok(vec![ContentJob {
+        file: path.to_path_buf(),
+        label,
+        referenced_by: None,
+        world_from_tile: DMat4::IDENTITY,
+        up: gltf::UpAxis::Y,
+    }])
+}
+
+/// The buildings assembled so far, with the index of each source id (features with the same id in
+/// several contents are merged).
+#[derive(Default)]
+struct BuildingSet {
+    buildings: Vec<SourceBuilding>,
+    index_of: BTreeMap<String, usize>,
+}
+
+impl BuildingSet {
+    /// Adds a feature as a new building, or merges it into the building with its id (its mesh
+    /// appended, a missing LoD or measured height filled in).
+    fn add_feature(&mut self, f: content::DecodedFeature, report: &mut TilesReport) {
+        match self.index_of.get(&f.source_id) {
+            Some(&k) => {
+                report.merged_features += 1;
+                let b = &mut self.buildings[k];
+                if b.lod == "unknown" {
+                    if let Some(lod) = f.lod {
+                        b.lod = lod;
+                    }
+                }
+                b.measured_height_m = b.measured_height_m.or(f.measured_height_m);
+                if let Geometry::Mesh(m) = &mut b.geometry {
+                    append(m, &f.mesh);
+                }
+            }
+            None => {
+                self.index_of.insert(f.source_id.clone(), self.buildings.len());
+                self.buildings.push(SourceBuilding {
+                    source_id: f.source_id,
+                    lod: f.lod.unwrap_or_else(|| "unknown".to_string()),
+                    measured_height_m: f.measured_height_m,
+                    ground_heights_m: Vec::new(),
+                    geometry: Geometry::Mesh(f.mesh),
+                    appearance: Vec::new(),
+                });
+            }
+        }
+    }
+
+    /// Adds a connected component of ID-less geometry as building `id`.
+    fn add_component(&mut self, id: String, mesh: super::TriMesh) {
+        self.index_of.insert(id.clone(), self.buildings.len());
+        self.buildings.push(SourceBuilding {
+            source_id: id,
+            lod: "unknown".to_string(),
+            measured_height_m: None,
+            ground_heights_m: Vec::new(),
+            geometry: Geometry::Mesh(mesh),
+            appearance: Vec::new(),
+        });
+    }
 }
 
 #[cfg(test)]

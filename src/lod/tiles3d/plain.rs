@@ -165,125 +165,176 @@ const DECODED: &[&str] = &[
 ];
 
 fn build(parts: &[Part<'_>], load_uri: &LoadUri<'_>) -> Result<Importable, ContentError> {
-    // The centre of all positions (tile frame, f64).
+    let mut w = PlainWriter::new(bounds_centre(parts), load_uri);
+    for (pi, part) in parts.iter().enumerate() {
+        let r = &part.gltf.root;
+        for e in r.extensions_used.iter().chain(&r.extensions_required) {
+            if DECODED.contains(&e.as_str()) {
+                w.decoded.insert(e.clone());
+            }
+        }
+        // Input material index → output material index, built on first use.
+        let mut mat_map: BTreeMap<usize, usize> = BTreeMap::new();
+        for prim in part.prims.iter().filter(|p| !p.triangles.is_empty()) {
+            let material = match prim.material {
+                None => None,
+                Some(mi) => Some(match mat_map.get(&mi) {
+                    Some(&o) => o,
+                    None => {
+                        let o = w.material(part, pi, mi)?;
+                        mat_map.insert(mi, o);
+                        o
+                    }
+                }),
+            };
+            w.primitive(prim, material);
+        }
+    }
+    w.finish()
+}
+
+/// The centre of the bounding box of all positions (tile frame, f64); the origin without any.
+fn bounds_centre(parts: &[Part<'_>]) -> DVec3 {
     let mut lo = DVec3::INFINITY;
     let mut hi = DVec3::NEG_INFINITY;
     for p in parts.iter().flat_map(|p| &p.prims).flat_map(|w| &w.positions) {
         lo = lo.min(DVec3::from_array(*p));
         hi = hi.max(DVec3::from_array(*p));
     }
-    let centre = if lo.x.is_finite() { 0.5 * (lo + hi) } else { DVec3::ZERO };
+    if lo.x.is_finite() {
+        0.5 * (lo + hi)
+    } else {
+        DVec3::ZERO
+    }
+}
 
-    let mut b = GlbBuilder::default();
-    let mut materials: Vec<Value> = Vec::new();
-    let mut textures: Vec<Value> = Vec::new();
-    let mut images: Vec<Value> = Vec::new();
-    let mut samplers: Vec<Value> = Vec::new();
-    let mut primitives: Vec<Value> = Vec::new();
-    let mut decoded = BTreeSet::new();
-    let mut triangles = 0u64;
-    let mut unlit_used = false;
-    for (pi, part) in parts.iter().enumerate() {
+/// The plain GLB being written: its binary chunk and the JSON arrays that grow with it.
+struct PlainWriter<'l> {
+    b: GlbBuilder,
+    /// Subtracted from every position (tile frame, metres).
+    centre: DVec3,
+    load_uri: &'l LoadUri<'l>,
+    materials: Vec<Value>,
+    textures: Vec<Value>,
+    images: Vec<Value>,
+    samplers: Vec<Value>,
+    primitives: Vec<Value>,
+    decoded: BTreeSet<String>,
+    triangles: u64,
+    unlit_used: bool,
+}
+
+impl<'l> PlainWriter<'l> {
+    fn new(centre: DVec3, load_uri: &'l LoadUri<'l>) -> Self {
+        PlainWriter {
+            b: GlbBuilder::default(),
+            centre,
+            load_uri,
+            materials: Vec::new(),
+            textures: Vec::new(),
+            images: Vec::new(),
+            samplers: Vec::new(),
+            primitives: Vec::new(),
+            decoded: BTreeSet::new(),
+            triangles: 0,
+            unlit_used: false,
+        }
+    }
+
+    /// Writes `materials[mi]` of part `pi` as a simple material (base colour factor and texture,
+    /// unlit kept); returns its output index.
+    fn material(&mut self, part: &Part<'_>, pi: usize, mi: usize) -> Result<usize, ContentError> {
         let r = &part.gltf.root;
-        for e in r.extensions_used.iter().chain(&r.extensions_required) {
-            if DECODED.contains(&e.as_str()) {
-                decoded.insert(e.clone());
-            }
+        let at = format!("materials[{mi}]");
+        let m = r.materials.get(mi).ok_or(ContentError::Missing { what: "material", index: mi })?;
+        let mut out = json!({
+            "name": format!("{}{}", part.label, m.name.clone().unwrap_or_else(|| format!("material_{mi}"))),
+            "pbrMetallicRoughness": {"baseColorFactor": m.base_color_factor(), "metallicFactor": 0.0, "roughnessFactor": 1.0},
+            "doubleSided": m.double_sided,
+        });
+        if let Some(t) = m.base_color_texture() {
+            let texture = self
+                .texture(part, pi, t.index)
+                .map_err(|e| e.at(format!("{at}.pbrMetallicRoughness.baseColorTexture")))?;
+            out["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": texture});
         }
-        // Input material index → output material index, built on first use.
-        let mut mat_map: BTreeMap<usize, usize> = BTreeMap::new();
-        for (k, w) in part.prims.iter().enumerate() {
-            if w.triangles.is_empty() {
-                continue;
-            }
-            let material = match w.material {
-                None => None,
-                Some(mi) => Some(match mat_map.get(&mi) {
-                    Some(&o) => o,
-                    None => {
-                        let at = format!("materials[{mi}]");
-                        let m = r
-                            .materials
-                            .get(mi)
-                            .ok_or(ContentError::Missing { what: "material", index: mi })?;
-                        let mut out = json!({
-                            "name": format!("{}{}", part.label, m.name.clone().unwrap_or_else(|| format!("material_{mi}"))),
-                            "pbrMetallicRoughness": {"baseColorFactor": m.base_color_factor(), "metallicFactor": 0.0, "roughnessFactor": 1.0},
-                            "doubleSided": m.double_sided,
-                        });
-                        if let Some(t) = m.base_color_texture() {
-                            let (img, mime, sampler) =
-                                texture_image(&part.gltf, t.index, load_uri, &mut decoded).map_err(|e| {
-                                    e.at(format!("{at}.pbrMetallicRoughness.baseColorTexture"))
-                                })?;
-                            let view = b.push_view(&img, None);
-                            images.push(json!({
-                                "bufferView": view,
-                                "mimeType": mime,
-                                "name": format!("{}{}#{pi}.{}", part.label, r.images.get(r.textures[t.index].source.unwrap_or(0)).and_then(|i| i.name.clone()).unwrap_or_else(|| "image".into()), images.len()),
-                            }));
-                            let mut tex = json!({"source": images.len() - 1});
-                            if let Some(s) = sampler {
-                                samplers.push(s);
-                                tex["sampler"] = json!(samplers.len() - 1);
-                            }
-                            textures.push(tex);
-                            out["pbrMetallicRoughness"]["baseColorTexture"] =
-                                json!({"index": textures.len() - 1});
-                        }
-                        if m.unlit() {
-                            out["extensions"] = json!({"KHR_materials_unlit": {}});
-                            unlit_used = true;
-                        }
-                        materials.push(out);
-                        mat_map.insert(mi, materials.len() - 1);
-                        materials.len() - 1
-                    }
-                }),
-            };
-            let pos: Vec<[f32; 3]> =
-                w.positions.iter().map(|p| (DVec3::from_array(*p) - centre).as_vec3().to_array()).collect();
-            let mut attributes = serde_json::Map::new();
-            attributes.insert("POSITION".into(), json!(b.push_vec3(&pos)));
-            if let Some(uv) = &w.uv {
-                let uv: Vec<[f32; 2]> = uv.iter().map(|t| [t[0] as f32, t[1] as f32]).collect();
-                attributes.insert("TEXCOORD_0".into(), json!(b.push_vec2(&uv)));
-            }
-            if let Some(f) = &w.feature_id0 {
-                let f: Vec<f32> = f.iter().map(|&v| v as f32).collect();
-                attributes.insert("_FEATURE_ID_0".into(), json!(b.push_scalar_f32(&f)));
-            }
-            let idx: Vec<u32> = w.triangles.iter().flatten().copied().collect();
-            triangles += w.triangles.len() as u64;
-            let mut prim = json!({"attributes": attributes, "indices": b.push_indices(&idx), "mode": 4});
-            if let Some(m) = material {
-                prim["material"] = json!(m);
-            }
-            let _ = k;
-            primitives.push(prim);
+        if m.unlit() {
+            out["extensions"] = json!({"KHR_materials_unlit": {}});
+            self.unlit_used = true;
         }
+        self.materials.push(out);
+        Ok(self.materials.len() - 1)
     }
-    let mut root = json!({
-        "asset": {"version": "2.0", "generator": "insgen (plain GLB for import)"},
-        "scene": 0,
-        "scenes": [{"nodes": if primitives.is_empty() { json!([]) } else { json!([0]) }}],
-        "nodes": if primitives.is_empty() { json!([]) } else { json!([{"mesh": 0}]) },
-        "meshes": if primitives.is_empty() { json!([]) } else { json!([{"primitives": primitives}]) },
-        "materials": materials,
-        "textures": textures,
-        "images": images,
-        "samplers": samplers,
-    });
-    if unlit_used {
-        root["extensionsUsed"] = json!(["KHR_materials_unlit"]);
+
+    /// Writes `textures[index]` of part `pi` (its image as PNG or JPEG, its sampler); returns its
+    /// output index.
+    fn texture(&mut self, part: &Part<'_>, pi: usize, index: usize) -> Result<usize, ContentError> {
+        let r = &part.gltf.root;
+        let (img, mime, sampler) = texture_image(&part.gltf, index, self.load_uri, &mut self.decoded)?;
+        let view = self.b.push_view(&img, None);
+        self.images.push(json!({
+            "bufferView": view,
+            "mimeType": mime,
+            "name": format!("{}{}#{pi}.{}", part.label, r.images.get(r.textures[index].source.unwrap_or(0)).and_then(|i| i.name.clone()).unwrap_or_else(|| "image".into()), self.images.len()),
+        }));
+        let mut tex = json!({"source": self.images.len() - 1});
+        if let Some(s) = sampler {
+            self.samplers.push(s);
+            tex["sampler"] = json!(self.samplers.len() - 1);
+        }
+        self.textures.push(tex);
+        Ok(self.textures.len() - 1)
     }
-    let glb = b.finish(root)?;
-    Ok(Importable {
-        glb,
-        tile_from_plain: DMat4::from_translation(centre),
-        triangles,
-        decoded_extensions: decoded,
-    })
+
+    /// Writes one primitive: positions relative to the centre (f32), UVs, `_FEATURE_ID_0`, indices.
+    fn primitive(&mut self, w: &gltf::WorldPrimitive, material: Option<usize>) {
+        let b = &mut self.b;
+        let pos: Vec<[f32; 3]> =
+            w.positions.iter().map(|p| (DVec3::from_array(*p) - self.centre).as_vec3().to_array()).collect();
+        let mut attributes = serde_json::Map::new();
+        attributes.insert("POSITION".into(), json!(b.push_vec3(&pos)));
+        if let Some(uv) = &w.uv {
+            let uv: Vec<[f32; 2]> = uv.iter().map(|t| [t[0] as f32, t[1] as f32]).collect();
+            attributes.insert("TEXCOORD_0".into(), json!(b.push_vec2(&uv)));
+        }
+        if let Some(f) = &w.feature_id0 {
+            let f: Vec<f32> = f.iter().map(|&v| v as f32).collect();
+            attributes.insert("_FEATURE_ID_0".into(), json!(b.push_scalar_f32(&f)));
+        }
+        let idx: Vec<u32> = w.triangles.iter().flatten().copied().collect();
+        self.triangles += w.triangles.len() as u64;
+        let mut prim = json!({"attributes": attributes, "indices": b.push_indices(&idx), "mode": 4});
+        if let Some(m) = material {
+            prim["material"] = json!(m);
+        }
+        self.primitives.push(prim);
+    }
+
+    /// The GLB with one node holding one mesh of all primitives.
+    fn finish(self) -> Result<Importable, ContentError> {
+        let primitives = self.primitives;
+        let mut root = json!({
+            "asset": {"version": "2.0", "generator": "insgen (plain GLB for import)"},
+            "scene": 0,
+            "scenes": [{"nodes": if primitives.is_empty() { json!([]) } else { json!([0]) }}],
+            "nodes": if primitives.is_empty() { json!([]) } else { json!([{"mesh": 0}]) },
+            "meshes": if primitives.is_empty() { json!([]) } else { json!([{"primitives": primitives}]) },
+            "materials": self.materials,
+            "textures": self.textures,
+            "images": self.images,
+            "samplers": self.samplers,
+        });
+        if self.unlit_used {
+            root["extensionsUsed"] = json!(["KHR_materials_unlit"]);
+        }
+        let glb = self.b.finish(root)?;
+        Ok(Importable {
+            glb,
+            tile_from_plain: DMat4::from_translation(self.centre),
+            triangles: self.triangles,
+            decoded_extensions: self.decoded,
+        })
+    }
 }
 
 /// The image of `textures[index]` as PNG or JPEG bytes with its MIME type, and its sampler.

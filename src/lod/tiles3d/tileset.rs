@@ -123,12 +123,35 @@ pub enum Refine {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum BoundingVolume {
     /// Centre and the three half-axes (columns), tile-frame metres.
-    Box { centre: DVec3, half_axes: DMat3 },
+    Box {
+        /// Centre, tile-frame metres.
+        centre: DVec3,
+        /// The three half-axes as columns, metres.
+        half_axes: DMat3,
+    },
     /// West, south, east, north in radians (EPSG:4979), minimum and maximum ellipsoidal height in
     /// metres. Regions ignore tile transforms.
-    Region { west_rad: f64, south_rad: f64, east_rad: f64, north_rad: f64, min_h_m: f64, max_h_m: f64 },
+    Region {
+        /// Westernmost longitude, radians.
+        west_rad: f64,
+        /// Southernmost latitude, radians.
+        south_rad: f64,
+        /// Easternmost longitude, radians.
+        east_rad: f64,
+        /// Northernmost latitude, radians.
+        north_rad: f64,
+        /// Lowest ellipsoidal height, metres.
+        min_h_m: f64,
+        /// Highest ellipsoidal height, metres.
+        max_h_m: f64,
+    },
     /// Centre and radius, tile-frame metres.
-    Sphere { centre: DVec3, radius_m: f64 },
+    Sphere {
+        /// Centre, tile-frame metres.
+        centre: DVec3,
+        /// Radius, metres.
+        radius_m: f64,
+    },
 }
 
 /// Mean Earth radius used to pad sampled region bounds for curvature, metres (IUGG mean radius R1).
@@ -265,11 +288,15 @@ pub struct Tile {
     pub at: String,
     /// Tile frame → world (ECEF) frame: every ancestor's transform, external tilesets included.
     pub world_from_tile: DMat4,
+    /// The validated bounding volume.
     pub bounding_volume: BoundingVolume,
+    /// Geometric error, metres.
     pub geometric_error_m: f64,
     /// This tile's refinement (given, or inherited from its parent).
     pub refine: Refine,
+    /// The contents to read (one, several with `contents`, or none).
     pub contents: Vec<ContentRef>,
+    /// Child tiles (explicit or expanded from implicit tiling).
     pub children: Vec<Tile>,
 }
 
@@ -287,6 +314,7 @@ pub struct Tileset {
     pub path: PathBuf,
     /// The up axis of its glTF contents.
     pub up: UpAxis,
+    /// The root tile.
     pub root: Tile,
 }
 
