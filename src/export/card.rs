@@ -64,32 +64,7 @@ pub fn card_markdown(m: &DatasetManifest, stats: &Stats) -> String {
             );
         }
     }
-    let _ = writeln!(s, "\n## Statistics\n");
-    let _ = writeln!(
-        s,
-        "| split | images | without annotations | annotations | mean / max per image | small / medium / large | median area (px) |"
-    );
-    let _ = writeln!(s, "|---|---:|---:|---:|---|---|---:|");
-    for sp in &stats.splits {
-        let _ = writeln!(
-            s,
-            "| {} | {} | {} | {} | {:.1} / {} | {} / {} / {} | {} |",
-            sp.split,
-            sp.images,
-            sp.images_without_annotations,
-            sp.annotations,
-            sp.mean_instances_per_image,
-            sp.max_instances_per_image,
-            sp.sizes.small,
-            sp.sizes.medium,
-            sp.sizes.large,
-            sp.median_area_px
-        );
-    }
-    let _ = writeln!(
-        s,
-        "\nSize classes are COCO's (below 32², below 96², above). `stats.md` has the histograms."
-    );
+    s.push_str(&statistics_section(stats));
     s.push_str(&super::learnability::card_section(&stats.areas));
     let _ = writeln!(s, "\n## Sources, licences and attributions\n");
     for a in &m.areas {
@@ -139,6 +114,38 @@ pub fn card_markdown(m: &DatasetManifest, stats: &Stats) -> String {
          carries the camera (`intrinsics`, `cam_to_world_enu`, COLMAP `colmap_qvec`/`colmap_tvec`, WGS84 \
          position and yaw/pitch/roll) and `mask_file`, the lossless 24-bit ID map (building ID = R·2¹⁶ + \
          G·2⁸ + B). `insgen verify <this directory>` checks the files against `dataset.json`."
+    );
+    s
+}
+
+/// The card's statistics table, one row per split (`stats.md` has the full table and histograms).
+fn statistics_section(stats: &Stats) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "\n## Statistics\n");
+    let _ = writeln!(
+        s,
+        "| split | images | without annotations | annotations | mean / max per image | small / medium / large | median area (px) |"
+    );
+    let _ = writeln!(s, "|---|---:|---:|---:|---|---|---:|");
+    for sp in &stats.splits {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {:.1} / {} | {} / {} / {} | {} |",
+            sp.split,
+            sp.images,
+            sp.images_without_annotations,
+            sp.annotations,
+            sp.mean_instances_per_image,
+            sp.max_instances_per_image,
+            sp.sizes.small,
+            sp.sizes.medium,
+            sp.sizes.large,
+            sp.median_area_px
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nSize classes are COCO's (below 32², below 96², above). `stats.md` has the histograms."
     );
     s
 }

@@ -503,9 +503,9 @@ fn draco_geometry(v: &TileVertices, with_ids: bool) -> Result<EncodedGeometry, W
     let (bytes, n_points, ids_map) = draco_encode(&v.g, &v.uv, with_ids.then_some(&v.ids[..]), &v.indices)?;
     let view = e.b.push_view(&bytes, None);
     let (plo, phi) = min_max(v.g.iter().map(|p| p.map(f64::from)));
-    let position = e
-        .b
-        .push_accessor(json!({"componentType": 5126, "count": n_points, "type": "VEC3", "min": plo, "max": phi}));
+    let position = e.b.push_accessor(
+        json!({"componentType": 5126, "count": n_points, "type": "VEC3", "min": plo, "max": phi}),
+    );
     e.attribute("POSITION", position);
     let uv = e.b.push_accessor(json!({"componentType": 5126, "count": n_points, "type": "VEC2"}));
     e.attribute("TEXCOORD_0", uv);
@@ -575,7 +575,8 @@ fn meshopt_geometry(v: &TileVertices) -> EncodedGeometry {
         json!({"bufferView": vu, "componentType": 5123, "normalized": true, "count": n, "type": "VEC2"}),
     );
     e.attribute("TEXCOORD_0", uv);
-    let ids = e.b.push_accessor(json!({"bufferView": vi, "componentType": 5126, "count": n, "type": "SCALAR"}));
+    let ids =
+        e.b.push_accessor(json!({"bufferView": vi, "componentType": 5126, "count": n, "type": "SCALAR"}));
     e.attribute("_FEATURE_ID_0", ids);
     e.indices = e.b.push_accessor(
         json!({"bufferView": vx, "componentType": 5125, "count": v.indices.len(), "type": "SCALAR"}),

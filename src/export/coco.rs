@@ -703,7 +703,19 @@ pub fn build(plan: &ExportPlan, image_root: &str, progress: &dyn Progress) -> Re
     }
 
     let mut dropped = DropCounts::default();
-    let mut datasets: Vec<(Split, Dataset)> = Split::ALL
+    let mut datasets = empty_datasets(&areas, plan, image_root, &licence_id);
+    let frames_without_rgb = fill_datasets(&areas, frames, plan, &mut datasets, &mut dropped);
+    Ok(Export { datasets, frames_without_masks, frames_without_rgb, dropped, stats: None })
+}
+
+/// One empty dataset per split: its info (areas, sources, filters, image root) and licences.
+fn empty_datasets(
+    areas: &[AreaInput],
+    plan: &ExportPlan,
+    image_root: &str,
+    licence_id: &BTreeMap<&str, u32>,
+) -> Vec<(Split, Dataset)> {
+    Split::ALL
         .into_iter()
         .map(|split| {
             let split_areas: Vec<&AreaInput> = areas.iter().filter(|a| a.split == split).collect();
@@ -752,11 +764,22 @@ pub fn build(plan: &ExportPlan, image_root: &str, progress: &dyn Progress) -> Re
             };
             (split, ds)
         })
-        .collect();
+        .collect()
+}
+
+/// Puts each frame's image and annotations into its split's dataset (ids in order), counting what
+/// the filters dropped; returns the cameras whose frames have no RGB photo.
+fn fill_datasets(
+    areas: &[AreaInput],
+    frames: Vec<Outcome>,
+    plan: &ExportPlan,
+    datasets: &mut [(Split, Dataset)],
+    dropped: &mut DropCounts,
+) -> Vec<MissingRgb> {
     // Frames are in job order: areas, cameras, frames sorted by name.
     let mut frame_iter = frames.into_iter();
     let mut frames_without_rgb = Vec::new();
-    for a in &areas {
+    for a in areas {
         let ds = &mut datasets.iter_mut().find(|(s, _)| *s == a.split).expect("every split has a dataset").1;
         for c in &a.cameras {
             let mut missing =
@@ -796,7 +819,7 @@ pub fn build(plan: &ExportPlan, image_root: &str, progress: &dyn Progress) -> Re
             }
         }
     }
-    Ok(Export { datasets, frames_without_masks, frames_without_rgb, dropped, stats: None })
+    frames_without_rgb
 }
 
 /// Builds the datasets and writes `instances_{train,val,test}.json`, `dataset.json` and `README.md`

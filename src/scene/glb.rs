@@ -777,100 +777,103 @@ pub fn read_glb(path: &Path) -> Result<SceneMesh, GlbError> {
         let Some(m) = node.mesh() else { continue };
         let transform = if world == DMat4::IDENTITY { None } else { Some(&world) };
         for prim in m.primitives() {
-            let at = format!("meshes[{}].primitives[{}]", m.index(), prim.index());
-            if prim.mode() != gltf::mesh::Mode::Triangles {
-                return Err(invalid(at, format!("mode {:?}: only TRIANGLES are supported", prim.mode())));
-            }
-            let features = raw
-                .meshes
-                .get(m.index())
-                .and_then(|rm| rm.primitives.get(prim.index()))
-                .and_then(|rp| rp.extensions.as_ref())
-                .and_then(|e| e.mesh_features.as_ref());
-            let set = features.and_then(|f| {
-                let with_attr = || f.feature_ids.iter().filter(|s| s.attribute.is_some());
-                with_attr().find(|s| s.label.as_deref() == Some(FEATURE_LABEL)).or_else(|| with_attr().next())
-            });
-            let Some(set) = set else {
-                return Err(invalid(
-                    at,
-                    "no EXT_mesh_features feature ID attribute: building IDs are missing (was this file \
-                     written by `insgen prepare`?)"
-                        .into(),
-                ));
-            };
-            // Checked above: the set has an attribute.
-            let attr_name = format!("_FEATURE_ID_{}", set.attribute.unwrap_or(0));
-            let mut pos_acc = None;
-            let mut id_acc = None;
-            for (sem, acc) in prim.attributes() {
-                match sem {
-                    gltf::Semantic::Positions => pos_acc = Some(acc),
-                    gltf::Semantic::Extras(name) if format!("_{name}") == attr_name => id_acc = Some(acc),
-                    _ => {}
-                }
-            }
-            let pos_acc =
-                pos_acc.ok_or_else(|| invalid(format!("{at}.attributes"), "no POSITION attribute".into()))?;
-            let id_acc = id_acc.ok_or_else(|| {
-                invalid(
-                    format!("{at}.attributes"),
-                    format!("EXT_mesh_features names {attr_name}, which is absent"),
-                )
-            })?;
-            if pos_acc.count() != id_acc.count() {
-                return Err(invalid(
-                    format!("{at}.attributes"),
-                    format!("{} positions but {} feature IDs", pos_acc.count(), id_acc.count()),
-                ));
-            }
-            let base = mesh.positions_m.len();
-            if base + pos_acc.count() >= u32::MAX as usize {
-                return Err(invalid(at, "more than 2^32 − 1 vertices in total".into()));
-            }
-            read_positions(
-                path,
-                &format!("{at}.attributes[\"POSITION\"]"),
-                &pos_acc,
-                bin,
-                transform,
-                &mut mesh.positions_m,
-            )?;
-            read_feature_ids(
-                path,
-                &format!("{at}.attributes[\"{attr_name}\"]"),
-                &id_acc,
-                bin,
-                set.null_feature_id,
-                &mut mesh.building_ids,
-            )?;
-            let n = pos_acc.count();
-            match prim.indices() {
-                Some(acc) => read_indices(
-                    path,
-                    &format!("{at}.indices"),
-                    &acc,
-                    bin,
-                    base as u32,
-                    n,
-                    &mut mesh.indices,
-                )?,
-                None => {
-                    if n % 3 != 0 {
-                        return Err(invalid(
-                            at,
-                            format!("{n} vertices without indices is not whole triangles"),
-                        ));
-                    }
-                    mesh.indices.extend(base as u32..(base + n) as u32);
-                }
-            }
+            read_primitive(path, &raw, bin, &m, &prim, transform, &mut mesh)?;
         }
     }
     if mesh.indices.is_empty() {
         return Err(invalid("meshes".into(), "the scene has no triangles".into()));
     }
     Ok(mesh)
+}
+
+/// Appends one building primitive of `scene.glb` (positions, feature IDs, indices) to `mesh`.
+fn read_primitive(
+    path: &Path,
+    raw: &RawRoot,
+    bin: &[u8],
+    m: &gltf::Mesh<'_>,
+    prim: &gltf::Primitive<'_>,
+    transform: Option<&DMat4>,
+    mesh: &mut SceneMesh,
+) -> Result<(), GlbError> {
+    let invalid = |at: String, what: String| GlbError::Invalid { path: path.to_path_buf(), at, what };
+    let at = format!("meshes[{}].primitives[{}]", m.index(), prim.index());
+    if prim.mode() != gltf::mesh::Mode::Triangles {
+        return Err(invalid(at, format!("mode {:?}: only TRIANGLES are supported", prim.mode())));
+    }
+    let features = raw
+        .meshes
+        .get(m.index())
+        .and_then(|rm| rm.primitives.get(prim.index()))
+        .and_then(|rp| rp.extensions.as_ref())
+        .and_then(|e| e.mesh_features.as_ref());
+    let set = features.and_then(|f| {
+        let with_attr = || f.feature_ids.iter().filter(|s| s.attribute.is_some());
+        with_attr().find(|s| s.label.as_deref() == Some(FEATURE_LABEL)).or_else(|| with_attr().next())
+    });
+    let Some(set) = set else {
+        return Err(invalid(
+            at,
+            "no EXT_mesh_features feature ID attribute: building IDs are missing (was this file \
+             written by `insgen prepare`?)"
+                .into(),
+        ));
+    };
+    // Checked above: the set has an attribute.
+    let attr_name = format!("_FEATURE_ID_{}", set.attribute.unwrap_or(0));
+    let mut pos_acc = None;
+    let mut id_acc = None;
+    for (sem, acc) in prim.attributes() {
+        match sem {
+            gltf::Semantic::Positions => pos_acc = Some(acc),
+            gltf::Semantic::Extras(name) if format!("_{name}") == attr_name => id_acc = Some(acc),
+            _ => {}
+        }
+    }
+    let pos_acc =
+        pos_acc.ok_or_else(|| invalid(format!("{at}.attributes"), "no POSITION attribute".into()))?;
+    let id_acc = id_acc.ok_or_else(|| {
+        invalid(format!("{at}.attributes"), format!("EXT_mesh_features names {attr_name}, which is absent"))
+    })?;
+    if pos_acc.count() != id_acc.count() {
+        return Err(invalid(
+            format!("{at}.attributes"),
+            format!("{} positions but {} feature IDs", pos_acc.count(), id_acc.count()),
+        ));
+    }
+    let base = mesh.positions_m.len();
+    if base + pos_acc.count() >= u32::MAX as usize {
+        return Err(invalid(at, "more than 2^32 − 1 vertices in total".into()));
+    }
+    read_positions(
+        path,
+        &format!("{at}.attributes[\"POSITION\"]"),
+        &pos_acc,
+        bin,
+        transform,
+        &mut mesh.positions_m,
+    )?;
+    read_feature_ids(
+        path,
+        &format!("{at}.attributes[\"{attr_name}\"]"),
+        &id_acc,
+        bin,
+        set.null_feature_id,
+        &mut mesh.building_ids,
+    )?;
+    let n = pos_acc.count();
+    match prim.indices() {
+        Some(acc) => {
+            read_indices(path, &format!("{at}.indices"), &acc, bin, base as u32, n, &mut mesh.indices)?
+        }
+        None => {
+            if n % 3 != 0 {
+                return Err(invalid(at, format!("{n} vertices without indices is not whole triangles")));
+            }
+            mesh.indices.extend(base as u32..(base + n) as u32);
+        }
+    }
+    Ok(())
 }
 
 /// Name prefix of the clutter layer nodes and meshes (`insgen_clutter_trees`, …).
