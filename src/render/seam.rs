@@ -99,6 +99,19 @@ pub trait IdScene: Sync {
         emit: &mut dyn FnMut(usize, RenderedFrame) -> ControlFlow<()>,
     ) -> Result<(), RenderError>;
 
+    /// Renders one view (see [`IdScene::render_each`]).
+    ///
+    /// # Errors
+    /// As [`IdScene::render_each`].
+    fn render(&self, view: &View, options: &RenderOptions) -> Result<RenderedFrame, RenderError> {
+        let mut out = None;
+        self.render_each(std::slice::from_ref(view), options, &mut |_, image| {
+            out = Some(image);
+            ControlFlow::Continue(())
+        })?;
+        out.ok_or(RenderError::ReadBack { what: "a frame", detail: "no frame was produced".into() })
+    }
+
     /// For each of `building_ids`, the pixels it covers in `view` when drawn alone (no depth test
     /// against the others), in the order given.
     ///
