@@ -82,6 +82,7 @@ pub struct EvalOptions {
     pub out_dir: PathBuf,
     /// Costs to evaluate (each gives a row of the table).
     pub costs: Vec<CostKind>,
+    /// How the per-instance scores of the instance cost are weighted.
     pub weighting: Weighting,
     /// Weight w of the semantic IoU in the instance cost, (1 − w)·instance + w·semantic, in [0, 1]
     /// ([`super::cost::Scorer::blended_cost`]; 0 = the paper's).
@@ -90,6 +91,7 @@ pub struct EvalOptions {
     pub source: QuerySource,
     /// The search's stages and parameters.
     pub search: SearchOptions,
+    /// `--seed`: drives the oracle's degradations (and the map's perturbation unless `--map-seed`).
     pub seed: u64,
     /// Width of the fine-stage renders and query masks (height keeps the aspect ratio).
     pub render_width_px: u32,
@@ -98,7 +100,9 @@ pub struct EvalOptions {
     /// Coarse stage: render one wide view per grid position and read every yaw out of it
     /// ([`crate::render::warp`]) instead of rendering each yaw.
     pub yaw_fan: bool,
+    /// Queries taken from the list (before sharding); all when `None`.
     pub limit: Option<usize>,
+    /// Overlay PNGs written for the first this many queries.
     pub overlays: usize,
     /// The map the scene given to [`evaluate`] is (its area and perturbation), for the summary.
     pub map: MapSummary,
@@ -110,19 +114,27 @@ pub struct EvalOptions {
 /// One line of `results.jsonl`.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct QueryResult {
+    /// The query's frame name.
     pub name: String,
+    /// The cost it was localized with.
     pub cost: CostKind,
     /// Table group: `grid` or `sequence` (sampled queries), `query` (COLMAP lists).
     pub group: String,
+    /// The estimated camera centre (east, north, up; ENU metres) and yaw (degrees).
     pub estimate: [f64; 4],
+    /// Distance of the prior's centre from the ground truth's, metres.
     pub prior_translation_error_m: f64,
+    /// Rotation angle between the prior and the ground truth, degrees.
     pub prior_rotation_error_deg: f64,
+    /// Distance of the estimate's centre from the ground truth's, metres.
     pub translation_error_m: f64,
+    /// Rotation angle between the estimate and the ground truth, degrees.
     pub rotation_error_deg: f64,
     /// The translation error along the ground truth's viewing direction (signed, positive: the estimate
     /// is in front of the ground truth) and across it, metres ([`Pose::axial_lateral_error_m`]).
     #[serde(default)]
     pub axial_error_m: f64,
+    /// The translation error across the ground truth's viewing direction, metres.
     #[serde(default)]
     pub lateral_error_m: f64,
     /// The silhouette offset the polish fitted (pixels at the render width; > 0: the rendered buildings
@@ -138,7 +150,9 @@ pub struct QueryResult {
     pub cost_at_gt: f64,
     /// Errors of the coarse stage's best hypothesis.
     pub coarse_translation_error_m: f64,
+    /// Rotation error of the coarse stage's best hypothesis, degrees (its translation error just above).
     pub coarse_rotation_error_deg: f64,
+    /// Hypotheses scored by the search.
     pub hypotheses: u64,
     /// Wall-clock seconds of the search.
     pub seconds: f64,
@@ -146,11 +160,13 @@ pub struct QueryResult {
     /// resolutions, culling around the prior, the CPU scene (welding, closed shells, polygons).
     #[serde(default)]
     pub setup_seconds: f64,
+    /// Instances in the query (at the render width).
     pub query_instances: usize,
     /// Cells of the frame's 4 × 4 grid holding the query's buildings
     /// ([`crate::loc::cost::Query::covered_frame_cells`]): how far its silhouettes spread.
     #[serde(default)]
     pub covered_frame_cells: u32,
+    /// Buildings kept around the prior (the culled map).
     pub buildings_considered: usize,
     /// Hypotheses and seconds per stage of the search.
     #[serde(default)]
@@ -165,13 +181,16 @@ pub struct QueryResult {
 /// The run's summary.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Summary {
+    /// The table: the prior's rows first, then each cost's, per group (and `all`).
     pub rows: Vec<Row>,
+    /// Queries localized.
     pub queries: usize,
     /// Median over queries and costs of the search's wall-clock seconds.
     pub median_seconds_per_query: f64,
     /// Median over queries of the preparation shared by a query's costs (see `QueryResult`).
     #[serde(default)]
     pub median_setup_seconds: f64,
+    /// Hypotheses scored per second of search, over all queries and costs.
     pub hypotheses_per_second: f64,
     /// Recall at (2 m, 2°) per bucket of query instance counts, per cost (every query in one bucket).
     #[serde(default)]
@@ -199,7 +218,9 @@ pub struct Summary {
 /// How many of one cost's estimates lie on the boundary of the search volume.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct BoundaryRow {
+    /// The cost, as named in the table.
     pub method: String,
+    /// Queries localized.
     pub queries: usize,
     /// Estimates with `on_search_boundary` (see [`QueryResult`]).
     pub on_search_boundary: usize,
@@ -586,9 +607,13 @@ fn group_of(t: Trajectory) -> &'static str {
 /// One query: name (frame), intrinsics, ground truth, prior, and its group in the table.
 #[derive(Debug, Clone)]
 pub struct QueryPose {
+    /// The query's frame name.
     pub name: String,
+    /// The query's intrinsics at its full resolution.
     pub intrinsics: Intrinsics,
+    /// The ground-truth pose.
     pub gt: Pose,
+    /// The prior pose the search starts from.
     pub prior: Pose,
     /// `grid` or `sequence` for sampled queries, `query` for COLMAP lists.
     pub group: String,
@@ -777,11 +802,15 @@ pub struct PartInfo {
     pub shard: String,
     /// Queries of the whole run (all shards).
     pub queries: usize,
+    /// Costs evaluated.
     pub costs: Vec<CostKind>,
+    /// How the per-instance scores of the instance cost are weighted.
     pub weighting: Weighting,
     /// Weight of the semantic IoU in the instance cost.
     pub semantic_weight: f64,
+    /// The search's stages and parameters.
     pub search: SearchOptions,
+    /// The map: its area and perturbation.
     pub map: MapSummary,
     /// `--seed`: drives the oracle's degradations (and the map's perturbation unless `--map-seed`).
     pub seed: u64,
@@ -847,6 +876,7 @@ pub struct Outputs {
     pub results_jsonl: String,
     /// `est_poses_<cost>.txt` by file name.
     pub est_poses: BTreeMap<String, String>,
+    /// The summary computed from all results.
     pub summary: Summary,
 }
 
