@@ -75,7 +75,6 @@ fn eval_loc_localizes_the_demo_with_wgpu_hypotheses() {
     let out_dir = cwd.join("loc-gpu");
     let args = [
         "--no-progress",
-        "-v",
         "eval-loc",
         "--area",
         "demo-test",
@@ -89,7 +88,13 @@ fn eval_loc_localizes_the_demo_with_wgpu_hypotheses() {
         "--out",
         out_dir.to_str().unwrap(),
     ];
-    let out = insgen(cwd, &args);
+    // The log line is at info level, which `util::insgen` silences (RUST_LOG=warn).
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_insgen"))
+        .args(args)
+        .current_dir(cwd)
+        .env("RUST_LOG", "info")
+        .output()
+        .expect("the insgen binary runs");
     let log = stderr(&out);
     assert!(out.status.success(), "{log}");
     assert!(log.contains("eval-loc renders its hypotheses with wgpu on "), "{log}");
