@@ -15,6 +15,7 @@ use crate::loc::query::{load_predictions, QuerySource};
 use crate::loc::search::{
     BeamMode, CoarseParams, FineParams, PolishCost, Prune, SearchBounds, SearchOptions, Stages,
 };
+use crate::render::{RendererChoice, Workload};
 use crate::scene::PreparedScene;
 
 /// `--weighting`: how per-instance Dice scores are combined ([`Weighting`]).
@@ -283,6 +284,15 @@ pub struct Args {
     /// recomputes the summary from all results.
     #[arg(long, value_name = "I/N|auto")]
     pub shard: Option<crate::util::ShardSpec>,
+    /// Renderer of the hypotheses: cpu, gpu or auto [default: cpu].
+    ///
+    /// cpu: the CPU rasteriser on every core (the default: results do not depend on the machine).
+    /// gpu: wgpu on whatever adapter there is, a software one (lavapipe) included; an error without
+    /// one. auto: wgpu on a hardware GPU, else cpu. The two agree on all but a few edge pixels per
+    /// frame, so estimates may differ in the last digits. The choice and the adapter are logged, and a
+    /// GPU run records them in summary.json (`renderer`).
+    #[arg(long, value_name = "auto|cpu|gpu", default_value = "cpu", hide_default_value = true)]
+    pub renderer: RendererChoice,
 }
 
 /// Parses `RANGE/STEP` (both ≥ 0, STEP > 0 unless RANGE = 0).
@@ -614,8 +624,11 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         map,
         shard: super::resolve_shard(args.shard)?,
     };
+    let resolved = crate::render::resolve(args.renderer, Workload::Hypotheses)
+        .context("setting up the renderer of the hypotheses (`--renderer cpu` needs no GPU)")?;
+    log::info!("eval-loc renders its hypotheses with {} ({})", resolved.renderer.record(), resolved.reason);
     let printer = global.printer();
-    let summary = eval::evaluate(&scene, &opts, &printer.progress())
+    let summary = eval::evaluate(&scene, &opts, &*resolved.renderer, &printer.progress())
         .with_context(|| format!("evaluating localization on {}/{}", args.area, args.camera))?;
     printer.summary(crate::loc::metrics::markdown(&summary.rows));
     let shard = opts.shard;
@@ -655,6 +668,15 @@ mod tests {
         let mut argv = vec!["eval-loc", "--area", "denhaag", "--camera", "cam2", "--oracle"];
         argv.extend_from_slice(extra);
         Cli::try_parse_from(argv).map(|c| c.args)
+    }
+
+    #[test]
+    fn renderer_defaults_to_the_cpu_rasteriser() {
+        assert_eq!(parse(&[]).unwrap().renderer, RendererChoice::Cpu);
+        assert_eq!(parse(&["--renderer", "gpu"]).unwrap().renderer, RendererChoice::Gpu);
+        assert_eq!(parse(&["--renderer", "auto"]).unwrap().renderer, RendererChoice::Auto);
+        let e = parse(&["--renderer", "vulkan"]).unwrap_err().to_string();
+        assert!(e.contains("unknown renderer \"vulkan\": expected one of auto, cpu, gpu"), "{e}");
     }
 
     #[test]

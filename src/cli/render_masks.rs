@@ -31,7 +31,7 @@ impl From<ConnectivityArg> for Connectivity {
         }
     }
 }
-use crate::render::{DepthRange, Renderer};
+use crate::render::{DepthRange, RendererChoice, Workload};
 use crate::scene::PreparedScene;
 use crate::util::ShardSpec;
 
@@ -138,6 +138,19 @@ pub struct Args {
     /// How far in front of the LoD surface the tileset must be for a pixel to count as occluded.
     #[arg(long, value_name = "METERS", default_value_t = DEFAULT_OCCLUSION_THRESHOLD_M, requires = "tileset")]
     pub occlusion_threshold_m: f32,
+
+    /// Renderer: auto (wgpu on any adapter, lavapipe included), gpu, or cpu [default: auto].
+    ///
+    /// cpu renders with the localizer's CPU rasteriser, which needs no GPU but clips only at --near
+    /// 0.1; it agrees with wgpu on all but a few edge pixels per frame. The choice is logged.
+    #[arg(
+        long,
+        value_name = "auto|cpu|gpu",
+        default_value = "auto",
+        hide_default_value = true,
+        hide_short_help = true
+    )]
+    pub renderer: RendererChoice,
 }
 
 /// `--occlusion`.
@@ -229,8 +242,10 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     }
     let scene =
         PreparedScene::load(&scene_dir).with_context(|| format!("loading {}", scene_dir.display()))?;
-    let renderer = Renderer::new().context("setting up the GPU renderer")?;
-    let report = stage::render_masks(&plan, &scene, &renderer, &global.printer().progress())
+    let resolved = crate::render::resolve(args.renderer, Workload::Masks)
+        .context("setting up the GPU renderer (`--renderer cpu` needs none)")?;
+    log::info!("render-masks renders with {} ({})", resolved.renderer.record(), resolved.reason);
+    let report = stage::render_masks(&plan, &scene, &*resolved.renderer, &global.printer().progress())
         .with_context(|| format!("rendering masks for {}", plan.camera_dir.display()))?;
     log::info!(
         "{} frames in shard {} of {}: {} rendered ({:.2} frames/s), {} already done, {} failed; {} instances; \
@@ -288,6 +303,8 @@ mod tests {
             assert_eq!(a.min_area, DEFAULT_MIN_AREA_PX);
             assert!(!a.visible_fraction && !a.depth && !a.force);
             assert_eq!((a.preview, a.limit, a.shard), (0, None, None));
+            assert_eq!(a.renderer, RendererChoice::Auto);
+            assert_eq!(parse(&["--renderer", "cpu"]).unwrap().args.renderer, RendererChoice::Cpu);
         }
 
         #[test]

@@ -25,9 +25,11 @@ pub enum Connectivity {
 /// One connected component.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Component {
+    /// The building the component belongs to.
     pub building_id: BuildingId,
     /// Index of this component among its building's components (raster order of first pixel).
     pub index: u32,
+    /// Pixels in the component.
     pub area_px: u64,
     /// Bounding box [x, y, w, h] in pixels.
     pub bbox_px: [u32; 4],
@@ -38,9 +40,13 @@ pub struct Component {
 /// The result of labelling: a component label per pixel (0 = background, k = `components[k − 1]`).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Labelling {
+    /// Image width, pixels.
     pub width: u32,
+    /// Image height, pixels.
     pub height: u32,
+    /// Component label per pixel, row-major (0 = background, k = `components[k − 1]`).
     pub labels: Vec<u32>,
+    /// The components, in raster order of their first pixel.
     pub components: Vec<Component>,
 }
 

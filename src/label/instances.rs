@@ -15,6 +15,7 @@ pub struct InstanceEntry {
     pub source_id: String,
     /// Index of this component among the building's components in this frame.
     pub component: u32,
+    /// Pixels in this component.
     pub area_px: u64,
     /// [x, y, w, h] in pixels.
     pub bbox_px: [u32; 4],
@@ -30,8 +31,10 @@ pub struct InstanceEntry {
     /// pixels do (demolished or misplaced; see [`super::occlusion::BuildingRecord`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub occluded_px: Option<u64>,
+    /// With a tileset: the building's pixels where the tileset sees past it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub behind_px: Option<u64>,
+    /// With a tileset: whether most of its LoD pixels see past it (demolished or misplaced).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub see_through: Option<bool>,
 }
@@ -39,9 +42,13 @@ pub struct InstanceEntry {
 /// `<frame>.instances.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FrameInstances {
+    /// Frame name (as in poses.jsonl).
     pub frame: String,
+    /// Frame width, pixels.
     pub width: u32,
+    /// Frame height, pixels.
     pub height: u32,
+    /// Pixel connectivity the components were labelled with.
     pub connectivity: Connectivity,
     /// Components smaller than this were dropped.
     pub min_component_area_px: u64,

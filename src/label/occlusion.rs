@@ -50,10 +50,13 @@ pub struct BuildingOcclusion {
 pub struct FrameOcclusion {
     /// Occluded pixels (all buildings), pixels where the tileset sees past the LoD, and agreeing ones.
     pub occluded_px: u64,
+    /// Pixels where the tileset sees past the LoD surface (farther than the threshold behind it).
     pub behind_px: u64,
+    /// LoD building pixels where the tileset agrees within the threshold.
     pub agree_px: u64,
     /// `agree_px / LoD building pixels` (1 for a frame without buildings).
     pub consistency: f64,
+    /// Per building, its counts.
     pub buildings: BTreeMap<BuildingId, BuildingOcclusion>,
 }
 
@@ -64,11 +67,14 @@ pub const SEE_THROUGH_FRACTION: f64 = 0.5;
 /// Per-building counts as recorded in a frame's instance list.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct BuildingRecord {
+    /// The building.
     pub building_id: BuildingId,
     /// LoD pixels before the comparison, pixels removed as occluded, pixels where the tileset sees
     /// past the building.
     pub lod_px: u64,
+    /// Pixels removed as occluded (the tileset shows something in front).
     pub occluded_px: u64,
+    /// Pixels where the tileset sees past the LoD surface (farther than the threshold behind it).
     pub behind_px: u64,
     /// More than [`SEE_THROUGH_FRACTION`] of the LoD pixels see past the building.
     pub see_through: bool,
@@ -81,11 +87,15 @@ pub struct OcclusionRecord {
     /// files and its contents' names and sizes), the mode and the threshold: part of the frame's
     /// fingerprint (a resumed run re-renders frames made with other settings or another tileset).
     pub tileset_sha256: String,
+    /// Remove occluded pixels, or also mark them in `<frame>.ignore.png`.
     pub mode: OcclusionMode,
+    /// How far in front of the LoD surface the tileset must be for a pixel to count as occluded, metres.
     pub threshold_m: f32,
     /// Totals over the frame's LoD building pixels (see the module doc).
     pub occluded_px: u64,
+    /// Pixels where the tileset sees past the LoD surface (farther than the threshold behind it).
     pub behind_px: u64,
+    /// LoD building pixels where the tileset agrees within the threshold.
     pub agree_px: u64,
     /// `agree_px / LoD building pixels`, 1 without buildings.
     pub consistency: f64,

@@ -38,9 +38,13 @@ pub fn layer_colour(layer: ClutterLayer) -> [u8; 3] {
 /// One frame of the picture: its view, its RGB frame and its mask.
 #[derive(Debug, Clone)]
 pub struct SideFrame {
+    /// Frame name.
     pub name: String,
+    /// Its intrinsics and pose.
     pub view: View,
+    /// The RGB frame (`rgb/<frame>.png`).
     pub rgb_png: PathBuf,
+    /// The ID map (`masks/<frame>.png`).
     pub mask_png: PathBuf,
 }
 

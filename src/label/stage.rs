@@ -52,7 +52,7 @@ use super::overlay::{self, OverlayError};
 use super::{label_components, Connectivity, FrameInstances, InstanceEntry};
 use crate::camera::record::read_jsonl;
 use crate::camera::{CameraError, PoseRecord};
-use crate::render::{DepthRange, GpuScene, RenderError, RenderOptions, RenderedFrame, Renderer, View};
+use crate::render::{DepthRange, IdRenderer, IdScene, RenderError, RenderOptions, RenderedFrame, View};
 use crate::scene::clutter::ClutterLayer;
 use crate::scene::{BuildingId, IdError, IdMap, PreparedScene};
 use crate::util::{FileError, Progress, Shard};
@@ -400,16 +400,16 @@ struct Job {
     amodal_px: Option<BTreeMap<BuildingId, u64>>,
 }
 
-/// Runs the stage (see the module doc).
+/// Runs the stage (see the module doc) with `renderer` (wgpu from the CLI unless `--renderer cpu`).
 ///
 /// # Errors
 /// [`StageError::Poses`] for unreadable poses, [`StageError::Scene`] when the mesh
-/// holds IDs absent from the building table, [`StageError::Render`] when the GPU fails (fatal). A frame
-/// whose outputs cannot be written is reported in [`MaskReport::failed`] and the others go on.
+/// holds IDs absent from the building table, [`StageError::Render`] when the renderer fails (fatal). A
+/// frame whose outputs cannot be written is reported in [`MaskReport::failed`] and the others go on.
 pub fn render_masks(
     plan: &MaskPlan,
     scene: &PreparedScene,
-    renderer: &Renderer,
+    renderer: &dyn IdRenderer,
     progress: &dyn Progress,
 ) -> Result<MaskReport, StageError> {
     let started = Instant::now();
@@ -420,27 +420,22 @@ pub fn render_masks(
     }
     let source_ids: BTreeMap<BuildingId, String> =
         scene.buildings.iter().map(|b| (b.id, b.source_id.clone())).collect();
-    let gpu_scene = renderer.upload(&occluded_mesh(scene, &plan.occluders))?;
-    let occluders = occluders_used(scene, &plan.occluders);
-    if let Some(b) = gpu_scene.buildings().iter().find(|b| !source_ids.contains_key(&b.building_id)) {
+    let mesh = occluded_mesh(scene, &plan.occluders);
+    let unknown =
+        mesh.building_ids.iter().filter(|b| !b.is_background() && !source_ids.contains_key(b)).min();
+    if let Some(b) = unknown {
         return Err(StageError::Scene {
             what: format!(
-                "the mesh holds building ID {} but buildings.json has no such row; re-run `insgen prepare`",
-                b.building_id
+                "the mesh holds building ID {b} but buildings.json has no such row; re-run `insgen prepare`"
             ),
         });
     }
-    // The tileset's digest: its JSON files and its contents' names and sizes (part of every frame's
-    // fingerprint).
-    let tileset_err = |path: &Path, source: Box<dyn std::error::Error + Send + Sync>| StageError::Tileset {
-        path: path.to_path_buf(),
-        source,
-    };
+    // The area's meshes are relative to its origin, near every camera.
+    let id_scene = renderer.prepare(&mesh, glam::DVec3::ZERO)?;
+    let occluders = occluders_used(scene, &plan.occluders);
     let tileset_sha256 = match &plan.tileset {
         None => None,
-        Some(t) => {
-            Some(crate::lod::tiles3d::fingerprint(&t.path).map_err(|e| tileset_err(&t.path, Box::new(e)))?)
-        }
+        Some(t) => Some(crate::lod::tiles3d::fingerprint(&t.path).map_err(|e| tileset_err(&t.path, e))?),
     };
     let tileset_sha256 = tileset_sha256.as_deref();
     // Verifying reads every existing PNG header and JSON: spread it over the pool.
@@ -455,97 +450,31 @@ pub fn render_masks(
     if skipped > 0 {
         log::info!("{skipped} frames already rendered (use --force to redo them)");
     }
-    // The tileset, read and uploaded once when some frame needs it (its triangles all carry ID 1:
-    // only its depth is used).
     let tiles = match &plan.tileset {
-        Some(t) if !todo.is_empty() => {
-            let o = scene.manifest.origin;
-            let enu = crate::geo::EnuFrame::new(crate::geo::Geodetic::new(o.lat_deg, o.lon_deg, o.h_m));
-            let mesh = crate::scene::align::tileset_scene_mesh(&t.path, &enu, BuildingId::new(1)?)
-                .map_err(|e| tileset_err(&t.path, Box::new(e)))?;
-            if mesh.indices.is_empty() {
-                return Err(tileset_err(&t.path, "it holds no triangles".into()));
-            }
-            log::info!("tileset {}: {} triangles", t.path.display(), mesh.triangle_count());
-            Some(renderer.upload(&mesh)?)
-        }
+        Some(t) if !todo.is_empty() => Some(tileset_scene(scene, t, renderer)?),
         _ => None,
     };
     crate::util::create_dir_all(&plan.masks_dir())?;
     // A killed run's temporary files (a live shard's are locked and stay).
     crate::util::remove_stale_temps(&plan.masks_dir(), false, &|_| false)?;
-    let views: Vec<View> = todo
-        .iter()
-        .map(|&i| View { intrinsics: records[i].view.intrinsics, pose: records[i].pose() })
-        .collect();
-    let options = RenderOptions { range: plan.range, linear_depth: plan.depth || tiles.is_some() };
-    let tiles_options = RenderOptions { range: plan.range, linear_depth: true };
-
-    progress.start(todo.len() as u64, "frames");
-    let failures: Mutex<Vec<FrameFailure>> = Mutex::new(Vec::new());
-    let instance_count = std::sync::atomic::AtomicU64::new(0);
-    let done = std::sync::atomic::AtomicU64::new(0);
+    let frames = Frames {
+        plan,
+        records: &records,
+        todo: &todo,
+        source_ids: &source_ids,
+        occluders: &occluders,
+        tileset_sha256,
+    };
     let render_started = Instant::now();
-    let render_result: Result<(), StageError> = std::thread::scope(|s| {
-        let (tx, rx) = mpsc::sync_channel::<Job>(2 * crate::render::FRAMES_IN_FLIGHT);
-        let writer = s.spawn(|| {
-            rx.into_iter().par_bridge().for_each(|job| {
-                let rec = &records[job.record];
-                match write_frame(plan, rec, job, &source_ids, &occluders, tileset_sha256) {
-                    Ok(n) => {
-                        instance_count.fetch_add(n, std::sync::atomic::Ordering::Relaxed);
-                    }
-                    Err(e) => {
-                        log::error!("frame {}: {}", rec.name, error_chain(&e));
-                        failures
-                            .lock()
-                            .unwrap_or_else(|p| p.into_inner())
-                            .push(FrameFailure { frame: rec.name.clone(), error: error_chain(&e) });
-                    }
-                }
-                let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-                progress.inc(1);
-                let secs = render_started.elapsed().as_secs_f64();
-                if secs > 0.0 {
-                    progress.message(&format!("{:.2} frames/s", n as f64 / secs));
-                }
-            });
-        });
-        let result =
-            renderer.render_each(&gpu_scene, &views, &options, |k, image| -> Result<(), StageError> {
-                crate::util::interrupt::check()?;
-                let amodal_px = if plan.visible_fraction {
-                    let ids = image.ids.visible_buildings();
-                    let counts = renderer.isolated_coverage_px(&gpu_scene, &views[k], &ids, &plan.range)?;
-                    Some(ids.into_iter().zip(counts).collect())
-                } else {
-                    None
-                };
-                let tiles_depth_m = match &tiles {
-                    Some(gpu) => renderer.render(gpu, &views[k], &tiles_options)?.depth_m,
-                    None => None,
-                };
-                // The writer only stops receiving if it panicked; the join below reports that.
-                let _ = tx.send(Job { record: todo[k], image, tiles_depth_m, amodal_px });
-                Ok(())
-            });
-        drop(tx);
-        if writer.join().is_err() {
-            return Err(StageError::Scene { what: "a frame writer thread panicked".into() });
-        }
-        result
-    });
-    progress.finish();
-    render_result?;
+    let (instances, mut failed) = frames.render_and_write(&*id_scene, tiles.as_deref(), progress)?;
     let rendered_secs = render_started.elapsed().as_secs_f64();
-    let mut failed = failures.into_inner().unwrap_or_else(|p| p.into_inner());
     failed.sort_by(|a, b| a.frame.cmp(&b.frame));
 
     let previews = if plan.preview > 0 {
         let failed_names: BTreeSet<&str> = failed.iter().map(|f| f.frame.as_str()).collect();
         let candidates: Vec<usize> =
             selected.iter().copied().filter(|&i| !failed_names.contains(records[i].name.as_str())).collect();
-        write_previews(plan, &records, &candidates, renderer, &gpu_scene)?
+        write_previews(plan, &records, &candidates, &*id_scene)?
     } else {
         Vec::new()
     };
@@ -556,11 +485,132 @@ pub fn render_masks(
         rendered,
         skipped,
         failed,
-        instances: instance_count.into_inner(),
+        instances,
         seconds: started.elapsed().as_secs_f64(),
         frames_per_s: if rendered_secs > 0.0 { todo.len() as f64 / rendered_secs } else { 0.0 },
         previews,
     })
+}
+
+/// A tileset error naming its file.
+fn tileset_err(path: &Path, source: impl Into<Box<dyn std::error::Error + Send + Sync>>) -> StageError {
+    StageError::Tileset { path: path.to_path_buf(), source: source.into() }
+}
+
+/// The tileset, read and prepared once when some frame needs it (its triangles all carry ID 1: only
+/// its depth is used).
+fn tileset_scene<'r>(
+    scene: &PreparedScene,
+    t: &TilesetOcclusion,
+    renderer: &'r dyn IdRenderer,
+) -> Result<Box<dyn IdScene + 'r>, StageError> {
+    let o = scene.manifest.origin;
+    let enu = crate::geo::EnuFrame::new(crate::geo::Geodetic::new(o.lat_deg, o.lon_deg, o.h_m));
+    let mesh = crate::scene::align::tileset_scene_mesh(&t.path, &enu, BuildingId::new(1)?)
+        .map_err(|e| tileset_err(&t.path, e))?;
+    if mesh.indices.is_empty() {
+        return Err(tileset_err(&t.path, "it holds no triangles"));
+    }
+    log::info!("tileset {}: {} triangles", t.path.display(), mesh.triangle_count());
+    Ok(renderer.prepare(&mesh, glam::DVec3::ZERO)?)
+}
+
+/// The frames a run renders and what writing them needs.
+struct Frames<'a> {
+    plan: &'a MaskPlan,
+    records: &'a [PoseRecord],
+    /// Indices into `records` of the frames to render, in order.
+    todo: &'a [usize],
+    source_ids: &'a BTreeMap<BuildingId, String>,
+    occluders: &'a [ClutterLayer],
+    tileset_sha256: Option<&'a str>,
+}
+
+impl Frames<'_> {
+    /// Renders the frames on the calling thread (several in flight on wgpu) and labels and writes
+    /// them on the rayon pool, fed through a bounded channel. Returns the instances written and the
+    /// frames that failed.
+    fn render_and_write(
+        &self,
+        id_scene: &dyn IdScene,
+        tiles: Option<&dyn IdScene>,
+        progress: &dyn Progress,
+    ) -> Result<(u64, Vec<FrameFailure>), StageError> {
+        let plan = self.plan;
+        let views: Vec<View> = self
+            .todo
+            .iter()
+            .map(|&i| View { intrinsics: self.records[i].view.intrinsics, pose: self.records[i].pose() })
+            .collect();
+        let options = RenderOptions { range: plan.range, linear_depth: plan.depth || tiles.is_some() };
+        let tiles_options = RenderOptions { range: plan.range, linear_depth: true };
+        progress.start(self.todo.len() as u64, "frames");
+        let failures: Mutex<Vec<FrameFailure>> = Mutex::new(Vec::new());
+        let instance_count = std::sync::atomic::AtomicU64::new(0);
+        let done = std::sync::atomic::AtomicU64::new(0);
+        let render_started = Instant::now();
+        let render_result: Result<(), StageError> = std::thread::scope(|s| {
+            let (tx, rx) = mpsc::sync_channel::<Job>(2 * crate::render::FRAMES_IN_FLIGHT);
+            let writer = s.spawn(|| {
+                rx.into_iter().par_bridge().for_each(|job| {
+                    let rec = &self.records[job.record];
+                    match write_frame(plan, rec, job, self.source_ids, self.occluders, self.tileset_sha256) {
+                        Ok(n) => {
+                            instance_count.fetch_add(n, std::sync::atomic::Ordering::Relaxed);
+                        }
+                        Err(e) => {
+                            log::error!("frame {}: {}", rec.name, error_chain(&e));
+                            failures
+                                .lock()
+                                .unwrap_or_else(|p| p.into_inner())
+                                .push(FrameFailure { frame: rec.name.clone(), error: error_chain(&e) });
+                        }
+                    }
+                    let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                    progress.inc(1);
+                    let secs = render_started.elapsed().as_secs_f64();
+                    if secs > 0.0 {
+                        progress.message(&format!("{:.2} frames/s", n as f64 / secs));
+                    }
+                });
+            });
+            // The first error of a frame stops the batch and is kept here.
+            let mut stopped: Option<StageError> = None;
+            let on_frame = |k: usize, image: RenderedFrame| -> Result<(), StageError> {
+                crate::util::interrupt::check()?;
+                let amodal_px = if plan.visible_fraction {
+                    let ids = image.ids.visible_buildings();
+                    let counts = id_scene.isolated_coverage_px(&views[k], &ids, &plan.range)?;
+                    Some(ids.into_iter().zip(counts).collect())
+                } else {
+                    None
+                };
+                let tiles_depth_m = match tiles {
+                    Some(t) => t.render(&views[k], &tiles_options)?.depth_m,
+                    None => None,
+                };
+                // The writer only stops receiving if it panicked; the join below reports that.
+                let _ = tx.send(Job { record: self.todo[k], image, tiles_depth_m, amodal_px });
+                Ok(())
+            };
+            let rendered = id_scene.render_each(&views, &options, &mut |k, image| match on_frame(k, image) {
+                Ok(()) => std::ops::ControlFlow::Continue(()),
+                Err(e) => {
+                    stopped = Some(e);
+                    std::ops::ControlFlow::Break(())
+                }
+            });
+            drop(tx);
+            if writer.join().is_err() {
+                return Err(StageError::Scene { what: "a frame writer thread panicked".into() });
+            }
+            rendered?;
+            stopped.map_or(Ok(()), Err)
+        });
+        progress.finish();
+        render_result?;
+        Ok((instance_count.into_inner(), failures.into_inner().unwrap_or_else(|p| p.into_inner())))
+    }
 }
 
 /// Labels one frame and writes its files (depth, PNG, then the JSON last: a frame counts as done only
@@ -658,8 +708,7 @@ fn write_previews(
     plan: &MaskPlan,
     records: &[PoseRecord],
     candidates: &[usize],
-    renderer: &Renderer,
-    gpu_scene: &GpuScene,
+    id_scene: &dyn IdScene,
 ) -> Result<Vec<PathBuf>, StageError> {
     let chosen: Vec<usize> =
         evenly_spaced(candidates.len(), plan.preview).into_iter().map(|j| candidates[j]).collect();
@@ -673,7 +722,7 @@ fn write_previews(
         } else {
             let view = View { intrinsics: rec.view.intrinsics, pose: rec.pose() };
             let options = RenderOptions { range: plan.range, linear_depth: true };
-            let img = renderer.render(gpu_scene, &view, &options)?;
+            let img = id_scene.render(&view, &options)?;
             // `linear_depth: true` always yields depth; an empty one would only shade as background.
             overlay::shade_depth(img.depth_m.as_deref().unwrap_or(&[]), &rec.view.intrinsics)
         };

@@ -80,6 +80,7 @@ pub struct QueryInstance {
     /// `[start, end)` index ranges into the query image, ascending and disjoint.
     spans: Vec<[u32; 2]>,
     area_px: u32,
+    /// Confidence score in [0, 1] (1 for oracle masks).
     pub score: f64,
     /// Bounding-box area in pixels (w × h).
     pub bbox_area_px: f64,
@@ -121,8 +122,11 @@ pub use crate::camera::visibility::{COVERED_CELL_SHARE, FRAME_CELLS, FRAME_GRID}
 /// The query: instances at a fixed resolution (built with [`Query::new`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Query {
+    /// Image width, pixels.
     pub width: u32,
+    /// Image height, pixels.
     pub height: u32,
+    /// The query's instances.
     pub instances: Vec<QueryInstance>,
     /// The union of the instances' pixels as runs (predicted instances may overlap).
     union: Vec<[u32; 2]>,

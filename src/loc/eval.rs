@@ -3,9 +3,11 @@
 //!
 //! Per query: the query instances (oracle ground-truth masks with degradations, or predictions) at the
 //! render resolution; the scene culled to the buildings the prior could see (with a margin covering the
-//! search range) and renumbered densely; hypotheses rendered by the CPU rasteriser ([`crate::render::cpu`]) in
-//! parallel and scored with [`super::cost`]; the search of [`super::search`]; errors against the ground
-//! truth. The coarse grid's yaws at one position come from one wide render ([`RotationFan`]).
+//! search range) and renumbered densely; hypotheses rendered by the renderer given to [`evaluate`]
+//! ([`crate::render::IdRenderer`]: by default the CPU rasteriser of [`crate::render::cpu`], one
+//! hypothesis per thread; wgpu renders batches with frames in flight, scored on the thread pool) and
+//! scored with [`super::cost`]; the search of [`super::search`]; errors against the ground truth. The
+//! coarse grid's yaws at one position come from one wide render ([`RotationFan`]).
 //!
 //! Outputs in `<workdir>/<area>/<camera>/loc/<tag>/`: `results.jsonl` (one line per query and cost),
 //! `est_poses_<cost>.txt` (COLMAP `NAME qw qx qy qz tx ty tz`), `summary.md` / `summary.json` (recall at
@@ -35,8 +37,9 @@ use super::search::{self, Evaluate, Hypothesis, PolishCost, SearchOptions, Searc
 use crate::camera::colmap::{self, ColmapCamera};
 use crate::camera::record::read_jsonl;
 use crate::camera::{Intrinsics, Pose, PoseRecord, Trajectory};
-use crate::render::cpu::{self as raster, CpuScene, Frame};
+use crate::render::cpu::{CpuScene, Frame};
 use crate::render::warp::RotationFan;
+use crate::render::{IdRenderer, IdScene, RenderError, RenderOptions, RendererKind, RendererRecord, View};
 use crate::scene::{BuildingId, BuildingRecord, PreparedScene, SceneMesh};
 use crate::util::shard::{PARTS_DIR, PART_MARKER};
 use crate::util::{self, Progress, Shard};
@@ -65,6 +68,9 @@ pub enum EvalError {
         #[source]
         source: util::ShardError,
     },
+    /// The renderer failed (a wgpu device error; the CPU rasteriser does not fail).
+    #[error("rendering the hypotheses")]
+    Render(#[from] RenderError),
 }
 
 /// Options of an evaluation run.
@@ -76,6 +82,7 @@ pub struct EvalOptions {
     pub out_dir: PathBuf,
     /// Costs to evaluate (each gives a row of the table).
     pub costs: Vec<CostKind>,
+    /// How the per-instance scores of the instance cost are weighted.
     pub weighting: Weighting,
     /// Weight w of the semantic IoU in the instance cost, (1 − w)·instance + w·semantic, in [0, 1]
     /// ([`super::cost::Scorer::blended_cost`]; 0 = the paper's).
@@ -84,6 +91,7 @@ pub struct EvalOptions {
     pub source: QuerySource,
     /// The search's stages and parameters.
     pub search: SearchOptions,
+    /// `--seed`: drives the oracle's degradations (and the map's perturbation unless `--map-seed`).
     pub seed: u64,
     /// Width of the fine-stage renders and query masks (height keeps the aspect ratio).
     pub render_width_px: u32,
@@ -92,7 +100,9 @@ pub struct EvalOptions {
     /// Coarse stage: render one wide view per grid position and read every yaw out of it
     /// ([`crate::render::warp`]) instead of rendering each yaw.
     pub yaw_fan: bool,
+    /// Queries taken from the list (before sharding); all when `None`.
     pub limit: Option<usize>,
+    /// Overlay PNGs written for the first this many queries.
     pub overlays: usize,
     /// The map the scene given to [`evaluate`] is (its area and perturbation), for the summary.
     pub map: MapSummary,
@@ -104,19 +114,27 @@ pub struct EvalOptions {
 /// One line of `results.jsonl`.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct QueryResult {
+    /// The query's frame name.
     pub name: String,
+    /// The cost it was localized with.
     pub cost: CostKind,
     /// Table group: `grid` or `sequence` (sampled queries), `query` (COLMAP lists).
     pub group: String,
+    /// The estimated camera centre (east, north, up; ENU metres) and yaw (degrees).
     pub estimate: [f64; 4],
+    /// Distance of the prior's centre from the ground truth's, metres.
     pub prior_translation_error_m: f64,
+    /// Rotation angle between the prior and the ground truth, degrees.
     pub prior_rotation_error_deg: f64,
+    /// Distance of the estimate's centre from the ground truth's, metres.
     pub translation_error_m: f64,
+    /// Rotation angle between the estimate and the ground truth, degrees.
     pub rotation_error_deg: f64,
     /// The translation error along the ground truth's viewing direction (signed, positive: the estimate
     /// is in front of the ground truth) and across it, metres ([`Pose::axial_lateral_error_m`]).
     #[serde(default)]
     pub axial_error_m: f64,
+    /// The translation error across the ground truth's viewing direction, metres.
     #[serde(default)]
     pub lateral_error_m: f64,
     /// The silhouette offset the polish fitted (pixels at the render width; > 0: the rendered buildings
@@ -132,7 +150,9 @@ pub struct QueryResult {
     pub cost_at_gt: f64,
     /// Errors of the coarse stage's best hypothesis.
     pub coarse_translation_error_m: f64,
+    /// Rotation error of the coarse stage's best hypothesis, degrees (its translation error just above).
     pub coarse_rotation_error_deg: f64,
+    /// Hypotheses scored by the search.
     pub hypotheses: u64,
     /// Wall-clock seconds of the search.
     pub seconds: f64,
@@ -140,11 +160,13 @@ pub struct QueryResult {
     /// resolutions, culling around the prior, the CPU scene (welding, closed shells, polygons).
     #[serde(default)]
     pub setup_seconds: f64,
+    /// Instances in the query (at the render width).
     pub query_instances: usize,
     /// Cells of the frame's 4 × 4 grid holding the query's buildings
     /// ([`crate::loc::cost::Query::covered_frame_cells`]): how far its silhouettes spread.
     #[serde(default)]
     pub covered_frame_cells: u32,
+    /// Buildings kept around the prior (the culled map).
     pub buildings_considered: usize,
     /// Hypotheses and seconds per stage of the search.
     #[serde(default)]
@@ -159,13 +181,16 @@ pub struct QueryResult {
 /// The run's summary.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Summary {
+    /// The table: the prior's rows first, then each cost's, per group (and `all`).
     pub rows: Vec<Row>,
+    /// Queries localized.
     pub queries: usize,
     /// Median over queries and costs of the search's wall-clock seconds.
     pub median_seconds_per_query: f64,
     /// Median over queries of the preparation shared by a query's costs (see `QueryResult`).
     #[serde(default)]
     pub median_setup_seconds: f64,
+    /// Hypotheses scored per second of search, over all queries and costs.
     pub hypotheses_per_second: f64,
     /// Recall at (2 m, 2°) per bucket of query instance counts, per cost (every query in one bucket).
     #[serde(default)]
@@ -183,12 +208,19 @@ pub struct Summary {
     pub search: SearchOptions,
     /// The map: its area and perturbation.
     pub map: MapSummary,
+    /// The renderer of the hypotheses when it was not the CPU rasteriser (`--renderer gpu`, or `auto`
+    /// on a hardware GPU); absent for the CPU rasteriser, the default (and every run before the
+    /// renderer could be chosen).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub renderer: Option<RendererRecord>,
 }
 
 /// How many of one cost's estimates lie on the boundary of the search volume.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct BoundaryRow {
+    /// The cost, as named in the table.
     pub method: String,
+    /// Queries localized.
     pub queries: usize,
     /// Estimates with `on_search_boundary` (see [`QueryResult`]).
     pub on_search_boundary: usize,
@@ -219,7 +251,7 @@ pub fn cull(buildings: &[BuildingRecord], pose: &Pose, k: &Intrinsics, margin: f
                     if c & 4 == 0 { lo[2] } else { hi[2] },
                 ];
                 let q = pose.world_to_cam(p.into());
-                if q.z > raster::NEAR_M {
+                if q.z > crate::render::cpu::NEAR_M {
                     front += 1;
                     let uv = k.project(q).expect("in front");
                     u0 = u0.min(uv[0]);
@@ -254,18 +286,28 @@ pub fn dense_subscene(mesh: &SceneMesh, kept: &[BuildingId]) -> SceneMesh {
     sub
 }
 
-/// Scores hypotheses by rendering them on the CPU in parallel.
-pub struct CpuEvaluator<'a> {
-    pub scene: &'a CpuScene,
+/// Scores hypotheses by rendering them with an [`IdScene`]: on the CPU rasteriser one hypothesis per
+/// thread of the rayon pool; on a renderer that prefers batches (wgpu), a batch's views are rendered
+/// in order with frames in flight and scored on the pool.
+pub struct Evaluator<'a, S: IdScene + ?Sized = CpuScene> {
+    /// The culled, densely renumbered map, prepared by the renderer.
+    pub scene: &'a S,
+    /// Intrinsics of the renders and of the query's masks, pixels.
     pub k: Intrinsics,
+    /// Pitch of every hypothesis (the prior's; not searched), degrees.
     pub pitch_deg: f64,
+    /// Roll of every hypothesis (the prior's; not searched), degrees.
     pub roll_deg: f64,
+    /// The query's instances at `k`.
     pub query: &'a Query,
+    /// The cost scored.
     pub kind: CostKind,
+    /// How the per-instance scores of [`CostKind::Instance`] are weighted.
     pub weighting: Weighting,
     /// The terms of [`CostKind::Instance`]: the semantic weight (see [`EvalOptions::semantic_weight`])
     /// and the semantic term's spill weight (1 until [`Evaluate::enter_polish`] sets the polish's).
     pub blend: Blend,
+    /// The largest dense building ID of the scene (the scorer's table size).
     pub k_max: u32,
     /// Applied to every rendered image before scoring: dilate (> 0) or erode (< 0) each building by
     /// this many pixels ([`morph_into`]), so that query masks systematically fatter or thinner than the
@@ -279,7 +321,15 @@ pub struct CpuEvaluator<'a> {
     pub workspaces: Workspaces,
 }
 
-/// Scoring buffers kept by a [`CpuEvaluator`] between batches.
+/// The evaluator of the CPU rasteriser (the default; what benches and tests build).
+pub type CpuEvaluator<'a> = Evaluator<'a, CpuScene>;
+
+/// Views a renderer that prefers batches ([`IdScene::renders_in_parallel`] false) renders at once
+/// before they are scored: enough to keep its frames in flight busy, few enough for memory (64 frames
+/// of 640 × 360 IDs are 59 MB).
+const RENDER_BATCH: usize = 64;
+
+/// Scoring buffers kept by an [`Evaluator`] between batches.
 ///
 /// A set holds a frame's ID and depth buffers and one camera-frame and screen position per vertex
 /// of the scene: megabytes for a city. Allocated and zeroed afresh for every batch, they weighed
@@ -328,7 +378,7 @@ impl Drop for Lent<'_> {
 /// The shortest run of same-centre hypotheses worth a wide render.
 pub const MIN_FAN: usize = 3;
 
-/// One thread's buffers for [`CpuEvaluator`]: the render, the scorer, the yaw fan's warp and the
+/// One thread's buffers for [`Evaluator`]: the render, the scorer, the yaw fan's warp and the
 /// silhouette offset's morphology.
 #[derive(Default)]
 struct Workspace {
@@ -339,15 +389,23 @@ struct Workspace {
     scratch: Vec<u32>,
 }
 
-impl CpuEvaluator<'_> {
+impl<S: IdScene + ?Sized> Evaluator<'_, S> {
+    /// The evaluator's view at `pose`.
+    fn view(&self, pose: Pose) -> View {
+        View { intrinsics: self.k, pose }
+    }
+
     /// The cost of a full pose (any pitch and roll), e.g. the ground truth.
-    pub fn cost_of_pose(&self, pose: &Pose) -> f64 {
+    ///
+    /// # Errors
+    /// The renderer's ([`IdScene::render_into`]).
+    pub fn cost_of_pose(&self, pose: &Pose) -> Result<f64, RenderError> {
         let mut ws = self.workspaces.take();
-        raster::render_ids(self.scene, pose, &self.k, &mut ws.frame);
+        self.scene.render_into(&self.view(*pose), &mut ws.frame)?;
         let ids = std::mem::take(&mut ws.frame.ids);
         let score = self.score(&mut ws, &ids);
         ws.frame.ids = ids;
-        score
+        Ok(score)
     }
 
     /// Scores a rendered dense-ID image of the evaluator's intrinsics, after the silhouette offset.
@@ -362,39 +420,97 @@ impl CpuEvaluator<'_> {
         ws.scorer.cost(self.kind, self.query, ids, self.k_max, self.weighting, self.blend)
     }
 
+    /// The rotation fan of a run of hypotheses sharing a centre, when it is long enough and fits.
+    fn fan(&self, poses: &[Pose]) -> Option<RotationFan> {
+        if self.yaw_fan && poses.len() >= MIN_FAN {
+            RotationFan::new(poses, &self.k)
+        } else {
+            None
+        }
+    }
+
+    /// Scores every yaw of `fan` out of its wide render `wide_ids`.
+    fn score_fan(&self, fan: &RotationFan, wide_ids: &[u32], ws: &mut Workspace) -> Vec<f64> {
+        let mut warped = std::mem::take(&mut ws.warped);
+        let scores = (0..fan.len())
+            .map(|i| {
+                fan.warp(i, wide_ids, &mut warped);
+                self.score(ws, &warped)
+            })
+            .collect();
+        ws.warped = warped;
+        scores
+    }
+
     /// Scores one run of hypotheses sharing a centre: through a rotation fan when it is long enough and
     /// the fan fits, else one render each.
-    fn score_run(&self, run: &[Hypothesis], ws: &mut Workspace) -> Vec<f64> {
+    fn score_run(&self, run: &[Hypothesis], ws: &mut Workspace) -> Result<Vec<f64>, RenderError> {
         let poses: Vec<Pose> = run.iter().map(|h| h.pose(self.pitch_deg, self.roll_deg)).collect();
-        if self.yaw_fan && run.len() >= MIN_FAN {
-            if let Some(fan) = RotationFan::new(&poses, &self.k) {
-                raster::render_ids(self.scene, &fan.pose, &fan.intrinsics, &mut ws.frame);
-                let mut warped = std::mem::take(&mut ws.warped);
-                let scores = (0..fan.len())
-                    .map(|i| {
-                        fan.warp(i, &ws.frame.ids, &mut warped);
-                        self.score(ws, &warped)
-                    })
-                    .collect();
-                ws.warped = warped;
-                return scores;
-            }
+        if let Some(fan) = self.fan(&poses) {
+            self.scene.render_into(&View { intrinsics: fan.intrinsics, pose: fan.pose }, &mut ws.frame)?;
+            let ids = std::mem::take(&mut ws.frame.ids);
+            let scores = self.score_fan(&fan, &ids, ws);
+            ws.frame.ids = ids;
+            return Ok(scores);
         }
         poses
             .iter()
             .map(|pose| {
-                raster::render_ids(self.scene, pose, &self.k, &mut ws.frame);
+                self.scene.render_into(&self.view(*pose), &mut ws.frame)?;
                 let ids = std::mem::take(&mut ws.frame.ids);
                 let score = self.score(ws, &ids);
                 ws.frame.ids = ids;
-                score
+                Ok(score)
             })
             .collect()
     }
+
+    /// Scores runs on a renderer that prefers batches: the runs' views (one per fan, else one per
+    /// hypothesis) rendered [`RENDER_BATCH`] at a time with [`IdScene::render_each`], each batch
+    /// scored on the rayon pool. The scores are those of [`Evaluator::score_run`] on the same images.
+    fn score_batched(&self, runs: &[&[Hypothesis]]) -> Result<Vec<f64>, RenderError> {
+        let mut views: Vec<View> = Vec::new();
+        let mut fans: Vec<Option<RotationFan>> = Vec::new();
+        for run in runs {
+            let poses: Vec<Pose> = run.iter().map(|h| h.pose(self.pitch_deg, self.roll_deg)).collect();
+            match self.fan(&poses) {
+                Some(fan) => {
+                    views.push(View { intrinsics: fan.intrinsics, pose: fan.pose });
+                    fans.push(Some(fan));
+                }
+                None => {
+                    views.extend(poses.into_iter().map(|p| self.view(p)));
+                    fans.resize_with(views.len(), || None);
+                }
+            }
+        }
+        let mut scores: Vec<f64> = Vec::with_capacity(views.len());
+        let mut images: Vec<crate::scene::IdMap> = Vec::with_capacity(RENDER_BATCH);
+        for (views, fans) in views.chunks(RENDER_BATCH).zip(fans.chunks(RENDER_BATCH)) {
+            images.clear();
+            self.scene.render_each(views, &RenderOptions::default(), &mut |_, image| {
+                images.push(image.ids);
+                std::ops::ControlFlow::Continue(())
+            })?;
+            let batch: Vec<Vec<f64>> = images
+                .par_iter()
+                .zip(fans.par_iter())
+                .map_init(
+                    || self.workspaces.take(),
+                    |ws, (image, fan)| match fan {
+                        Some(fan) => self.score_fan(fan, image.raw(), ws),
+                        None => vec![self.score(ws, image.raw())],
+                    },
+                )
+                .collect();
+            scores.extend(batch.into_iter().flatten());
+        }
+        Ok(scores)
+    }
 }
 
-impl Evaluate for CpuEvaluator<'_> {
-    type Error = std::convert::Infallible;
+impl<S: IdScene + ?Sized> Evaluate for Evaluator<'_, S> {
+    type Error = RenderError;
 
     /// Takes the polish's semantic weight (the instance cost only: the semantic baseline is its own
     /// cost, the merged ablation stays the paper's) and fits the silhouette offset at `at`: every offset
@@ -412,7 +528,7 @@ impl Evaluate for CpuEvaluator<'_> {
         offsets.sort_by_key(|b| (b.abs(), *b));
         // One render at `at`, scored under every offset.
         let mut ws = self.workspaces.take();
-        raster::render_ids(self.scene, &at.pose(self.pitch_deg, self.roll_deg), &self.k, &mut ws.frame);
+        self.scene.render_into(&self.view(at.pose(self.pitch_deg, self.roll_deg)), &mut ws.frame)?;
         let ids = std::mem::take(&mut ws.frame.ids);
         let mut best = (f64::NEG_INFINITY, 0);
         self.blend.spill_weight = 1.0;
@@ -448,11 +564,14 @@ impl Evaluate for CpuEvaluator<'_> {
             }
         }
         let this = &*self;
-        Ok(runs
+        if !this.scene.renders_in_parallel() {
+            return this.score_batched(&runs);
+        }
+        let scores = runs
             .par_iter()
             .map_init(|| this.workspaces.take(), |ws, run| this.score_run(run, ws))
-            .flatten_iter()
-            .collect())
+            .collect::<Result<Vec<Vec<f64>>, _>>()?;
+        Ok(scores.into_iter().flatten().collect())
     }
 }
 
@@ -488,9 +607,13 @@ fn group_of(t: Trajectory) -> &'static str {
 /// One query: name (frame), intrinsics, ground truth, prior, and its group in the table.
 #[derive(Debug, Clone)]
 pub struct QueryPose {
+    /// The query's frame name.
     pub name: String,
+    /// The query's intrinsics at its full resolution.
     pub intrinsics: Intrinsics,
+    /// The ground-truth pose.
     pub gt: Pose,
+    /// The prior pose the search starts from.
     pub prior: Pose,
     /// `grid` or `sequence` for sampled queries, `query` for COLMAP lists.
     pub group: String,
@@ -570,14 +693,17 @@ pub fn load_queries(src: &QueryPoses) -> Result<Vec<QueryPose>, EvalError> {
     }
 }
 
-/// Runs the evaluation: loads the queries, localizes each one with every cost, then writes the
-/// results, the estimated poses and the summary tables (see the module doc for the files).
+/// Runs the evaluation: loads the queries, localizes each one with every cost (hypotheses rendered by
+/// `renderer`), then writes the results, the estimated poses and the summary tables (see the module
+/// doc for the files).
 ///
 /// # Errors
-/// Missing or malformed inputs (poses, priors, masks, predictions), naming the file.
+/// Missing or malformed inputs (poses, priors, masks, predictions), naming the file;
+/// [`EvalError::Render`] when the renderer fails.
 pub fn evaluate(
     scene: &PreparedScene,
     opts: &EvalOptions,
+    renderer: &dyn IdRenderer,
     progress: &dyn Progress,
 ) -> Result<Summary, EvalError> {
     let all = load_selected_queries(opts)?;
@@ -589,14 +715,14 @@ pub fn evaluate(
     progress.start((queries.len() * opts.costs.len()) as u64, "queries");
     for &(position, q) in &queries {
         util::interrupt::check()?;
-        let setup = QuerySetup::new(scene, opts, q)?;
+        let setup = QuerySetup::new(scene, opts, q, renderer)?;
         for &kind in &opts.costs {
-            let run = setup.localize(opts, kind);
+            let run = setup.localize(opts, kind)?;
             if position < opts.overlays && kind == opts.costs[0] {
                 write_overlay(
                     &opts.out_dir,
                     &q.name,
-                    &setup.cpu,
+                    &*setup.scene,
                     &setup.k_fine,
                     &setup.query_fine,
                     [&q.prior, &run.estimate, &q.gt],
@@ -609,8 +735,10 @@ pub fn evaluate(
     }
     progress.finish();
     let results: Vec<QueryResult> = runs.iter().map(|r| r.result.clone()).collect();
-    let summary =
+    let mut summary =
         summarise(&results, &opts.costs, opts.weighting, opts.semantic_weight, &opts.search, &opts.map);
+    let record = renderer.record();
+    summary.renderer = (record.kind != RendererKind::Cpu).then_some(record);
     let (jsonl, est) = output_texts(&opts.out_dir, &runs)?;
     if opts.shard.is_whole() {
         write_outputs(
@@ -674,11 +802,15 @@ pub struct PartInfo {
     pub shard: String,
     /// Queries of the whole run (all shards).
     pub queries: usize,
+    /// Costs evaluated.
     pub costs: Vec<CostKind>,
+    /// How the per-instance scores of the instance cost are weighted.
     pub weighting: Weighting,
     /// Weight of the semantic IoU in the instance cost.
     pub semantic_weight: f64,
+    /// The search's stages and parameters.
     pub search: SearchOptions,
+    /// The map: its area and perturbation.
     pub map: MapSummary,
     /// `--seed`: drives the oracle's degradations (and the map's perturbation unless `--map-seed`).
     pub seed: u64,
@@ -744,6 +876,7 @@ pub struct Outputs {
     pub results_jsonl: String,
     /// `est_poses_<cost>.txt` by file name.
     pub est_poses: BTreeMap<String, String>,
+    /// The summary computed from all results.
     pub summary: Summary,
 }
 
@@ -885,9 +1018,9 @@ fn load_selected_queries(opts: &EvalOptions) -> Result<Vec<QueryPose>, EvalError
     Ok(queries)
 }
 
-/// What one query's costs share: its masks at both resolutions, the map culled around its prior, the
-/// CPU scene, and the prior as a hypothesis.
-struct QuerySetup<'q> {
+/// What one query's costs share: its masks at both resolutions, the map culled around its prior and
+/// prepared by the renderer, and the prior as a hypothesis.
+struct QuerySetup<'q, 'r> {
     query: &'q QueryPose,
     k_fine: Intrinsics,
     k_coarse: Intrinsics,
@@ -895,7 +1028,7 @@ struct QuerySetup<'q> {
     query_coarse: Query,
     /// Buildings kept around the prior (their dense IDs are 1..=len).
     buildings: usize,
-    cpu: CpuScene,
+    scene: Box<dyn IdScene + 'r>,
     seed: u64,
     pitch_deg: f64,
     roll_deg: f64,
@@ -905,8 +1038,13 @@ struct QuerySetup<'q> {
     setup_seconds: f64,
 }
 
-impl<'q> QuerySetup<'q> {
-    fn new(scene: &PreparedScene, opts: &EvalOptions, q: &'q QueryPose) -> Result<Self, EvalError> {
+impl<'q, 'r> QuerySetup<'q, 'r> {
+    fn new(
+        scene: &PreparedScene,
+        opts: &EvalOptions,
+        q: &'q QueryPose,
+        renderer: &'r dyn IdRenderer,
+    ) -> Result<Self, EvalError> {
         let started = Instant::now();
         let k_fine = at_width(&q.intrinsics, opts.render_width_px);
         let k_coarse = at_width(&q.intrinsics, opts.coarse_width_px);
@@ -917,7 +1055,7 @@ impl<'q> QuerySetup<'q> {
             .try_into()
             .expect("one query per resolution asked for");
         let kept = cull(&scene.buildings, &q.prior, &k_fine, 0.5);
-        let cpu = CpuScene::new(&dense_subscene(&scene.mesh, &kept), q.prior.centre_m);
+        let prepared = renderer.prepare(&dense_subscene(&scene.mesh, &kept), q.prior.centre_m)?;
         let [prior_yaw, pitch_deg, roll_deg] = q.prior.ypr_deg();
         Ok(QuerySetup {
             query: q,
@@ -926,7 +1064,7 @@ impl<'q> QuerySetup<'q> {
             query_fine,
             query_coarse,
             buildings: kept.len(),
-            cpu,
+            scene: prepared,
             seed,
             pitch_deg,
             roll_deg,
@@ -937,15 +1075,15 @@ impl<'q> QuerySetup<'q> {
     }
 
     /// Localizes the query with the cost `kind`.
-    fn localize(&self, opts: &EvalOptions, kind: CostKind) -> Localized {
+    fn localize(&self, opts: &EvalOptions, kind: CostKind) -> Result<Localized, EvalError> {
         let started = Instant::now();
         let (qf, qc) = if kind == CostKind::Merged {
             (self.query_fine.merged(), self.query_coarse.merged())
         } else {
             (self.query_fine.clone(), self.query_coarse.clone())
         };
-        let evaluator = |k: Intrinsics, query, yaw_fan| CpuEvaluator {
-            scene: &self.cpu,
+        let evaluator = |k: Intrinsics, query, yaw_fan| Evaluator {
+            scene: &*self.scene,
             k,
             pitch_deg: self.pitch_deg,
             roll_deg: self.roll_deg,
@@ -972,17 +1110,14 @@ impl<'q> QuerySetup<'q> {
                 on_boundary: false,
             }
         } else {
-            match search::search(
+            search::search(
                 &mut coarse_eval,
                 &mut fine_eval,
                 self.prior,
                 &opts.search,
                 self.seed,
                 self.pivot_m,
-            ) {
-                Ok(r) => r,
-                Err(never) => match never {},
-            }
+            )?
         };
         let seconds = started.elapsed().as_secs_f64();
         let (q, gt) = (self.query, &self.query.gt);
@@ -1002,7 +1137,7 @@ impl<'q> QuerySetup<'q> {
             lateral_error_m: lateral,
             silhouette_offset_px: fine_eval.silhouette_offset_px,
             best_cost: r.best_score,
-            cost_at_gt: fine_eval.cost_of_pose(gt),
+            cost_at_gt: fine_eval.cost_of_pose(gt)?,
             coarse_translation_error_m: gt.translation_error_m(&coarse_est),
             coarse_rotation_error_deg: gt.rotation_error_deg(&coarse_est),
             hypotheses: r.hypotheses_scored,
@@ -1014,7 +1149,7 @@ impl<'q> QuerySetup<'q> {
             stages: r.stages,
             on_search_boundary: r.on_boundary,
         };
-        Localized { result, estimate: est }
+        Ok(Localized { result, estimate: est })
     }
 }
 
@@ -1124,6 +1259,7 @@ pub fn summarise(
         boundary_rows,
         search: search.clone(),
         map: map.clone(),
+        renderer: None,
     }
 }
 
@@ -1218,7 +1354,7 @@ fn palette(id: u32) -> [u8; 3] {
 fn write_overlay(
     out_dir: &Path,
     name: &str,
-    scene: &CpuScene,
+    scene: &dyn IdScene,
     k: &Intrinsics,
     q: &Query,
     poses: [&Pose; 3],
@@ -1235,7 +1371,7 @@ fn write_overlay(
     let mut rgb = vec![255u8; total_w * h * 3];
     let mut frame = Frame::default();
     for (panel, pose) in poses.iter().enumerate() {
-        raster::render_ids(scene, pose, k, &mut frame);
+        scene.render_into(&View { intrinsics: *k, pose: **pose }, &mut frame)?;
         for y in 0..h {
             for x in 0..w {
                 let i = y * w + x;
@@ -1270,6 +1406,7 @@ fn write_overlay(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::cpu as raster;
 
     #[test]
     fn dense_ids_are_contiguous() {

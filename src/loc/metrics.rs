@@ -18,12 +18,17 @@ pub fn median_or_nan(values: &[f64]) -> f64 {
 /// One row of the summary table.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Row {
+    /// The method (`prior` or the cost), as named in the table.
     pub method: String,
+    /// Query group: `grid`, `sequence`, `query` or `all`.
     pub group: String,
+    /// Queries in the row.
     pub queries: usize,
     /// Recall (percent) at each of [`THRESHOLDS`].
     pub recall_pct: [f64; 3],
+    /// Median translation error, metres (NaN/null without queries).
     pub median_translation_m: f64,
+    /// Median rotation error, degrees (NaN/null without queries).
     pub median_rotation_deg: f64,
 }
 
@@ -59,7 +64,9 @@ pub const COVERAGE_BUCKETS: Buckets =
 /// last bucket holds (`None`: open).
 #[derive(Debug, Clone, Copy)]
 pub struct Buckets {
+    /// Inclusive lower bounds of the buckets, ascending from 0.
     pub lower: &'static [u32],
+    /// The largest count the last bucket holds (`None`: open).
     pub top: Option<u32>,
 }
 
@@ -81,10 +88,12 @@ impl Buckets {
 /// silhouettes stop being enough.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct BucketRow {
+    /// The method (`prior` or the cost), as named in the table.
     pub method: String,
     /// The bucket's counts, e.g. `2–3` or `16+`.
     #[serde(alias = "instances")]
     pub bucket: String,
+    /// Queries in the row.
     pub queries: usize,
     /// Recall (percent) at (2 m, 2°); NaN (null) for an empty bucket.
     pub recall_2m_2deg_pct: f64,
@@ -116,7 +125,9 @@ pub fn bucket_rows(method: &str, buckets: Buckets, errors: &[(usize, f64, f64)])
 /// Where one method's translation errors lie: along the camera's axis or across it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct AxisRow {
+    /// The method (`prior` or the cost), as named in the table.
     pub method: String,
+    /// Queries in the row.
     pub queries: usize,
     /// Median |error along the ground truth's viewing direction|, metres (NaN/null without queries).
     pub median_abs_axial_m: f64,

@@ -42,6 +42,7 @@ pub enum QueryError {
 /// The predictions of one area/camera, by frame name.
 #[derive(Debug, Clone, Default)]
 pub struct FramePredictions {
+    /// Predicted instances by frame name.
     pub by_frame: BTreeMap<String, Vec<Prediction>>,
     /// The results file (for messages).
     pub path: PathBuf,

@@ -42,6 +42,8 @@ pub struct Renderer {
     pub(crate) device: wgpu::Device,
     pub(crate) queue: wgpu::Queue,
     adapter: String,
+    /// The adapter is a software rasteriser (lavapipe, llvmpipe, WARP): wgpu's `DeviceType::Cpu`.
+    software: bool,
     pub(crate) pipelines: Pipelines,
     /// Render targets kept between calls (a ring per frame size), so batches do not reallocate.
     pub(crate) targets: Mutex<Vec<IdTarget>>,
@@ -100,7 +102,9 @@ impl Renderer {
             device.on_uncaptured_error(std::sync::Arc::new(|e: wgpu::Error| {
                 log::error!("uncaptured GPU error: {e}");
             }));
-            Renderer::build(device, queue, name)
+            let mut renderer = Renderer::build(device, queue, name)?;
+            renderer.software = info.device_type == wgpu::DeviceType::Cpu;
+            Ok(renderer)
         })
     }
 
@@ -114,12 +118,19 @@ impl Renderer {
 
     fn build(device: wgpu::Device, queue: wgpu::Queue, adapter: String) -> Result<Renderer, RenderError> {
         let pipelines = gpu_scope(&device, "building the render pipelines", || Pipelines::new(&device))?;
-        Ok(Renderer { device, queue, adapter, pipelines, targets: Mutex::new(Vec::new()) })
+        Ok(Renderer { device, queue, adapter, software: false, pipelines, targets: Mutex::new(Vec::new()) })
     }
 
     /// The adapter description logged at creation.
     pub fn adapter(&self) -> &str {
         &self.adapter
+    }
+
+    /// Whether the adapter is a software rasteriser (lavapipe, llvmpipe): then the CPU rasteriser of
+    /// [`super::cpu`] is the faster choice for many small frames (see [`super::RendererChoice`]).
+    /// False for a caller-provided device.
+    pub fn is_software(&self) -> bool {
+        self.software
     }
 
     /// The wgpu device (for callers that add their own passes).

@@ -17,6 +17,9 @@
 //! rasteriser following the same conventions, tested to agree with the GPU on ≥ 99.9 % of pixels;
 //! [`warp`] reads views rotated about the camera centre out of one wide render.
 //!
+//! [`seam`] puts both behind one interface ([`IdRenderer`], [`IdScene`]) that the masks stage and the
+//! localizer use, and resolves `--renderer auto|cpu|gpu` ([`RendererChoice`]) into one of them.
+//!
 //! This is where f32 starts (STYLE rule 4): [`view::ViewUniform::new`] is the one place that casts the
 //! camera to f32.
 
@@ -26,6 +29,7 @@ pub mod cpu;
 pub mod device;
 pub mod error;
 pub mod scene;
+pub mod seam;
 pub mod target;
 pub mod timing;
 pub mod view;
@@ -35,6 +39,10 @@ pub use batch::{RenderOptions, FRAMES_IN_FLIGHT};
 pub use device::Renderer;
 pub use error::RenderError;
 pub use scene::{BuildingRange, GpuScene};
+pub use seam::{
+    resolve, CpuRenderer, IdRenderer, IdScene, RendererChoice, RendererKind, RendererRecord, Resolved,
+    Workload,
+};
 pub use target::RenderedFrame;
 pub use timing::{time_render, RenderTimings};
 pub use view::{DepthRange, View};

@@ -21,6 +21,7 @@ pub const MAX_CANVAS_RATIO: f64 = 4.0;
 pub struct RotationFan {
     /// The reference pose (the first view's rotation) and its widened intrinsics.
     pub pose: Pose,
+    /// The widened intrinsics the reference pose is rendered with, pixels.
     pub intrinsics: Intrinsics,
     /// Per view: the homography from its pixel coordinates to the wide view's.
     homographies: Vec<DMat3>,

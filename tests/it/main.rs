@@ -40,6 +40,7 @@ mod render_cpu_agreement;
 mod render_depth_coverage;
 mod render_determinism;
 mod render_masks_stage;
+mod render_seam;
 mod render_shibuya;
 mod scene_appearance;
 mod scene_clutter;

@@ -145,6 +145,7 @@ impl CpuScene {
         self
     }
 
+    /// Triangles of the mesh (after welding; the polygons draw them).
     pub fn triangle_count(&self) -> usize {
         self.triangles.len()
     }
@@ -167,9 +168,12 @@ impl CpuScene {
     }
 }
 
-/// Reusable per-thread buffers.
+/// A rendered ID image and the buffers that made it, reused frame after frame (one per thread). Every
+/// renderer of [`crate::render::IdScene`] fills `ids`; the rest is the CPU rasteriser's scratch.
 #[derive(Debug, Default)]
 pub struct Frame {
+    /// Building IDs of the last render, row-major (width × height pixels of its intrinsics),
+    /// 0 = background.
     pub ids: Vec<u32>,
     inv_z: Vec<f32>,
     cam: Vec<[f32; 3]>,
@@ -177,8 +181,34 @@ pub struct Frame {
     screen: Vec<Screen>,
 }
 
+impl Frame {
+    /// Linear depth along the optical axis of the last render, metres, row-major (1/(1/z) of the
+    /// nearest surface drawn, occluders included; 0 where nothing was drawn), as the wgpu renderer's
+    /// R32Float target holds it.
+    pub fn depth_m(&self) -> impl Iterator<Item = f32> + '_ {
+        self.inv_z.iter().map(|&q| if q > 0.0 { 1.0 / q } else { 0.0 })
+    }
+}
+
 /// Renders building IDs of `scene` seen by `pose`/`k` into `frame.ids` (row-major, 0 = background).
 pub fn render_ids(scene: &CpuScene, pose: &Pose, k: &Intrinsics, frame: &mut Frame) {
+    render_groups(scene, pose, k, frame, |_| true);
+}
+
+/// Renders only building `id` of `scene` (drawn alone, nothing in front of it), as
+/// [`render_ids`] does: the pixels it covers on its own (amodal coverage).
+pub fn render_building_alone(scene: &CpuScene, pose: &Pose, k: &Intrinsics, id: u32, frame: &mut Frame) {
+    render_groups(scene, pose, k, frame, |g| g == id);
+}
+
+/// [`render_ids`] restricted to the buildings whose ID `keep` accepts.
+fn render_groups(
+    scene: &CpuScene,
+    pose: &Pose,
+    k: &Intrinsics,
+    frame: &mut Frame,
+    keep: impl Fn(u32) -> bool,
+) {
     let (w, h) = (k.width_px as usize, k.height_px as usize);
     frame.ids.clear();
     frame.ids.resize(w * h, 0);
@@ -198,7 +228,7 @@ pub fn render_ids(scene: &CpuScene, pose: &Pose, k: &Intrinsics, frame: &mut Fra
     let (xmax, ymax) = ((w as i64 - 1) * one + half, (h as i64 - 1) * one + half);
     let mut poly: Vec<ClipVert> = Vec::with_capacity(4);
     let frustum = Frustum::new(k, near);
-    for g in &scene.groups {
+    for g in scene.groups.iter().filter(|g| keep(g.id)) {
         // Building-level frustum test on the 8 box corners: invisible when all of them lie outside
         // one plane of the frustum (the near plane, or a side plane one pixel beyond the image).
         let mut outside = [true; 5];

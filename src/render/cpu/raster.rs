@@ -114,7 +114,6 @@ pub(super) fn raster_convex(
         }
         return false;
     }
-    let cross = |a: &Screen, b: &Screen, c: &Screen| (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
     let sign = cross(&s[0], &s[1], &s[2]).signum();
     if n > 3 {
         // Strictly convex: every turn has the same, non-zero sign, and (beyond four vertices, where
@@ -143,7 +142,22 @@ pub(super) fn raster_convex(
     for i in 1..n {
         v[i] = if sign > 0 { s[i] } else { s[n - i] };
     }
-    let v = &v[..n];
+    fill_convex(&v[..n], id, ids, inv_z, w, h);
+    true
+}
+
+/// Twice the signed area of the screen triangle (a, b, c), in sub-pixels squared (> 0: clockwise on
+/// screen, y down).
+#[inline]
+fn cross(a: &Screen, b: &Screen, c: &Screen) -> i64 {
+    (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x)
+}
+
+/// Fills a strictly convex, positively oriented polygon (see [`raster_convex`]): the rows its pixel
+/// centres span, each row's span bounded by the left and right edges, 1/z affine along it.
+#[inline]
+fn fill_convex(v: &[Screen], id: u32, ids: &mut [u32], inv_z: &mut [f32], w: usize, h: usize) {
+    let n = v.len();
     let half = (1i64 << SUBPIXEL_BITS) / 2;
     let one = 1i64 << SUBPIXEL_BITS;
     // Pixel xi's centre is xi·one + half; the range of centres within the bounding box.
@@ -155,7 +169,7 @@ pub(super) fn raster_convex(
     let (mut y0, mut y1) =
         (ceil_div(ymin - half, one).max(0), (ymax - half).div_euclid(one).min(h as i64 - 1));
     if x0 > x1 || y0 > y1 {
-        return true;
+        return;
     }
     // Edge i runs from v[i] to v[i + 1]: e(p) = dx·(py − y_i) − dy·(px − x_i), interior e > 0. Its
     // normal (−dy, dx) points inside, so it is "left" when dy < 0 and "top" when dy = 0 and dx > 0
@@ -178,7 +192,7 @@ pub(super) fn raster_convex(
         }
     }
     if y0 > y1 {
-        return true;
+        return;
     }
     let (px0, py0) = (x0 * one + half, y0 * one + half);
     // Left edges (dy < 0) bound the span below: x ≥ ceil((bias − e0 − k·dx·one) / (−dy·one)); right
@@ -232,7 +246,6 @@ pub(super) fn raster_convex(
             tri_e[j] += tri_sy[j];
         }
     }
-    true
 }
 
 /// ceil(n / d) for d > 0.
