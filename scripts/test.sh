@@ -10,4 +10,5 @@ export NODEVICE_SELECT=1
 export INSGEN_PYTHON="${INSGEN_PYTHON:-$(pwd)/.venv/bin/python}"
 cargo fmt --check
 cargo clippy --all-targets -- -D warnings
+python3 scripts/fn_lengths.py --max 120 src  # no function over 120 lines outside tests (ARCHITECTURE.md)
 cargo test --no-fail-fast "$@"

@@ -122,6 +122,72 @@ pub struct Combined {
     pub export: Export,
 }
 
+/// One split's dataset combined from every part's file: images in (area, camera, frame) order,
+/// ids renumbered, the parts checked to describe the same export.
+fn combine_split(
+    split: Split,
+    infos: &[(Shard, PartInfo, &PathBuf)],
+    first_shard: Shard,
+    parts_dir: &Path,
+) -> Result<Dataset, CocoError> {
+    let mut combined: Option<Dataset> = None;
+    // (area, camera, frame) → the image and its annotations.
+    let mut images = BTreeMap::new();
+    for (shard, _, dir) in infos {
+        let path = dir.join(split.file_name());
+        let mut ds: Dataset = read_json(&path)?;
+        let mut anns: BTreeMap<u64, Vec<super::Annotation>> = BTreeMap::new();
+        for a in std::mem::take(&mut ds.annotations) {
+            anns.entry(a.image_id).or_default().push(a);
+        }
+        for im in std::mem::take(&mut ds.images) {
+            let a = anns.remove(&im.id).unwrap_or_default();
+            let key = (im.area_name.clone(), im.camera.clone(), im.frame.clone());
+            if images.insert(key, (im, a)).is_some() {
+                return Err(CocoError::Parts {
+                    dir: path.clone(),
+                    reason: format!("shard {shard} exports a frame another shard exports too"),
+                });
+            }
+        }
+        if let Some(orphan) = anns.keys().next() {
+            return Err(CocoError::Parts {
+                dir: path.clone(),
+                reason: format!("annotations refer to image {orphan}, which the file does not hold"),
+            });
+        }
+        match &combined {
+            None => combined = Some(ds),
+            Some(c) => {
+                let mut info = ds.info.clone();
+                info.image_root.clone_from(&c.info.image_root);
+                if info != c.info || ds.licenses != c.licenses || ds.categories != c.categories {
+                    return Err(CocoError::Parts {
+                        dir: path.clone(),
+                        reason: format!(
+                            "its info, licences or categories differ from shard {first_shard}'s: the \
+                             shards exported different work directories"
+                        ),
+                    });
+                }
+            }
+        }
+    }
+    // Every split has a part file in every part, and there is at least one part.
+    let mut ds = combined
+        .ok_or_else(|| CocoError::Parts { dir: parts_dir.to_path_buf(), reason: "no parts".into() })?;
+    for ((_, _, _), (mut im, anns)) in images {
+        im.id = ds.images.len() as u64 + 1;
+        for mut a in anns {
+            a.id = ds.annotations.len() as u64 + 1;
+            a.image_id = im.id;
+            ds.annotations.push(a);
+        }
+        ds.images.push(im);
+    }
+    Ok(ds)
+}
+
 /// Combines the parts of one export (`parts`: each shard's part directory) into the export of all
 /// frames, for `out_dir` in the merged work directory `workdir`.
 ///
@@ -191,61 +257,7 @@ pub fn combine(
     // Per split: the parts' datasets, checked to describe the same areas.
     let mut datasets: Vec<(Split, Dataset)> = Vec::new();
     for split in Split::ALL {
-        let mut combined: Option<Dataset> = None;
-        // (area, camera, frame) → the image and its annotations.
-        let mut images = BTreeMap::new();
-        for (shard, _, dir) in &infos {
-            let path = dir.join(split.file_name());
-            let mut ds: Dataset = read_json(&path)?;
-            let mut anns: BTreeMap<u64, Vec<super::Annotation>> = BTreeMap::new();
-            for a in std::mem::take(&mut ds.annotations) {
-                anns.entry(a.image_id).or_default().push(a);
-            }
-            for im in std::mem::take(&mut ds.images) {
-                let a = anns.remove(&im.id).unwrap_or_default();
-                let key = (im.area_name.clone(), im.camera.clone(), im.frame.clone());
-                if images.insert(key, (im, a)).is_some() {
-                    return Err(CocoError::Parts {
-                        dir: path.clone(),
-                        reason: format!("shard {shard} exports a frame another shard exports too"),
-                    });
-                }
-            }
-            if let Some(orphan) = anns.keys().next() {
-                return Err(CocoError::Parts {
-                    dir: path.clone(),
-                    reason: format!("annotations refer to image {orphan}, which the file does not hold"),
-                });
-            }
-            match &combined {
-                None => combined = Some(ds),
-                Some(c) => {
-                    let mut info = ds.info.clone();
-                    info.image_root.clone_from(&c.info.image_root);
-                    if info != c.info || ds.licenses != c.licenses || ds.categories != c.categories {
-                        return Err(CocoError::Parts {
-                            dir: path.clone(),
-                            reason: format!(
-                                "its info, licences or categories differ from shard {first_shard}'s: the \
-                                 shards exported different work directories"
-                            ),
-                        });
-                    }
-                }
-            }
-        }
-        // Every split has a part file in every part, and there is at least one part.
-        let mut ds = combined.ok_or_else(|| fail("no parts".into()))?;
-        for ((_, _, _), (mut im, anns)) in images {
-            im.id = ds.images.len() as u64 + 1;
-            for mut a in anns {
-                a.id = ds.annotations.len() as u64 + 1;
-                a.image_id = im.id;
-                ds.annotations.push(a);
-            }
-            ds.images.push(im);
-        }
-        datasets.push((split, ds));
+        datasets.push((split, combine_split(split, &infos, *first_shard, &out_dir.join(PARTS_DIR))?));
     }
 
     let mut dropped = DropCounts::default();

@@ -35,14 +35,9 @@ pub struct Rings {
     pub holes: Vec<Vec<f64>>,
 }
 
-/// The outer and hole boundaries of `mask` (see [`mask_to_polygons`] for the conventions). Even-odd
-/// filling of all rings at pixel centres gives back exactly the mask.
-pub fn mask_to_rings(mask: &[u8], width: u32, height: u32) -> Rings {
-    let (w, h) = (width as usize, height as usize);
-    if mask.len() != w * h {
-        return Rings::default();
-    }
-    // Crop to the bounding box so the edge tables stay small for small instances in large frames.
+/// The inclusive pixel bounds `[x0, y0, x1, y1]` of a `w × h` mask's non-zero pixels; `None` when
+/// there are none.
+fn mask_bounds(mask: &[u8], w: usize, h: usize) -> Option<[usize; 4]> {
     let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0usize, 0usize);
     for y in 0..h {
         for x in 0..w {
@@ -51,9 +46,20 @@ pub fn mask_to_rings(mask: &[u8], width: u32, height: u32) -> Rings {
             }
         }
     }
-    if x0 == usize::MAX {
+    (x0 != usize::MAX).then_some([x0, y0, x1, y1])
+}
+
+/// The outer and hole boundaries of `mask` (see [`mask_to_polygons`] for the conventions). Even-odd
+/// filling of all rings at pixel centres gives back exactly the mask.
+pub fn mask_to_rings(mask: &[u8], width: u32, height: u32) -> Rings {
+    let (w, h) = (width as usize, height as usize);
+    if mask.len() != w * h {
         return Rings::default();
     }
+    // Crop to the bounding box so the edge tables stay small for small instances in large frames.
+    let Some([x0, y0, x1, y1]) = mask_bounds(mask, w, h) else {
+        return Rings::default();
+    };
     let (cw, ch) = (x1 - x0 + 1, y1 - y0 + 1);
     let inside = |x: i64, y: i64| -> bool {
         x >= 0

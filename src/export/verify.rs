@@ -239,73 +239,88 @@ fn check_image(
     for (k, c) in lab.components.iter().enumerate() {
         by_building.entry(c.building_id).or_default().push(k);
     }
+    let expected = Expected { by_building, lab: &lab, rles: &rles };
     for a in anns {
-        let at =
-            |what: String| Problem { file: coco.to_path_buf(), what: format!("annotation {}: {what}", a.id) };
-        let stored = match (&a.segmentation, &a.mask_rle) {
-            (Segmentation::Rle(r), _) | (Segmentation::Polygons(_), Some(r)) => r.to_rle(),
-            (Segmentation::Polygons(_), None) => {
-                out.push(at("polygons without `mask_rle`: the exact mask cannot be checked".into()));
-                continue;
+        out.extend(check_annotation(coco, im, unit, a, &expected));
+    }
+    out
+}
+
+/// The masks an image's annotations must have, from its ID map: the components' RLEs and which
+/// components each building has.
+struct Expected<'a> {
+    by_building: BTreeMap<BuildingId, Vec<usize>>,
+    lab: &'a crate::label::Labelling,
+    rles: &'a [Rle],
+}
+
+/// Checks one annotation's mask, area and box against the ID map.
+fn check_annotation(
+    coco: &Path,
+    im: &super::format::Image,
+    unit: AnnotationUnit,
+    a: &super::format::Annotation,
+    e: &Expected,
+) -> Vec<Problem> {
+    let (by_building, lab, rles) = (&e.by_building, e.lab, e.rles);
+    let mut out = Vec::new();
+    let at =
+        |what: String| Problem { file: coco.to_path_buf(), what: format!("annotation {}: {what}", a.id) };
+    let stored = match (&a.segmentation, &a.mask_rle) {
+        (Segmentation::Rle(r), _) | (Segmentation::Polygons(_), Some(r)) => r.to_rle(),
+        (Segmentation::Polygons(_), None) => {
+            out.push(at("polygons without `mask_rle`: the exact mask cannot be checked".into()));
+            return out;
+        }
+    };
+    let stored = match stored {
+        Ok(r) => r,
+        Err(e) => {
+            out.push(at(format!("its RLE does not decode: {e}")));
+            return out;
+        }
+    };
+    let Some(parts) = by_building.get(&a.building_id) else {
+        out.push(at(format!("building {} does not appear in the ID map {}", a.building_id, im.mask_file)));
+        return out;
+    };
+    let expected = match (unit, a.component) {
+        (AnnotationUnit::Component, Some(c)) => match parts.iter().find(|&&k| lab.components[k].index == c) {
+            Some(&k) => rles[k].clone(),
+            None => {
+                out.push(at(format!("building {} has no component {c} in the ID map", a.building_id)));
+                return out;
             }
-        };
-        let stored = match stored {
-            Ok(r) => r,
-            Err(e) => {
-                out.push(at(format!("its RLE does not decode: {e}")));
-                continue;
-            }
-        };
-        let Some(parts) = by_building.get(&a.building_id) else {
-            out.push(at(format!(
-                "building {} does not appear in the ID map {}",
-                a.building_id, im.mask_file
-            )));
-            continue;
-        };
-        let expected = match (unit, a.component) {
-            (AnnotationUnit::Component, Some(c)) => {
-                match parts.iter().find(|&&k| lab.components[k].index == c) {
-                    Some(&k) => rles[k].clone(),
-                    None => {
-                        out.push(at(format!(
-                            "building {} has no component {c} in the ID map",
-                            a.building_id
-                        )));
-                        continue;
-                    }
+        },
+        (AnnotationUnit::Component, None) => {
+            out.push(at("no `component` in a per-component file".to_string()));
+            return out;
+        }
+        (AnnotationUnit::Building, _) => {
+            let all: Vec<Rle> = parts.iter().map(|&k| rles[k].clone()).collect();
+            match Rle::union(&all) {
+                Ok(r) => r,
+                Err(e) => {
+                    out.push(at(e.to_string()));
+                    return out;
                 }
             }
-            (AnnotationUnit::Component, None) => {
-                out.push(at("no `component` in a per-component file".to_string()));
-                continue;
+        }
+    };
+    match expected {
+        e if e != stored => out.push(at(format!(
+            "its mask ({} px) is not building {}'s in the ID map {} ({} px)",
+            stored.area(),
+            a.building_id,
+            im.mask_file,
+            e.area()
+        ))),
+        e => {
+            if a.area != e.area() {
+                out.push(at(format!("area {} but the mask has {} px", a.area, e.area())));
             }
-            (AnnotationUnit::Building, _) => {
-                let all: Vec<Rle> = parts.iter().map(|&k| rles[k].clone()).collect();
-                match Rle::union(&all) {
-                    Ok(r) => r,
-                    Err(e) => {
-                        out.push(at(e.to_string()));
-                        continue;
-                    }
-                }
-            }
-        };
-        match expected {
-            e if e != stored => out.push(at(format!(
-                "its mask ({} px) is not building {}'s in the ID map {} ({} px)",
-                stored.area(),
-                a.building_id,
-                im.mask_file,
-                e.area()
-            ))),
-            e => {
-                if a.area != e.area() {
-                    out.push(at(format!("area {} but the mask has {} px", a.area, e.area())));
-                }
-                if a.bbox != e.to_bbox() {
-                    out.push(at(format!("bbox {:?} but the mask's is {:?}", a.bbox, e.to_bbox())));
-                }
+            if a.bbox != e.to_bbox() {
+                out.push(at(format!("bbox {:?} but the mask's is {:?}", a.bbox, e.to_bbox())));
             }
         }
     }
