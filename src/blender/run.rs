@@ -600,13 +600,16 @@ pub fn render_frames(
     result.map(|()| summary)
 }
 
+/// A job's models, and the indices of those each frame sees (`None`: all).
+type BatchModels = (Vec<JobModel>, Option<Vec<Vec<u32>>>);
+
 /// The models of a batch's job: the prepared scene, or the tiles its frames select (with each frame's
 /// share of them; skipped contents are counted in `summary`).
 fn batch_models(
     plan: &RenderPlan,
     batch: &[FrameRequest],
     summary: &mut RenderSummary,
-) -> Result<(Vec<JobModel>, Option<Vec<Vec<u32>>>), BlenderError> {
+) -> Result<BatchModels, BlenderError> {
     Ok(match &plan.source {
         SceneSource::Lod { glb, enu_from_gltf } => {
             (vec![JobModel { glb: absolute(glb), enu_from_gltf: *enu_from_gltf, kind: ModelKind::Lod }], None)

@@ -40,9 +40,9 @@ pub enum GeoError {
     GeoTiff {
         /// The grid file.
         path: String,
-        /// What is wrong with it.
+        /// What is wrong with it (boxed: errors travel by value, and this one is large).
         #[source]
-        source: GeoTiffError,
+        source: Box<GeoTiffError>,
     },
     /// A file (the geoid grid) could not be read.
     #[error(transparent)]

@@ -290,7 +290,7 @@ impl GeoidGrid {
     /// projected CRS, integer samples, several full-resolution grids, no geoid band, …
     pub fn from_tiff_bytes(path: &Path, bytes: &[u8]) -> Result<GeoidGrid, GeoError> {
         let g = super::geotiff::read(bytes)
-            .map_err(|source| GeoError::GeoTiff { path: path.display().to_string(), source })?;
+            .map_err(|e| GeoError::GeoTiff { path: path.display().to_string(), source: Box::new(e) })?;
         Ok(GeoidGrid {
             path: path.to_path_buf(),
             nodata: NoData::Tiff(g.nodata),

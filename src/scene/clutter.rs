@@ -649,7 +649,7 @@ impl Plan {
         }
     }
 
-    /// 3. Classes: pavement, road and park cells inside the area, clear of the facades.
+    /// Step 3, classes: pavement, road and park cells inside the area, clear of the facades.
     fn classify(&mut self, area_polygon_enu_m: &[[f64; 2]]) {
         let g = &self.g;
         let n = g.nx * g.ny;
@@ -670,8 +670,8 @@ impl Plan {
             }
         }
         chamfer(g, &mut core, &mut core_carry);
-        for k in 0..n {
-            if self.class[k] == Class::Road && self.d_at(k) >= 4.0 && (core[k] as f64) <= PARK_REACH_M {
+        for (k, &core_m) in core.iter().enumerate() {
+            if self.class[k] == Class::Road && self.d_at(k) >= 4.0 && (core_m as f64) <= PARK_REACH_M {
                 self.class[k] = Class::Park;
             }
         }
@@ -691,7 +691,7 @@ impl Plan {
     }
 }
 
-/// 1. Footprints: cell centres inside an up-facing triangle get distance 0 and their building's base
+/// Step 1, footprints: cell centres inside an up-facing triangle get distance 0 and their building's base
 /// height; every other cell gets +∞ and `ground_enu_m`. Returns (distance, ground).
 fn rasterise_footprints(
     g: &Grid,
@@ -912,7 +912,7 @@ fn lane_markings(plan: &Plan) -> (LayerMesh, u64) {
     (markings, n_mark)
 }
 
-/// 4a. Trees: a jittered lattice in parks and along pavements, crowns clear of every footprint. Marks
+/// Step 4a, trees: a jittered lattice in parks and along pavements, crowns clear of every footprint. Marks
 /// the trunk zones in `occupied`, counts the species in `species`; returns the layer and the tree count.
 fn plant_trees(
     plan: &Plan,
@@ -989,7 +989,7 @@ fn tree_species(park: bool, pick: f64) -> &'static Species {
     }
 }
 
-/// 4b. Cars: parked at the kerb, driving in the lanes; on free road cells only (marked in `occupied`),
+/// Step 4b, cars: parked at the kerb, driving in the lanes; on free road cells only (marked in `occupied`),
 /// never overlapping. Returns the layer and the car count.
 fn place_cars(
     plan: &Plan,
@@ -1049,7 +1049,7 @@ fn place_cars(
     (cars, n_cars)
 }
 
-/// 4c. Rooftop units on the highest flat part of each building with at least [`ROOF_MIN_AREA_M2`] of
+/// Step 4c: rooftop units on the highest flat part of each building with at least [`ROOF_MIN_AREA_M2`] of
 /// it. Returns the layer and the unit count.
 fn place_rooftop_units(
     mesh: &SceneMesh,
