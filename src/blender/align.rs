@@ -255,6 +255,52 @@ impl AlignmentReport {
     }
 }
 
+/// File names of the alignment report in the RGB output folder.
+pub const REPORT_JSON: &str = "report.json";
+/// The report as Markdown, next to [`REPORT_JSON`].
+pub const REPORT_MD: &str = "report.md";
+
+/// `render-rgb --check-alignment`: compares every frame's Blender ID render (the `IdExr` output of
+/// `plan`) with its mask in `camera` (`masks/<frame>.png`), writes [`REPORT_JSON`] and [`REPORT_MD`]
+/// into the plan's output folder and returns the report (its `pass` says whether the targets hold).
+///
+/// # Errors
+/// [`BlenderError::MaskMissing`] when a frame has no mask yet (naming the command that makes it),
+/// [`BlenderError::Ids`] for an ID render or mask that cannot be read,
+/// [`BlenderError::SizeMismatch`] when their sizes differ, [`BlenderError::File`] when the report
+/// cannot be written.
+pub fn check_frames(
+    plan: &super::run::RenderPlan,
+    frames: &[super::run::FrameRequest],
+    camera: &crate::layout::CameraDir,
+    min_union_px: u64,
+) -> Result<AlignmentReport, BlenderError> {
+    let mut per_frame = Vec::with_capacity(frames.len());
+    for f in frames {
+        let ids_path = super::run::frame_outputs(plan, &f.name)
+            .into_iter()
+            .find(|o| o.kind == super::run::OutputKind::IdExr)
+            .map(|o| o.path)
+            .ok_or_else(|| BlenderError::NoIdOutput { frame: f.name.clone() })?;
+        let mask_path = camera.mask_png(&f.name);
+        if !mask_path.is_file() {
+            return Err(BlenderError::MaskMissing { path: mask_path });
+        }
+        let a = IdMap::read_exr(&ids_path)?;
+        let b = IdMap::read_png(&mask_path)?;
+        let buildings = building_ious(&a, &b, &mask_path)?;
+        per_frame.push(FrameAlignment {
+            frame: f.name.clone(),
+            pixel_agreement: pixel_agreement(&a, &b),
+            buildings,
+        });
+    }
+    let report = summarise(per_frame, min_union_px);
+    crate::util::write_json_atomic(&plan.out_dir.join(REPORT_JSON), &report)?;
+    crate::util::write_bytes_atomic(&plan.out_dir.join(REPORT_MD), report.to_markdown().as_bytes())?;
+    Ok(report)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -255,6 +255,22 @@ pub enum BlenderError {
     /// Ctrl-C was pressed: the run stopped between frames (finished frames are complete).
     #[error("rendering stopped between frames")]
     Interrupted(#[from] crate::util::interrupt::Interrupted),
+    /// The alignment check needs a frame's mask, which `render-masks` has not written yet.
+    #[error(
+        "{} does not exist; render the masks first: insgen render-masks with the same --area and --camera",
+        path.display()
+    )]
+    MaskMissing {
+        /// The mask the check looked for.
+        path: PathBuf,
+    },
+    /// The render plan has no ID output for a frame the alignment check compares (the plan was
+    /// made without `--check-alignment`).
+    #[error("frame {frame:?}: the render plan writes no ID render to compare with its mask")]
+    NoIdOutput {
+        /// The frame.
+        frame: String,
+    },
     /// An ID map (EXR from Blender, PNG from the mask renderer) is unreadable or not an ID map.
     #[error(transparent)]
     Ids(#[from] crate::scene::IdError),

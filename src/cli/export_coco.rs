@@ -147,7 +147,7 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     if !plan.shard.is_whole() {
         let ex = build(&plan, "..", &progress)
             .with_context(|| format!("exporting COCO from {}", plan.workdir.display()))?;
-        log_export(&plan, &ex);
+        super::log_coco_export(&plan, &ex);
         let written = crate::export::parts::write_part(&plan, &ex, args.report())
             .with_context(|| format!("writing shard {} of the export", plan.shard))?;
         for f in &written {
@@ -162,7 +162,7 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     }
     let (ex, written) = export(&plan, &progress)
         .with_context(|| format!("exporting COCO from {}", plan.workdir.display()))?;
-    log_export(&plan, &ex);
+    super::log_coco_export(&plan, &ex);
     write_reports(&plan, &ex, args.report(), written)
 }
 
@@ -178,13 +178,7 @@ pub(crate) fn write_reports(
     mut written: Vec<PathBuf>,
 ) -> anyhow::Result<()> {
     if let Some(opts) = report {
-        let refs: Vec<_> = ex.datasets.iter().map(|(s, d)| (*s, d)).collect();
-        let st = match &ex.stats {
-            Some(st) => st.clone(),
-            None => stats::compute(&refs, &plan.workdir)
-                .with_context(|| format!("computing the statistics of {}", plan.out_dir.display()))?,
-        };
-        let files = stats::write_report(&st, &refs, &plan.out_dir, &plan.workdir, opts)
+        let files = stats::write_export_report(plan, ex, opts)
             .with_context(|| format!("writing the statistics report in {}", plan.out_dir.display()))?;
         written.extend(files);
     }
@@ -192,57 +186,6 @@ pub(crate) fn write_reports(
         log::info!("wrote {}", f.display());
     }
     Ok(())
-}
-
-/// Logs what the export left out and how many images and annotations each split got.
-pub(crate) fn log_export(plan: &ExportPlan, ex: &crate::export::coco::Export) {
-    if ex.frames_without_masks > 0 {
-        log::warn!(
-            "{} frame(s) in poses.jsonl have no ID map or instance file yet and were skipped; run \
-             `insgen render-masks` for them",
-            ex.frames_without_masks
-        );
-    }
-    for m in &ex.frames_without_rgb {
-        log::warn!(
-            "{}/{}: {} labelled frame(s) have no RGB frame{} and were left out; render them with `insgen \
-             render-rgb --area {} --camera {}`{}",
-            m.area,
-            m.camera,
-            m.frames,
-            if m.broken.is_empty() {
-                String::new()
-            } else {
-                format!(
-                    " (broken: {})",
-                    m.broken.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
-                )
-            },
-            m.area,
-            m.camera,
-            if plan.label_only { "" } else { ", or export labels alone with --label-only" }
-        );
-    }
-    let d = ex.dropped;
-    if d.small + d.low_visibility + d.truncated + d.empty_images > 0 {
-        log::info!(
-            "filtered out: {} small, {} barely visible, {} truncated annotations; {} empty images",
-            d.small,
-            d.low_visibility,
-            d.truncated,
-            d.empty_images
-        );
-    }
-    if d.low_consistency_images > 0 {
-        log::warn!(
-            "{} frame(s) scored below --min-consistency {} (LoD model vs tileset) and were left out",
-            d.low_consistency_images,
-            plan.filters.min_consistency.unwrap_or(0.0)
-        );
-    }
-    for (split, ds) in &ex.datasets {
-        log::info!("{split}: {} images, {} annotations", ds.images.len(), ds.annotations.len());
-    }
 }
 
 #[cfg(test)]

@@ -101,12 +101,21 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     for c in combined {
         match c {
             Combined::Coco(c) => {
-                let (ex, written) =
+                let (ex, mut written) =
                     crate::export::coco::write_export(&c.plan, c.export).with_context(|| {
                         format!("writing the combined export to {}", c.plan.out_dir.display())
                     })?;
-                super::export_coco::log_export(&c.plan, &ex);
-                super::export_coco::write_reports(&c.plan, &ex, c.report, written)?;
+                super::log_coco_export(&c.plan, &ex);
+                if let Some(opts) = c.report {
+                    let files =
+                        crate::export::stats::write_export_report(&c.plan, &ex, opts).with_context(|| {
+                            format!("writing the statistics report in {}", c.plan.out_dir.display())
+                        })?;
+                    written.extend(files);
+                }
+                for f in &written {
+                    log::info!("wrote {}", f.display());
+                }
                 reports.push(c.plan.out_dir.display().to_string());
             }
             Combined::Loc { out_dir, outputs } => {

@@ -219,6 +219,57 @@ pub(crate) fn resolve_shard(spec: Option<crate::util::ShardSpec>) -> anyhow::Res
 
 /// Parsing one subcommand's flags together with the global ones, as the binary does — for the
 /// commands' unit tests.
+/// Logs what the export left out and how many images and annotations each split got.
+pub(crate) fn log_coco_export(plan: &crate::export::ExportPlan, ex: &crate::export::coco::Export) {
+    if ex.frames_without_masks > 0 {
+        log::warn!(
+            "{} frame(s) in poses.jsonl have no ID map or instance file yet and were skipped; run \
+             `insgen render-masks` for them",
+            ex.frames_without_masks
+        );
+    }
+    for m in &ex.frames_without_rgb {
+        log::warn!(
+            "{}/{}: {} labelled frame(s) have no RGB frame{} and were left out; render them with `insgen \
+             render-rgb --area {} --camera {}`{}",
+            m.area,
+            m.camera,
+            m.frames,
+            if m.broken.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    " (broken: {})",
+                    m.broken.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
+                )
+            },
+            m.area,
+            m.camera,
+            if plan.label_only { "" } else { ", or export labels alone with --label-only" }
+        );
+    }
+    let d = ex.dropped;
+    if d.small + d.low_visibility + d.truncated + d.empty_images > 0 {
+        log::info!(
+            "filtered out: {} small, {} barely visible, {} truncated annotations; {} empty images",
+            d.small,
+            d.low_visibility,
+            d.truncated,
+            d.empty_images
+        );
+    }
+    if d.low_consistency_images > 0 {
+        log::warn!(
+            "{} frame(s) scored below --min-consistency {} (LoD model vs tileset) and were left out",
+            d.low_consistency_images,
+            plan.filters.min_consistency.unwrap_or(0.0)
+        );
+    }
+    for (split, ds) in &ex.datasets {
+        log::info!("{split}: {} images, {} annotations", ds.images.len(), ds.annotations.len());
+    }
+}
+
 #[cfg(test)]
 pub(crate) mod testing {
     use clap::Parser;

@@ -4,15 +4,12 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 
-use crate::blender::align::{building_ious, pixel_agreement, summarise, FrameAlignment};
 use crate::blender::job::{DenoiseQuality, Device, Lighting, RgbSettings};
 use crate::blender::look::{LookRanges, LookStyle, SunRange};
-use crate::blender::run::{frame_outputs, OutputKind};
 use crate::blender::tileset::SelectOptions;
 use crate::blender::{render_frames, Engine, FrameRequest, Launcher, Mode, RenderPlan, SceneSource};
 use crate::geo::{EnuFrame, Geodetic};
 use crate::scene::artifact::{Manifest, GLB_FILE, MANIFEST_FILE};
-use crate::scene::IdMap;
 use crate::util::ShardSpec;
 
 /// Render engine choice on the command line.
@@ -465,36 +462,9 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
         }
         return Ok(());
     }
-    let masks = plan.camera_dir.join(crate::layout::MASKS_DIR);
-    let mut per_frame = Vec::with_capacity(plan.frames.len());
-    for f in &plan.frames {
-        let ids_path = frame_outputs(&plan.render, &f.name)
-            .into_iter()
-            .find(|o| o.kind == OutputKind::IdExr)
-            .map(|o| o.path)
-            .context("ID output path")?;
-        let mask_path = masks.join(format!("{}.png", f.name));
-        if !mask_path.is_file() {
-            bail!(
-                "{} does not exist; render the masks first: insgen render-masks --area {} --camera {}",
-                mask_path.display(),
-                args.area,
-                args.camera
-            );
-        }
-        let a = IdMap::read_exr(&ids_path)?;
-        let b = IdMap::read_png(&mask_path)?;
-        let buildings = building_ious(&a, &b, &mask_path)?;
-        per_frame.push(FrameAlignment {
-            frame: f.name.clone(),
-            pixel_agreement: pixel_agreement(&a, &b),
-            buildings,
-        });
-    }
-    let report = summarise(per_frame, args.min_union);
+    let camera = crate::layout::CameraDir::new(&plan.camera_dir);
+    let report = crate::blender::align::check_frames(&plan.render, &plan.frames, &camera, args.min_union)?;
     let dir = &plan.render.out_dir;
-    crate::util::write_json_atomic(&dir.join("report.json"), &report)?;
-    crate::util::write_bytes_atomic(&dir.join("report.md"), report.to_markdown().as_bytes())?;
     let fmt = |v: Option<f64>| v.map(|x| format!("{x:.4}")).unwrap_or_else(|| "n/a".into());
     printer.summary(format!(
         "alignment: median IoU {}, p5 {}, {} pairs over {} frames, pixel agreement {:.5} → {}",
@@ -503,14 +473,14 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
         report.pairs_counted,
         report.frames,
         report.pixel_agreement,
-        dir.join("report.md").display()
+        dir.join(crate::blender::align::REPORT_MD).display()
     ));
     if !report.pass {
         bail!(
             "alignment below target (median ≥ {}, p5 ≥ {}); see {}",
             report.target_median_iou,
             report.target_p5_iou,
-            dir.join("report.md").display()
+            dir.join(crate::blender::align::REPORT_MD).display()
         );
     }
     Ok(())

@@ -220,6 +220,24 @@ impl Default for ReportOptions {
 
 const SPLIT_COLOURS: [[u8; 3]; 3] = [[31, 119, 180], [255, 127, 14], [44, 160, 44]];
 
+/// Writes the statistics report of an export next to its COCO files (`plan.out_dir`), computing
+/// the statistics unless the export carries them; returns the files written.
+///
+/// # Errors
+/// As [`compute`] and [`write_report`].
+pub fn write_export_report(
+    plan: &super::ExportPlan,
+    ex: &super::coco::Export,
+    opts: ReportOptions,
+) -> Result<Vec<PathBuf>, CocoError> {
+    let refs: Vec<_> = ex.datasets.iter().map(|(s, d)| (*s, d)).collect();
+    let st = match &ex.stats {
+        Some(st) => st.clone(),
+        None => compute(&refs, &plan.workdir)?,
+    };
+    write_report(&st, &refs, &plan.out_dir, &plan.workdir, opts)
+}
+
 /// Writes `stats.json`, `stats.md`, `hist_instances_per_image.png`, `hist_sizes.png` and (unless
 /// disabled) `contact_sheet.png` into `out_dir`; `image_root` is where `images[].file_name` are found.
 /// Returns the files written.
