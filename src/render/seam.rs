@@ -22,7 +22,6 @@ use std::fmt;
 use std::ops::ControlFlow;
 
 use glam::DVec3;
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::cpu::{self, CpuScene, Frame, NEAR_M};
@@ -205,7 +204,9 @@ impl IdScene for CpuScene {
         Ok(())
     }
 
-    /// Renders a few views per thread of the rayon pool at a time, then emits them in order.
+    /// Renders the views one after the other on the calling thread. Not on the rayon pool: a caller
+    /// may keep the pool's threads waiting for these very frames (the masks stage's writers take them
+    /// from a channel with `par_bridge`), and a render queued behind them would never run.
     fn render_each(
         &self,
         views: &[View],
@@ -213,16 +214,10 @@ impl IdScene for CpuScene {
         emit: &mut dyn FnMut(usize, RenderedFrame) -> ControlFlow<()>,
     ) -> Result<(), RenderError> {
         check_cpu_range(&options.range)?;
-        let chunk = 2 * rayon::current_num_threads();
-        for (c, batch) in views.chunks(chunk).enumerate() {
-            let frames = batch
-                .par_iter()
-                .map_init(Frame::default, |frame, view| cpu_rendered(self, view, options, frame))
-                .collect::<Result<Vec<_>, _>>()?;
-            for (j, image) in frames.into_iter().enumerate() {
-                if emit(c * chunk + j, image).is_break() {
-                    return Ok(());
-                }
+        let mut frame = Frame::default();
+        for (i, view) in views.iter().enumerate() {
+            if emit(i, cpu_rendered(self, view, options, &mut frame)?).is_break() {
+                break;
             }
         }
         Ok(())
