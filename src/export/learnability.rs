@@ -37,6 +37,7 @@ use std::path::Path;
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::error::ImageProblem;
 use super::format::{Dataset, Image};
 use super::raster::{read_png_rgb, RgbImage};
 use super::stats::{AreaStats, SMALL_MAX_PX};
@@ -256,14 +257,11 @@ fn measure_image(
         if (rgb.width, rgb.height) != (map.width(), map.height()) {
             return Err(CocoError::Image {
                 path: rgb_path,
-                reason: format!(
-                    "{}×{} px, but its ID map {} is {}×{} px",
-                    rgb.width,
-                    rgb.height,
-                    mask_path.display(),
-                    map.width(),
-                    map.height()
-                ),
+                problem: ImageProblem::SizeMismatch {
+                    size: [rgb.width, rgb.height],
+                    id_map: mask_path,
+                    id_map_size: [map.width(), map.height()],
+                },
             });
         }
         Some(rgb)

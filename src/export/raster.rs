@@ -4,6 +4,7 @@
 
 use std::path::Path;
 
+use super::error::ImageProblem;
 use super::CocoError;
 
 /// An 8-bit RGB image, row-major.
@@ -173,10 +174,7 @@ pub fn read_png_rgb(path: &Path) -> Result<RgbImage, CocoError> {
         png::ColorType::Rgba => 4,
         // EXPAND turns palettes into RGB(A); keep a clear error should that ever change.
         png::ColorType::Indexed => {
-            return Err(CocoError::Image {
-                path: path.to_path_buf(),
-                reason: "unexpanded palette PNG".into(),
-            })
+            return Err(CocoError::Image { path: path.to_path_buf(), problem: ImageProblem::Palette })
         }
     };
     let (w, h) = (info.width as usize, info.height as usize);
