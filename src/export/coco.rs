@@ -39,8 +39,11 @@ use super::CocoError;
 /// A geographic split.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Split {
+    /// Training split (`instances_train.json`).
     Train,
+    /// Validation split (`instances_val.json`).
     Val,
+    /// Test split (`instances_test.json`); `--holdout` areas go here.
     Test,
 }
 
@@ -83,10 +86,12 @@ pub struct ExportPlan {
     pub out_dir: PathBuf,
     /// Areas moved to the test split whatever their manifests say.
     pub holdout: Vec<String>,
+    /// One annotation per connected component or per building.
     pub unit: AnnotationUnit,
     /// Write polygons (outer boundaries; holes are lost) in `segmentation`, keeping the exact RLE in
     /// the `mask_rle` extension key.
     pub polygons: bool,
+    /// Annotation and image filters.
     pub filters: Filters,
     /// List every labelled frame, rendered or not (`info.images_missing`); by default only frames whose
     /// RGB image exists and decodes at the frame's size are images.
@@ -133,6 +138,7 @@ pub struct Export {
     /// Per (area, camera): labelled frames left out because their RGB frame is missing, does not
     /// decode, or has another size (not in a `--label-only` export).
     pub frames_without_rgb: Vec<MissingRgb>,
+    /// Annotations and images the filters dropped.
     pub dropped: DropCounts,
     /// The statistics of `datasets`, once [`write_export`] has computed them for the card (they read
     /// every ID map and photo, so the report reuses them).
@@ -142,8 +148,11 @@ pub struct Export {
 /// Labelled frames of one camera left out for want of an RGB frame.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct MissingRgb {
+    /// The area.
     pub area: String,
+    /// The camera.
     pub camera: String,
+    /// Labelled frames left out.
     pub frames: u64,
     /// Up to a few frames whose RGB file exists but is broken (undecodable or of another size).
     pub broken: Vec<PathBuf>,

@@ -537,12 +537,27 @@ fn list_others(others: &[String]) -> String {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum EmptyGap {
     /// Labelled frames have no RGB frame yet (the first camera without them).
-    NoRgb { area: String, camera: String, frames: u64 },
+    NoRgb {
+        /// The area.
+        area: String,
+        /// The camera.
+        camera: String,
+        /// Its labelled frames without an RGB photo.
+        frames: u64,
+    },
     /// Posed frames have no ID map yet.
-    NoMasks { frames: u64 },
+    NoMasks {
+        /// Posed frames without an ID map.
+        frames: u64,
+    },
     /// Frames exist but the filters dropped every image: this many scored below `--min-consistency`,
     /// this many had no annotation left (and empty images are dropped).
-    Filtered { low_consistency_images: u64, empty_images: u64 },
+    Filtered {
+        /// Frames scored below `--min-consistency`.
+        low_consistency_images: u64,
+        /// Images with no annotation left.
+        empty_images: u64,
+    },
     /// No area holds a posed frame.
     NoFrames,
 }

@@ -22,9 +22,11 @@ use super::CocoError;
 /// One split file of a COCO export.
 #[derive(Debug, Clone)]
 pub struct ExportSplit {
+    /// The split.
     pub split: Split,
     /// `instances_<split>.json`.
     pub file: PathBuf,
+    /// The file's contents.
     pub dataset: Dataset,
     /// The directory `images[].file_name` and `mask_file` are relative to.
     pub image_root: PathBuf,
@@ -67,7 +69,9 @@ pub fn read_splits(coco_dir: &Path) -> Result<Vec<ExportSplit>, CocoError> {
 /// An image with its ID map and its annotations' masks, all checked against each other.
 #[derive(Debug)]
 pub struct VerifiedFrame<'a> {
+    /// The image.
     pub image: &'a Image,
+    /// Its ID map.
     pub ids: IdMap,
     /// Each annotation with its exact mask.
     pub annotations: Vec<(&'a Annotation, Rle)>,

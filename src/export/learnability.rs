@@ -54,7 +54,9 @@ pub struct Learnability {
     /// Images whose RGB photo was on disk and read (the contrast statistics cover these; a
     /// `--label-only` export has none).
     pub images_with_rgb: u64,
+    /// Annotation sizes.
     pub sizes: SizeDistribution,
+    /// Masks split in several components by an occluder.
     pub occluder_splits: OccluderSplits,
     /// Absent when no ID map could be read.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -69,12 +71,17 @@ pub struct Learnability {
 pub struct SizeDistribution {
     /// Annotations.
     pub instances: u64,
+    /// 10th percentile of the annotation area, pixels.
     pub area_p10_px: u64,
+    /// Median annotation area, pixels.
     pub area_p50_px: u64,
+    /// 90th percentile of the annotation area, pixels.
     pub area_p90_px: u64,
     /// Quantiles of area / (width × height) of the annotation's image.
     pub area_p10_share: f64,
+    /// Median of area / image area.
     pub area_p50_share: f64,
+    /// 90th percentile of area / image area.
     pub area_p90_share: f64,
     /// Annotations with area < 32² px.
     pub small_share: f64,

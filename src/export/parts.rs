@@ -39,20 +39,28 @@ pub struct PartInfo {
     pub version: u32,
     /// `i/N`.
     pub shard: String,
+    /// The export's options.
     pub options: PartOptions,
     /// Frames of this shard listed in `poses.jsonl` without an ID map or instance file.
     pub frames_without_masks: u64,
+    /// Annotations and images the filters dropped in this shard.
     pub dropped: DropCounts,
+    /// Labelled frames of this shard left out for want of an RGB frame.
     pub frames_without_rgb: Vec<MissingRgb>,
 }
 
 /// The options of a sharded export; the parts of one export agree on them.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PartOptions {
+    /// One annotation per component or per building.
     pub annotation_unit: AnnotationUnit,
+    /// `--polygons`.
     pub polygons: bool,
+    /// The filters.
     pub filters: Filters,
+    /// `--holdout` areas.
     pub holdout: Vec<String>,
+    /// `--label-only`.
     pub label_only: bool,
     /// The statistics report the combined export gets (`None`: `--no-stats`).
     pub report: Option<PartReport>,
@@ -118,8 +126,11 @@ pub fn write_part(
 /// directory, its statistics options, and the export it builds.
 #[derive(Debug, Clone)]
 pub struct Combined {
+    /// The plan of the export the parts make up.
     pub plan: ExportPlan,
+    /// The statistics report to write (`None`: `--no-stats`).
     pub report: Option<ReportOptions>,
+    /// The combined export.
     pub export: Export,
 }
 

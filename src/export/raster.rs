@@ -10,7 +10,9 @@ use super::CocoError;
 /// An 8-bit RGB image, row-major.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct RgbImage {
+    /// Pixels.
     pub width: u32,
+    /// Pixels.
     pub height: u32,
     /// `width × height × 3` bytes.
     pub data: Vec<u8>,
@@ -215,7 +217,9 @@ fn hsv_to_rgb(h: f64, s: f64, v: f64) -> Rgb {
 /// One series of a grouped bar chart.
 #[derive(Debug, Clone)]
 pub struct Series {
+    /// Legend label.
     pub name: String,
+    /// Bar colour.
     pub colour: Rgb,
     /// One value per category.
     pub values: Vec<f64>,

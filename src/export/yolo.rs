@@ -55,7 +55,9 @@ pub struct YoloPlan {
 /// Counts of one split.
 #[derive(Debug, Clone, Default, PartialEq, Eq, Serialize)]
 pub struct YoloSplitSummary {
+    /// `train`, `val` or `test`.
     pub split: String,
+    /// Images written.
     pub images: u64,
     /// Label lines written.
     pub instances: u64,
