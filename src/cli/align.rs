@@ -52,18 +52,27 @@ pub struct Args {
 /// `<workdir>/<area>/align/align.json`.
 #[derive(Debug, Serialize)]
 pub struct Report {
+    /// The area.
     pub area: String,
+    /// The tileset JSON, as given.
     pub tileset: String,
+    /// SHA-256 of the tileset JSON, hex.
     pub tileset_sha256: String,
+    /// The estimated correction.
     pub estimate: Estimate,
+    /// LoD/tileset agreement before the correction.
     pub before: Agreement,
+    /// LoD/tileset agreement after it.
     pub after: Agreement,
-    /// Tileset triangles over the area, LoD triangles.
+    /// Tileset triangles over the area.
     pub tileset_triangles: u64,
+    /// LoD triangles.
     pub lod_triangles: u64,
-    /// Wall-clock seconds: reading the tileset, estimating, measuring the agreement.
+    /// Wall-clock seconds reading the tileset.
     pub read_s: f64,
+    /// Wall-clock seconds estimating.
     pub estimate_s: f64,
+    /// Wall-clock seconds measuring the agreement.
     pub agreement_s: f64,
     /// Whether the manifest now holds this estimate (false with --dry-run or a pinned correction).
     pub written: bool,

@@ -55,6 +55,7 @@ fn step(global: &Global, words: &[&str]) -> anyhow::Result<()> {
 /// File name of the demo's default camera under `<scenes>/cameras/`.
 pub const DEFAULT_CAMERA_FILE: &str = "cam2-quarter.toml";
 
+/// Runs `insgen demo`.
 pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     let districts = ["demo", "demo-val", "demo-test"];
     let count = args.count.to_string();

@@ -551,6 +551,7 @@ fn default_tag(args: &Args, degradation: &Degradation, map: &MapSummary) -> Stri
     t
 }
 
+/// Runs `insgen eval-loc`.
 pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     let area_dir = global.workdir.join(&args.area);
     let (scene, map) =

@@ -39,12 +39,15 @@ pub struct Args {
 /// The summary of a source file, as `--json` prints it.
 #[derive(Debug, Serialize)]
 pub struct SourceSummary {
+    /// The source file.
     pub file: PathBuf,
     /// The frame of the coordinates, in words.
     pub frame: String,
+    /// Buildings read.
     pub buildings: usize,
     /// Buildings per LoD.
     pub lod: BTreeMap<String, u64>,
+    /// Polygons of the buildings.
     pub polygons: u64,
     /// Triangles of the meshes, plus those the polygons make when triangulated (V + 2H − 2 each).
     pub triangles: u64,
@@ -58,6 +61,7 @@ pub struct SourceSummary {
     pub relative_heights: Option<String>,
 }
 
+/// Runs `insgen inspect`.
 pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     // Written with `writeln!` so that a closed pipe (`insgen inspect F | head`) is an error that
     // `main` treats as success, not a panic of `println!`.

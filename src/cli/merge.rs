@@ -37,6 +37,7 @@ enum Combined {
     Loc { out_dir: PathBuf, outputs: Box<crate::loc::eval::Outputs> },
 }
 
+/// Runs `insgen merge`.
 pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     let printer = global.printer();
     let dest = &global.workdir;

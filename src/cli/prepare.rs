@@ -33,6 +33,7 @@ pub struct Args {
     pub clutter_seed: u64,
 }
 
+/// Runs `insgen prepare`.
 pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     let mut files = Vec::new();
     if let Some(s) = &args.scene {

@@ -23,7 +23,10 @@ pub enum ProgressMode {
     /// An indicatif bar on stderr (a terminal).
     Bar,
     /// A line on stderr every so often (a log file).
-    Lines { every: Duration },
+    Lines {
+        /// Time between two lines.
+        every: Duration,
+    },
 }
 
 /// The output policy of one run.

@@ -64,6 +64,7 @@ fn parse_strategy(s: &str) -> Result<Trajectory, crate::camera::record::UnknownT
 /// The validated run: what `sample` will read and write.
 #[derive(Debug, Clone)]
 pub struct Plan {
+    /// The area.
     pub area: String,
     /// `<workdir>/<area>/scene`.
     pub scene_dir: PathBuf,
@@ -71,8 +72,11 @@ pub struct Plan {
     pub out_dir: PathBuf,
     /// The camera, with `strategy` already overridden by `--strategy`.
     pub camera: CameraSpec,
+    /// Poses to sample (`--count`); `None`: full coverage.
     pub count: Option<usize>,
+    /// Random seed.
     pub seed: u64,
+    /// The `[sampling]` settings.
     pub config: SamplingConfig,
     /// The scene file the `[sampling]` table came from, if there was one.
     pub config_file: Option<PathBuf>,

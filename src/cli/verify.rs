@@ -21,6 +21,7 @@ pub struct Args {
     pub dataset: PathBuf,
 }
 
+/// Runs `insgen verify`.
 pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     let printer = global.printer();
     let dir = crate::export::verify::dataset_dir(&args.dataset);

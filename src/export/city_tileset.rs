@@ -39,6 +39,7 @@ use crate::util::FileError;
 /// Errors of the writers.
 #[derive(Debug, thiserror::Error)]
 pub enum WriteError {
+    /// Writing a file failed.
     #[error(transparent)]
     File(#[from] FileError),
     /// A tile's GLB cannot be assembled (past the format's 4 GiB).
@@ -47,7 +48,9 @@ pub enum WriteError {
     /// An encoder refused the data: `what` was being encoded, `source` is the encoder's error.
     #[error("encoding {what}")]
     Encode {
+        /// What was being encoded.
         what: &'static str,
+        /// The encoder's error.
         #[source]
         source: Box<dyn std::error::Error + Send + Sync>,
     },
@@ -61,13 +64,17 @@ pub enum WriteError {
 /// A tile to write.
 #[derive(Debug, Clone)]
 pub struct TileOut {
+    /// The tile's bounding volume, in the tile's frame.
     pub bounding_volume: BoundingVolume,
+    /// Geometric error, metres.
     pub geometric_error_m: f64,
+    /// `REPLACE` or `ADD`; `None` inherits the parent's.
     pub refine: Option<Refine>,
     /// Tile frame → parent frame; written column-major (the spec's order) at the file edge.
     pub transform: Option<DMat4>,
     /// Content URI (relative to the tileset JSON) and its bytes.
     pub content: Option<(String, Vec<u8>)>,
+    /// Child tiles.
     pub children: Vec<TileOut>,
     /// Extra members merged into the tile object (e.g. `implicitTiling`).
     pub extra: Value,
@@ -144,9 +151,13 @@ pub fn write_tileset(dir: &Path, root: &TileOut, extensions_used: &[&str]) -> Re
 /// The producer whose output a generated tileset imitates (see the module doc).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Style {
+    /// Cesium ion's photogrammetry tilesets (rotated root transform, texture transform).
     CesiumIon,
+    /// Google Photorealistic 3D Tiles (deep quadtree of GLB contents).
     Google,
+    /// Project PLATEAU's building tilesets (b3dm with batch tables).
     Plateau,
+    /// 3D BAG's tilesets (implicit tiling).
     Bag3d,
 }
 
@@ -155,12 +166,15 @@ pub enum Style {
 pub struct GeneratedTile {
     /// JSON path as [`crate::lod::tiles3d::Tile::at`] names it (`root.children[1]`, `root{level 1, x 0, y 1}`).
     pub at: String,
+    /// Depth in the tree (the root is 0).
     pub level: u32,
+    /// The tile's refinement.
     pub refine: Refine,
     /// Content URI relative to the tileset JSON.
     pub content_uri: String,
     /// sRGB colours of its roof and wall texels.
     pub roof_rgb: [u8; 3],
+    /// sRGB colour of its wall texels (see `roof_rgb`).
     pub wall_rgb: [u8; 3],
     /// Building IDs in its content.
     pub buildings: Vec<u32>,
@@ -171,7 +185,9 @@ pub struct GeneratedTile {
 /// A written tileset and its tiles.
 #[derive(Debug, Clone)]
 pub struct GeneratedTileset {
+    /// The tileset JSON written.
     pub tileset: PathBuf,
+    /// Its tiles, root first.
     pub tiles: Vec<GeneratedTile>,
 }
 
@@ -197,8 +213,9 @@ pub fn palette_colour(k: usize) -> [u8; 3] {
     all[(k * 7) % all.len()]
 }
 
-/// UV of a roof texel centre and of a wall texel centre in the 4 × 2 tile texture.
+/// UV of a roof texel centre in the 4 × 2 tile texture.
 pub const ROOF_UV: [f64; 2] = [0.25, 0.5];
+/// UV of a wall texel centre in the 4 × 2 tile texture.
 pub const WALL_UV: [f64; 2] = [0.75, 0.5];
 
 /// The `KHR_texture_transform` the `CesiumIon` style writes (a quarter turn, a half-width scale and
@@ -210,8 +227,9 @@ pub const CESIUM_TEXTURE_TRANSFORM: TextureTransform = TextureTransform {
     tex_coord: None,
 };
 
-/// Rotation (about up, radians) and uniform scale of the `CesiumIon` style's root transform.
+/// Rotation about up of the `CesiumIon` style's root transform, radians.
 pub const CESIUM_ROOT_ROTATION_RAD: f64 = 0.3;
+/// Uniform scale of the `CesiumIon` style's root transform.
 pub const CESIUM_ROOT_SCALE: f64 = 1.34;
 
 /// A quadtree cell with the buildings whose centroid falls in it.

@@ -24,11 +24,11 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 
 use crate::camera::PoseRecord;
-use crate::label::{label_components, Connectivity, FrameInstances, Labelling};
+use crate::label::{label_components, FrameInstances, Labelling};
 use crate::scene::{BuildingId, BuildingRecord, IdMap, Manifest};
 use crate::util::{FileError, Progress, Shard};
 
-use super::error::chain_string;
+use super::error::{chain_string, ComponentFacts, LayoutProblem, MismatchProblem, MissingField};
 use super::format::{
     licence_url, Annotation, AnnotationUnit, AreaInfo, Category, Dataset, Filters, Image, Info, License,
     RleJson, Segmentation, SourceInfo, TruncatedPolicy, BUILDING_CATEGORY_ID,
@@ -39,8 +39,11 @@ use super::CocoError;
 /// A geographic split.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Split {
+    /// Training split (`instances_train.json`).
     Train,
+    /// Validation split (`instances_val.json`).
     Val,
+    /// Test split (`instances_test.json`); `--holdout` areas go here.
     Test,
 }
 
@@ -83,10 +86,12 @@ pub struct ExportPlan {
     pub out_dir: PathBuf,
     /// Areas moved to the test split whatever their manifests say.
     pub holdout: Vec<String>,
+    /// One annotation per connected component or per building.
     pub unit: AnnotationUnit,
     /// Write polygons (outer boundaries; holes are lost) in `segmentation`, keeping the exact RLE in
     /// the `mask_rle` extension key.
     pub polygons: bool,
+    /// Annotation and image filters.
     pub filters: Filters,
     /// List every labelled frame, rendered or not (`info.images_missing`); by default only frames whose
     /// RGB image exists and decodes at the frame's size are images.
@@ -133,6 +138,7 @@ pub struct Export {
     /// Per (area, camera): labelled frames left out because their RGB frame is missing, does not
     /// decode, or has another size (not in a `--label-only` export).
     pub frames_without_rgb: Vec<MissingRgb>,
+    /// Annotations and images the filters dropped.
     pub dropped: DropCounts,
     /// The statistics of `datasets`, once [`write_export`] has computed them for the card (they read
     /// every ID map and photo, so the report reuses them).
@@ -142,8 +148,11 @@ pub struct Export {
 /// Labelled frames of one camera left out for want of an RGB frame.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct MissingRgb {
+    /// The area.
     pub area: String,
+    /// The camera.
     pub camera: String,
+    /// Labelled frames left out.
     pub frames: u64,
     /// Up to a few frames whose RGB file exists but is broken (undecodable or of another size).
     pub broken: Vec<PathBuf>,
@@ -209,13 +218,13 @@ fn discover(workdir: &Path, shard: Shard) -> Result<(Vec<AreaInput>, u64), CocoE
         if manifest.area != name {
             return Err(CocoError::Layout {
                 path: manifest_path,
-                reason: format!("names area \"{}\" but lives in directory \"{name}\"", manifest.area),
+                problem: LayoutProblem::AreaName { named: manifest.area, directory: name },
             });
         }
         let Some(split) = Split::parse(&manifest.split) else {
             return Err(CocoError::Layout {
                 path: manifest_path,
-                reason: format!("split \"{}\" is not one of train, val, test", manifest.split),
+                problem: LayoutProblem::UnknownSplit { split: manifest.split },
             });
         };
         let buildings_path = area.scene().join(crate::layout::BUILDINGS_FILE);
@@ -231,7 +240,7 @@ fn discover(workdir: &Path, shard: Shard) -> Result<(Vec<AreaInput>, u64), CocoE
             if let Some(w) = names.windows(2).find(|w| w[0] == w[1]) {
                 return Err(CocoError::Layout {
                     path: poses_path,
-                    reason: format!("frame name \"{}\" appears more than once", w[0]),
+                    problem: LayoutProblem::DuplicateFrame { frame: w[0].to_string() },
                 });
             }
             // The shard by line, as render-masks takes its frames; then by name, the export's order.
@@ -243,10 +252,11 @@ fn discover(workdir: &Path, shard: Shard) -> Result<(Vec<AreaInput>, u64), CocoE
                 if pose.area != name {
                     return Err(CocoError::Layout {
                         path: poses_path,
-                        reason: format!(
-                            "frame \"{}\" belongs to area \"{}\", not \"{name}\"",
-                            pose.name, pose.area
-                        ),
+                        problem: LayoutProblem::ForeignFrame {
+                            frame: pose.name,
+                            belongs_to: pose.area,
+                            area: name,
+                        },
                     });
                 }
                 let mask = cam_dir.mask_png(&pose.name);
@@ -334,11 +344,7 @@ fn process_frame(
         let Some(o) = &inst.occlusion else {
             return Err(CocoError::MissingData {
                 path: frame.instances.clone(),
-                reason: format!(
-                    "it has no consistency score, which --min-consistency needs; rerun `insgen render-masks \
-                     --area {} --camera {} --tileset FILE`",
-                    area.name, camera.name
-                ),
+                missing: MissingField::Consistency { area: area.name.clone(), camera: camera.name.clone() },
             });
         };
         if o.consistency < min {
@@ -363,83 +369,89 @@ fn verified_components(
     inst: &FrameInstances,
     map: &IdMap,
 ) -> Result<(Labelling, Vec<usize>), CocoError> {
-    let mismatch = |reason: String| CocoError::Mismatch {
+    let mismatch = |problem: MismatchProblem| CocoError::Mismatch {
         instances: frame.instances.clone(),
         id_map: frame.mask.clone(),
-        reason,
+        problem: Box::new(problem),
     };
     let pose = &frame.pose;
     if inst.frame != pose.name {
-        return Err(mismatch(format!("it is for frame \"{}\", expected \"{}\"", inst.frame, pose.name)));
+        return Err(mismatch(MismatchProblem::Frame {
+            found: inst.frame.clone(),
+            expected: pose.name.clone(),
+        }));
     }
     let (w, h) = (map.width(), map.height());
     if (inst.width, inst.height) != (w, h) {
-        return Err(mismatch(format!(
-            "it gives {}×{} px, the ID map is {w}×{h} px",
-            inst.width, inst.height
-        )));
+        return Err(mismatch(MismatchProblem::InstancesSize {
+            listed: [inst.width, inst.height],
+            id_map: [w, h],
+        }));
     }
     let k = &pose.view.intrinsics;
     if (k.width_px, k.height_px) != (w, h) {
-        return Err(mismatch(format!(
-            "poses.jsonl gives {}×{} px for this frame, the ID map is {w}×{h} px",
-            k.width_px, k.height_px
-        )));
+        return Err(mismatch(MismatchProblem::PoseSize { pose: [k.width_px, k.height_px], id_map: [w, h] }));
     }
     let lab = label_components(map, inst.connectivity);
     let kept: Vec<usize> = (0..lab.components.len())
         .filter(|&i| lab.components[i].area_px >= inst.min_component_area_px)
         .collect();
     if kept.len() != inst.instances.len() {
-        return Err(mismatch(format!(
-            "it lists {} instances, the ID map has {} components of at least {} px ({}-connectivity)",
-            inst.instances.len(),
-            kept.len(),
-            inst.min_component_area_px,
-            match inst.connectivity {
-                Connectivity::Four => 4,
-                Connectivity::Eight => 8,
-            }
-        )));
+        return Err(mismatch(MismatchProblem::InstanceCount {
+            listed: inst.instances.len(),
+            components: kept.len(),
+            min_area_px: inst.min_component_area_px,
+            connectivity: inst.connectivity,
+        }));
     }
     for (n, (&ci, e)) in kept.iter().zip(&inst.instances).enumerate() {
         let c = &lab.components[ci];
         if (c.building_id, c.area_px, c.bbox_px, c.touches_border)
             != (e.building_id, e.area_px, e.bbox_px, e.truncated)
         {
-            return Err(mismatch(format!(
-                "instances[{n}] is building {} with {} px, bbox {:?}, truncated {}; the ID map's component #{n} \
-                 is building {} with {} px, bbox {:?}, truncated {}",
-                e.building_id, e.area_px, e.bbox_px, e.truncated, c.building_id, c.area_px, c.bbox_px,
-                c.touches_border
-            )));
+            return Err(mismatch(MismatchProblem::Component {
+                index: n,
+                listed: ComponentFacts {
+                    building_id: e.building_id,
+                    area_px: e.area_px,
+                    bbox_px: e.bbox_px,
+                    truncated: e.truncated,
+                },
+                found: ComponentFacts {
+                    building_id: c.building_id,
+                    area_px: c.area_px,
+                    bbox_px: c.bbox_px,
+                    truncated: c.touches_border,
+                },
+            }));
         }
         match area.source_ids.get(&e.building_id) {
             None => {
-                return Err(mismatch(format!(
-                    "instances[{n}]: building {} is not in {}",
-                    e.building_id,
-                    area.buildings_path.display()
-                )))
+                return Err(mismatch(MismatchProblem::UnknownBuilding {
+                    index: n,
+                    building_id: e.building_id,
+                    buildings: area.buildings_path.clone(),
+                }))
             }
             Some(s) if *s != e.source_id => {
-                return Err(mismatch(format!(
-                    "instances[{n}]: building {} has source_id \"{}\" here but \"{s}\" in {}",
-                    e.building_id,
-                    e.source_id,
-                    area.buildings_path.display()
-                )))
+                return Err(mismatch(MismatchProblem::SourceId {
+                    index: n,
+                    building_id: e.building_id,
+                    listed: e.source_id.clone(),
+                    table: s.clone(),
+                    buildings: area.buildings_path.clone(),
+                }))
             }
             Some(_) => {}
         }
         if plan.filters.min_visible_fraction.is_some() && e.visible_fraction.is_none() {
             return Err(CocoError::MissingData {
                 path: frame.instances.clone(),
-                reason: format!(
-                    "instances[{n}] has no visible_fraction, which --min-visible-fraction needs; rerun \
-                     `insgen render-masks --area {} --camera {} --visible-fraction --force`",
-                    area.name, camera.name
-                ),
+                missing: MissingField::VisibleFraction {
+                    index: n,
+                    area: area.name.clone(),
+                    camera: camera.name.clone(),
+                },
             });
         }
     }
@@ -641,13 +653,7 @@ pub(crate) fn image_root(workdir: &Path, out_dir: &Path) -> String {
 pub fn build(plan: &ExportPlan, image_root: &str, progress: &dyn Progress) -> Result<Export, CocoError> {
     let (mut areas, frames_without_masks) = discover(&plan.workdir, plan.shard)?;
     if areas.is_empty() {
-        return Err(CocoError::Layout {
-            path: plan.workdir.clone(),
-            reason:
-                "no prepared area here (no <area>/scene/manifest.json); run `insgen prepare --area NAME`, \
-                     `insgen sample` and `insgen render-masks` first, or pass --workdir"
-                    .into(),
-        });
+        return Err(CocoError::Layout { path: plan.workdir.clone(), problem: LayoutProblem::NoArea });
     }
     for h in &plan.holdout {
         match areas.iter_mut().find(|a| &a.name == h) {

@@ -24,20 +24,28 @@ pub const BUILDING_CATEGORY_ID: u32 = 1;
 /// A whole COCO instances file (`instances_<split>.json`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Dataset {
+    /// What produced the file.
     pub info: Info,
+    /// The areas' attribution lines.
     pub licenses: Vec<License>,
+    /// The frames, in id order.
     pub images: Vec<Image>,
+    /// The building instances, in id order.
     pub annotations: Vec<Annotation>,
+    /// The one category, `building`.
     pub categories: Vec<Category>,
 }
 
 /// `info`: what produced the file. Date-free, so that equal inputs give byte-identical files.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Info {
+    /// What the file is.
     pub description: String,
     /// insgen version that wrote the file.
     pub version: String,
+    /// Who made it (insgen).
     pub contributor: String,
+    /// insgen's home page.
     pub url: String,
     /// Extension: `train`, `val` or `test`.
     pub split: String,
@@ -60,6 +68,7 @@ pub struct Info {
 /// Provenance of one area (from its `scene/manifest.json`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct AreaInfo {
+    /// Area (scene) name.
     pub name: String,
     /// Split given by the manifest (before `--holdout`).
     pub manifest_split: String,
@@ -67,14 +76,18 @@ pub struct AreaInfo {
     pub held_out: bool,
     /// Buildings in the area's building table.
     pub buildings: u64,
+    /// The area's source files.
     pub sources: Vec<SourceInfo>,
+    /// Attribution lines of its sources.
     pub attributions: Vec<String>,
 }
 
 /// One source file of an area.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SourceInfo {
+    /// The file as the area's manifest names it.
     pub path: String,
+    /// SHA-256 of its bytes, hex.
     pub sha256: String,
 }
 
@@ -82,8 +95,10 @@ pub struct SourceInfo {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum AnnotationUnit {
+    /// One annotation per connected component (default).
     #[default]
     Component,
+    /// One annotation per building, its components merged.
     Building,
 }
 
@@ -108,6 +123,7 @@ pub struct Filters {
     pub min_area_px: u64,
     /// Annotations of buildings less visible than this (visible / amodal pixels) are dropped.
     pub min_visible_fraction: Option<f64>,
+    /// What happens to instances touching the image border.
     pub truncated: TruncatedPolicy,
     /// Whether images without any annotation stay in the file (as negatives).
     pub keep_empty_images: bool,
@@ -132,6 +148,7 @@ impl Default for Filters {
 /// `licenses[]`: one per distinct attribution line of the areas' sources.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct License {
+    /// From 1, referred to by `images[].license`.
     pub id: u32,
     /// The attribution text, e.g. "3D city model (Project PLATEAU), MLIT — CC BY 4.0".
     pub name: String,
@@ -149,6 +166,7 @@ pub struct Image {
     pub file_name: String,
     /// Pixels.
     pub width: u32,
+    /// Pixels.
     pub height: u32,
     /// Id of the first licence of the area's sources, when it has one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -192,9 +210,11 @@ pub struct Image {
 pub struct Annotation {
     /// From 1 within the file.
     pub id: u64,
+    /// The image's id.
     pub image_id: u64,
     /// Always [`BUILDING_CATEGORY_ID`].
     pub category_id: u32,
+    /// The mask: an RLE, or polygons with `--polygons`.
     pub segmentation: Segmentation,
     /// Pixel count of the mask.
     pub area: u64,
@@ -229,8 +249,11 @@ pub struct Annotation {
 /// `categories[]`.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Category {
+    /// Always [`BUILDING_CATEGORY_ID`].
     pub id: u32,
+    /// `building`.
     pub name: String,
+    /// `building`.
     pub supercategory: String,
 }
 
@@ -245,14 +268,18 @@ impl Category {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(untagged)]
 pub enum Segmentation {
+    /// A run-length-encoded mask.
     Rle(RleJson),
+    /// Polygons, each `[x0, y0, x1, y1, …]` in pixels.
     Polygons(Vec<Vec<f64>>),
 }
 
 /// The JSON form of an RLE: `{"size": [h, w], "counts": "<compressed>" | [run, …]}`.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct RleJson {
+    /// `[height, width]`, pixels.
     pub size: [u32; 2],
+    /// The run lengths, compressed or not.
     pub counts: RleCounts,
 }
 
@@ -260,7 +287,9 @@ pub struct RleJson {
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(untagged)]
 pub enum RleCounts {
+    /// pycocotools' compressed string.
     Compressed(String),
+    /// The run lengths, column-major, starting with background.
     Uncompressed(Vec<u32>),
 }
 

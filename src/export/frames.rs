@@ -14,6 +14,7 @@ use std::path::{Path, PathBuf};
 use crate::scene::IdMap;
 
 use super::coco::{read_json, Split};
+use super::error::{LayoutProblem, MismatchProblem};
 use super::format::{Annotation, Dataset, Image, Segmentation};
 use super::rle::Rle;
 use super::CocoError;
@@ -21,9 +22,11 @@ use super::CocoError;
 /// One split file of a COCO export.
 #[derive(Debug, Clone)]
 pub struct ExportSplit {
+    /// The split.
     pub split: Split,
     /// `instances_<split>.json`.
     pub file: PathBuf,
+    /// The file's contents.
     pub dataset: Dataset,
     /// The directory `images[].file_name` and `mask_file` are relative to.
     pub image_root: PathBuf,
@@ -58,12 +61,7 @@ pub fn read_splits(coco_dir: &Path) -> Result<Vec<ExportSplit>, CocoError> {
         out.push(ExportSplit { split, file, dataset, image_root });
     }
     if out.is_empty() {
-        return Err(CocoError::Layout {
-            path: coco_dir.to_path_buf(),
-            reason: "no instances_train.json, instances_val.json or instances_test.json here; run `insgen \
-                     export-coco` first or pass --coco DIR"
-                .into(),
-        });
+        return Err(CocoError::Layout { path: coco_dir.to_path_buf(), problem: LayoutProblem::NoSplits });
     }
     Ok(out)
 }
@@ -71,7 +69,9 @@ pub fn read_splits(coco_dir: &Path) -> Result<Vec<ExportSplit>, CocoError> {
 /// An image with its ID map and its annotations' masks, all checked against each other.
 #[derive(Debug)]
 pub struct VerifiedFrame<'a> {
+    /// The image.
     pub image: &'a Image,
+    /// Its ID map.
     pub ids: IdMap,
     /// Each annotation with its exact mask.
     pub annotations: Vec<(&'a Annotation, Rle)>,
@@ -107,30 +107,24 @@ pub fn load_frame<'a>(
 ) -> Result<VerifiedFrame<'a>, CocoError> {
     let id_path = split.image_root.join(&image.mask_file);
     let ids = IdMap::read_png(&id_path)?;
-    let mismatch = |reason: String| CocoError::Mismatch {
+    let mismatch = |problem: MismatchProblem| CocoError::Mismatch {
         instances: split.file.clone(),
         id_map: id_path.clone(),
-        reason,
+        problem: Box::new(problem),
     };
     if (ids.width(), ids.height()) != (image.width, image.height) {
-        return Err(mismatch(format!(
-            "image {} is {}×{} in the COCO file, its ID map {}×{}",
-            image.id,
-            image.width,
-            image.height,
-            ids.width(),
-            ids.height()
-        )));
+        return Err(mismatch(MismatchProblem::ImageSize {
+            image_id: image.id,
+            listed: [image.width, image.height],
+            id_map: [ids.width(), ids.height()],
+        }));
     }
     let mut out = Vec::with_capacity(annotations.len());
     for &a in annotations {
         let json = match (&a.segmentation, &a.mask_rle) {
             (Segmentation::Rle(r), _) | (Segmentation::Polygons(_), Some(r)) => r,
             (Segmentation::Polygons(_), None) => {
-                return Err(mismatch(format!(
-                    "annotation {} has polygons and no `mask_rle`: the exact mask is unknown",
-                    a.id
-                )))
+                return Err(mismatch(MismatchProblem::NoExactMask { annotation_id: a.id }))
             }
         };
         let rle = json.to_rle().map_err(|source| CocoError::Rle {
@@ -139,10 +133,11 @@ pub fn load_frame<'a>(
             source,
         })?;
         if rle.size != [image.height, image.width] {
-            return Err(mismatch(format!(
-                "annotation {}: RLE size {:?} is not the image's [{}, {}]",
-                a.id, rle.size, image.height, image.width
-            )));
+            return Err(mismatch(MismatchProblem::RleSize {
+                annotation_id: a.id,
+                rle_size: rle.size,
+                image_size: [image.height, image.width],
+            }));
         }
         let mut wrong = 0u64;
         let mut first_wrong = None;
@@ -153,23 +148,22 @@ pub fn load_frame<'a>(
             }
         });
         if let Some((x, y)) = first_wrong {
-            return Err(mismatch(format!(
-                "annotation {} (building {}): {wrong} of its pixels hold another ID in the ID map, first \
-                 at ({x}, {y}) holding {}; run `insgen export-coco` again",
-                a.id,
-                a.building_id,
-                ids.get(x, y)
-            )));
+            return Err(mismatch(MismatchProblem::ForeignPixels {
+                annotation_id: a.id,
+                building_id: a.building_id,
+                wrong_px: wrong,
+                first: [x, y],
+                first_found: ids.get(x, y),
+            }));
         }
         if rle.area() != a.area || rle.to_bbox() != a.bbox {
-            return Err(mismatch(format!(
-                "annotation {}: area {} and bbox {:?} differ from its mask's {} and {:?}",
-                a.id,
-                a.area,
-                a.bbox,
-                rle.area(),
-                rle.to_bbox()
-            )));
+            return Err(mismatch(MismatchProblem::AreaBox {
+                annotation_id: a.id,
+                area: a.area,
+                bbox: a.bbox,
+                mask_area: rle.area(),
+                mask_bbox: rle.to_bbox(),
+            }));
         }
         out.push((a, rle));
     }

@@ -37,6 +37,7 @@ use std::path::Path;
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::error::ImageProblem;
 use super::format::{Dataset, Image};
 use super::raster::{read_png_rgb, RgbImage};
 use super::stats::{AreaStats, SMALL_MAX_PX};
@@ -53,7 +54,9 @@ pub struct Learnability {
     /// Images whose RGB photo was on disk and read (the contrast statistics cover these; a
     /// `--label-only` export has none).
     pub images_with_rgb: u64,
+    /// Annotation sizes.
     pub sizes: SizeDistribution,
+    /// Masks split in several components by an occluder.
     pub occluder_splits: OccluderSplits,
     /// Absent when no ID map could be read.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -68,12 +71,17 @@ pub struct Learnability {
 pub struct SizeDistribution {
     /// Annotations.
     pub instances: u64,
+    /// 10th percentile of the annotation area, pixels.
     pub area_p10_px: u64,
+    /// Median annotation area, pixels.
     pub area_p50_px: u64,
+    /// 90th percentile of the annotation area, pixels.
     pub area_p90_px: u64,
     /// Quantiles of area / (width × height) of the annotation's image.
     pub area_p10_share: f64,
+    /// Median of area / image area.
     pub area_p50_share: f64,
+    /// 90th percentile of area / image area.
     pub area_p90_share: f64,
     /// Annotations with area < 32² px.
     pub small_share: f64,
@@ -256,14 +264,11 @@ fn measure_image(
         if (rgb.width, rgb.height) != (map.width(), map.height()) {
             return Err(CocoError::Image {
                 path: rgb_path,
-                reason: format!(
-                    "{}×{} px, but its ID map {} is {}×{} px",
-                    rgb.width,
-                    rgb.height,
-                    mask_path.display(),
-                    map.width(),
-                    map.height()
-                ),
+                problem: ImageProblem::SizeMismatch {
+                    size: [rgb.width, rgb.height],
+                    id_map: mask_path,
+                    id_map_size: [map.width(), map.height()],
+                },
             });
         }
         Some(rgb)

@@ -31,10 +31,13 @@ pub struct DatasetManifest {
     pub format: String,
     /// Always [`MANIFEST_VERSION`].
     pub version: u32,
+    /// The insgen that wrote the dataset.
     pub tool: Tool,
     /// The COCO files, relative to the dataset directory.
     pub files: Vec<FileEntry>,
+    /// The areas in the dataset.
     pub areas: Vec<AreaEntry>,
+    /// The export's options.
     pub export: ExportSettings,
     /// The workdir's command log at export time, oldest first.
     pub commands: Vec<CommandRecord>,
@@ -43,45 +46,62 @@ pub struct DatasetManifest {
 /// The program that wrote the dataset.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Tool {
+    /// `insgen`.
     pub name: String,
+    /// insgen's version.
     pub version: String,
+    /// The commit insgen was built from (empty when unknown).
     pub git_commit: String,
 }
 
 /// One COCO file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FileEntry {
+    /// Relative to the dataset directory.
     pub path: String,
+    /// `train`, `val` or `test`.
     pub split: String,
+    /// SHA-256 of the file, hex.
     pub sha256: String,
+    /// Images it lists.
     pub images: u64,
+    /// Annotations it lists.
     pub annotations: u64,
 }
 
 /// One area of the dataset.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct AreaEntry {
+    /// Area (scene) name.
     pub name: String,
     /// The split its images are in (after `--holdout`).
     pub split: String,
+    /// Whether `--holdout` moved it to `test`.
     pub held_out: bool,
+    /// Buildings in the area's building table.
     pub buildings: u64,
+    /// The area's source files.
     pub sources: Vec<SourceInfo>,
+    /// Attribution lines of its sources.
     pub attributions: Vec<String>,
+    /// Its cameras with images in the dataset.
     pub cameras: Vec<CameraEntry>,
 }
 
 /// One camera of an area.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CameraEntry {
+    /// Camera directory name.
     pub name: String,
     /// The preset the poses were sampled with.
     pub preset: String,
     /// Images in the dataset.
     pub images: u64,
+    /// Annotations on its images.
     pub annotations: u64,
     /// Frame size, pixels.
     pub width_px: u32,
+    /// Frame height, pixels.
     pub height_px: u32,
     /// How its RGB frames were rendered: each distinct setting of their `rgb/<frame>.render.json`
     /// (engine, device, samples, denoiser, bounces, Blender version — the look), with how many frames
@@ -93,6 +113,7 @@ pub struct CameraEntry {
 /// One RGB render setting of a camera and the frames rendered with it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RenderSettings {
+    /// Frames rendered with these settings.
     pub frames: u64,
     /// The frame metadata without what differs per frame (`frame`, `fingerprint`).
     pub settings: serde_json::Value,
@@ -130,9 +151,13 @@ pub fn rgb_render_settings(
 /// The export's options.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ExportSettings {
+    /// One annotation per component or per building.
     pub annotation_unit: AnnotationUnit,
+    /// Whether `segmentation` holds polygons (`--polygons`).
     pub polygons: bool,
+    /// The filters applied.
     pub filters: Filters,
+    /// Areas moved to `test` (`--holdout`).
     pub holdout: Vec<String>,
 }
 

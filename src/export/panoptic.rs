@@ -41,20 +41,24 @@ use super::CocoError;
 pub struct PanopticDataset {
     /// The instance file's `info`, unchanged.
     pub info: Info,
+    /// As in the COCO instance file.
     pub licenses: Vec<License>,
     /// The instance file's image records, unchanged (same ids, file names and extension keys).
     pub images: Vec<Image>,
     /// One per image, in image order.
     pub annotations: Vec<PanopticAnnotation>,
+    /// `building` and the background category.
     pub categories: Vec<PanopticCategory>,
 }
 
 /// `annotations[]`: the segments of one image.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PanopticAnnotation {
+    /// The image's id (as in the COCO instance file).
     pub image_id: u64,
     /// The segment PNG, relative to the `panoptic_<split>/` folder: `<area>/<camera>/<frame>.png`.
     pub file_name: String,
+    /// The segments of the PNG.
     pub segments_info: Vec<SegmentInfo>,
 }
 
@@ -63,6 +67,7 @@ pub struct PanopticAnnotation {
 pub struct SegmentInfo {
     /// The segment id in the PNG (R + 256·G + 256²·B): the instance annotation's id.
     pub id: u32,
+    /// The segment's category.
     pub category_id: u32,
     /// Pixel count.
     pub area: u64,
@@ -89,8 +94,11 @@ pub const BACKGROUND_SEGMENT_ID: u32 = MAX_BUILDING_ID;
 /// `categories[]` of a panoptic file.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct PanopticCategory {
+    /// Category id.
     pub id: u32,
+    /// Category name.
     pub name: String,
+    /// Its supercategory.
     pub supercategory: String,
     /// 1 for countable objects ("things"), 0 for amorphous regions ("stuff").
     pub isthing: u8,
@@ -121,8 +129,11 @@ pub struct PanopticPlan {
 /// Counts of one split, for the summary.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct PanopticSplitSummary {
+    /// `train`, `val` or `test`.
     pub split: String,
+    /// Images written.
     pub images: u64,
+    /// Segments written.
     pub segments: u64,
     /// The JSON file written.
     pub file: PathBuf,

@@ -18,6 +18,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use super::coco::{read_json, DropCounts, Export, ExportPlan, MissingRgb, Split};
+use super::error::PartsProblem;
 use super::format::{AnnotationUnit, Dataset, Filters};
 use super::stats::ReportOptions;
 use super::CocoError;
@@ -38,20 +39,28 @@ pub struct PartInfo {
     pub version: u32,
     /// `i/N`.
     pub shard: String,
+    /// The export's options.
     pub options: PartOptions,
     /// Frames of this shard listed in `poses.jsonl` without an ID map or instance file.
     pub frames_without_masks: u64,
+    /// Annotations and images the filters dropped in this shard.
     pub dropped: DropCounts,
+    /// Labelled frames of this shard left out for want of an RGB frame.
     pub frames_without_rgb: Vec<MissingRgb>,
 }
 
 /// The options of a sharded export; the parts of one export agree on them.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PartOptions {
+    /// One annotation per component or per building.
     pub annotation_unit: AnnotationUnit,
+    /// `--polygons`.
     pub polygons: bool,
+    /// The filters.
     pub filters: Filters,
+    /// `--holdout` areas.
     pub holdout: Vec<String>,
+    /// `--label-only`.
     pub label_only: bool,
     /// The statistics report the combined export gets (`None`: `--no-stats`).
     pub report: Option<PartReport>,
@@ -117,8 +126,11 @@ pub fn write_part(
 /// directory, its statistics options, and the export it builds.
 #[derive(Debug, Clone)]
 pub struct Combined {
+    /// The plan of the export the parts make up.
     pub plan: ExportPlan,
+    /// The statistics report to write (`None`: `--no-stats`).
     pub report: Option<ReportOptions>,
+    /// The combined export.
     pub export: Export,
 }
 
@@ -146,14 +158,14 @@ fn combine_split(
             if images.insert(key, (im, a)).is_some() {
                 return Err(CocoError::Parts {
                     dir: path.clone(),
-                    reason: format!("shard {shard} exports a frame another shard exports too"),
+                    problem: PartsProblem::DuplicateFrame { shard: *shard },
                 });
             }
         }
         if let Some(orphan) = anns.keys().next() {
             return Err(CocoError::Parts {
                 dir: path.clone(),
-                reason: format!("annotations refer to image {orphan}, which the file does not hold"),
+                problem: PartsProblem::OrphanAnnotations { image_id: *orphan },
             });
         }
         match &combined {
@@ -164,10 +176,7 @@ fn combine_split(
                 if info != c.info || ds.licenses != c.licenses || ds.categories != c.categories {
                     return Err(CocoError::Parts {
                         dir: path.clone(),
-                        reason: format!(
-                            "its info, licences or categories differ from shard {first_shard}'s: the \
-                             shards exported different work directories"
-                        ),
+                        problem: PartsProblem::OtherDataset { first_shard },
                     });
                 }
             }
@@ -175,7 +184,7 @@ fn combine_split(
     }
     // Every split has a part file in every part, and there is at least one part.
     let mut ds = combined
-        .ok_or_else(|| CocoError::Parts { dir: parts_dir.to_path_buf(), reason: "no parts".into() })?;
+        .ok_or_else(|| CocoError::Parts { dir: parts_dir.to_path_buf(), problem: PartsProblem::NoParts })?;
     for ((_, _, _), (mut im, anns)) in images {
         im.id = ds.images.len() as u64 + 1;
         for mut a in anns {
@@ -199,7 +208,7 @@ pub fn combine(
     workdir: &Path,
     out_dir: &Path,
 ) -> Result<Combined, CocoError> {
-    let fail = |reason: String| CocoError::Parts { dir: out_dir.join(PARTS_DIR), reason };
+    let fail = |problem: PartsProblem| CocoError::Parts { dir: out_dir.join(PARTS_DIR), problem };
     let infos: Vec<(Shard, PartInfo, &PathBuf)> = parts
         .iter()
         .map(|(&shard, dir)| {
@@ -208,50 +217,42 @@ pub fn combine(
             if info.kind != PART_KIND || info.version != PART_VERSION {
                 return Err(CocoError::Parts {
                     dir: dir.clone(),
-                    reason: format!(
-                        "{PART_MARKER} is a {:?} part of version {}, expected {PART_KIND:?} version {PART_VERSION}",
-                        info.kind, info.version
-                    ),
+                    problem: PartsProblem::WrongKind { kind: info.kind, version: info.version },
                 });
             }
             if info.shard != shard.to_string() {
                 return Err(CocoError::Parts {
                     dir: dir.clone(),
-                    reason: format!("{PART_MARKER} says shard {}, the directory {shard}", info.shard),
+                    problem: PartsProblem::ShardName { said: info.shard, shard },
                 });
             }
             Ok((shard, info, dir))
         })
         .collect::<Result<_, _>>()?;
     let Some((first_shard, first, first_dir)) = infos.first() else {
-        return Err(fail("no parts".into()));
+        return Err(fail(PartsProblem::NoParts));
     };
     let count = first_shard.count;
-    let missing: Vec<String> = (0..count)
-        .map(|index| Shard { index, count })
-        .filter(|s| !parts.contains_key(s))
-        .map(|s| s.to_string())
-        .collect();
+    let missing: Vec<Shard> =
+        (0..count).map(|index| Shard { index, count }).filter(|s| !parts.contains_key(s)).collect();
     if let Some((other, _, dir)) = infos.iter().find(|(s, _, _)| s.count != count) {
-        return Err(fail(format!(
-            "parts of {count} shards ({}) and of {} ({}) are mixed; merge the parts of one run",
-            first_dir.display(),
-            other.count,
-            dir.display()
-        )));
+        return Err(fail(PartsProblem::MixedCounts {
+            count,
+            first_dir: first_dir.to_path_buf(),
+            other_count: other.count,
+            other_dir: dir.to_path_buf(),
+        }));
     }
     if !missing.is_empty() {
-        return Err(fail(format!(
-            "shard(s) {} of the export are missing; run `insgen export-coco --shard I/{count}` for them \
-             and give their work directories to the merge",
-            missing.join(", ")
-        )));
+        return Err(fail(PartsProblem::MissingShards { missing, count }));
     }
     if let Some((s, info, _)) = infos.iter().find(|(_, i, _)| i.options != first.options) {
-        return Err(fail(format!(
-            "shard {s} was exported with other options than shard {first_shard} ({:?} vs {:?})",
-            info.options, first.options
-        )));
+        return Err(fail(PartsProblem::Options {
+            shard: *s,
+            first_shard: *first_shard,
+            options: Box::new(info.options.clone()),
+            first_options: Box::new(first.options.clone()),
+        }));
     }
 
     // Per split: the parts' datasets, checked to describe the same areas.

@@ -4,12 +4,15 @@
 
 use std::path::Path;
 
+use super::error::ImageProblem;
 use super::CocoError;
 
 /// An 8-bit RGB image, row-major.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct RgbImage {
+    /// Pixels.
     pub width: u32,
+    /// Pixels.
     pub height: u32,
     /// `width × height × 3` bytes.
     pub data: Vec<u8>,
@@ -173,10 +176,7 @@ pub fn read_png_rgb(path: &Path) -> Result<RgbImage, CocoError> {
         png::ColorType::Rgba => 4,
         // EXPAND turns palettes into RGB(A); keep a clear error should that ever change.
         png::ColorType::Indexed => {
-            return Err(CocoError::Image {
-                path: path.to_path_buf(),
-                reason: "unexpanded palette PNG".into(),
-            })
+            return Err(CocoError::Image { path: path.to_path_buf(), problem: ImageProblem::Palette })
         }
     };
     let (w, h) = (info.width as usize, info.height as usize);
@@ -217,7 +217,9 @@ fn hsv_to_rgb(h: f64, s: f64, v: f64) -> Rgb {
 /// One series of a grouped bar chart.
 #[derive(Debug, Clone)]
 pub struct Series {
+    /// Legend label.
     pub name: String,
+    /// Bar colour.
     pub colour: Rgb,
     /// One value per category.
     pub values: Vec<f64>,

@@ -23,6 +23,7 @@ const MAX_PROBLEMS: usize = 50;
 pub struct Prediction {
     /// Position of the entry in the results file.
     pub index: usize,
+    /// The predicted category.
     pub category_id: u32,
     /// Confidence (any finite number; higher = more confident).
     pub score: f64,

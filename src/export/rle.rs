@@ -36,25 +36,70 @@ const MAX_GROUPS: usize = 7;
 pub enum RleError {
     /// The pixel buffer does not hold `height × width` values.
     #[error("mask buffer holds {len} values but size is {height}×{width} (height × width)")]
-    BufferSize { len: usize, height: u32, width: u32 },
+    BufferSize {
+        /// Values in the buffer.
+        len: usize,
+        /// Mask height, pixels.
+        height: u32,
+        /// Mask width, pixels.
+        width: u32,
+    },
     /// A label image holds a label above the number of labels announced.
     #[error("label {label} at pixel (x={x}, y={y}) is above the {n_labels} labels announced")]
-    LabelOutOfRange { label: u32, n_labels: usize, x: u32, y: u32 },
+    LabelOutOfRange {
+        /// The label found.
+        label: u32,
+        /// Labels announced.
+        n_labels: usize,
+        /// Pixel column.
+        x: u32,
+        /// Pixel row.
+        y: u32,
+    },
     /// A compressed RLE string holds a byte outside `'0'..='o'` (48..=111).
     #[error("compressed RLE has byte {byte:#04x} ({shown}) at offset {offset}; only '0'..='o' are valid")]
-    BadChar { offset: usize, byte: u8, shown: String },
+    BadChar {
+        /// Byte offset in the string.
+        offset: usize,
+        /// The byte.
+        byte: u8,
+        /// The byte as printable text.
+        shown: String,
+    },
     /// The string ends inside a count (the last group had its "more" bit set).
     #[error("compressed RLE ends in the middle of a count (offset {offset})")]
-    Truncated { offset: usize },
+    Truncated {
+        /// Byte offset where the string ends.
+        offset: usize,
+    },
     /// A count does not fit in 32 bits or is negative.
     #[error("count #{index} decodes to {value}, outside 0..=4294967295")]
-    CountOutOfRange { index: usize, value: i64 },
+    CountOutOfRange {
+        /// 0-based index of the count.
+        index: usize,
+        /// The value it decodes to.
+        value: i64,
+    },
     /// The counts do not cover the image exactly.
     #[error("counts sum to {sum} pixels but size {height}×{width} has {pixels}")]
-    CountSum { sum: u64, height: u32, width: u32, pixels: u64 },
+    CountSum {
+        /// Sum of the counts, pixels.
+        sum: u64,
+        /// Mask height, pixels.
+        height: u32,
+        /// Mask width, pixels.
+        width: u32,
+        /// height × width.
+        pixels: u64,
+    },
     /// Masks of different sizes were merged.
     #[error("cannot merge masks of size {a:?} and {b:?} ([height, width])")]
-    MergeSize { a: [u32; 2], b: [u32; 2] },
+    MergeSize {
+        /// `[height, width]` of one mask, pixels.
+        a: [u32; 2],
+        /// `[height, width]` of the other, pixels.
+        b: [u32; 2],
+    },
 }
 
 /// A run-length encoded binary mask (pycocotools' `RLE` struct).

@@ -32,8 +32,11 @@ pub const MEDIUM_MAX_PX: u64 = 96 * 96;
 /// Counts per COCO size class.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
 pub struct SizeCounts {
+    /// Annotations with area < 32² px.
     pub small: u64,
+    /// Annotations with 32² ≤ area < 96² px.
     pub medium: u64,
+    /// Annotations with area ≥ 96² px.
     pub large: u64,
 }
 
@@ -49,18 +52,27 @@ pub struct PerImageBin {
 /// Statistics of one split.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SplitStats {
+    /// `train`, `val` or `test`.
     pub split: String,
+    /// Areas in the split.
     pub areas: Vec<String>,
+    /// Images.
     pub images: u64,
+    /// Images with no annotation.
     pub images_without_annotations: u64,
+    /// Annotations.
     pub annotations: u64,
     /// Annotations with `iscrowd = 1`.
     pub crowd: u64,
     /// Annotations touching the image border.
     pub truncated: u64,
+    /// Mean annotations per image.
     pub mean_instances_per_image: f64,
+    /// Most annotations on one image.
     pub max_instances_per_image: u64,
+    /// Histogram of annotations per image.
     pub instances_per_image: Vec<PerImageBin>,
+    /// Annotations by COCO size class.
     pub sizes: SizeCounts,
     /// Median annotation area, px (0 without annotations).
     pub median_area_px: u64,
@@ -77,8 +89,11 @@ pub const CONSISTENCY_BINS: usize = 10;
 pub struct ConsistencyStats {
     /// Images with a score.
     pub images: u64,
+    /// Mean score (0–1).
     pub mean: f64,
+    /// Lowest score (0–1).
     pub min: f64,
+    /// Median score (0–1).
     pub median: f64,
     /// Images per tenth of the score ([`CONSISTENCY_BINS`] bins, 1.0 in the last).
     pub bins: Vec<u64>,
@@ -110,9 +125,13 @@ impl ConsistencyStats {
 /// Statistics of one area.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct AreaStats {
+    /// Area (scene) name.
     pub area: String,
+    /// `train`, `val` or `test`.
     pub split: String,
+    /// Images of the area.
     pub images: u64,
+    /// Annotations of the area.
     pub annotations: u64,
     /// Distinct buildings with at least one annotation.
     pub buildings_seen: u64,
@@ -127,8 +146,11 @@ pub struct AreaStats {
 /// The whole report (`stats.json`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Stats {
+    /// insgen's version.
     pub insgen_version: String,
+    /// Per split, in [`super::Split::ALL`] order.
     pub splits: Vec<SplitStats>,
+    /// Per area, by name.
     pub areas: Vec<AreaStats>,
 }
 

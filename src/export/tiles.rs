@@ -47,6 +47,7 @@ pub enum TilesetExportError {
     /// The prepared scene cannot be loaded.
     #[error("loading the prepared scene in {}", dir.display())]
     Scene {
+        /// The scene directory.
         dir: PathBuf,
         /// Boxed: a scene error is large and this one is rare.
         #[source]
@@ -54,7 +55,11 @@ pub enum TilesetExportError {
     },
     /// The scene has no triangles: there is nothing to place on the globe.
     #[error("{}: the scene has no triangles; nothing to write", dir.display())]
-    Empty { dir: PathBuf },
+    Empty {
+        /// The scene directory.
+        dir: PathBuf,
+    },
+    /// Writing a file failed.
     #[error(transparent)]
     File(#[from] FileError),
 }
@@ -68,6 +73,7 @@ pub struct TilesetSummary {
     pub content: PathBuf,
     /// The root bounding box in ENU metres: centre and half sizes (east, north, up).
     pub centre_enu_m: [f64; 3],
+    /// Half sizes of the root box (east, north, up), metres.
     pub half_size_m: [f64; 3],
 }
 

@@ -30,7 +30,9 @@ use crate::util::Progress;
 /// One problem found, with the file it concerns.
 #[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
 pub struct Problem {
+    /// The file concerned.
     pub file: PathBuf,
+    /// What is wrong, with the JSON path where there is one.
     pub what: String,
 }
 
@@ -43,14 +45,16 @@ impl std::fmt::Display for Problem {
 /// What `verify` checked and found.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct VerifyReport {
+    /// COCO files checked.
     pub coco_files: usize,
+    /// Images checked.
     pub images: usize,
+    /// Annotations checked.
     pub annotations: usize,
+    /// Every problem found (empty: the dataset is sound).
     pub problems: Vec<Problem>,
 }
 
-/// Checks the dataset in `dir` (see the module doc). Never fails: every problem, unreadable files
-/// included, is a [`Problem`] in the report.
 /// The dataset folder a user's path means: the folder itself, its `dataset.json`, or the work
 /// directory that holds the export in `coco/`.
 pub fn dataset_dir(path: &Path) -> PathBuf {
@@ -64,6 +68,8 @@ pub fn dataset_dir(path: &Path) -> PathBuf {
     path.to_path_buf()
 }
 
+/// Checks the dataset in `dir` (see the module doc). Never fails: every problem, unreadable files
+/// included, is a [`Problem`] in the report.
 pub fn verify(dir: &Path, progress: &dyn Progress) -> VerifyReport {
     let mut report = VerifyReport::default();
     let problem = |file: &Path, what: String| Problem { file: file.to_path_buf(), what };

@@ -55,7 +55,9 @@ pub struct YoloPlan {
 /// Counts of one split.
 #[derive(Debug, Clone, Default, PartialEq, Eq, Serialize)]
 pub struct YoloSplitSummary {
+    /// `train`, `val` or `test`.
     pub split: String,
+    /// Images written.
     pub images: u64,
     /// Label lines written.
     pub instances: u64,
@@ -218,7 +220,7 @@ fn write_frame(
 fn link_image(target: &Path, link: &Path) -> Result<(), CocoError> {
     let abs_target = std::fs::canonicalize(target).map_err(|_| CocoError::Layout {
         path: target.to_path_buf(),
-        reason: "the image named by the COCO file does not exist; run `insgen export-coco` again".into(),
+        problem: super::error::LayoutProblem::MissingImage,
     })?;
     let dir = link.parent().expect("a link path has a parent: it ends in <area>/<camera>/<file>");
     crate::util::create_dir_all(dir)?;

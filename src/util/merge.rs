@@ -31,12 +31,16 @@ pub const COMMAND_LOG: &str = "commands.jsonl";
 /// Why a merge was refused.
 #[derive(Debug, thiserror::Error)]
 pub enum MergeError {
+    /// Reading, writing or listing a file failed.
     #[error(transparent)]
     File(#[from] FileError),
+    /// Stopped by Ctrl-C.
     #[error(transparent)]
     Interrupted(#[from] super::interrupt::Interrupted),
+    /// A source or the destination is not a directory.
     #[error("{} is not a directory", .0.display())]
     NotADirectory(PathBuf),
+    /// A directory given both as a source and as the destination.
     #[error("{} is both a source and the destination", .0.display())]
     SourceIsDestination(PathBuf),
     #[error(
@@ -45,7 +49,14 @@ pub enum MergeError {
         first.0.display(),
         first.1
     )]
-    Conflicts { count: usize, first: (PathBuf, String) },
+    /// Files of the same path differ between the sources.
+    Conflicts {
+        /// Files that differ.
+        count: usize,
+        /// The first of them and how it differs.
+        first: (PathBuf, String),
+    },
+    /// A symbolic link or special file in a source.
     #[error("{} is a symbolic link or special file; merge copies regular files only", .0.display())]
     NotAFile(PathBuf),
     #[error(
@@ -55,7 +66,17 @@ pub enum MergeError {
         first.display(),
         second.display()
     )]
-    PartConflict { report: PathBuf, shard: Shard, first: PathBuf, second: PathBuf },
+    /// Two parts of one export claim the same shard.
+    PartConflict {
+        /// The export directory the parts belong to.
+        report: PathBuf,
+        /// The shard claimed twice.
+        shard: Shard,
+        /// One part directory.
+        first: PathBuf,
+        /// The other.
+        second: PathBuf,
+    },
 }
 
 /// What a merge did.

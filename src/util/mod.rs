@@ -29,11 +29,13 @@ pub struct FileError {
     pub action: &'static str,
     /// The file or directory concerned.
     pub path: PathBuf,
+    /// The I/O error.
     #[source]
     pub source: io::Error,
 }
 
 impl FileError {
+    /// A [`FileError`]: `action` ("reading", …) failed on `path` with `source`.
     pub fn new(action: &'static str, path: &Path, source: io::Error) -> Self {
         Self { action, path: path.to_path_buf(), source }
     }

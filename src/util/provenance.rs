@@ -36,6 +36,7 @@ pub struct CommandRecord {
     pub seconds: f64,
     /// insgen's version and commit.
     pub insgen_version: String,
+    /// The commit insgen was built from (empty when unknown).
     pub git_commit: String,
 }
 

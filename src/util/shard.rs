@@ -22,34 +22,76 @@ pub struct Shard {
 /// Why a shard specification was refused; the message quotes the text given.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum ShardError {
+    /// Not of the form `I/N` (the text given).
     #[error("expected I/N (e.g. 0/4), got {0:?}")]
     NotIOverN(String),
+    /// `I` is not a non-negative integer (the text given).
     #[error("shard index {0:?} is not a non-negative integer")]
     Index(String),
+    /// `N` is not a positive integer (the text given).
     #[error("shard count {0:?} is not a positive integer")]
     Count(String),
+    /// `N` is 0.
     #[error("shard count must be at least 1")]
     Zero,
+    /// `I` is not below `N`.
     #[error("shard index must be below the count (0..{count}), got {index}/{count}")]
-    IndexTooLarge { index: u32, count: u32 },
+    IndexTooLarge {
+        /// The index given.
+        index: u32,
+        /// The count given.
+        count: u32,
+    },
     #[error(
         "--shard auto found no scheduler task index: set by a Slurm job array (SLURM_ARRAY_TASK_ID) or a \
          Kubernetes Indexed Job (JOB_COMPLETION_INDEX)"
     )]
+    /// `--shard auto` outside a Slurm job array or Kubernetes Indexed Job.
     NoScheduler,
+    /// A scheduler variable that is not a non-negative integer.
     #[error("{name}={value:?} is not a non-negative integer")]
-    BadVariable { name: &'static str, value: String },
+    BadVariable {
+        /// The environment variable.
+        name: &'static str,
+        /// Its value.
+        value: String,
+    },
     #[error(
         "JOB_COMPLETION_INDEX is set but Kubernetes does not export the number of completions: give it \
          as --shard auto/N"
     )]
+    /// A Kubernetes Indexed Job without `--shard auto/N`: the count is not exported.
     CountUnknown,
+    /// A shard error in the values a scheduler set.
     #[error("{source} (from {scheduler})")]
-    FromScheduler { scheduler: Scheduler, source: Box<ShardError> },
+    FromScheduler {
+        /// The scheduler.
+        scheduler: Scheduler,
+        /// What is wrong with its values.
+        source: Box<ShardError>,
+    },
+    /// A part holds another number of items than its shard should.
     #[error("shard {index}/{count} holds {found} item(s); of {total} it should hold {expected}")]
-    PartLength { index: u32, count: u32, total: usize, expected: usize, found: usize },
+    PartLength {
+        /// The shard's index.
+        index: u32,
+        /// The shard count.
+        count: u32,
+        /// Items in all shards.
+        total: usize,
+        /// Items the shard should hold.
+        expected: usize,
+        /// Items it holds.
+        found: usize,
+    },
+    /// Not every shard given exactly once.
     #[error("{found} part(s) for {count} shards; every shard 0..{count} must be given once")]
-    PartCount { count: u32, found: usize },
+    PartCount {
+        /// The shard count.
+        count: u32,
+        /// Parts given.
+        found: usize,
+    },
 }
 
 /// The directory, inside a report's output directory, that holds the parts shards write of it:
@@ -81,8 +123,13 @@ impl std::fmt::Display for Scheduler {
 /// one, from the environment when the command starts).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ShardSpec {
+    /// `I/N`: this shard.
     Fixed(Shard),
-    Auto { count: Option<u32> },
+    /// `auto` or `auto/N`: the shard from the scheduler's environment.
+    Auto {
+        /// `N` when given (needed under Kubernetes).
+        count: Option<u32>,
+    },
 }
 
 impl FromStr for ShardSpec {
