@@ -159,9 +159,9 @@ fn main() {
         "# RLE encoding: insgen vs pycocotools\n\nWritten by `cargo bench --bench rle` (benches/rle.rs). Best of \
          several runs, one thread, same machine, same masks. Synthetic city frames (overlapping rectangles, \
          rotated blocks, ellipses, courtyards), 8-connected components.\n\n\
-         - *insgen all-at-once*: `coco::rle::encode_labels` — every component of the frame from the row-major \
+         - *insgen all-at-once*: `export::rle::encode_labels` — every component of the frame from the row-major \
          label image in one pass (what `export-coco` uses).\n\
-         - *insgen per mask*: `coco::rle::encode` of each prepared row-major binary mask.\n\
+         - *insgen per mask*: `export::rle::encode` of each prepared row-major binary mask.\n\
          - *pycocotools stack*: `pycocotools.mask.encode` of the prepared Fortran (h, w, n) stack — its best \
          case.\n\
          - *pycocotools from labels*: `encode(asfortranarray(labels == k))` per component, the usual call.\n\n\
