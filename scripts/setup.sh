@@ -73,7 +73,7 @@ make_venv() { # dir, stamp text, pip args...
     printf '%s' "$stamp" > "$dir/.insgen-stamp"
 }
 
-PY_REQS=(numpy pyproj pycocotools jsonschema pycolmap panopticapi-lite pyyaml)
+PY_REQS=(numpy pyproj pycocotools jsonschema pycolmap panopticapi-lite pyyaml "datasets>=3,<4")
 make_venv "$ROOT/.venv" "${PY_REQS[*]}" "${PY_REQS[@]}"
 
 if [ -f scripts/setup_blender.sh ]; then

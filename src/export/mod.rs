@@ -15,6 +15,8 @@
 //! - [`polygon`]: outer-boundary polygons for `--polygons`;
 //! - [`parts`]: the part a shard of the frames writes (`export-coco --shard`), and the parts combined
 //!   into the export one process writes (`insgen merge`);
+//! - [`bundle`]: the photos and ID maps placed inside the export folder (hard links or copies), so
+//!   that the folder alone is the dataset;
 //! - [`frames`]: an existing export read back, each image's masks checked against its ID map;
 //! - [`results`]: reading and validating COCO results (predictions), which the localizer consumes.
 //!
@@ -34,6 +36,7 @@
 //! styles of real producers, the test tilesets of the photogrammetry path). GLB contents are
 //! assembled by [`crate::util::glb::GlbBuilder`], the crate's one GLB writer.
 
+pub mod bundle;
 pub mod card;
 pub mod city_tileset;
 pub mod coco;
