@@ -26,29 +26,31 @@ use super::CocoError;
 /// The image root of a self-contained export: its names are relative to the folder itself.
 pub const SELF_ROOT: &str = ".";
 
-/// Rewrites the names of `datasets` (relative to `workdir`) to names inside `out_dir` and places
-/// the files there; a photo that does not exist is skipped only in a label-only export
-/// (`info.images_missing`), whose photos are still to come. Returns how many files were (re)written.
-///
-/// # Errors
-/// [`CocoError::File`] naming a file that could not be read (an ID map that vanished since the export
-/// read it) or written; [`CocoError::Interrupted`].
-pub fn place_files(
-    workdir: &Path,
-    out_dir: &Path,
-    datasets: &mut [(Split, Dataset)],
-) -> Result<u64, CocoError> {
-    // (source, destination, may be missing)
-    let mut jobs: Vec<(PathBuf, PathBuf, bool)> = Vec::new();
+/// A file [`place_files`] puts in the export: `from` relative to the work directory, `to` relative to
+/// the export folder.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Placement {
+    /// The file in the work directory.
+    pub from: String,
+    /// Its place in the export folder.
+    pub to: String,
+    /// A photo of a label-only export (`info.images_missing`), which may not exist yet.
+    pub optional: bool,
+}
+
+/// Rewrites the names of `datasets` (relative to the work directory) to names inside the export
+/// folder, with `info.image_root` = [`SELF_ROOT`]; returns the files to place. Writes nothing (the
+/// merge predicts the combined COCO files with it).
+pub fn names_inside(datasets: &mut [(Split, Dataset)]) -> Vec<Placement> {
+    let mut out = Vec::new();
     for (split, ds) in datasets.iter_mut() {
         let split = split.as_str();
         let label_only = ds.info.images_missing;
         ds.info.image_root = SELF_ROOT.to_string();
         for im in &mut ds.images {
             let file = |name: &str| name.rsplit('/').next().unwrap_or(name).to_string();
-            let mut place = |name: &mut String, inside: String, optional: bool| {
-                jobs.push((workdir.join(&*name), out_dir.join(&inside), optional));
-                *name = inside;
+            let mut place = |name: &mut String, to: String, optional: bool| {
+                out.push(Placement { from: std::mem::replace(name, to.clone()), to, optional });
             };
             let image = ExportDir::image_name(split, &im.area_name, &im.camera, &file(&im.file_name));
             place(&mut im.file_name, image, label_only);
@@ -60,11 +62,31 @@ pub fn place_files(
             place(&mut instances, list(&mask), false);
             place(&mut im.mask_file, mask, false);
             if let Some(ignore) = &mut im.ignore_file {
-                let inside = ExportDir::mask_name(split, &im.area_name, &im.camera, &file(ignore));
-                place(ignore, inside, false);
+                let to = ExportDir::mask_name(split, &im.area_name, &im.camera, &file(ignore));
+                place(ignore, to, false);
             }
         }
     }
+    out
+}
+
+/// Rewrites the names of `datasets` as [`names_inside`] does and places the files in `out_dir`,
+/// removing what an earlier export placed there that no image names now; a photo that does not
+/// exist is skipped only in a label-only export, whose photos are still to come. Returns how many
+/// files were (re)written.
+///
+/// # Errors
+/// [`CocoError::File`] naming a file that could not be read (an ID map that vanished since the export
+/// read it) or written; [`CocoError::Interrupted`].
+pub fn place_files(
+    workdir: &Path,
+    out_dir: &Path,
+    datasets: &mut [(Split, Dataset)],
+) -> Result<u64, CocoError> {
+    let jobs: Vec<(PathBuf, PathBuf, bool)> = names_inside(datasets)
+        .into_iter()
+        .map(|p| (workdir.join(&p.from), out_dir.join(&p.to), p.optional))
+        .collect();
     let written = jobs
         .par_iter()
         .map(|(src, dst, optional)| {

@@ -11,7 +11,8 @@
 //!
 //! Writes `instances_train.json`, `instances_val.json` and `instances_test.json` (see [`super::format`])
 //! into the output directory — always all three, possibly empty, so that downstream tools find the same
-//! layout. Splits are by area, never by frame; `--holdout` moves whole areas to `test`. The output is
+//! layout — and places the photos and ID maps they name inside the output directory ([`super::bundle`];
+//! `--link-root` names the work directory's files instead). Splits are by area, never by frame; `--holdout` moves whole areas to `test`. The output is
 //! deterministic: areas, cameras and frames are sorted by name, ids are assigned in that order, no dates.
 //! Frames are processed in parallel (rayon); files are written atomically and only when every frame
 //! succeeded.

@@ -28,8 +28,9 @@
 //!   (`README.md`) and the check of a dataset against them (`insgen verify`);
 //! - [`raster`]: a tiny raster for figures (ID maps are [`crate::scene::IdMap`]).
 //!
-//! Made from a COCO export: [`panoptic`] (`export-panoptic`, COCO panoptic PNGs and JSON) and [`yolo`]
-//! (`export-yolo`, Ultralytics YOLO segmentation labels and `data.yaml`).
+//! Made from a COCO export: [`panoptic`] (`export-panoptic`, COCO panoptic PNGs and JSON), [`yolo`]
+//! (`export-yolo`, Ultralytics YOLO segmentation labels and `data.yaml`) and [`hf`] (`export-hf`, the
+//! Hugging Face `datasets` image folder metadata of a self-contained export).
 //!
 //! Made from a prepared scene: [`tiles`] (`export-tiles`, the scene as a 3D Tiles 1.1 tileset placed
 //! on the globe) and [`city_tileset`] (`export-tiles --style`, textured multi-level tilesets in the
@@ -43,6 +44,7 @@ pub mod coco;
 pub mod error;
 pub mod format;
 pub mod frames;
+pub mod hf;
 pub mod learnability;
 pub mod manifest;
 pub mod panoptic;

@@ -392,7 +392,7 @@ mod tests {
             assert_eq!(fs::metadata(&src).unwrap().ino(), fs::metadata(&dst).unwrap().ino(), "a hard link");
         }
         assert!(!link_or_copy(&src, &dst).unwrap(), "the same file is kept");
-        fs::write(&src.with_extension("new"), b"other").unwrap();
+        fs::write(src.with_extension("new"), b"other").unwrap();
         fs::rename(src.with_extension("new"), &src).unwrap();
         assert!(link_or_copy(&src, &dst).unwrap(), "other bytes are replaced");
         assert_eq!(fs::read(&dst).unwrap(), b"other");

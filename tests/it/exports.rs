@@ -350,6 +350,14 @@ fn a_moved_export_folder_verifies_and_loads_in_every_client() {
     let wd_arg = wd.to_str().unwrap();
     run_ok(tmp.path(), &["--workdir", wd_arg, "export-yolo"]);
     run_ok(tmp.path(), &["--workdir", wd_arg, "export-panoptic"]);
+    let out = run_ok(tmp.path(), &["--workdir", wd_arg, "export-hf"]);
+    assert!(out.contains("train: 5 rows"), "{out}");
+    for split in ["train", "val", "test"] {
+        let text = std::fs::read_to_string(p.out_dir.join(format!("images/{split}/metadata.jsonl"))).unwrap();
+        for line in text.lines() {
+            assert_schema("hf_metadata.schema.json", &serde_json::from_str::<Value>(line).unwrap());
+        }
+    }
     let coco_images: usize = first
         .iter()
         .map(|b| serde_json::from_slice::<Value>(b).unwrap()["images"].as_array().unwrap().len())
@@ -380,6 +388,17 @@ fn a_moved_export_folder_verifies_and_loads_in_every_client() {
     }
     assert_yolo_exact(&py, &yolo_copy.join("data.yaml"), &moved);
     assert_panoptic_exact(&py, &moved);
+    // Hugging Face datasets loads the moved folder's images with their instances.
+    let Some(py) = python_with(&["datasets", "pycocotools"]) else { return };
+    let r = exports_check(&py, &["hf", moved.to_str().unwrap()]);
+    assert_eq!(r["loaded_splits"], serde_json::json!(["test", "train", "validation"]));
+    for split in ["train", "val", "test"] {
+        let s = &r["splits"][split];
+        eprintln!("datasets {split}: {} rows, {} objects, {} decoded", s["rows"], s["objects"], s["decoded"]);
+        assert_eq!(s["problems"], serde_json::json!([]), "{split}");
+        assert_eq!((&s["rows"], &s["decoded"]), (&s["coco_images"], &s["coco_images"]), "{split}");
+        assert!(s["objects"].as_u64().unwrap() > 0, "{split}");
+    }
 }
 
 // ------------------------------------------------------------------------------------------ 3D Tiles
