@@ -6,6 +6,8 @@ parse it and assert on it) and exits non-zero only when a client refuses to read
 
   colmap DIR POSES_JSONL   pycolmap.Reconstruction(DIR): cameras, images and poses against poses.jsonl
   panoptic COCO_DIR        panopticapi (rgb2id, pq_compute) + pycocotools: every panoptic_<split>.json
+  hf COCO_DIR              Hugging Face datasets: load_dataset("imagefolder", data_dir=COCO_DIR/images);
+                           rows, decoded photos and every object against instances_<split>.json
   yolo DATA_YAML COCO_DIR  Ultralytics' label rules (reimplemented from ultralytics/data/utils.py,
                            verify_image_label and img2label_paths; the ultralytics package pulls in
                            torch) + an even-odd rasteriser: IoU of every label line with its instance
@@ -292,6 +294,57 @@ def yolo(data_yaml, coco_dir):
     print(json.dumps(out))
 
 
+def hf(coco_dir):
+    import datasets
+    from pycocotools import mask as mask_utils
+
+    ds = datasets.load_dataset("imagefolder", data_dir=os.path.join(coco_dir, "images"))
+    out = {"datasets": datasets.__version__, "loaded_splits": sorted(ds.keys()), "splits": {}}
+    for split, hf_split in (("train", "train"), ("val", "validation"), ("test", "test")):
+        with open(os.path.join(coco_dir, f"instances_{split}.json")) as f:
+            inst = json.load(f)
+        anns = {}
+        for a in inst["annotations"]:
+            anns.setdefault(a["image_id"], []).append(a)
+        images = {im["id"]: im for im in inst["images"]}
+        r = {"coco_images": len(images), "rows": 0, "objects": 0, "decoded": 0, "problems": []}
+        out["splits"][split] = r
+        if hf_split not in ds:
+            continue
+        for row in ds[hf_split]:
+            r["rows"] += 1
+            im = images.get(row["image_id"])
+            if im is None:
+                r["problems"].append(f"row of image {row['image_id']}: not in instances_{split}.json")
+                continue
+            photo = row["image"]
+            photo.load()
+            r["decoded"] += 1
+            if photo.size != (im["width"], im["height"]):
+                r["problems"].append(f"image {im['id']}: {photo.size}, COCO says {im['width']}x{im['height']}")
+            if (row["area_name"], row["camera"], row["frame"]) != (im["area_name"], im["camera"], im["frame"]):
+                r["problems"].append(f"image {im['id']}: other area, camera or frame")
+            o = row["objects"]
+            expected = anns.get(im["id"], [])
+            if o["id"] != [a["id"] for a in expected]:
+                r["problems"].append(f"image {im['id']}: objects {o['id']}, COCO {[a['id'] for a in expected]}")
+                continue
+            for k, a in enumerate(expected):
+                for key in ("bbox", "category_id", "area", "iscrowd", "building_id"):
+                    if o[key][k] != a[key]:
+                        r["problems"].append(f"annotation {a['id']}: {key} {o[key][k]} != {a[key]}")
+                seg = o["segmentation"][k]
+                got = mask_utils.decode({"size": seg["size"], "counts": seg["counts"].encode()})
+                ref_json = a.get("mask_rle") or a["segmentation"]
+                if isinstance(ref_json["counts"], list):
+                    ref_json = mask_utils.frPyObjects(ref_json, *ref_json["size"])
+                ref = mask_utils.decode(ref_json)
+                if not np.array_equal(got, ref):
+                    r["problems"].append(f"annotation {a['id']}: mask differs in {int((got != ref).sum())} px")
+                r["objects"] += 1
+    print(json.dumps(out))
+
+
 if __name__ == "__main__":
     cmd, args = sys.argv[1], sys.argv[2:]
-    {"colmap": colmap, "panoptic": panoptic, "yolo": yolo}[cmd](*args)
+    {"colmap": colmap, "panoptic": panoptic, "yolo": yolo, "hf": hf}[cmd](*args)

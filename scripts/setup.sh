@@ -16,7 +16,8 @@
 #   Python virtual environments (in the repo, git-ignored)
 #     .venv                     numpy, pyproj (CRS reference), pycocotools (COCO checks), jsonschema,
 #                               pycolmap (loads the COLMAP export), panopticapi-lite (the COCO panoptic
-#                               API: rgb2id, pq_compute), pyyaml (reads the YOLO data.yaml)
+#                               API: rgb2id, pq_compute), pyyaml (reads the YOLO data.yaml), datasets
+#                               (Hugging Face: loads export-hf; pandas/pyarrow pinned to what it was tested with)
 #     .venv-blender             bpy 5.0.1 (Blender as a Python module, CPython 3.11) for RGB rendering
 #   npm (in the repo, git-ignored)
 #     node_modules/             gltf-validator (Khronos) to validate the scene GLB; 3d-tiles-tools and
@@ -73,7 +74,7 @@ make_venv() { # dir, stamp text, pip args...
     printf '%s' "$stamp" > "$dir/.insgen-stamp"
 }
 
-PY_REQS=(numpy pyproj pycocotools jsonschema pycolmap panopticapi-lite pyyaml)
+PY_REQS=(numpy pyproj pycocotools jsonschema pycolmap panopticapi-lite pyyaml "datasets>=3,<4" "pandas>=2,<3" "pyarrow>=15,<20")
 make_venv "$ROOT/.venv" "${PY_REQS[*]}" "${PY_REQS[@]}"
 
 if [ -f scripts/setup_blender.sh ]; then

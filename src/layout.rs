@@ -17,8 +17,17 @@
 //!
 //! A stage asks a [`WorkDir`] for an [`AreaDir`] and a [`CameraDir`] and those for paths; no stage
 //! spells a folder name itself, so a file moved here moves for every stage, `merge` and `verify`.
-//! The names of an export's files (`dataset.json`, `README.md`, `instances_<split>.json`, `parts/`)
-//! are in [`ExportDir`].
+//! The names of an export's files are in [`ExportDir`]:
+//!
+//! ```text
+//! <export>/                            export-coco --out (default <workdir>/coco)
+//!   dataset.json, README.md            the manifest and the dataset card
+//!   instances_<split>.json             COCO files; names relative to the folder (image_root ".")
+//!   images/<split>/<area>/<camera>/<frame>.png         photos (hard links or copies)
+//!   images/<split>/metadata.jsonl      export-hf: the Hugging Face imagefolder metadata
+//!   masks/<split>/<area>/<camera>/<frame>.png          ID maps, <frame>.instances.json (and .ignore.png)
+//!   parts/<i>-of-<N>/                  what shards write before `merge`
+//! ```
 
 use std::path::{Path, PathBuf};
 
@@ -62,6 +71,12 @@ pub const PARTS_DIR: &str = "parts";
 pub const DATASET_FILE: &str = "dataset.json";
 /// An export's dataset card.
 pub const CARD_FILE: &str = "README.md";
+/// The photos inside a self-contained export: `images/<split>/<area>/<camera>/<frame>.png`.
+pub const EXPORT_IMAGES_DIR: &str = "images";
+/// The ID maps inside a self-contained export: `masks/<split>/<area>/<camera>/<frame>.png`.
+pub const EXPORT_MASKS_DIR: &str = "masks";
+/// The Hugging Face `imagefolder` metadata of a split, in `images/<split>/` (`export-hf`).
+pub const HF_METADATA_FILE: &str = "metadata.jsonl";
 
 /// A work directory (`--workdir`): one folder per area, and the provenance log.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -224,6 +239,38 @@ impl ExportDir {
     pub fn parts(&self) -> PathBuf {
         self.0.join(PARTS_DIR)
     }
+
+    /// `images/`, the photos of a self-contained export.
+    pub fn images(&self) -> PathBuf {
+        self.0.join(EXPORT_IMAGES_DIR)
+    }
+
+    /// `masks/`, the ID maps of a self-contained export.
+    pub fn masks(&self) -> PathBuf {
+        self.0.join(EXPORT_MASKS_DIR)
+    }
+
+    /// `images/<split>/`, the photos of one split (and its Hugging Face metadata).
+    pub fn split_images(&self, split: &str) -> PathBuf {
+        self.images().join(split)
+    }
+
+    /// `images/<split>/metadata.jsonl`, the Hugging Face `imagefolder` metadata of a split.
+    pub fn hf_metadata(&self, split: &str) -> PathBuf {
+        self.split_images(split).join(HF_METADATA_FILE)
+    }
+
+    /// The name, relative to the export folder (`/`-separated, as COCO files hold it), of a frame's
+    /// photo: `images/<split>/<area>/<camera>/<file>`.
+    pub fn image_name(split: &str, area: &str, camera: &str, file: &str) -> String {
+        format!("{EXPORT_IMAGES_DIR}/{split}/{area}/{camera}/{file}")
+    }
+
+    /// The name, relative to the export folder, of a frame's ID map (or another per-frame mask):
+    /// `masks/<split>/<area>/<camera>/<file>`.
+    pub fn mask_name(split: &str, area: &str, camera: &str, file: &str) -> String {
+        format!("{EXPORT_MASKS_DIR}/{split}/{area}/{camera}/{file}")
+    }
 }
 
 #[cfg(test)]
@@ -244,6 +291,9 @@ mod tests {
         let e = ExportDir::new("runs/coco");
         assert_eq!(e.instances("val"), Path::new("runs/coco/instances_val.json"));
         assert_eq!(e.manifest(), Path::new("runs/coco/dataset.json"));
+        assert_eq!(e.hf_metadata("val"), Path::new("runs/coco/images/val/metadata.jsonl"));
+        assert_eq!(ExportDir::image_name("train", "demo", "cam2", "f.png"), "images/train/demo/cam2/f.png");
+        assert_eq!(ExportDir::mask_name("test", "demo", "cam2", "f.png"), "masks/test/demo/cam2/f.png");
     }
 
     #[test]

@@ -39,7 +39,10 @@ impl From<TruncatedArg> for TruncatedPolicy {
 ///
 /// Writes instances_train.json, instances_val.json and instances_test.json (splits come from the
 /// areas' manifests, never from frames), stats.md, stats.json, hist_*.png and contact_sheet.png.
-/// Image file names are relative to the workdir (`info.image_root`, normally `..`). Segmentations are
+/// The folder is self-contained: each photo is placed at images/<split>/<area>/<camera>/<frame>.png and
+/// each ID map under masks/<split>/… (hard links, copies across file systems), and every name is
+/// relative to the folder (`info.image_root` = `.`), so it can be moved, synced or archived alone
+/// (--link-root names the work directory's files instead). Segmentations are
 /// compressed RLE exactly as pycocotools writes them; one annotation per connected component unless
 /// --per-building.
 #[derive(Debug, Clone, clap::Args)]
@@ -100,6 +103,15 @@ pub struct Args {
     /// into the export one process writes (same ids, same bytes) and computes the statistics then.
     #[arg(long, value_name = "I/N|auto")]
     pub shard: Option<ShardSpec>,
+    /// Name the photos and ID maps where they lie in the work directory (`info.image_root` = `..`)
+    /// instead of placing them in the export folder.
+    ///
+    /// By default the export folder is self-contained: photos in images/<split>/<area>/<camera>/ and
+    /// ID maps in masks/<split>/…, hard links to the work directory's files (copies on another file
+    /// system), every name relative to the folder, so it can be moved or archived alone. With this
+    /// flag it takes no space but needs the work directory beside it.
+    #[arg(long)]
+    pub link_root: bool,
 }
 
 fn parse_fraction(s: &str) -> Result<f64, String> {
@@ -129,6 +141,7 @@ impl Args {
                 min_consistency: self.min_consistency,
             },
             shard: crate::util::Shard::default(),
+            link_root: self.link_root,
         }
     }
 

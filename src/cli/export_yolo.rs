@@ -12,7 +12,8 @@ use crate::export::yolo::{export_yolo, YoloPlan};
 /// export-coco`, and each image's ID map (`mask_file`); every annotation's mask is checked against its
 /// ID map. Writes labels/<split>/<area>/<camera>/<frame>.txt (one line per instance: `0 x1 y1 x2 y2 …`,
 /// normalised to [0, 1]; holes joined to the outline by zero-width cuts; crowd annotations left out),
-/// images/<split>/… (relative links to the frames) and data.yaml.
+/// images/<split>/… (hard links to the export's photos, copies across file systems) and data.yaml
+/// (no `path:` key, so the folder can move).
 #[derive(Debug, Clone, clap::Args)]
 #[command(after_long_help = "Examples:\n  insgen export-coco && insgen export-yolo\n  \
 insgen export-yolo --coco runs/coco --out datasets/buildings-yolo\n\n\

@@ -172,19 +172,24 @@ fn part_kind(parts: &std::collections::BTreeMap<crate::util::Shard, PathBuf>) ->
 }
 
 /// The COCO files a combined export writes to `report` (relative to the work directory), as
-/// [`crate::export::coco::write_export`] will write them (with the image root `..` per level).
+/// [`crate::export::coco::write_export`] will write them (names inside the export folder, or under
+/// `--link-root` the image root `..` per level).
 fn coco_bytes(
     c: &crate::export::parts::Combined,
     report: &std::path::Path,
 ) -> anyhow::Result<Vec<(PathBuf, Vec<u8>)>> {
     let levels = report.components().count();
     let root = if levels == 0 { ".".to_string() } else { vec![".."; levels].join("/") };
-    c.export
-        .datasets
-        .iter()
-        .map(|(split, ds)| {
-            let mut ds = ds.clone();
-            ds.info.image_root.clone_from(&root);
+    let mut datasets = c.export.datasets.clone();
+    if !c.plan.link_root {
+        crate::export::bundle::names_inside(&mut datasets);
+    }
+    datasets
+        .into_iter()
+        .map(|(split, mut ds)| {
+            if c.plan.link_root {
+                ds.info.image_root.clone_from(&root);
+            }
             let mut bytes = serde_json::to_vec(&ds)?;
             bytes.push(b'\n');
             Ok((PathBuf::from(split.file_name()), bytes))

@@ -11,6 +11,7 @@ pub mod completions;
 pub mod demo;
 pub mod eval_loc;
 pub mod export_coco;
+pub mod export_hf;
 pub mod export_panoptic;
 pub mod export_tiles;
 pub mod export_yolo;
@@ -36,7 +37,7 @@ use clap::{Parser, Subcommand};
     after_long_help = "Typical run:\n  insgen prepare --area demo\n  insgen sample --area demo --camera cam2\n  \
 insgen render-masks --area demo --camera cam2\n  insgen render-rgb --area demo --camera cam2\n  \
 insgen export-coco\n  insgen verify runs/coco\n\nOr all at once on the embedded city: insgen demo\n\n\
-Other formats: insgen export-panoptic, insgen export-yolo, insgen export-tiles --area demo\n\
+Other formats: insgen export-panoptic, insgen export-yolo, insgen export-hf, insgen export-tiles --area demo\n\
 Shell completions and man pages: insgen completions bash, insgen man --out target/man"
 )]
 pub struct Cli {
@@ -106,6 +107,8 @@ pub enum Command {
     ExportPanoptic(export_panoptic::Args),
     /// Export YOLO segmentation labels (Ultralytics) from a COCO export.
     ExportYolo(export_yolo::Args),
+    /// Write the Hugging Face `datasets` image-folder metadata of a COCO export.
+    ExportHf(export_hf::Args),
     /// Write a prepared area as a 3D Tiles 1.1 tileset placed on the globe.
     ExportTiles(export_tiles::Args),
     /// Measure and correct the LoD model's offset from a photogrammetry tileset.
@@ -133,6 +136,7 @@ impl Command {
             Command::Merge(_) => "merge",
             Command::ExportPanoptic(_) => "export-panoptic",
             Command::ExportYolo(_) => "export-yolo",
+            Command::ExportHf(_) => "export-hf",
             Command::ExportTiles(_) => "export-tiles",
             Command::Align(_) => "align",
             Command::Completions(_) => "completions",
@@ -190,6 +194,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Merge(a) => merge::run(a, g),
         Command::ExportPanoptic(a) => export_panoptic::run(a, g),
         Command::ExportYolo(a) => export_yolo::run(a, g),
+        Command::ExportHf(a) => export_hf::run(a, g),
         Command::ExportTiles(a) => export_tiles::run(a, g),
         Command::Align(a) => align::run(a, g),
         Command::Completions(a) => completions::run_completions(a, g),

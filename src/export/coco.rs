@@ -11,7 +11,8 @@
 //!
 //! Writes `instances_train.json`, `instances_val.json` and `instances_test.json` (see [`super::format`])
 //! into the output directory — always all three, possibly empty, so that downstream tools find the same
-//! layout. Splits are by area, never by frame; `--holdout` moves whole areas to `test`. The output is
+//! layout — and places the photos and ID maps they name inside the output directory ([`super::bundle`];
+//! `--link-root` names the work directory's files instead). Splits are by area, never by frame; `--holdout` moves whole areas to `test`. The output is
 //! deterministic: areas, cameras and frames are sorted by name, ids are assigned in that order, no dates.
 //! Frames are processed in parallel (rayon); files are written atomically and only when every frame
 //! succeeded.
@@ -100,6 +101,22 @@ pub struct ExportPlan {
     /// `render-masks` splits them). A shard other than the whole list writes a part
     /// ([`super::parts`]) that `insgen merge` combines with the others.
     pub shard: Shard,
+    /// Name the photos and ID maps where they lie in the work directory (`info.image_root` = the path
+    /// to it, `..` by default: the export needs the work directory) instead of placing them inside the
+    /// export folder ([`super::bundle`], the default: a self-contained folder).
+    pub link_root: bool,
+}
+
+impl ExportPlan {
+    /// The folder the names of the written COCO files are relative to: the export folder itself, or
+    /// the work directory under [`ExportPlan::link_root`].
+    pub fn names_root(&self) -> &Path {
+        if self.link_root {
+            &self.workdir
+        } else {
+            &self.out_dir
+        }
+    }
 }
 
 /// Counts of what the filters removed.
@@ -871,17 +888,25 @@ fn empty_gap(ex: &Export) -> super::error::EmptyGap {
     EmptyGap::NoFrames
 }
 
-/// Writes built datasets as [`export`] does: the COCO files with `info.image_root` set for
-/// `plan.out_dir`, then the manifest and the card that describe them (the card's learnability table
-/// reads the frames' ID maps and photos in `plan.workdir`).
+/// Writes built datasets as [`export`] does: the photos and ID maps placed in `plan.out_dir`
+/// ([`super::bundle`]; under `plan.link_root`, `info.image_root` pointing at the work directory
+/// instead), the COCO files, then the manifest and the card that describe them (the card's
+/// learnability table reads the frames' ID maps and photos).
 ///
 /// # Errors
 /// I/O errors naming the file, and an ID map or photo that is on disk but unreadable.
 pub fn write_export(plan: &ExportPlan, mut ex: Export) -> Result<(Export, Vec<PathBuf>), CocoError> {
     crate::util::create_dir_all(&plan.out_dir)?;
-    let root = image_root(&plan.workdir, &plan.out_dir);
-    for (_, ds) in &mut ex.datasets {
-        ds.info.image_root = root.clone();
+    // Read beside the photos in the work directory, before their names move into the export.
+    let rgb_render = super::manifest::rgb_render_settings(&plan.workdir, &ex.datasets);
+    if plan.link_root {
+        let root = image_root(&plan.workdir, &plan.out_dir);
+        for (_, ds) in &mut ex.datasets {
+            ds.info.image_root = root.clone();
+        }
+    } else {
+        let placed = super::bundle::place_files(&plan.workdir, &plan.out_dir, &mut ex.datasets)?;
+        log::debug!("placed {placed} photo and ID map file(s) in {}", plan.out_dir.display());
     }
     let mut written = Vec::new();
     let mut files = Vec::new();
@@ -892,12 +917,11 @@ pub fn write_export(plan: &ExportPlan, mut ex: Export) -> Result<(Export, Vec<Pa
         written.push(path);
     }
     // The manifest and the card last: they describe the files above.
-    let rgb_render = super::manifest::rgb_render_settings(&plan.workdir, &ex.datasets);
     let manifest = super::manifest::DatasetManifest::new(plan, &ex.datasets, &files, rgb_render);
     manifest.write(&plan.out_dir)?;
     written.push(plan.out_dir.join(super::manifest::MANIFEST_FILE));
     let refs: Vec<(Split, &Dataset)> = ex.datasets.iter().map(|(s, d)| (*s, d)).collect();
-    let stats = super::stats::compute(&refs, &plan.workdir)?;
+    let stats = super::stats::compute(&refs, plan.names_root())?;
     let card = super::card::card_markdown(&manifest, &stats);
     let card_path = plan.out_dir.join(super::card::CARD_FILE);
     crate::util::write_bytes_atomic(&card_path, card.as_bytes())?;

@@ -207,6 +207,28 @@ pub enum LayoutProblem {
     /// An image a COCO file names does not exist.
     #[error("the image named by the COCO file does not exist; run `insgen export-coco` again")]
     MissingImage,
+    /// A photo a COCO file names does not exist (the Hugging Face export needs every photo).
+    #[error("the photo named by the COCO file does not exist; run `insgen export-coco` again")]
+    MissingPhoto,
+    /// An image lives outside the export folder, which the Hugging Face export cannot ship.
+    #[error(
+        "image {image_id} ({file_name}) is not in the export's {folder}/ folder: export-hf needs a \
+         self-contained export; run `insgen export-coco` without --link-root"
+    )]
+    NotSelfContained {
+        /// The image's COCO id.
+        image_id: u64,
+        /// Its `file_name`.
+        file_name: String,
+        /// The export folder the images should be in (`images/<split>`).
+        folder: String,
+    },
+    /// An annotation has polygons but not the exact mask the Hugging Face export writes.
+    #[error("annotation {annotation_id} has polygons but no mask_rle")]
+    PolygonsWithoutRle {
+        /// The annotation's COCO id.
+        annotation_id: u64,
+    },
 }
 
 /// The facts an instance file gives about one instance, or an ID map about one component.

@@ -15,6 +15,8 @@
 //! - [`polygon`]: outer-boundary polygons for `--polygons`;
 //! - [`parts`]: the part a shard of the frames writes (`export-coco --shard`), and the parts combined
 //!   into the export one process writes (`insgen merge`);
+//! - [`bundle`]: the photos and ID maps placed inside the export folder (hard links or copies), so
+//!   that the folder alone is the dataset;
 //! - [`frames`]: an existing export read back, each image's masks checked against its ID map;
 //! - [`results`]: reading and validating COCO results (predictions), which the localizer consumes.
 //!
@@ -26,20 +28,23 @@
 //!   (`README.md`) and the check of a dataset against them (`insgen verify`);
 //! - [`raster`]: a tiny raster for figures (ID maps are [`crate::scene::IdMap`]).
 //!
-//! Made from a COCO export: [`panoptic`] (`export-panoptic`, COCO panoptic PNGs and JSON) and [`yolo`]
-//! (`export-yolo`, Ultralytics YOLO segmentation labels and `data.yaml`).
+//! Made from a COCO export: [`panoptic`] (`export-panoptic`, COCO panoptic PNGs and JSON), [`yolo`]
+//! (`export-yolo`, Ultralytics YOLO segmentation labels and `data.yaml`) and [`hf`] (`export-hf`, the
+//! Hugging Face `datasets` image folder metadata of a self-contained export).
 //!
 //! Made from a prepared scene: [`tiles`] (`export-tiles`, the scene as a 3D Tiles 1.1 tileset placed
 //! on the globe) and [`city_tileset`] (`export-tiles --style`, textured multi-level tilesets in the
 //! styles of real producers, the test tilesets of the photogrammetry path). GLB contents are
 //! assembled by [`crate::util::glb::GlbBuilder`], the crate's one GLB writer.
 
+pub mod bundle;
 pub mod card;
 pub mod city_tileset;
 pub mod coco;
 pub mod error;
 pub mod format;
 pub mod frames;
+pub mod hf;
 pub mod learnability;
 pub mod manifest;
 pub mod panoptic;

@@ -11,6 +11,9 @@
 //! once, same options, same `info` and licences), puts the images back in the export's order (area,
 //! camera, frame, by name) and numbers images and annotations from 1 in that order, as
 //! [`super::coco::build`] does — so the combined files are byte for byte those of one process.
+//! Parts name the photos and ID maps in the work directory (`info.image_root` relative to the part's
+//! folder); the combined export places them in the export folder as one process does
+//! ([`super::bundle`]), from the merged work directory.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -64,6 +67,10 @@ pub struct PartOptions {
     pub label_only: bool,
     /// The statistics report the combined export gets (`None`: `--no-stats`).
     pub report: Option<PartReport>,
+    /// `--link-root`: the combined export names the files in the work directory instead of placing
+    /// them inside the export folder (absent in parts of older versions: placed, the default).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub link_root: bool,
 }
 
 /// The statistics report's options.
@@ -111,6 +118,7 @@ pub fn write_part(
             holdout: plan.holdout.clone(),
             label_only: plan.label_only,
             report: report.map(|r| PartReport { contact_sheet_images: r.contact_sheet_images }),
+            link_root: plan.link_root,
         },
         frames_without_masks: ex.frames_without_masks,
         dropped: ex.dropped,
@@ -288,6 +296,7 @@ pub fn combine(
         filters: o.filters,
         label_only: o.label_only,
         shard: Shard::default(),
+        link_root: o.link_root,
     };
     Ok(Combined {
         plan,

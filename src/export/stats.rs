@@ -255,9 +255,9 @@ pub fn write_export_report(
     let refs: Vec<_> = ex.datasets.iter().map(|(s, d)| (*s, d)).collect();
     let st = match &ex.stats {
         Some(st) => st.clone(),
-        None => compute(&refs, &plan.workdir)?,
+        None => compute(&refs, plan.names_root())?,
     };
-    write_report(&st, &refs, &plan.out_dir, &plan.workdir, opts)
+    write_report(&st, &refs, &plan.out_dir, plan.names_root(), opts)
 }
 
 /// Writes `stats.json`, `stats.md`, `hist_instances_per_image.png`, `hist_sizes.png` and (unless

@@ -2,14 +2,15 @@
 //!
 //! Takes in an `export-coco` output directory ([`super::frames`]: the instance files and, through each
 //! image's `mask_file`, the ID maps, checked against each other). Hands on, under the output directory:
-//! - `images/<split>/<area>/<camera>/<frame>.<ext>`: a relative symbolic link to the image the COCO
-//!   file names (`file_name`: the RGB frame, or the ID map when no RGB frame was rendered), since
+//! - `images/<split>/<area>/<camera>/<frame>.<ext>`: the image the COCO file names (`file_name`), as a
+//!   hard link (a copy across file systems), so that the folder holds its images; it sits there since
 //!   Ultralytics finds a label by replacing the last `/images/` of the image path by `/labels/`;
 //! - `labels/<split>/<area>/<camera>/<frame>.txt`: one line per instance, `0 x1 y1 x2 y2 …` (class 0 =
 //!   building), the polygon's vertices normalised by the image width and height to [0, 1] and written
 //!   with 6 decimals (≤ 0.001 px at 1920 px); an empty file for an image without instances (a negative);
-//! - `data.yaml`: `path` (the output directory, absolute), `train`/`val`/`test` (the image folders, all
-//!   three always present, possibly empty) and `names` (`0: building`).
+//! - `data.yaml`: `train`/`val`/`test` (the image folders, all three always present, possibly empty)
+//!   and `names` (`0: building`), and no `path`, so that Ultralytics takes the folder of `data.yaml` as
+//!   the root wherever the folder is moved.
 //!
 //! # Polygons and holes
 //! Ultralytics polygons have no holes and one polygon per line. Every instance's exact mask is traced
@@ -29,12 +30,12 @@
 //! (`img2label_paths`, `verify_image_label`, `check_det_dataset`).
 
 use std::fmt::Write as _;
-use std::path::{Component, Path, PathBuf};
+use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::util::{FileError, Progress};
+use crate::util::Progress;
 
 use super::frames::{for_each_pixel, load_frame, read_splits, ExportSplit};
 use super::polygon::{bridge_rings, mask_to_rings};
@@ -88,41 +89,32 @@ pub fn export_yolo(
     for split in super::Split::ALL {
         crate::util::create_dir_all(&plan.out_dir.join("images").join(split.as_str()))?;
     }
-    let abs =
-        std::fs::canonicalize(&plan.out_dir).map_err(|e| FileError::new("resolving", &plan.out_dir, e))?;
-    let yaml = data_yaml(&abs, &plan.coco_dir);
+    let yaml = data_yaml(&plan.coco_dir);
     let path = plan.out_dir.join("data.yaml");
     crate::util::write_bytes_atomic(&path, yaml.as_bytes())?;
     Ok((out, path))
 }
 
-/// The text of `data.yaml` for a dataset rooted at `root` (absolute).
-pub fn data_yaml(root: &Path, coco_dir: &Path) -> String {
+/// The text of `data.yaml`. It has no `path`: Ultralytics then takes the folder of `data.yaml` as the
+/// dataset root (`check_det_dataset`), so the folder can move; a relative `path` would be resolved
+/// against Ultralytics' own datasets directory instead.
+pub fn data_yaml(coco_dir: &Path) -> String {
     format!(
         "# YOLO segmentation dataset written by `insgen export-yolo` from the COCO export in {}.\n\
-         # Labels: labels/<split>/<area>/<camera>/<frame>.txt, polygons normalised to [0, 1].\n\
-         # `path` is absolute; after moving this folder, delete the line and Ultralytics uses the\n\
-         # folder of this file instead.\n\
-         path: {}\n\
+         # Labels: labels/<split>/<area>/<camera>/<frame>.txt, polygons normalised to [0, 1]; images:\n\
+         # images/<split>/… (hard links or copies). No `path:` key: Ultralytics takes the folder of\n\
+         # this file as the root, so this folder can be moved or copied alone.\n\
          train: images/train\n\
          val: images/val\n\
          test: images/test\n\
          names:\n  {BUILDING_CLASS}: building\n",
-        coco_dir.display(),
-        yaml_string(&root.display().to_string())
+        yaml_comment(&coco_dir.display().to_string())
     )
 }
 
-/// A YAML scalar for `s`: plain when it is safe, else double-quoted with escapes.
-fn yaml_string(s: &str) -> String {
-    let plain = !s.is_empty()
-        && s.chars().all(|c| c.is_ascii_alphanumeric() || "/._-+".contains(c))
-        && !s.starts_with(['-', '.']);
-    if plain {
-        s.to_string()
-    } else {
-        serde_json::to_string(s).expect("a string serialises")
-    }
+/// `s` on one comment line (line breaks replaced).
+fn yaml_comment(s: &str) -> String {
+    s.replace(['\n', '\r'], " ")
 }
 
 fn export_split(
@@ -215,49 +207,17 @@ fn write_frame(
     Ok(sum)
 }
 
-/// Points `link` at `target` with a relative symbolic link (a copy where links are not available),
-/// replacing what was there.
+/// Places the image `target` at `link`: a hard link, or a copy across file systems, so that the YOLO
+/// folder holds its images and can be copied or moved alone.
 fn link_image(target: &Path, link: &Path) -> Result<(), CocoError> {
-    let abs_target = std::fs::canonicalize(target).map_err(|_| CocoError::Layout {
-        path: target.to_path_buf(),
-        problem: super::error::LayoutProblem::MissingImage,
-    })?;
-    let dir = link.parent().expect("a link path has a parent: it ends in <area>/<camera>/<file>");
-    crate::util::create_dir_all(dir)?;
-    let abs_dir = std::fs::canonicalize(dir).map_err(|e| FileError::new("resolving", dir, e))?;
-    #[cfg(unix)]
-    {
-        let rel = relative_path(&abs_dir, &abs_target);
-        // Made under a temporary name, then renamed over the old link: atomic like every other output.
-        // One temporary name per link: frames of one folder are linked in parallel.
-        let name = link.file_name().expect("a link path ends in a file name").to_string_lossy();
-        let tmp = dir.join(format!(".insgen-tmp-link-{name}"));
-        let _ = std::fs::remove_file(&tmp);
-        std::os::unix::fs::symlink(&rel, &tmp).map_err(|e| FileError::new("linking", &tmp, e))?;
-        std::fs::rename(&tmp, link).map_err(|e| FileError::new("renaming into place", link, e))?;
+    if !target.is_file() {
+        return Err(CocoError::Layout {
+            path: target.to_path_buf(),
+            problem: super::error::LayoutProblem::MissingImage,
+        });
     }
-    #[cfg(not(unix))]
-    {
-        let _ = abs_dir;
-        let bytes = crate::util::read_file(&abs_target)?;
-        crate::util::write_bytes_atomic(link, &bytes)?;
-    }
+    crate::util::link_or_copy(target, link)?;
     Ok(())
-}
-
-/// The path of `to` relative to the directory `from` (both absolute and canonical).
-fn relative_path(from: &Path, to: &Path) -> PathBuf {
-    let f: Vec<Component> = from.components().collect();
-    let t: Vec<Component> = to.components().collect();
-    let common = f.iter().zip(&t).take_while(|(a, b)| a == b).count();
-    let mut out = PathBuf::new();
-    for _ in common..f.len() {
-        out.push("..");
-    }
-    for c in &t[common..] {
-        out.push(c.as_os_str());
-    }
-    out
 }
 
 #[cfg(test)]
@@ -283,18 +243,12 @@ mod tests {
     }
 
     #[test]
-    fn relative_links_climb_to_the_common_ancestor() {
-        let r = relative_path(Path::new("/w/coco/yolo/images/train/a/c"), Path::new("/w/a/c/rgb/f.png"));
-        assert_eq!(r, Path::new("../../../../../../a/c/rgb/f.png"));
-    }
-
-    #[test]
-    fn data_yaml_names_the_splits_and_the_class() {
-        let y = data_yaml(Path::new("/data/my set"), Path::new("runs/coco"));
-        assert!(y.contains("path: \"/data/my set\"\n"), "{y}");
+    fn data_yaml_names_the_splits_and_the_class_and_no_root() {
+        let y = data_yaml(Path::new("runs/coco"));
         assert!(
-            y.contains("train: images/train\nval: images/val\ntest: images/test\nnames:\n  0: building\n")
+            y.contains("\ntrain: images/train\nval: images/val\ntest: images/test\nnames:\n  0: building\n")
         );
-        assert!(data_yaml(Path::new("/d/x"), Path::new("c")).contains("path: /d/x\n"));
+        assert!(!y.lines().any(|l| l.starts_with("path:")), "{y}");
+        assert!(!data_yaml(Path::new("a\nb")).contains("\nb"), "a path cannot break out of its comment");
     }
 }

@@ -222,6 +222,56 @@ pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<(), FileError> {
     write_atomic(path, |w| w.write_all(bytes).map_err(|e| FileError::new("writing", path, e)))
 }
 
+/// Places the file `src` at `dst`: a hard link where the file system allows one, else a copy, made
+/// under a temporary name and renamed into place (atomic like every other output). A `dst` that is
+/// already `src` (the same inode) or holds the same bytes is kept, so reruns touch nothing. Returns
+/// whether `dst` was (re)written.
+///
+/// # Errors
+/// Reading `src` (a missing `src` included), or writing `dst`, naming the file.
+pub fn link_or_copy(src: &Path, dst: &Path) -> Result<bool, FileError> {
+    let src_meta = fs::metadata(src).map_err(|e| FileError::new("reading", src, e))?;
+    if let Ok(dst_meta) = fs::metadata(dst) {
+        if same_inode(&src_meta, &dst_meta)
+            || (dst_meta.len() == src_meta.len() && read_file(dst)? == read_file(src)?)
+        {
+            return Ok(false);
+        }
+    }
+    let dir = match dst.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    create_dir_all(&dir)?;
+    let name = dst.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    // One temporary name per destination: files of one folder are placed in parallel.
+    let tmp = dir.join(format!("{TMP_PREFIX}link-{name}"));
+    let _ = fs::remove_file(&tmp);
+    if fs::hard_link(src, &tmp).is_ok() {
+        fs::rename(&tmp, dst).map_err(|e| FileError::new("renaming into place", dst, e))?;
+        return Ok(true);
+    }
+    // Another file system (or one without links): a copy.
+    let _ = fs::remove_file(&tmp);
+    write_atomic(dst, |w| {
+        let mut f = fs::File::open(src).map_err(|e| FileError::new("reading", src, e))?;
+        io::copy(&mut f, w).map_err(|e| FileError::new("copying", src, e))?;
+        Ok::<(), FileError>(())
+    })?;
+    Ok(true)
+}
+
+#[cfg(unix)]
+fn same_inode(a: &fs::Metadata, b: &fs::Metadata) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    a.dev() == b.dev() && a.ino() == b.ino()
+}
+
+#[cfg(not(unix))]
+fn same_inode(_a: &fs::Metadata, _b: &fs::Metadata) -> bool {
+    false
+}
+
 /// Serialises `value` as pretty JSON (with a trailing newline) and writes it atomically.
 pub fn write_json_atomic<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), FileError> {
     let mut bytes = serde_json::to_vec_pretty(value)
@@ -328,5 +378,29 @@ mod tests {
         write_bytes_atomic(&path, b"one").unwrap();
         write_bytes_atomic(&path, b"two").unwrap();
         assert_eq!(fs::read(&path).unwrap(), b"two");
+    }
+
+    #[test]
+    fn link_or_copy_links_keeps_identical_files_and_replaces_others() {
+        let dir = tempfile::tempdir().unwrap();
+        let src = dir.path().join("src.png");
+        fs::write(&src, b"pixels").unwrap();
+        let dst = dir.path().join("out/a/dst.png");
+        assert!(link_or_copy(&src, &dst).unwrap(), "first placement writes");
+        assert_eq!(fs::read(&dst).unwrap(), b"pixels");
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::MetadataExt;
+            assert_eq!(fs::metadata(&src).unwrap().ino(), fs::metadata(&dst).unwrap().ino(), "a hard link");
+        }
+        assert!(!link_or_copy(&src, &dst).unwrap(), "the same file is kept");
+        fs::write(src.with_extension("new"), b"other").unwrap();
+        fs::rename(src.with_extension("new"), &src).unwrap();
+        assert!(link_or_copy(&src, &dst).unwrap(), "other bytes are replaced");
+        assert_eq!(fs::read(&dst).unwrap(), b"other");
+        let names: Vec<_> =
+            fs::read_dir(dst.parent().unwrap()).unwrap().map(|e| e.unwrap().file_name()).collect();
+        assert_eq!(names, ["dst.png"], "no temporary file left");
+        assert!(link_or_copy(&dir.path().join("missing"), &dst).is_err());
     }
 }

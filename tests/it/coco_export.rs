@@ -286,6 +286,7 @@ pub(crate) fn plan(wd: &Path, out: &str) -> ExportPlan {
         filters: Filters::default(),
         label_only: false,
         shard: insgen::util::Shard::default(),
+        link_root: false,
     }
 }
 
@@ -415,18 +416,24 @@ fn component_export_agrees_with_pycocotools_and_the_id_maps() {
         assert!(d.images.iter().enumerate().all(|(i, im)| im.id == i as u64 + 1));
         assert!(d.annotations.iter().enumerate().all(|(i, a)| a.id == i as u64 + 1));
     }
-    // Every image is an RGB frame on disk; its ID map is `mask_file`.
+    // Every image is an RGB frame placed in the export (a hard link to the work directory's); its ID
+    // map is `mask_file`, beside its instance list.
     let train = &files[0];
-    assert_eq!(train.images[0].file_name, "alpha/cam2/rgb/alpha_f000.png");
-    assert_eq!(train.images[0].mask_file, "alpha/cam2/masks/alpha_f000.png");
-    assert_eq!(train.images[2].file_name, "delta/cam2/rgb/delta_f000.png");
+    assert_eq!(train.images[0].file_name, "images/train/alpha/cam2/alpha_f000.png");
+    assert_eq!(train.images[0].mask_file, "masks/train/alpha/cam2/alpha_f000.png");
+    assert_eq!(train.images[2].file_name, "images/train/delta/cam2/delta_f000.png");
     for d in &files {
         assert!(!d.info.images_missing);
         for im in &d.images {
-            assert!(im.file_name.contains("/rgb/") && wd.join(&im.file_name).is_file(), "{}", im.file_name);
+            let (rgb, mask) = (p.out_dir.join(&im.file_name), p.out_dir.join(&im.mask_file));
+            assert!(im.file_name.starts_with("images/") && rgb.is_file(), "{}", im.file_name);
+            let source =
+                wd.join(&im.area_name).join(&im.camera).join("rgb").join(format!("{}.png", im.frame));
+            assert_eq!(std::fs::read(&rgb).unwrap(), std::fs::read(&source).unwrap(), "{}", im.file_name);
+            assert!(mask.is_file() && mask.with_extension("instances.json").is_file(), "{}", im.mask_file);
         }
     }
-    assert_eq!(train.info.image_root, "..");
+    assert_eq!(train.info.image_root, ".");
     assert_eq!(train.licenses[0].url, "https://creativecommons.org/licenses/by/4.0/");
     assert_eq!(train.images[0].license, Some(1));
     assert!(train
@@ -455,8 +462,9 @@ fn component_export_agrees_with_pycocotools_and_the_id_maps() {
 
     // Statistics report from the same datasets.
     let refs: Vec<(Split, &Dataset)> = ex.datasets.iter().map(|(s, d)| (*s, d)).collect();
-    let st = stats::compute(&refs, &wd).unwrap();
-    let files_written = stats::write_report(&st, &refs, &p.out_dir, &wd, ReportOptions::default()).unwrap();
+    let st = stats::compute(&refs, &p.out_dir).unwrap();
+    let files_written =
+        stats::write_report(&st, &refs, &p.out_dir, &p.out_dir, ReportOptions::default()).unwrap();
     assert_eq!(files_written.len(), 5);
     let sj: Value = serde_json::from_slice(&std::fs::read(p.out_dir.join("stats.json")).unwrap()).unwrap();
     for (i, d) in files.iter().enumerate() {
@@ -480,7 +488,7 @@ fn component_export_agrees_with_pycocotools_and_the_id_maps() {
             (Some(n), Some(n)),
             "{name}"
         );
-        let touching: u64 = images.iter().map(|im| touching_pairs(&wd.join(&im.mask_file))).sum();
+        let touching: u64 = images.iter().map(|im| touching_pairs(&p.out_dir.join(&im.mask_file))).sum();
         let got = l["boundary"]["touching_px_per_image"].as_f64().unwrap();
         assert!((got - touching as f64 / n as f64).abs() < 1e-9, "{name}: {got} vs {touching} / {n}");
         let anns = ds.annotations.iter().filter(|x| x.area_name == name).count() as u64;
@@ -636,8 +644,12 @@ fn label_only_lists_unrendered_frames_by_their_rgb_name_and_says_so() {
     assert!(train.info.images_missing);
     assert_eq!(train.images.len(), 6);
     let f002 = train.images.iter().find(|i| i.frame == "alpha_f002").unwrap();
-    assert_eq!(f002.file_name, "alpha/cam2/rgb/alpha_f002.png", "the frame to come, never the ID map");
-    assert!(!wd.join(&f002.file_name).exists());
+    assert_eq!(
+        f002.file_name, "images/train/alpha/cam2/alpha_f002.png",
+        "the frame to come, never the ID map"
+    );
+    assert!(!p.out_dir.join(&f002.file_name).exists());
+    assert!(p.out_dir.join(&f002.mask_file).is_file(), "its ID map is placed");
     let json: Value =
         serde_json::from_slice(&std::fs::read(p.out_dir.join("instances_train.json")).unwrap()).unwrap();
     assert_eq!(json["info"]["images_missing"], Value::Bool(true));
@@ -672,18 +684,18 @@ fn verify_passes_an_export_and_reports_each_kind_of_damage() {
         problems(&wd2.join("coco"))
     };
     // 1. A truncated ID map.
-    let got = damaged("truncated_png", &|wd, _| {
-        let f = wd.join("delta/cam2/masks/delta_f000.png");
+    let got = damaged("truncated_png", &|_, coco| {
+        let f = coco.join("masks/train/delta/cam2/delta_f000.png");
         let b = std::fs::read(&f).unwrap();
         std::fs::write(&f, &b[..b.len() / 3]).unwrap();
     });
     assert!(got.iter().any(|p| p.contains("delta_f000.png") && p.contains("not a readable PNG")), "{got:#?}");
     // 2. A deleted RGB frame.
-    let got = damaged("deleted_rgb", &|wd, _| {
-        std::fs::remove_file(wd.join("bravo/cam2/rgb/bravo_f001.png")).unwrap()
+    let got = damaged("deleted_rgb", &|_, coco| {
+        std::fs::remove_file(coco.join("images/val/bravo/cam2/bravo_f001.png")).unwrap()
     });
     assert!(
-        got.iter().any(|p| p.contains("bravo/cam2/rgb/bravo_f001.png") && p.contains("missing")),
+        got.iter().any(|p| p.contains("images/val/bravo/cam2/bravo_f001.png") && p.contains("missing")),
         "{got:#?}"
     );
     // 3. An annotation whose RLE does not match its ID map (and 4. a duplicated annotation id), edited

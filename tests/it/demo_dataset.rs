@@ -2,7 +2,7 @@
 //! camera (cam2's field of view), every labelled frame rendered by Blender at render-rgb's defaults.
 //!
 //! Checks the promise of issue 14: the COCO dataset the demo ends with lists photos only — every
-//! `file_name` is an RGB frame on disk under `rgb/`, never an ID map, that decodes at the width and
+//! `file_name` is an RGB frame placed in the export under `images/`, never an ID map, that decodes at the width and
 //! height the image entry gives — and every frame's `rgb/<frame>.render.json` records the device (the
 //! CPU here: the demo never asks for a GPU) and the frame's drawn look, which the COCO image record repeats. Skips (fails under CI=true) without the bpy interpreter.
 
@@ -45,7 +45,7 @@ fn demo_dataset_lists_only_rgb_photos() {
         for im in coco["images"].as_array().unwrap() {
             let name = im["file_name"].as_str().unwrap();
             assert!(
-                name.contains("/rgb/") && !name.contains("/masks/"),
+                name.starts_with("images/") && !name.starts_with("masks/"),
                 "{split}: {name} is not an RGB frame"
             );
             let file = root.join(name);

@@ -197,12 +197,15 @@ fn panoptic_of_a_per_building_polygon_export() {
     let s = export_panoptic(&PanopticPlan { coco_dir: wd.join("coco-b"), out_dir: out.clone() }, &NoProgress)
         .unwrap();
     assert_eq!(s.iter().map(|s| s.split.as_str()).collect::<Vec<_>>(), ["train", "val", "test"]);
-    // The checker reads instances_*.json next to the panoptic files.
+    // The checker reads instances_*.json next to the panoptic files; their image root (the COCO
+    // folder itself, ".") is rewritten to point from there into the COCO folder.
     for split in ["train", "val", "test"] {
         let f = format!("instances_{split}.json");
-        std::fs::copy(wd.join("coco-b").join(&f), out.join(&f)).unwrap();
+        let mut v: Value = read_json(&wd.join("coco-b").join(&f));
+        assert_eq!(v["info"]["image_root"], ".");
+        v["info"]["image_root"] = "../coco-b".into();
+        std::fs::write(out.join(&f), serde_json::to_vec(&v).unwrap()).unwrap();
     }
-    // image_root is relative to the COCO directory; both directories sit in the workdir.
     let Some(py) = python_with(&["panopticapi", "pycocotools", "PIL"]) else { return };
     assert_panoptic_exact(&py, &out);
 }
@@ -262,13 +265,14 @@ fn yolo_labels_fill_back_to_the_instances() {
         yaml.contains("\ntrain: images/train\nval: images/val\ntest: images/test\nnames:\n  0: building\n"),
         "{yaml}"
     );
-    // Links resolve to the COCO file names; label lines have the Ultralytics shape.
-    let link = yolo.join("images/train/alpha/cam2/alpha_f000.png");
-    let target = std::fs::read_link(&link).unwrap();
-    assert!(target.is_relative(), "{}", target.display());
+    assert!(!yaml.lines().any(|l| l.starts_with("path:")), "no root: Ultralytics takes the yaml's folder");
+    // Images are files (hard links to the COCO export's, not symbolic links); label lines have the
+    // Ultralytics shape.
+    let image = yolo.join("images/train/alpha/cam2/alpha_f000.png");
+    assert!(std::fs::symlink_metadata(&image).unwrap().file_type().is_file());
     assert_eq!(
-        std::fs::canonicalize(&link).unwrap(),
-        std::fs::canonicalize(wd.join("alpha/cam2/rgb/alpha_f000.png")).unwrap()
+        std::fs::read(&image).unwrap(),
+        std::fs::read(wd.join("alpha/cam2/rgb/alpha_f000.png")).unwrap()
     );
     let label = std::fs::read_to_string(yolo.join("labels/train/alpha/cam2/alpha_f000.txt")).unwrap();
     for line in label.lines() {
@@ -293,6 +297,108 @@ fn yolo_bridges_the_parts_and_holes_of_per_building_instances() {
     assert_eq!(sum.iter().map(|s| s.crowd_skipped).sum::<u64>(), 0);
     let Some(py) = python_with(&["yaml", "pycocotools", "PIL"]) else { return };
     assert_yolo_exact(&py, &yaml, &wd.join("coco-b"));
+}
+
+// ------------------------------------------------------------------------------------------ moving
+
+/// The image files under `dir` (recursively), skipping symbolic links.
+fn image_files(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap() {
+        let e = e.unwrap();
+        let kind = e.file_type().unwrap();
+        if kind.is_dir() {
+            out.extend(image_files(&e.path()));
+        } else if kind.is_file() && e.path().extension().is_some_and(|x| x == "png") {
+            out.push(e.path());
+        }
+    }
+    out
+}
+
+#[test]
+fn a_moved_export_folder_verifies_and_loads_in_every_client() {
+    let tmp = tempfile::tempdir().unwrap();
+    let wd = standard_workdir(tmp.path());
+    let mut p = plan(&wd, "coco");
+    p.filters.truncated = TruncatedPolicy::Flag;
+    export(&p, &NoProgress).unwrap();
+    let first: Vec<Vec<u8>> = ["train", "val", "test"]
+        .iter()
+        .map(|s| std::fs::read(p.out_dir.join(format!("instances_{s}.json"))).unwrap())
+        .collect();
+    let photo = p.out_dir.join("images/train/alpha/cam2/alpha_f000.png");
+    #[cfg(unix)]
+    let inode = {
+        use std::os::unix::fs::MetadataExt;
+        let (a, b) = (
+            std::fs::metadata(&photo).unwrap(),
+            std::fs::metadata(wd.join("alpha/cam2/rgb/alpha_f000.png")).unwrap(),
+        );
+        assert_eq!((a.dev(), a.ino()), (b.dev(), b.ino()), "a hard link to the work directory's photo");
+        a.ino()
+    };
+    // A rerun rewrites nothing and writes the same bytes; a stale file is removed.
+    std::fs::write(p.out_dir.join("images/train/alpha/cam2/gone.png"), b"stale").unwrap();
+    export(&p, &NoProgress).unwrap();
+    for (s, bytes) in ["train", "val", "test"].iter().zip(&first) {
+        assert!(&std::fs::read(p.out_dir.join(format!("instances_{s}.json"))).unwrap() == bytes, "{s}");
+    }
+    #[cfg(unix)]
+    assert_eq!(std::os::unix::fs::MetadataExt::ino(&std::fs::metadata(&photo).unwrap()), inode);
+    assert!(!p.out_dir.join("images/train/alpha/cam2/gone.png").exists());
+    let wd_arg = wd.to_str().unwrap();
+    run_ok(tmp.path(), &["--workdir", wd_arg, "export-yolo"]);
+    run_ok(tmp.path(), &["--workdir", wd_arg, "export-panoptic"]);
+    let out = run_ok(tmp.path(), &["--workdir", wd_arg, "export-hf"]);
+    assert!(out.contains("train: 5 rows"), "{out}");
+    for split in ["train", "val", "test"] {
+        let text = std::fs::read_to_string(p.out_dir.join(format!("images/{split}/metadata.jsonl"))).unwrap();
+        for line in text.lines() {
+            assert_schema("hf_metadata.schema.json", &serde_json::from_str::<Value>(line).unwrap());
+        }
+    }
+    let coco_images: usize = first
+        .iter()
+        .map(|b| serde_json::from_slice::<Value>(b).unwrap()["images"].as_array().unwrap().len())
+        .sum();
+
+    // Move the folder alone, then delete the work directory it came from.
+    let elsewhere = tempfile::tempdir().unwrap();
+    let moved = elsewhere.path().join("buildings");
+    std::fs::rename(&p.out_dir, &moved).unwrap();
+    std::fs::remove_dir_all(&wd).unwrap();
+    let report = insgen::export::verify::verify(&moved, &NoProgress);
+    assert!(report.problems.is_empty(), "{:#?}", report.problems);
+    assert_eq!(report.images, coco_images);
+    let o = insgen(elsewhere.path(), &["verify", moved.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // The YOLO folder copied alone (`cp -a`) holds every image as a file.
+    let yolo_copy = elsewhere.path().join("yolo-copy");
+    let ok = Command::new("cp").arg("-a").arg(moved.join("yolo")).arg(&yolo_copy).status().unwrap();
+    assert!(ok.success());
+    assert_eq!(image_files(&yolo_copy.join("images")).len(), coco_images, "every YOLO image is in the copy");
+
+    let Some(py) = python_with(&["pycocotools", "panopticapi", "yaml", "PIL"]) else { return };
+    let v = crate::util::coco_check(&py, &["dataset", moved.to_str().unwrap()]);
+    for split in ["train", "val", "test"] {
+        let r = &v["files"][split];
+        assert_eq!(r["mismatches"], serde_json::json!([]), "{split}");
+        assert_eq!(r["checked"], r["annotations"], "{split}");
+    }
+    assert_yolo_exact(&py, &yolo_copy.join("data.yaml"), &moved);
+    assert_panoptic_exact(&py, &moved);
+    // Hugging Face datasets loads the moved folder's images with their instances.
+    let Some(py) = python_with(&["datasets", "pycocotools"]) else { return };
+    let r = exports_check(&py, &["hf", moved.to_str().unwrap()]);
+    assert_eq!(r["loaded_splits"], serde_json::json!(["test", "train", "validation"]));
+    for split in ["train", "val", "test"] {
+        let s = &r["splits"][split];
+        eprintln!("datasets {split}: {} rows, {} objects, {} decoded", s["rows"], s["objects"], s["decoded"]);
+        assert_eq!(s["problems"], serde_json::json!([]), "{split}");
+        assert_eq!((&s["rows"], &s["decoded"]), (&s["coco_images"], &s["coco_images"]), "{split}");
+        assert!(s["objects"].as_u64().unwrap() > 0, "{split}");
+    }
 }
 
 // ------------------------------------------------------------------------------------------ 3D Tiles
