@@ -255,7 +255,8 @@ pub fn link_or_copy(src: &Path, dst: &Path) -> Result<bool, FileError> {
     let _ = fs::remove_file(&tmp);
     write_atomic(dst, |w| {
         let mut f = fs::File::open(src).map_err(|e| FileError::new("reading", src, e))?;
-        io::copy(&mut f, w).map_err(|e| FileError::new("copying", src, e))?;
+        // A failed copy is named by its destination: that is where the disk is full or read-only.
+        io::copy(&mut f, w).map_err(|e| FileError::new("copying into", dst, e))?;
         Ok::<(), FileError>(())
     })?;
     Ok(true)

@@ -56,7 +56,14 @@ fn demo_dataset_lists_only_rgb_photos() {
                 (im["width"].as_u64().unwrap(), im["height"].as_u64().unwrap()),
                 "{name}: decoded size differs from the image entry"
             );
-            let meta_path = file.with_extension("render.json");
+            // What Blender recorded stays in the work directory, beside the frame it rendered.
+            let frame_dir = dir
+                .path()
+                .join("runs")
+                .join(im["area_name"].as_str().unwrap())
+                .join(im["camera"].as_str().unwrap());
+            let meta_path =
+                frame_dir.join("rgb").join(format!("{}.render.json", im["frame"].as_str().unwrap()));
             let meta: serde_json::Value =
                 serde_json::from_slice(&std::fs::read(&meta_path).unwrap()).unwrap();
             assert_eq!(

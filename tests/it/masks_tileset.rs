@@ -173,7 +173,9 @@ fn masks_respect_the_tileset_and_shifted_frames_score_lower() {
         let frame = im["frame"].as_str().unwrap();
         let c = im["consistency"].as_f64().unwrap();
         assert_eq!(c, aligned[frame].1.occlusion.as_ref().unwrap().consistency);
-        assert_eq!(im["ignore_file"], format!("demo/tiny/masks/{frame}.ignore.png"));
+        // Placed in the export folder beside the ID map, as everything an image names.
+        assert_eq!(im["ignore_file"], format!("masks/train/demo/tiny/{frame}.ignore.png"));
+        assert!(d.join("runs/coco").join(im["ignore_file"].as_str().unwrap()).is_file());
     }
     assert!(d.join("runs/coco/hist_consistency.png").is_file());
     let stats: Value =

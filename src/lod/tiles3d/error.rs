@@ -311,33 +311,9 @@ pub enum ContentError {
     },
 
     // ------------------------------------------------------------------ GLB and glTF
-    /// Bytes read as a GLB do not start with the `glTF` magic.
-    #[error("not a GLB: {length} bytes starting with {magic:?}")]
-    NotGlb {
-        /// Bytes there are.
-        length: usize,
-        /// The first four bytes, as text.
-        magic: String,
-    },
-    #[error(
-        "glTF version {version} content is not supported; only glTF 2.0 is (upgrade the tileset, e.g. with `npx 3d-tiles-tools upgrade`)"
-    )]
-    /// A GLB container of a glTF version other than 2.
-    GlbVersion {
-        /// The version in the GLB header.
-        version: usize,
-    },
-    /// The GLB header's length is shorter than a header or longer than the bytes there are.
-    #[error("GLB header length is {length} but {available} bytes are available")]
-    GlbLength {
-        /// The header's length, bytes.
-        length: usize,
-        /// Bytes there are.
-        available: usize,
-    },
-    /// The GLB chunks are inconsistent (the `gltf` crate's error).
-    #[error("not a valid GLB")]
-    Glb(#[source] Box<gltf::Error>),
+    /// The GLB container is not one (magic, version, length, chunks): the one GLB reader's error.
+    #[error(transparent)]
+    Glb(#[from] crate::util::glb::GlbError),
     /// A glTF JSON (`.gltf` or a GLB's JSON chunk) that does not parse.
     #[error("invalid glTF JSON")]
     GltfJson(#[source] serde_json::Error),

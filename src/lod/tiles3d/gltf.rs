@@ -516,22 +516,6 @@ pub(crate) fn parse_glb<'a>(bytes: &'a [u8], load_uri: &LoadUri<'_>) -> Result<G
     finish(root, buffers)
 }
 
-/// The container errors keep the variants (and messages) the tile reader has always reported.
-impl From<crate::util::glb::GlbError> for ContentError {
-    fn from(e: crate::util::glb::GlbError) -> ContentError {
-        use crate::util::glb::GlbError as G;
-        match e {
-            G::NotGlb { length, magic } => ContentError::NotGlb { length, magic },
-            G::Version { version } => ContentError::GlbVersion { version },
-            G::Length { length, available } => ContentError::GlbLength { length, available },
-            G::Chunks(source) => ContentError::Glb(source),
-            G::TooLarge { bytes } => {
-                ContentError::GlbLength { length: bytes as usize, available: u32::MAX as usize }
-            }
-        }
-    }
-}
-
 /// Parses a `.gltf` JSON asset; every buffer needs a `uri`.
 ///
 /// # Errors
@@ -1417,6 +1401,7 @@ fn assemble(indices: &[u32], mode: u32) -> Vec<[u32; 3]> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::util::glb::GlbError;
 
     #[test]
     fn y_up_to_z_up() {
@@ -1445,11 +1430,11 @@ mod tests {
         b.extend_from_slice(&4u32.to_le_bytes()); // length < header size
         b.extend_from_slice(&[0; 12]);
         let e = parse_glb(&b, &no_uri).err().unwrap();
-        assert!(matches!(e, ContentError::GlbLength { length: 4, available: 24 }), "{e:?}");
+        assert!(matches!(e, ContentError::Glb(GlbError::Length { length: 4, available: 24 })), "{e:?}");
         assert!(e.to_string().contains("length is 4"), "{e}");
         b[4..8].copy_from_slice(&1u32.to_le_bytes());
         let e = parse_glb(&b, &no_uri).err().unwrap();
-        assert!(matches!(e, ContentError::GlbVersion { version: 1 }), "{e:?}");
+        assert!(matches!(e, ContentError::Glb(GlbError::Version { version: 1 })), "{e:?}");
         assert!(e.to_string().contains("glTF version 1"), "{e}");
         let e = parse_glb(b"b3dm", &no_uri).err().unwrap();
         assert!(e.to_string().contains("not a GLB"), "{e}");
