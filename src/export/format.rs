@@ -366,7 +366,30 @@ mod tests {
 /// Fixtures shared by the COCO stage's unit tests.
 #[cfg(test)]
 pub(crate) mod testing {
-    use super::Image;
+    use super::{AnnotationUnit, AreaInfo, Filters, Image, Info};
+
+    /// The `info` of a train split of one area `a` with 10 buildings, names relative to `..`.
+    pub(crate) fn info() -> Info {
+        Info {
+            description: String::new(),
+            version: String::new(),
+            contributor: String::new(),
+            url: String::new(),
+            split: "train".into(),
+            image_root: "..".into(),
+            images_missing: false,
+            annotation_unit: AnnotationUnit::Component,
+            filters: Filters::default(),
+            areas: vec![AreaInfo {
+                name: "a".into(),
+                manifest_split: "train".into(),
+                held_out: false,
+                buildings: 10,
+                sources: vec![],
+                attributions: vec![],
+            }],
+        }
+    }
 
     /// Image `id` of area `a`, camera `cam2`, `width × height` px, its ID map at `a/cam2/masks/<id>.png`
     /// (also its `file_name`), at an identity pose.

@@ -777,25 +777,7 @@ mod tests {
                 mask_rle: None,
             })
             .collect();
-        let info = Info {
-            description: String::new(),
-            version: String::new(),
-            contributor: String::new(),
-            url: String::new(),
-            split: "train".into(),
-            image_root: "..".into(),
-            images_missing: false,
-            annotation_unit: AnnotationUnit::Component,
-            filters: Filters::default(),
-            areas: vec![AreaInfo {
-                name: "a".into(),
-                manifest_split: "train".into(),
-                held_out: false,
-                buildings: 10,
-                sources: vec![],
-                attributions: vec![],
-            }],
-        };
+        let info = super::super::format::testing::info();
         Dataset { info, licenses: vec![], images, annotations, categories: vec![Category::building()] }
     }
 }

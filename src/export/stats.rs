@@ -546,25 +546,7 @@ mod tests {
 
     fn dataset(anns: &[(u64, u64, u32)]) -> Dataset {
         // anns: (image_id, area, building_id)
-        let info = Info {
-            description: String::new(),
-            version: String::new(),
-            contributor: String::new(),
-            url: String::new(),
-            split: "train".into(),
-            image_root: "..".into(),
-            images_missing: false,
-            annotation_unit: AnnotationUnit::Component,
-            filters: Filters::default(),
-            areas: vec![AreaInfo {
-                name: "a".into(),
-                manifest_split: "train".into(),
-                held_out: false,
-                buildings: 10,
-                sources: vec![],
-                attributions: vec![],
-            }],
-        };
+        let info = super::super::format::testing::info();
         let images = (1..=3).map(|id| super::super::format::testing::image(id, 4, 4)).collect();
         let annotations = anns
             .iter()
