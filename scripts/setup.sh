@@ -76,6 +76,13 @@ make_venv() { # dir, stamp text, pip args...
 
 PY_REQS=(numpy pyproj pycocotools jsonschema pycolmap panopticapi-lite pyyaml "datasets>=3,<4" "pandas>=2,<3" "pyarrow>=15,<20")
 make_venv "$ROOT/.venv" "${PY_REQS[*]}" "${PY_REQS[@]}"
+# The Citation File Format's own schema (shipped inside cffconvert's wheel; cffconvert itself pins
+# jsonschema < 4, so it is not installed): tests validate CITATION.cff against it.
+CFF_DIR="$ROOT/.venv/share/insgen-cff"
+if ! ls "$CFF_DIR"/cffconvert-2.0.0-*.whl >/dev/null 2>&1; then
+    say "fetching the Citation File Format schema (cffconvert 2.0.0 wheel)"
+    "$ROOT/.venv/bin/python" -m pip download -q --disable-pip-version-check --no-deps cffconvert==2.0.0 -d "$CFF_DIR"
+fi
 
 if [ -f scripts/setup_blender.sh ]; then
     bash scripts/setup_blender.sh

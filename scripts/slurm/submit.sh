@@ -24,7 +24,7 @@
 # that uses every core it gets (rayon; its renders go through wgpu like the masks), with memory of
 # the order of the masks task's (the scene plus a few query-sized images per core): give it cores
 # with --loc-resources "--cpus-per-task 8" (not measured on a cluster; the search costs roughly
-# hypotheses × render time, see README "Localization"). --loc-tag names loc/<tag> (default: the
+# hypotheses × render time, see docs/localization.md). --loc-tag names loc/<tag> (default: the
 # tag eval-loc derives from its options); --loc-args passes further eval-loc options (e.g. "--cost
 # instance --limit 20", or "--coco /path/instances_test.json", which --eval-loc PREDICTIONS needs
 # as the COCO file the predictions refer to).
