@@ -125,6 +125,7 @@ fn blender_ids(
         clip_end_m: 100_000.0,
         report_bounds: false,
         clutter_occluders: None,
+        contrast: None,
     };
     let summary = render_frames(&plan, frames, &NoProgress).expect("Blender renders the IDs");
     let secs = median_or_nan(&summary.rendered.iter().map(|t| t.seconds).collect::<Vec<_>>());

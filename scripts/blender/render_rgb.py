@@ -47,6 +47,8 @@ JOB_VERSION = 4
 # Name of the per-face building-ID attribute the script derives from _FEATURE_ID_0 (face domain, so no
 # interpolation can perturb the value: every pixel of a face reads the exact float).
 FACE_ID_ATTRIBUTE = "insgen_building_id"
+# Face-domain contrast class of the building (job look "contrast", src/scene/adjacency.rs); -1 = none.
+CONTRAST_ATTRIBUTE = "insgen_contrast_class"
 FEATURE_ID_ATTRIBUTE = "_FEATURE_ID_0"
 # Per-vertex appearance number of a scene.glb with textured LoD models (0 = none: the procedural look;
 # k = asset.extras.appearance_materials[k - 1]); see src/scene/glb.rs.
@@ -236,6 +238,8 @@ def import_models(bpy, job):
     from mathutils import Matrix
 
     placed = []
+    contrast = (job.get("look") or {}).get("contrast") if job["mode"] == "rgb" else None
+    classes = {int(b): float(c) for b, c in contrast["building_classes"]} if contrast else None
     for index, model in enumerate(job["models"]):
         before = set(bpy.data.objects)
         result = bpy.ops.import_scene.gltf(filepath=model["glb"], merge_vertices=False)
@@ -253,14 +257,15 @@ def import_models(bpy, job):
                 obj.matrix_basis = basis
         meshes = [o for o in new_objects if o.type == "MESH"]
         for obj in meshes:
-            add_face_ids(obj)
+            add_face_ids(obj, classes if model["kind"] == "lod" else None)
         placed.append((root, meshes, model))
     bpy.context.view_layer.update()
     return placed
 
 
-def add_face_ids(obj):
-    """Copies the per-vertex _FEATURE_ID_0 to a face-domain attribute (value of the face's first corner)."""
+def add_face_ids(obj, classes=None):
+    """Copies the per-vertex _FEATURE_ID_0 to a face-domain attribute (value of the face's first corner),
+    and with `classes` ({building ID: contrast class}) writes each face's class to CONTRAST_ATTRIBUTE."""
     mesh = obj.data
     src = mesh.attributes.get(FEATURE_ID_ATTRIBUTE)
     n_faces = len(mesh.polygons)
@@ -283,6 +288,10 @@ def add_face_ids(obj):
     attr = mesh.attributes.new(FACE_ID_ATTRIBUTE, "FLOAT", "FACE")
     if n_faces:
         attr.data.foreach_set("value", face_ids)
+    if classes is not None:
+        cls = mesh.attributes.new(CONTRAST_ATTRIBUTE, "FLOAT", "FACE")
+        if n_faces:
+            cls.data.foreach_set("value", [classes.get(int(f), -1.0) for f in face_ids])
 
 
 def model_bounds(placed):
@@ -379,6 +388,40 @@ def per_building_random(nt, building_id, look_seed, channel):
     wn = node(nt, "ShaderNodeTexWhiteNoise", noise_dimensions="3D")
     nt.links.new(combine.outputs["Vector"], wn.inputs["Vector"])
     return wn.outputs["Value"]
+
+
+def by_lightness(colors):
+    """The palette sorted by luminance (Rec. 709 weights of the linear RGB), darkest first."""
+    return sorted(colors, key=lambda c: 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2])
+
+
+def contrast_class(nt):
+    attr = node(nt, "ShaderNodeAttribute", attribute_type="GEOMETRY", attribute_name=CONTRAST_ATTRIBUTE)
+    # Faces without a class (-1) take class 0.
+    return math_node(nt, "MAXIMUM", attr.outputs["Fac"], 0.0)
+
+
+def contrast_pick(nt, look, r):
+    """The palette position of band `class` of K, at `r` ∈ [0, 1) within it: (class + r) / K."""
+    k = float(look["contrast"]["classes"])
+    return math_node(nt, "DIVIDE", math_node(nt, "ADD", contrast_class(nt), math_node(nt, "MULTIPLY", r, 0.999)), k)
+
+
+def contrast_factor(nt, look, lo, hi):
+    """lo + (hi − lo) · class / (K − 1): a brightness factor that grows with the class."""
+    k = max(float(look["contrast"]["classes"]) - 1.0, 1.0)
+    return math_node(nt, "ADD", math_node(nt, "MULTIPLY", contrast_class(nt), (hi - lo) / k), lo)
+
+
+def scale_color(nt, color, factor):
+    mix = node(nt, "ShaderNodeMix", data_type="RGBA", blend_type="MULTIPLY", clamp_factor=True)
+    socket(mix.inputs, "Factor_Float").default_value = 1.0
+    link_or_set(nt, socket(mix.inputs, "A_Color"), color)
+    rgb = node(nt, "ShaderNodeCombineXYZ")
+    for k in ("X", "Y", "Z"):
+        nt.links.new(factor, rgb.inputs[k])
+    nt.links.new(rgb.outputs["Vector"], socket(mix.inputs, "B_Color"))
+    return socket(mix.outputs, "Result_Color")
 
 
 def palette(nt, fac, colors):
@@ -488,8 +531,16 @@ def facade_shader(nt, look, lighting, bid, seed, geo, pos, nrm):
     window = math_node(nt, "MULTIPLY", math_node(nt, "MULTIPLY", in_u, in_v), math_node(nt, "MULTIPLY", above, upright))
 
     # Wall colour: palette pick, brightness jitter, brick texture for the "brick" style, plaster noise.
-    base = palette(nt, r_color, FACADE_COLORS_WIDE if look.get("wide_palette") else FACADE_COLORS)
-    bright = math_node(nt, "ADD", math_node(nt, "MULTIPLY", r_bright, 0.5), 0.75)
+    # With contrast classes the pick comes from the class's lightness band and the jitter is narrower.
+    facades = FACADE_COLORS_WIDE if look.get("wide_palette") else FACADE_COLORS
+    if look.get("contrast"):
+        # The band, and a brightness that steps with the class (0.7 … 1.3) with a little jitter.
+        base = palette(nt, contrast_pick(nt, look, r_color), by_lightness(facades))
+        jitter = math_node(nt, "ADD", math_node(nt, "MULTIPLY", r_bright, 0.16), 0.92)
+        bright = math_node(nt, "MULTIPLY", jitter, contrast_factor(nt, look, 0.7, 1.3))
+    else:
+        base = palette(nt, r_color, facades)
+        bright = math_node(nt, "ADD", math_node(nt, "MULTIPLY", r_bright, 0.5), 0.75)
     uvw = node(nt, "ShaderNodeCombineXYZ")
     nt.links.new(t, uvw.inputs["X"])
     nt.links.new(height, uvw.inputs["Y"])
@@ -546,7 +597,10 @@ def roof_shader(nt, look, lighting, bid, seed, geo, pos):
     """Roofs: a palette colour with stains, and rooftop clutter (plant rooms, vents, solar panels) as
     Voronoi cells of ~6 m, a per-building share of which is lighter or darker than the membrane."""
     r_roof = per_building_random(nt, bid, seed, 6)
-    roof_base = palette(nt, r_roof, ROOF_COLORS)
+    if look.get("contrast"):
+        roof_base = palette(nt, contrast_pick(nt, look, r_roof), by_lightness(ROOF_COLORS))
+    else:
+        roof_base = palette(nt, r_roof, ROOF_COLORS)
     # Roofs are (nearly) horizontal: 2D textures of plan position, features down to ~0.4 m.
     plan = node(nt, "ShaderNodeCombineXYZ")
     nt.links.new(pos.outputs["X"], plan.inputs["X"])
@@ -568,6 +622,9 @@ def roof_shader(nt, look, lighting, bid, seed, geo, pos):
     color = mix_color(nt, clutter, stained, clutter_color)
     if look.get("wide_palette"):
         color = roof_kinds(nt, color, plan, roof_noise, bid, seed)
+    if look.get("contrast"):
+        # Green, metal and tile roofs ignore the band: scale every roof by its class (0.7 … 1.3).
+        color = scale_color(nt, color, contrast_factor(nt, look, 0.7, 1.3))
     if lighting == "direct":
         return direct_shader(nt, color, look)
     return principled_shader(nt, color, 0.9, 0.3)

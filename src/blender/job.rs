@@ -172,6 +172,9 @@ pub struct Look {
     pub sky_strength: f64,
     /// Exposure of the Standard view transform, in stops.
     pub exposure: f64,
+    /// Contrast classes of touching buildings (procedural look); `None`: colours drawn per building alone.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contrast: Option<super::look::BuildingContrast>,
 }
 
 /// One frame to render.
@@ -433,6 +436,7 @@ mod tests {
                 sun_strength: 4.0,
                 sky_strength: 0.3,
                 exposure: 0.0,
+                contrast: None,
             },
             frames: vec![JobFrame {
                 name: "f0".into(),

@@ -210,6 +210,37 @@ impl CameraEffects {
     }
 }
 
+/// Contrast classes of the LoD buildings ([`crate::scene::adjacency`]): the procedural look picks each
+/// building's facade and roof colours from the band of its palette (sorted by lightness) that its class
+/// names, so buildings that touch in plan differ in lightness and their shared edge shows in the photo.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct BuildingContrast {
+    /// Number of classes (bands of each palette).
+    pub classes: u8,
+    /// `[building ID, class]`, sorted by ID.
+    pub building_classes: Vec<[u32; 2]>,
+}
+
+impl BuildingContrast {
+    /// Classes of touching buildings (cells of [`CONTRAST_CELL_M`], reach [`CONTRAST_REACH_M`]) and the
+    /// number of touching pairs whose classes still clash, of all touching pairs.
+    pub fn of_mesh(mesh: &crate::scene::SceneMesh) -> (BuildingContrast, (usize, usize)) {
+        use crate::scene::adjacency::{clashes, contrast_classes, plan_neighbours};
+        let neighbours = plan_neighbours(mesh, CONTRAST_CELL_M, CONTRAST_REACH_M);
+        let classes = contrast_classes(&neighbours, CONTRAST_CLASSES);
+        let clash = clashes(&neighbours, &classes);
+        let building_classes = classes.into_iter().map(|(id, c)| [id, u32::from(c)]).collect();
+        (BuildingContrast { classes: CONTRAST_CLASSES, building_classes }, clash)
+    }
+}
+
+/// Contrast classes of the procedural look: four bands per palette (plan graphs of cities are near planar).
+pub const CONTRAST_CLASSES: u8 = 4;
+/// Plan cell of the neighbour search, metres.
+pub const CONTRAST_CELL_M: f64 = 0.5;
+/// Buildings closer than this in plan count as touching, metres (about a pixel of a UAV view).
+pub const CONTRAST_REACH_M: f64 = 1.0;
+
 /// One frame's drawn look: what Blender sets before rendering it and what insgen applies after.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct FrameLook {

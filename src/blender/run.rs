@@ -156,6 +156,8 @@ pub struct RenderPlan {
     /// ID mode: the clutter layers kept as occluders (background); the scene's other clutter layers
     /// are left out of the ID render. `None` = every clutter layer occludes.
     pub clutter_occluders: Option<Vec<crate::scene::clutter::ClutterLayer>>,
+    /// RGB mode, procedural look: contrast classes of touching buildings (`None`: off).
+    pub contrast: Option<super::look::BuildingContrast>,
 }
 
 /// Time spent on one frame, as Blender reported it.
@@ -428,7 +430,7 @@ pub fn frame_fingerprint(plan: &RenderPlan, f: &FrameRequest) -> String {
         plan.ground_enu_m,
         plan.clip_start_m,
         // ID renders do not depend on the look.
-        (plan.mode == Mode::Rgb).then_some(plan.look),
+        (plan.mode == Mode::Rgb).then_some((plan.look, &plan.contrast)),
     );
     hex::encode(sha2::Sha256::digest(text.as_bytes()))
 }
@@ -479,6 +481,7 @@ fn look_for(plan: &RenderPlan) -> Look {
         sun_strength: super::look::PLAIN_SUN_STRENGTH,
         sky_strength: super::look::PLAIN_SKY_STRENGTH,
         exposure: 0.0,
+        contrast: plan.contrast.clone(),
     }
 }
 
@@ -814,6 +817,7 @@ mod tests {
             clip_end_m: 1e5,
             report_bounds: false,
             clutter_occluders: None,
+            contrast: None,
         }
     }
 

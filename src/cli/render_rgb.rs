@@ -230,6 +230,10 @@ pub struct Args {
     /// Re-encode each frame as JPEG with a quality drawn from this range (the PNG holds the decoded JPEG).
     #[arg(long, value_name = "A..B", value_parser = parse_range, hide_short_help = true)]
     pub jpeg_quality: Option<[f64; 2]>,
+    /// Draw each building's colours independently, even when it touches another building (by default the
+    /// procedural look gives touching buildings different lightness bands, so every shared wall shows).
+    #[arg(long, hide_short_help = true)]
+    pub no_neighbour_contrast: bool,
     /// Render a photogrammetry 3D Tiles tileset (tileset.json) instead of the procedural LoD look.
     #[arg(long, value_name = "FILE")]
     pub tileset: Option<PathBuf>,
@@ -369,8 +373,33 @@ fn plan(args: &Args, global: &super::Global) -> anyhow::Result<Plan> {
         clip_end_m: 100_000.0,
         report_bounds: false,
         clutter_occluders: Some(args.occluders.0.clone()),
+        contrast: None,
     };
+    let render = RenderPlan { contrast: neighbour_contrast(args, &render, &scene_dir)?, ..render };
     Ok(Plan { camera_dir, frames, render })
+}
+
+/// The contrast classes of touching buildings, for RGB renders of the procedural look unless
+/// `--no-neighbour-contrast`; logged with the touching pairs they leave unseparated.
+fn neighbour_contrast(
+    args: &Args,
+    render: &RenderPlan,
+    scene_dir: &std::path::Path,
+) -> anyhow::Result<Option<crate::blender::look::BuildingContrast>> {
+    if args.no_neighbour_contrast
+        || render.mode != Mode::Rgb
+        || !matches!(render.source, SceneSource::Lod { .. })
+    {
+        return Ok(None);
+    }
+    let scene = crate::scene::PreparedScene::load(scene_dir)?;
+    let (contrast, (same, pairs)) = crate::blender::look::BuildingContrast::of_mesh(&scene.mesh);
+    log::info!(
+        "neighbour contrast: {} buildings in {} classes, {pairs} touching pairs, {same} of them in the same class",
+        contrast.building_classes.len(),
+        contrast.classes
+    );
+    Ok(Some(contrast))
 }
 
 /// The look ranges of the flags at the area's latitude.

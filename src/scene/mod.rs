@@ -11,8 +11,10 @@
 //! - [`mesh`] — the instanced [`SceneMesh`] renderers consume;
 //! - [`glb`] — the scene GLB (EXT_mesh_features) writer and reader;
 //! - [`procedural`] — the embedded demo city generator;
-//! - [`clutter`] — streets, ground cover, trees, cars and rooftop units around the buildings (seeded).
+//! - [`clutter`] — streets, ground cover, trees, cars and rooftop units around the buildings (seeded);
+//! - [`adjacency`] — which buildings touch in plan, and contrast classes that tell them apart in photos.
 
+pub mod adjacency;
 pub mod align;
 pub mod appearance;
 pub mod artifact;

@@ -58,6 +58,7 @@ fn plan(python: &Path, dir: &Path, mode: Mode, source: SceneSource) -> RenderPla
         clip_end_m: 100_000.0,
         report_bounds: false,
         clutter_occluders: None,
+        contrast: None,
     }
 }
 
@@ -752,6 +753,12 @@ fn job_files_follow_the_schema() {
             SceneSource::Lod { glb: glb.clone(), enu_from_gltf: ENU_FROM_SCENE_GLTF },
         );
         p.exr = true;
+        if mode == Mode::Rgb {
+            p.contrast = Some(insgen::blender::look::BuildingContrast {
+                classes: 4,
+                building_classes: vec![[1, 0], [3, 2], [70_000, 1]],
+            });
+        }
         assert!(render_frames(&p, &test_frames(), &NoProgress).is_err());
         let name =
             if mode == Mode::Ids { "job-ids-nadir_offcentre.json" } else { "job-rgb-nadir_offcentre.json" };
@@ -949,4 +956,56 @@ fn direct_lighting_is_noise_free_but_for_anti_aliasing() {
     eprintln!("seed-to-seed PSNR: direct {direct:.1} dB, path {path:.1} dB; direct vs path {looks:.1} dB");
     assert!(direct > path + 8.0, "direct {direct:.1} dB vs path {path:.1} dB");
     assert!(looks < direct - 3.0, "the looks differ: {looks:.1} dB vs {direct:.1} dB between direct seeds");
+}
+
+/// Neighbour contrast (issue 37's data fix): a row of identical touching houses, nadir. With contrast
+/// classes 0 1 2 3 0 1 2 3 along the row, each roof's mean luma follows its class (the palette band and a
+/// brightness step), so every shared wall is an edge in the photo.
+#[test]
+fn touching_houses_get_roofs_of_their_contrast_class() {
+    let Some(py) = blender_python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let row: Vec<BoxBuilding> = (0..8)
+        .map(|k| {
+            BoxBuilding::new(k + 1, -40.0 + 10.0 * k as f64, -6.0, -30.0 + 10.0 * k as f64, 6.0, 0.0, 10.0)
+        })
+        .collect();
+    let glb = write_scene_glb(dir.path(), &row);
+    let mut p =
+        plan(&py, dir.path(), Mode::Rgb, SceneSource::Lod { glb, enu_from_gltf: ENU_FROM_SCENE_GLTF });
+    p.contrast = Some(insgen::blender::look::BuildingContrast {
+        classes: 4,
+        building_classes: (0..8).map(|k| [k + 1, k % 4]).collect(),
+    });
+    let k = Intrinsics::from_hfov(160, 48, 40.0);
+    let f = FrameRequest {
+        name: "row".into(),
+        intrinsics: k,
+        pose: Pose::from_ypr_deg(0.0, 0.0, 0.0, [0.0, 0.0, 130.0]),
+    };
+    render_frames(&p, std::slice::from_ref(&f), &NoProgress).unwrap();
+    let (w, _h, rgb) = read_rgb_png(&p.out_dir.join("row.png"));
+    let ids = reference_ids(&row, &f.intrinsics, &f.pose);
+    // Mean luma of each roof, away from its edges (2 px inside).
+    let mut sum = [(0.0f64, 0u32); 9];
+    for (i, &id) in ids.iter().enumerate() {
+        let (x, y) = ((i % w as usize) as i64, (i / w as usize) as i64);
+        let inside = (-2..=2).all(|d: i64| {
+            let (xx, yy) =
+                ((x + d).clamp(0, w as i64 - 1), (y + d).clamp(0, ids.len() as i64 / w as i64 - 1));
+            ids[(y * w as i64 + xx) as usize] == id && ids[(yy * w as i64 + x) as usize] == id
+        });
+        if id != 0 && inside {
+            let c = &rgb[3 * i..3 * i + 3];
+            sum[id as usize].0 += 0.2126 * c[0] as f64 + 0.7152 * c[1] as f64 + 0.0722 * c[2] as f64;
+            sum[id as usize].1 += 1;
+        }
+    }
+    let luma: Vec<f64> = (1..=8).map(|id| sum[id].0 / sum[id].1.max(1) as f64).collect();
+    eprintln!("roof luma along the row (classes 0 1 2 3 0 1 2 3): {luma:.1?}");
+    assert!(sum[1..].iter().all(|s| s.1 > 20), "roofs not seen: {sum:?}");
+    for pair in luma.windows(2).take(3).chain(luma[4..].windows(2)) {
+        assert!(pair[1] > pair[0] + 3.0, "a higher class must be lighter: {luma:.1?}");
+    }
+    assert!(luma.windows(2).all(|p| (p[1] - p[0]).abs() > 3.0), "touching roofs alike: {luma:.1?}");
 }

@@ -57,6 +57,7 @@ fn plan(python: &Path, dir: &Path, mode: Mode, source: SceneSource) -> RenderPla
         clip_end_m: 100_000.0,
         report_bounds: false,
         clutter_occluders: None,
+        contrast: None,
     }
 }
 

@@ -24,7 +24,11 @@ fn citation_file_is_valid_cff_and_agrees_with_cargo_toml_and_the_licence_files()
     }
     let out = check_citation(&py, &repo());
     let text = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "CITATION.cff check failed:\n{text}{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "CITATION.cff check failed:\n{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(text.contains("CITATION.cff valid"), "{text}");
 
     // The check can fail: a copy with an unknown key, another version and no Apache licence file.
@@ -81,5 +85,8 @@ fn every_relative_link_in_the_documentation_resolves() {
     }
     assert!(checked > 0, "no relative links found in {docs:?}");
     assert!(broken.is_empty(), "links to missing files:\n{}", broken.join("\n"));
-    assert_eq!(relative_links("see [a](x.md#y), [b](https://e.org) and [c](../d/e.png)"), ["x.md", "../d/e.png"]);
+    assert_eq!(
+        relative_links("see [a](x.md#y), [b](https://e.org) and [c](../d/e.png)"),
+        ["x.md", "../d/e.png"]
+    );
 }

@@ -324,6 +324,7 @@ mod blender {
             clip_end_m: 10_000.0,
             report_bounds: false,
             clutter_occluders: None,
+            contrast: None,
         }
     }
 
