@@ -71,6 +71,8 @@ pub const PARTS_DIR: &str = "parts";
 pub const DATASET_FILE: &str = "dataset.json";
 /// An export's dataset card.
 pub const CARD_FILE: &str = "README.md";
+/// A self-contained export's checksums, in the format of coreutils' `sha256sum -c`.
+pub const CHECKSUMS_FILE: &str = "SHA256SUMS";
 /// The photos inside a self-contained export: `images/<split>/<area>/<camera>/<frame>.png`.
 pub const EXPORT_IMAGES_DIR: &str = "images";
 /// The ID maps inside a self-contained export: `masks/<split>/<area>/<camera>/<frame>.png`.
@@ -228,6 +230,11 @@ impl ExportDir {
     /// `README.md`, the dataset card.
     pub fn card(&self) -> PathBuf {
         self.0.join(CARD_FILE)
+    }
+
+    /// `SHA256SUMS`: every placed file and COCO file with its SHA-256 (`sha256sum -c SHA256SUMS`).
+    pub fn checksums(&self) -> PathBuf {
+        self.0.join(CHECKSUMS_FILE)
     }
 
     /// `instances_<split>.json`.

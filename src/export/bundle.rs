@@ -73,7 +73,7 @@ pub fn names_inside(datasets: &mut [(Split, Dataset)]) -> Vec<Placement> {
 /// Rewrites the names of `datasets` as [`names_inside`] does and places the files in `out_dir`,
 /// removing what an earlier export placed there that no image names now; a photo that does not
 /// exist is skipped only in a label-only export, whose photos are still to come. Returns how many
-/// files were (re)written.
+/// files were (re)written and the names (relative to `out_dir`) of every file now placed.
 ///
 /// # Errors
 /// [`CocoError::File`] naming a file that could not be read (an ID map that vanished since the export
@@ -82,27 +82,68 @@ pub fn place_files(
     workdir: &Path,
     out_dir: &Path,
     datasets: &mut [(Split, Dataset)],
-) -> Result<u64, CocoError> {
-    let jobs: Vec<(PathBuf, PathBuf, bool)> = names_inside(datasets)
-        .into_iter()
-        .map(|p| (workdir.join(&p.from), out_dir.join(&p.to), p.optional))
-        .collect();
+) -> Result<(u64, Vec<String>), CocoError> {
+    let placements = names_inside(datasets);
+    let jobs: Vec<(PathBuf, PathBuf, bool)> =
+        placements.iter().map(|p| (workdir.join(&p.from), out_dir.join(&p.to), p.optional)).collect();
     let written = jobs
         .par_iter()
         .map(|(src, dst, optional)| {
             crate::util::interrupt::check()?;
             if *optional && !src.exists() {
-                return Ok(false);
+                return Ok(None);
             }
-            Ok(crate::util::link_or_copy(src, dst)?)
+            Ok(Some(crate::util::link_or_copy(src, dst)?))
         })
-        .collect::<Result<Vec<bool>, CocoError>>()?;
+        .collect::<Result<Vec<Option<bool>>, CocoError>>()?;
     let keep: BTreeSet<&Path> = jobs.iter().map(|(_, dst, _)| dst.as_path()).collect();
     let export = ExportDir::new(out_dir);
     for dir in [export.images(), export.masks()] {
         remove_unlisted(&dir, &keep)?;
     }
-    Ok(written.into_iter().filter(|&w| w).count() as u64)
+    let count = written.iter().filter(|w| **w == Some(true)).count() as u64;
+    let placed =
+        placements.into_iter().zip(&written).filter(|(_, w)| w.is_some()).map(|(p, _)| p.to).collect();
+    Ok((count, placed))
+}
+
+/// Writes `SHA256SUMS` in `out_dir`: one line `<hex>  <name>` per file of `names` (relative to
+/// `out_dir`, sorted, each once), the format `sha256sum -c` checks. Returns the file's own SHA-256 and
+/// how many files it lists.
+///
+/// # Errors
+/// [`CocoError::File`] naming a file that cannot be read, or the checksums file that cannot be written.
+pub fn write_checksums(out_dir: &Path, names: &[String]) -> Result<(String, u64), CocoError> {
+    let names: BTreeSet<&String> = names.iter().collect();
+    let lines = names
+        .par_iter()
+        .map(|name| {
+            crate::util::interrupt::check()?;
+            Ok(format!("{}  {name}\n", crate::util::sha256_file(&out_dir.join(name.as_str()))?))
+        })
+        .collect::<Result<Vec<String>, CocoError>>()?;
+    let path = ExportDir::new(out_dir).checksums();
+    crate::util::write_bytes_atomic(&path, lines.concat().as_bytes())?;
+    Ok((crate::util::sha256_file(&path)?, names.len() as u64))
+}
+
+/// The lines of a `SHA256SUMS` text: (hex digest, name); a line that is not `<64 hex>  <name>` is an
+/// `Err` with its 1-based number.
+pub fn parse_checksums(text: &str) -> Vec<Result<(String, String), usize>> {
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| !l.is_empty())
+        .map(|(i, line)| {
+            let (hex, name) = line.split_once("  ").ok_or(i + 1)?;
+            let name = name.strip_prefix('*').unwrap_or(name);
+            let ok = hex.len() == 64 && hex.bytes().all(|b| b.is_ascii_hexdigit()) && !name.is_empty();
+            if ok {
+                Ok((hex.to_ascii_lowercase(), name.to_string()))
+            } else {
+                Err(i + 1)
+            }
+        })
+        .collect()
 }
 
 /// Removes the files under `dir` not in `keep` (what an earlier export placed), and folders left empty.

@@ -899,14 +899,16 @@ pub fn write_export(plan: &ExportPlan, mut ex: Export) -> Result<(Export, Vec<Pa
     crate::util::create_dir_all(&plan.out_dir)?;
     // Read beside the photos in the work directory, before their names move into the export.
     let rgb_render = super::manifest::rgb_render_settings(&plan.workdir, &ex.datasets);
+    let mut placed = Vec::new();
     if plan.link_root {
         let root = image_root(&plan.workdir, &plan.out_dir);
         for (_, ds) in &mut ex.datasets {
             ds.info.image_root = root.clone();
         }
     } else {
-        let placed = super::bundle::place_files(&plan.workdir, &plan.out_dir, &mut ex.datasets)?;
-        log::debug!("placed {placed} photo and ID map file(s) in {}", plan.out_dir.display());
+        let (count, names) = super::bundle::place_files(&plan.workdir, &plan.out_dir, &mut ex.datasets)?;
+        log::debug!("placed {count} photo and ID map file(s) in {}", plan.out_dir.display());
+        placed = names;
     }
     let mut written = Vec::new();
     let mut files = Vec::new();
@@ -917,7 +919,14 @@ pub fn write_export(plan: &ExportPlan, mut ex: Export) -> Result<(Export, Vec<Pa
         written.push(path);
     }
     // The manifest and the card last: they describe the files above.
-    let manifest = super::manifest::DatasetManifest::new(plan, &ex.datasets, &files, rgb_render);
+    let mut manifest = super::manifest::DatasetManifest::new(plan, &ex.datasets, &files, rgb_render);
+    if !plan.link_root {
+        placed.extend(files.iter().map(|(_, name, _)| name.clone()));
+        let (sha256, count) = super::bundle::write_checksums(&plan.out_dir, &placed)?;
+        let path = crate::layout::CHECKSUMS_FILE.to_string();
+        written.push(plan.out_dir.join(&path));
+        manifest.checksums = Some(super::manifest::ChecksumsEntry { path, sha256, files: count });
+    }
     manifest.write(&plan.out_dir)?;
     written.push(plan.out_dir.join(super::manifest::MANIFEST_FILE));
     let refs: Vec<(Split, &Dataset)> = ex.datasets.iter().map(|(s, d)| (*s, d)).collect();

@@ -41,6 +41,21 @@ pub struct DatasetManifest {
     pub export: ExportSettings,
     /// The workdir's command log at export time, oldest first.
     pub commands: Vec<CommandRecord>,
+    /// `SHA256SUMS` of a self-contained export (absent under `--link-root`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub checksums: Option<ChecksumsEntry>,
+}
+
+/// The checksums file of a self-contained export: every placed photo, ID map, instance list and ignore
+/// mask, and the COCO files, with their SHA-256 (`sha256sum -c SHA256SUMS` in the export folder).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ChecksumsEntry {
+    /// `SHA256SUMS`, relative to the dataset directory.
+    pub path: String,
+    /// SHA-256 of that file.
+    pub sha256: String,
+    /// Files it lists.
+    pub files: u64,
 }
 
 /// The program that wrote the dataset.
@@ -242,6 +257,7 @@ impl DatasetManifest {
                 holdout: plan.holdout.clone(),
             },
             commands: provenance::read_commands(&plan.workdir),
+            checksums: None,
         }
     }
 

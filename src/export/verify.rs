@@ -110,6 +110,9 @@ pub fn verify(dir: &Path, progress: &dyn Progress) -> VerifyReport {
             }
         }
     }
+    if let Some(c) = manifest.as_ref().and_then(|m| m.checksums.as_ref()) {
+        report.problems.extend(check_checksums(dir, c));
+    }
     for path in files {
         let bytes = match crate::util::read_file(&path) {
             Ok(b) => b,
@@ -163,6 +166,48 @@ pub fn verify(dir: &Path, progress: &dyn Progress) -> VerifyReport {
 }
 
 /// Unique ids, annotations pointing at images of this file, the one category.
+/// `SHA256SUMS` against the manifest's digest of it, then every file it lists against its line.
+fn check_checksums(dir: &Path, entry: &super::manifest::ChecksumsEntry) -> Vec<Problem> {
+    use rayon::prelude::*;
+    let path = dir.join(&entry.path);
+    let problem = |file: &Path, what: String| Problem { file: file.to_path_buf(), what };
+    let text = match crate::util::read_file(&path) {
+        Ok(bytes) => String::from_utf8_lossy(&bytes).into_owned(),
+        Err(_) => return vec![problem(&path, "listed in the manifest but missing".into())],
+    };
+    let mut out = Vec::new();
+    let digest = crate::util::sha256_file(&path).unwrap_or_default();
+    if digest != entry.sha256 {
+        out.push(problem(
+            &path,
+            format!("SHA-256 {digest} differs from the manifest's {} (changed after export)", entry.sha256),
+        ));
+    }
+    let lines = super::bundle::parse_checksums(&text);
+    if lines.len() as u64 != entry.files {
+        out.push(problem(&path, format!("{} lines, the manifest says {} files", lines.len(), entry.files)));
+    }
+    let found: Vec<Option<Problem>> = lines
+        .par_iter()
+        .map(|line| match line {
+            Err(n) => Some(problem(&path, format!("line {n} is not `<SHA-256>  <file>`"))),
+            Ok((hex, name)) => {
+                let file = dir.join(name);
+                match crate::util::sha256_file(&file) {
+                    Ok(h) if &h == hex => None,
+                    Ok(h) => Some(problem(
+                        &file,
+                        format!("SHA-256 {h} differs from {}'s {hex} (changed after export)", entry.path),
+                    )),
+                    Err(_) => Some(problem(&file, format!("listed in {} but missing", entry.path))),
+                }
+            }
+        })
+        .collect();
+    out.extend(found.into_iter().flatten());
+    out
+}
+
 fn check_ids(path: &Path, ds: &Dataset) -> Vec<Problem> {
     let mut out = Vec::new();
     let mut p = |what: String| out.push(Problem { file: path.to_path_buf(), what });

@@ -373,6 +373,34 @@ fn a_moved_export_folder_verifies_and_loads_in_every_client() {
     assert_eq!(report.images, coco_images);
     let o = insgen(elsewhere.path(), &["verify", moved.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
+    // coreutils checks every placed file against SHA256SUMS; a photo changed after export fails both it
+    // and `insgen verify` (in a copy, whose files are not links to the moved ones).
+    let sums = |dir: &Path| {
+        Command::new("sha256sum").args(["-c", "--quiet", "SHA256SUMS"]).current_dir(dir).output().unwrap()
+    };
+    let o = sums(&moved);
+    assert!(o.status.success(), "sha256sum -c: {}{}", String::from_utf8_lossy(&o.stdout), stderr(&o));
+    let listed = std::fs::read_to_string(moved.join("SHA256SUMS")).unwrap().lines().count();
+    assert!(listed > 2 * coco_images, "{listed} files listed for {coco_images} images");
+    let copy = elsewhere.path().join("copy");
+    assert!(Command::new("cp").arg("-a").arg(&moved).arg(&copy).status().unwrap().success());
+    let photo = image_files(&copy.join("images"))[0].clone();
+    let mut bytes = std::fs::read(&photo).unwrap();
+    let last = bytes.len() - 20;
+    bytes[last] ^= 0xff; // inside the IEND-preceding data: still a file of the same size
+    std::fs::remove_file(&photo).unwrap();
+    std::fs::write(&photo, &bytes).unwrap();
+    let o = sums(&copy);
+    assert!(
+        !o.status.success() && String::from_utf8_lossy(&o.stdout).contains("FAILED"),
+        "sha256sum -c passed a changed photo"
+    );
+    let report = insgen::export::verify::verify(&copy, &NoProgress);
+    assert!(
+        report.problems.iter().any(|p| p.file == photo && p.what.contains("differs from SHA256SUMS")),
+        "{:#?}",
+        report.problems
+    );
     // The YOLO folder copied alone (`cp -a`) holds every image as a file.
     let yolo_copy = elsewhere.path().join("yolo-copy");
     let ok = Command::new("cp").arg("-a").arg(moved.join("yolo")).arg(&yolo_copy).status().unwrap();
