@@ -389,7 +389,7 @@ fn component_export_agrees_with_pycocotools_and_the_id_maps() {
     let wd = standard_workdir(tmp.path());
     let p = plan(&wd, "coco");
     let (ex, written) = export(&p, &NoProgress).unwrap();
-    assert_eq!(written.len(), 5, "three COCO files, dataset.json, README.md");
+    assert_eq!(written.len(), 6, "three COCO files, SHA256SUMS, dataset.json, README.md");
     assert_eq!(ex.frames_without_masks, 1, "alpha lists one frame it never rendered");
     // alpha's third frame has masks but no RGB frame: it is left out and counted, never listed.
     assert_eq!(ex.frames_without_rgb.len(), 1);
