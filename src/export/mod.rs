@@ -41,6 +41,7 @@ pub mod bundle;
 pub mod card;
 pub mod city_tileset;
 pub mod coco;
+pub(crate) mod compress;
 pub mod error;
 pub mod format;
 pub mod frames;
