@@ -66,8 +66,8 @@ pub enum LodError {
     Malformed {
         /// The file.
         path: PathBuf,
-        /// What is wrong, with the line and column where known.
-        problem: SyntaxProblem,
+        /// What is wrong, with the line and column where known (boxed: errors travel by value).
+        problem: Box<SyntaxProblem>,
         /// The parser's error, when there is one.
         #[source]
         source: Option<ParseError>,
@@ -90,8 +90,8 @@ pub enum LodError {
         path: PathBuf,
         /// Where in it: gml:id, JSON path, line, tile URI, or the option's name.
         at: String,
-        /// What is wrong there.
-        problem: LodProblem,
+        /// What is wrong there (boxed: errors travel by value).
+        problem: Box<LodProblem>,
     },
 
     /// A tileset JSON breaks the 3D Tiles rules; every problem is listed with its JSON path.
@@ -692,7 +692,7 @@ pub enum ParseError {
 impl LodError {
     /// A [`LodError::Malformed`] without a parser error.
     pub fn malformed(path: impl Into<PathBuf>, problem: SyntaxProblem) -> Self {
-        LodError::Malformed { path: path.into(), problem, source: None }
+        LodError::Malformed { path: path.into(), problem: Box::new(problem), source: None }
     }
 
     /// A [`LodError::Malformed`] caused by the parser error `source`.
@@ -701,12 +701,12 @@ impl LodError {
         problem: SyntaxProblem,
         source: impl Into<ParseError>,
     ) -> Self {
-        LodError::Malformed { path: path.into(), problem, source: Some(source.into()) }
+        LodError::Malformed { path: path.into(), problem: Box::new(problem), source: Some(source.into()) }
     }
 
     /// A [`LodError::Invalid`]: `problem` is wrong at `at` in the file `path`.
     pub fn invalid(path: impl Into<PathBuf>, at: impl Into<String>, problem: impl Into<LodProblem>) -> Self {
-        LodError::Invalid { path: path.into(), at: at.into(), problem: problem.into() }
+        LodError::Invalid { path: path.into(), at: at.into(), problem: Box::new(problem.into()) }
     }
 }
 

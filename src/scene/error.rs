@@ -44,8 +44,8 @@ pub enum SceneError {
     Georef {
         /// The source file (the scene file for the geoid).
         path: PathBuf,
-        /// What could not be done.
-        problem: GeorefProblem,
+        /// What could not be done (boxed: errors travel by value).
+        problem: Box<GeorefProblem>,
         /// The geo stage's error, when it is the cause.
         #[source]
         source: Option<crate::geo::GeoError>,
@@ -396,7 +396,7 @@ mod tests {
             (
                 SceneError::Georef {
                     path: "a.json".into(),
-                    problem: GeorefProblem::NoCrs { scene_file: "scenes/a.toml".into() },
+                    problem: Box::new(GeorefProblem::NoCrs { scene_file: "scenes/a.toml".into() }),
                     source: None,
                 }
                 .to_string(),

@@ -613,10 +613,7 @@ fn check_appearance(path: &Path, mesh: &SceneMesh, a: &GlbAppearance) -> Result<
         }));
     }
     if let Some(&k) = a.vertices.ids.iter().find(|&&k| k as usize > a.materials.len()) {
-        return Err(bad(InputProblem::AppearanceIndex {
-            appearance: k.into(),
-            materials: a.materials.len(),
-        }));
+        return Err(bad(InputProblem::AppearanceIndex { appearance: k, materials: a.materials.len() }));
     }
     if let Some(uv) = a.vertices.uvs.iter().find(|uv| !uv.iter().all(|c| c.is_finite())) {
         return Err(bad(InputProblem::NonFiniteUv { uv: *uv }));

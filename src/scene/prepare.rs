@@ -95,13 +95,13 @@ impl GeoidSlot<'_> {
                         Some(p) => self.scene_file.parent().unwrap_or(Path::new(".")).join(p),
                         None => Geoid::find_egm96().ok_or_else(|| SceneError::Georef {
                             path: self.scene_file.into(),
-                            problem: GeorefProblem::NoEgm96,
+                            problem: Box::new(GeorefProblem::NoEgm96),
                             source: None,
                         })?,
                     };
                     Geoid::Grid(geo::geoid::GeoidGrid::load(&path).map_err(|e| SceneError::Georef {
                         path: self.scene_file.into(),
-                        problem: GeorefProblem::GeoidGrid,
+                        problem: Box::new(GeorefProblem::GeoidGrid),
                         source: Some(e),
                     })?)
                 }
@@ -225,7 +225,7 @@ enum Conversion {
 
 /// A [`SceneError::Georef`] for the source at `path`.
 fn georef_err(path: &Path, problem: GeorefProblem, source: Option<geo::GeoError>) -> SceneError {
-    SceneError::Georef { path: path.to_path_buf(), problem, source }
+    SceneError::Georef { path: path.to_path_buf(), problem: Box::new(problem), source }
 }
 
 /// Converts one source model's buildings to ECEF. Returns the buildings, the conversion chain as the
@@ -602,7 +602,7 @@ fn heights_note(src: &SourceConfig, model: &lod::SourceModel) -> Result<Option<S
     if matches!(model.frame, lod::Frame::Ecef) {
         return Err(SceneError::Georef {
             path: model.path.clone(),
-            problem: GeorefProblem::AboveGroundEcef,
+            problem: Box::new(GeorefProblem::AboveGroundEcef),
             source: None,
         });
     }
