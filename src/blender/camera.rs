@@ -25,7 +25,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::BlenderError;
+use super::{BlenderError, CameraProblem};
 use crate::camera::{Intrinsics, Pose};
 
 /// 4×4 row-major matrix.
@@ -73,39 +73,36 @@ impl BlenderCamera {
         clip_start_m: f64,
         clip_end_m: f64,
     ) -> Result<BlenderCamera, BlenderError> {
-        let bad = |what: String| BlenderError::Camera { frame: frame.to_string(), what };
+        let bad = |problem: CameraProblem| BlenderError::Camera { frame: frame.to_string(), problem };
         if k.width_px == 0 || k.height_px == 0 {
-            return Err(bad(format!("image size {}×{} px is empty", k.width_px, k.height_px)));
+            return Err(bad(CameraProblem::EmptyImage { width_px: k.width_px, height_px: k.height_px }));
         }
         for (name, v) in [("fx_px", k.fx_px), ("fy_px", k.fy_px)] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(bad(format!("{name} = {v} must be finite and positive")));
+                return Err(bad(CameraProblem::Focal { name, value_px: v }));
             }
         }
         for (name, v) in [("cx_px", k.cx_px), ("cy_px", k.cy_px)] {
             if !v.is_finite() {
-                return Err(bad(format!("{name} = {v} must be finite")));
+                return Err(bad(CameraProblem::PrincipalPoint { name, value_px: v }));
             }
         }
         if !(clip_start_m > 0.0 && clip_end_m > clip_start_m && clip_end_m.is_finite()) {
-            return Err(bad(format!("clip range [{clip_start_m}, {clip_end_m}] m is not 0 < start < end")));
+            return Err(bad(CameraProblem::Clip { start_m: clip_start_m, end_m: clip_end_m }));
         }
         let (w, h) = (k.width_px as f64, k.height_px as f64);
         let (pixel_aspect_x, pixel_aspect_y) =
             if k.fy_px >= k.fx_px { (k.fy_px / k.fx_px, 1.0) } else { (1.0, k.fx_px / k.fy_px) };
         if pixel_aspect_x > MAX_PIXEL_ASPECT || pixel_aspect_y > MAX_PIXEL_ASPECT {
-            return Err(bad(format!(
-                "fx/fy = {} needs a pixel aspect beyond {MAX_PIXEL_ASPECT}",
-                k.fx_px / k.fy_px
-            )));
+            return Err(bad(CameraProblem::PixelAspect {
+                fx_over_fy: k.fx_px / k.fy_px,
+                max: MAX_PIXEL_ASPECT,
+            }));
         }
         let shift_x = (0.5 * w - k.cx_px) / w;
         let shift_y = (k.cy_px - 0.5 * h) * k.fx_px / (k.fy_px * w);
         if shift_x.abs() > MAX_SHIFT || shift_y.abs() > MAX_SHIFT {
-            return Err(bad(format!(
-                "principal point ({}, {}) px is too far from the image centre (shift {shift_x}, {shift_y})",
-                k.cx_px, k.cy_px
-            )));
+            return Err(bad(CameraProblem::Shift { cx_px: k.cx_px, cy_px: k.cy_px, shift_x, shift_y }));
         }
         Ok(BlenderCamera {
             sensor_width_mm: SENSOR_WIDTH_MM,

@@ -4,22 +4,123 @@
 use std::fmt;
 use std::path::PathBuf;
 
+use crate::camera::record::BadFrameName;
+use crate::camera::Intrinsics;
 use crate::lod::tiles3d::ContentError;
 use crate::util::FileError;
 
 /// One problem found in a job before Blender is started, with the JSON path where it sits.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{path}: {problem}")]
 pub struct JobIssue {
     /// Location in the job, e.g. `frames[3].exr` or `models[0].glb`.
     pub path: String,
     /// What is wrong there.
-    pub what: String,
+    pub problem: JobProblem,
 }
 
-impl fmt::Display for JobIssue {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}: {}", self.path, self.what)
-    }
+/// What is wrong at a place in a Blender job (see [`JobIssue`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum JobProblem {
+    /// The job's `format` is not this insgen's.
+    #[error("is {found:?}, expected {expected:?}")]
+    Format {
+        /// `format` as written.
+        found: String,
+        /// The format insgen writes.
+        expected: &'static str,
+    },
+    /// The job's `version` is not this insgen's.
+    #[error("is {found}, expected {expected}")]
+    Version {
+        /// `version` as written.
+        found: u32,
+        /// The version insgen writes.
+        expected: u32,
+    },
+    /// A count that must be at least 1 is 0 (`samples`, `restart_every`).
+    #[error("must be at least 1")]
+    Zero,
+    /// ID renders asked of another engine than Cycles.
+    #[error("ID renders need cycles (exact emission values)")]
+    IdsNeedCycles,
+    /// The job names no model.
+    #[error("no model to render")]
+    NoModel,
+    /// The job names no frame.
+    #[error("no frame to render")]
+    NoFrame,
+    /// A path that must be absolute is relative.
+    #[error("{} is not an absolute path", path.display())]
+    Relative {
+        /// The path.
+        path: PathBuf,
+    },
+    /// A model file that does not exist.
+    #[error("{} does not exist or is not a file", path.display())]
+    NoModelFile {
+        /// The model file.
+        path: PathBuf,
+    },
+    /// A matrix that is not finite and affine.
+    #[error("must be a finite affine 4×4 matrix")]
+    Matrix,
+    /// A look number that is NaN or infinite.
+    #[error("{value} is not finite")]
+    NotFinite {
+        /// The value.
+        value: f64,
+    },
+    /// A frame's look that is not finite (or has a visibility ≤ 0).
+    #[error("sun, sky, haze and exposure must be finite (visibility > 0)")]
+    FrameLook,
+    /// A frame name that cannot be a file stem.
+    #[error("{0}: it cannot be a file name")]
+    FrameName(BadFrameName),
+    /// A frame name used twice.
+    #[error("{name:?} appears twice")]
+    DuplicateFrame {
+        /// The name.
+        name: String,
+    },
+    /// Intrinsics that are not a pinhole camera (an empty image, a focal length ≤ 0).
+    #[error("{intrinsics:?} is not a valid pinhole")]
+    Intrinsics {
+        /// The intrinsics.
+        intrinsics: Intrinsics,
+    },
+    /// A model index past the job's models.
+    #[error("{index} is out of range (0..{models})")]
+    ModelIndex {
+        /// The index.
+        index: u32,
+        /// Models in the job.
+        models: usize,
+    },
+    /// An output path the frame's mode needs is missing.
+    #[error("missing output path")]
+    NoOutput,
+    /// An output path whose folder does not exist.
+    #[error("directory of {} does not exist", path.display())]
+    NoOutputDir {
+        /// The output path.
+        path: PathBuf,
+    },
+    /// The look ranges cannot be drawn from.
+    #[error("{0}")]
+    Look(LookError),
+    /// The prepared scene's GLB does not exist.
+    #[error("{} does not exist (run `insgen prepare` for the area first)", glb.display())]
+    NoScene {
+        /// The scene GLB.
+        glb: PathBuf,
+    },
+    /// The tileset to render does not exist.
+    #[error("{} does not exist", tileset.display())]
+    NoTileset {
+        /// The tileset JSON.
+        tileset: PathBuf,
+    },
 }
 
 /// A Blender process that exited unsuccessfully (or broke the protocol), with what is needed to act.
@@ -73,6 +174,65 @@ impl fmt::Display for ProcessFailure {
         }
         write!(f, "\n{}", "-".repeat(DIVIDER_WIDTH))
     }
+}
+
+/// Why a camera cannot be reproduced in Blender (see [`BlenderError::Camera`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CameraProblem {
+    /// An empty image.
+    #[error("image size {width_px}×{height_px} px is empty")]
+    EmptyImage {
+        /// Width, pixels.
+        width_px: u32,
+        /// Height, pixels.
+        height_px: u32,
+    },
+    /// A focal length that is not finite and positive.
+    #[error("{name} = {value_px} must be finite and positive")]
+    Focal {
+        /// `fx_px` or `fy_px`.
+        name: &'static str,
+        /// The value, pixels.
+        value_px: f64,
+    },
+    /// A principal point coordinate that is not finite.
+    #[error("{name} = {value_px} must be finite")]
+    PrincipalPoint {
+        /// `cx_px` or `cy_px`.
+        name: &'static str,
+        /// The value, pixels.
+        value_px: f64,
+    },
+    /// A clip range that is not 0 < start < end.
+    #[error("clip range [{start_m}, {end_m}] m is not 0 < start < end")]
+    Clip {
+        /// Clip start, metres.
+        start_m: f64,
+        /// Clip end, metres.
+        end_m: f64,
+    },
+    /// A pixel aspect Blender cannot represent.
+    #[error("fx/fy = {fx_over_fy} needs a pixel aspect beyond {max}")]
+    PixelAspect {
+        /// fx / fy.
+        fx_over_fy: f64,
+        /// The largest pixel aspect accepted.
+        max: f64,
+    },
+    /// A principal point too far from the centre for Blender's lens shift.
+    #[error(
+        "principal point ({cx_px}, {cy_px}) px is too far from the image centre (shift {shift_x}, {shift_y})"
+    )]
+    Shift {
+        /// x, pixels.
+        cx_px: f64,
+        /// y, pixels.
+        cy_px: f64,
+        /// Blender's shift_x it would need.
+        shift_x: f64,
+        /// Blender's shift_y it would need.
+        shift_y: f64,
+    },
 }
 
 /// A line on Blender's stdout that starts with the protocol prefix but is not a protocol event.
@@ -180,23 +340,23 @@ pub enum BlenderError {
         issues: Vec<JobIssue>,
     },
     /// The intrinsics cannot be reproduced by a Blender camera.
-    #[error("camera for frame {frame:?}: {what}")]
+    #[error("camera for frame {frame:?}: {problem}")]
     Camera {
         /// The frame.
         frame: String,
         /// Why the camera cannot be reproduced.
-        what: String,
+        problem: CameraProblem,
     },
     /// A tileset (or one of its subtree files) is unreadable or breaks the 3D Tiles spec.
     #[error(transparent)]
     Tiles(#[from] crate::lod::LodError),
-    /// A tileset JSON cannot be used for rendering.
-    #[error("tileset {}: {what}", path.display())]
-    Tileset {
-        /// The tileset JSON.
+    /// External tilesets nest deeper than the renderer follows (a cycle, most likely).
+    #[error("tileset {}: external tilesets nested deeper than {max_depth} (a cycle?)", path.display())]
+    TilesetDepth {
+        /// The tileset JSON one level too deep.
         path: PathBuf,
-        /// Why it cannot be used.
-        what: String,
+        /// The depth followed.
+        max_depth: usize,
     },
     /// A selected tile's content (b3dm/glb/glTF/cmpt) cannot be turned into a GLB Blender imports: it
     /// is malformed, or of a kind or with an extension insgen refuses (named in `source`).
@@ -213,10 +373,12 @@ pub enum BlenderError {
         source: Box<ContentError>,
     },
     /// No interpreter with bpy or Blender binary was found.
-    #[error("no Blender found: {what}\nhint: run scripts/setup.sh (it calls scripts/setup_blender.sh, which creates .venv-blender with bpy), or pass --blender-python PATH / --blender PATH, or set INSGEN_BLENDER_PYTHON / INSGEN_BLENDER")]
+    #[error("no Blender found: {}{}\nhint: run scripts/setup.sh (it calls scripts/setup_blender.sh, which creates .venv-blender with bpy), or pass --blender-python PATH / --blender PATH, or set INSGEN_BLENDER_PYTHON / INSGEN_BLENDER", if *given_only { "" } else { "tried " }, tried.join("; "))]
     NotFound {
-        /// Where insgen looked, and what it found there.
-        what: String,
+        /// Whether the paths given on the command line were all that was tried.
+        given_only: bool,
+        /// Where insgen looked (each "`--blender` PATH (not a file)", "INSGEN_BLENDER PATH (not a file)", …).
+        tried: Vec<String>,
     },
     /// The Blender process could not be started.
     #[error("cannot start `{command}`{}", hint.as_ref().map(|h| format!("\nhint: {h}")).unwrap_or_default())]

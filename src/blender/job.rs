@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use super::camera::{BlenderCamera, Mat4};
-use super::error::JobIssue;
+use super::error::{JobIssue, JobProblem};
 use super::look::FrameLook;
 use crate::camera::record::check_frame_name;
 use crate::camera::Intrinsics;
@@ -271,34 +271,31 @@ impl Job {
     /// range; each frame has the outputs its mode needs, in existing directories.
     pub fn validate(&self) -> Vec<JobIssue> {
         let mut issues = Vec::new();
-        let mut issue = |path: String, what: String| issues.push(JobIssue { path, what });
+        let mut issue = |path: String, problem: JobProblem| issues.push(JobIssue { path, problem });
         if self.format != JOB_FORMAT {
-            issue("format".into(), format!("is {:?}, expected {JOB_FORMAT:?}", self.format));
+            issue("format".into(), JobProblem::Format { found: self.format.clone(), expected: JOB_FORMAT });
         }
         if self.version != JOB_VERSION {
-            issue("version".into(), format!("is {}, expected {JOB_VERSION}", self.version));
+            issue("version".into(), JobProblem::Version { found: self.version, expected: JOB_VERSION });
         }
         if self.mode == Mode::Rgb && self.rgb.samples == 0 {
-            issue("samples".into(), "must be at least 1".into());
+            issue("samples".into(), JobProblem::Zero);
         }
         if self.mode == Mode::Ids && self.engine != Engine::Cycles {
-            issue("engine".into(), "ID renders need cycles (exact emission values)".into());
+            issue("engine".into(), JobProblem::IdsNeedCycles);
         }
         if self.models.is_empty() {
-            issue("models".into(), "no model to render".into());
+            issue("models".into(), JobProblem::NoModel);
         }
         for (i, m) in self.models.iter().enumerate() {
             if !m.glb.is_absolute() {
-                issue(format!("models[{i}].glb"), format!("{} is not an absolute path", m.glb.display()));
+                issue(format!("models[{i}].glb"), JobProblem::Relative { path: m.glb.clone() });
             }
             if !m.glb.is_file() {
-                issue(
-                    format!("models[{i}].glb"),
-                    format!("{} does not exist or is not a file", m.glb.display()),
-                );
+                issue(format!("models[{i}].glb"), JobProblem::NoModelFile { path: m.glb.clone() });
             }
             if !is_finite_mat(&m.enu_from_gltf) || !is_affine(&m.enu_from_gltf) {
-                issue(format!("models[{i}].enu_from_gltf"), "must be a finite affine 4×4 matrix".into());
+                issue(format!("models[{i}].enu_from_gltf"), JobProblem::Matrix);
             }
         }
         let l = &self.look;
@@ -312,19 +309,19 @@ impl Job {
             ("exposure", l.exposure),
         ] {
             if !v.is_finite() {
-                issue(format!("look.{name}"), format!("{v} is not finite"));
+                issue(format!("look.{name}"), JobProblem::NotFinite { value: v });
             }
         }
         if self.frames.is_empty() {
-            issue("frames".into(), "no frame to render".into());
+            issue("frames".into(), JobProblem::NoFrame);
         }
         let mut names = BTreeSet::new();
         for (i, f) in self.frames.iter().enumerate() {
             let at = |field: &str| format!("frames[{i}].{field}");
             if let Err(e) = check_frame_name(&f.name) {
-                issue(at("name"), format!("{e}: it cannot be a file name"));
+                issue(at("name"), JobProblem::FrameName(e));
             } else if !names.insert(f.name.as_str()) {
-                issue(at("name"), format!("{:?} appears twice", f.name));
+                issue(at("name"), JobProblem::DuplicateFrame { name: f.name.clone() });
             }
             let k = &f.intrinsics;
             if k.width_px == 0
@@ -332,7 +329,7 @@ impl Job {
                 || !(k.fx_px.is_finite() && k.fx_px > 0.0)
                 || !(k.fy_px.is_finite() && k.fy_px > 0.0)
             {
-                issue(at("intrinsics"), format!("{k:?} is not a valid pinhole"));
+                issue(at("intrinsics"), JobProblem::Intrinsics { intrinsics: *k });
             }
             let fl = &f.look;
             let vis = fl.visibility_m.unwrap_or(1.0);
@@ -349,31 +346,31 @@ impl Job {
             .all(|v| v.is_finite())
                 || vis <= 0.0
             {
-                issue(at("look"), "sun, sky, haze and exposure must be finite (visibility > 0)".into());
+                issue(at("look"), JobProblem::FrameLook);
             }
             if !is_finite_mat(&f.blender_matrix_world) || !is_affine(&f.blender_matrix_world) {
-                issue(at("blender_matrix_world"), "must be a finite affine 4×4 matrix".into());
+                issue(at("blender_matrix_world"), JobProblem::Matrix);
             }
             if let Some(ms) = &f.models {
                 for (j, &m) in ms.iter().enumerate() {
                     if m as usize >= self.models.len() {
                         issue(
                             format!("frames[{i}].models[{j}]"),
-                            format!("{m} is out of range (0..{})", self.models.len()),
+                            JobProblem::ModelIndex { index: m, models: self.models.len() },
                         );
                     }
                 }
             }
             let mut check_out = |field: &str, p: &Option<PathBuf>, needed: bool| match p {
-                None if needed => issue(at(field), "missing output path".into()),
+                None if needed => issue(at(field), JobProblem::NoOutput),
                 None => {}
                 Some(p) => {
                     if !p.is_absolute() {
-                        issue(at(field), format!("{} is not an absolute path", p.display()));
+                        issue(at(field), JobProblem::Relative { path: p.clone() });
                     }
                     match p.parent() {
                         Some(d) if d.is_dir() => {}
-                        _ => issue(at(field), format!("directory of {} does not exist", p.display())),
+                        _ => issue(at(field), JobProblem::NoOutputDir { path: p.clone() }),
                     }
                 }
             };

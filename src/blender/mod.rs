@@ -25,7 +25,7 @@ pub mod process;
 pub mod run;
 pub mod tileset;
 
-pub use error::{BlenderError, JobIssue, ProcessFailure};
+pub use error::{BlenderError, CameraProblem, JobIssue, JobProblem, ProcessFailure};
 pub use job::{Engine, Job, Mode};
 pub use process::Launcher;
 pub use run::{render_frames, FrameRequest, RenderPlan, RenderSummary, SceneSource};

@@ -74,7 +74,7 @@ impl Launcher {
             }
         }
         if blender.is_some() || python.is_some() {
-            return Err(BlenderError::NotFound { what: tried.join("; ") });
+            return Err(BlenderError::NotFound { given_only: true, tried });
         }
         if let Some(b) = std::env::var_os(ENV_BLENDER).filter(|v| !v.is_empty()) {
             let b = PathBuf::from(b);
@@ -94,7 +94,7 @@ impl Launcher {
                 return Ok(Launcher::Python { interpreter: p });
             }
         }
-        Err(BlenderError::NotFound { what: format!("tried {}", tried.join("; ")) })
+        Err(BlenderError::NotFound { given_only: false, tried })
     }
 
     /// The command running `script` on `job`.

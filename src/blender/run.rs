@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use super::camera::{blender_matrix_world, cam_to_world_enu, BlenderCamera, Mat4};
-use super::error::{BlenderError, JobIssue, OutputError};
+use super::error::{BlenderError, JobIssue, JobProblem, OutputError};
 use super::job::{
     check_writable, DenoiseQuality, Device, Engine, Job, JobFrame, JobModel, Lighting, Look, Mode, ModelKind,
     RgbSettings, JOB_FORMAT, JOB_VERSION,
@@ -500,36 +500,34 @@ fn check_request(plan: &RenderPlan, frames: &[FrameRequest]) -> Vec<JobIssue> {
     let mut seen = std::collections::BTreeSet::new();
     for (i, f) in frames.iter().enumerate() {
         if let Err(e) = check_frame_name(&f.name) {
-            issues.push(JobIssue {
-                path: format!("frames[{i}].name"),
-                what: format!("{e}: it cannot be a file name"),
-            });
+            issues.push(JobIssue { path: format!("frames[{i}].name"), problem: JobProblem::FrameName(e) });
         } else if !seen.insert(f.name.as_str()) {
             issues.push(JobIssue {
                 path: format!("frames[{i}].name"),
-                what: format!("{:?} appears twice", f.name),
+                problem: JobProblem::DuplicateFrame { name: f.name.clone() },
             });
         }
     }
     if plan.mode == Mode::Rgb {
         if let Err(e) = plan.look.check() {
-            issues.push(JobIssue { path: "look".into(), what: e.to_string() });
+            issues.push(JobIssue { path: "look".into(), problem: JobProblem::Look(e) });
         } else if let Some(Err(e)) =
             frames.iter().map(|f| FrameLook::draw(&plan.look, plan.look_seed, &f.name)).find(Result::is_err)
         {
-            issues.push(JobIssue { path: "look.sun".into(), what: e.to_string() });
+            issues.push(JobIssue { path: "look.sun".into(), problem: JobProblem::Look(e) });
         }
     }
     if plan.restart_every == 0 {
-        issues.push(JobIssue { path: "restart_every".into(), what: "must be at least 1".into() });
+        issues.push(JobIssue { path: "restart_every".into(), problem: JobProblem::Zero });
     }
     match &plan.source {
-        SceneSource::Lod { glb, .. } if !glb.is_file() => issues.push(JobIssue {
-            path: "scene".into(),
-            what: format!("{} does not exist (run `insgen prepare` for the area first)", glb.display()),
+        SceneSource::Lod { glb, .. } if !glb.is_file() => {
+            issues.push(JobIssue { path: "scene".into(), problem: JobProblem::NoScene { glb: glb.clone() } })
+        }
+        SceneSource::Tileset { tileset, .. } if !tileset.is_file() => issues.push(JobIssue {
+            path: "tileset".into(),
+            problem: JobProblem::NoTileset { tileset: tileset.clone() },
         }),
-        SceneSource::Tileset { tileset, .. } if !tileset.is_file() => issues
-            .push(JobIssue { path: "tileset".into(), what: format!("{} does not exist", tileset.display()) }),
         _ => {}
     }
     issues
@@ -642,7 +640,7 @@ fn draw_looks(plan: &RenderPlan, batch: &[FrameRequest]) -> Result<Vec<FrameLook
         .collect::<Result<_, _>>()
         .map_err(|e| BlenderError::InvalidJob {
             path: plan.work_dir.clone(),
-            issues: vec![JobIssue { path: "look.sun".into(), what: e.to_string() }],
+            issues: vec![JobIssue { path: "look.sun".into(), problem: JobProblem::Look(e) }],
         })
 }
 

@@ -210,9 +210,9 @@ impl Walk<'_> {
 
     fn visit_external(&mut self, path: &Path, parent: &DMat4, depth: usize) -> Result<(), BlenderError> {
         if depth >= MAX_EXTERNAL_DEPTH {
-            return Err(BlenderError::Tileset {
+            return Err(BlenderError::TilesetDepth {
                 path: path.to_path_buf(),
-                what: format!("external tilesets nested deeper than {MAX_EXTERNAL_DEPTH} (a cycle?)"),
+                max_depth: MAX_EXTERNAL_DEPTH,
             });
         }
         // External tilesets are keyed by path and parent transform (the same file may hang under

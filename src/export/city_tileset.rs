@@ -518,7 +518,8 @@ fn tile_glb(
 /// compressed view.
 fn draco_geometry(v: &TileVertices, with_ids: bool) -> Result<EncodedGeometry, WriteError> {
     let mut e = EncodedGeometry::new(json!({"mesh": 0, "translation": v.node_translation.to_array()}));
-    let (bytes, n_points, ids_map) = draco_encode(&v.g, &v.uv, with_ids.then_some(&v.ids[..]), &v.indices)?;
+    let (bytes, n_points, ids_map) =
+        super::compress::draco_mesh(&v.g, &v.uv, with_ids.then_some(&v.ids[..]), &v.indices)?;
     let view = e.b.push_view(&bytes, None);
     let (plo, phi) = min_max(v.g.iter().map(|p| p.map(f64::from)));
     let position = e.b.push_accessor(
@@ -557,7 +558,7 @@ fn plain_geometry(v: &TileVertices) -> EncodedGeometry {
 /// (padded to 8 bytes per vertex), dequantised by the node's scale and translation; UVs as
 /// normalised UNSIGNED_SHORT.
 fn meshopt_geometry(v: &TileVertices) -> EncodedGeometry {
-    use crate::lod::tiles3d::meshopt::{encode_attributes, encode_triangles};
+    use super::compress::{meshopt_attributes, meshopt_triangles};
     let (plo, phi) = min_max(v.g.iter().map(|p| p.map(f64::from)));
     let step: Vec<f64> = (0..3).map(|k| ((phi[k] - plo[k]) / 65535.0).max(1e-9)).collect();
     let mut qpos = Vec::with_capacity(v.g.len() * 8);
@@ -579,10 +580,10 @@ fn meshopt_geometry(v: &TileVertices) -> EncodedGeometry {
     let n = v.g.len();
     let t = v.node_translation + DVec3::from_array(plo);
     let mut e = EncodedGeometry::new(json!({"mesh": 0, "translation": t.to_array(), "scale": step}));
-    let vp = e.b.push_meshopt_view(&encode_attributes(&qpos, 8), n, 8, "ATTRIBUTES", true);
-    let vu = e.b.push_meshopt_view(&encode_attributes(&quv, 4), n, 4, "ATTRIBUTES", true);
-    let vi = e.b.push_meshopt_view(&encode_attributes(&qid, 4), n, 4, "ATTRIBUTES", true);
-    let ib: Vec<u8> = encode_triangles(&v.indices, n);
+    let vp = e.b.push_meshopt_view(&meshopt_attributes(&qpos, 8), n, 8, "ATTRIBUTES", true);
+    let vu = e.b.push_meshopt_view(&meshopt_attributes(&quv, 4), n, 4, "ATTRIBUTES", true);
+    let vi = e.b.push_meshopt_view(&meshopt_attributes(&qid, 4), n, 4, "ATTRIBUTES", true);
+    let ib: Vec<u8> = meshopt_triangles(&v.indices, n);
     let vx = e.b.push_meshopt_view(&ib, v.indices.len(), 4, "TRIANGLES", false);
     let qmax: Vec<u32> = (0..3).map(|k| ((phi[k] - plo[k]) / step[k]).round() as u32).collect();
     let position = e.b.push_accessor(
@@ -692,51 +693,6 @@ fn finish_tile_glb(geometry: EncodedGeometry, surface: TileSurface) -> Result<Ve
         root["extensions"] = Value::Object(root_ext);
     }
     Ok(b.finish(root)?)
-}
-
-/// Draco-encodes a triangle soup: POSITION (unique id 0, 16-bit quantised), TEXCOORD_0 (id 1,
-/// 14-bit) and, if given, `_FEATURE_ID_0` (id 2, not quantised, so IDs stay exact). Returns the
-/// bitstream, the decoded point count, and the feature-ID attribute's unique id.
-fn draco_encode(
-    pos: &[[f32; 3]],
-    uv: &[[f32; 2]],
-    ids: Option<&[f32]>,
-    indices: &[u32],
-) -> Result<(Vec<u8>, usize, Option<u32>), WriteError> {
-    use draco_core::draco_types::DataType;
-    use draco_core::geometry_attribute::{GeometryAttributeType, PointAttribute};
-    use draco_core::geometry_indices::{FaceIndex, PointIndex};
-    let err = |what, e: draco_core::DracoError| WriteError::Encode { what, source: Box::new(e) };
-    let n = pos.len();
-    let mut mesh = draco_core::mesh::Mesh::new();
-    mesh.set_num_points(n);
-    let mut add = |kind, comps: u8, data: Vec<u8>| {
-        let mut a = PointAttribute::new();
-        a.init(kind, comps, DataType::Float32, false, n);
-        a.buffer_mut().write(0, &data);
-        mesh.add_attribute(a)
-    };
-    add(GeometryAttributeType::Position, 3, floats(pos.iter().flatten()));
-    add(GeometryAttributeType::TexCoord, 2, floats(uv.iter().flatten()));
-    let fid = ids.map(|v| add(GeometryAttributeType::Generic, 1, floats(v.iter())) as u32);
-    mesh.set_num_faces(indices.len() / 3);
-    for (f, t) in indices.chunks_exact(3).enumerate() {
-        mesh.set_face(FaceIndex(f as u32), [PointIndex(t[0]), PointIndex(t[1]), PointIndex(t[2])]);
-    }
-    let mut options = draco_core::EncoderOptions::new();
-    options.set_attribute_quantization(0, 16);
-    options.set_attribute_quantization(1, 14);
-    let mut enc = draco_core::mesh_encoder::MeshEncoder::new();
-    enc.set_mesh(mesh);
-    let mut buf = draco_core::encoder_buffer::EncoderBuffer::new();
-    enc.encode(&options, &mut buf).map_err(|e| err("a Draco mesh", e))?;
-    let bytes = buf.data().to_vec();
-    // The point count the decoder will produce (the encoder may merge or split points).
-    let mut d = draco_core::mesh::Mesh::new();
-    draco_core::MeshDecoder::new()
-        .decode(&mut draco_core::DecoderBuffer::new(&bytes), &mut d)
-        .map_err(|e| err("a Draco mesh (decoding the encoded mesh back)", e))?;
-    Ok((bytes, d.num_points(), fid))
 }
 
 /// Writes a generated city tileset of `style` into `dir` (see the module doc).

@@ -44,9 +44,13 @@ pub struct HfRow {
     pub width: u32,
     /// Pixels.
     pub height: u32,
+    /// The area the photo was taken in.
     pub area_name: String,
+    /// The camera (preset) that took it.
     pub camera: String,
+    /// The frame's name in the camera's `poses.jsonl`.
     pub frame: String,
+    /// The photo's instances.
     pub objects: HfObjects,
 }
 
@@ -57,10 +61,13 @@ pub struct HfObjects {
     pub id: Vec<u64>,
     /// `[x, y, width, height]`, pixels.
     pub bbox: Vec<[f64; 4]>,
+    /// COCO category ids, as in the COCO file.
     pub category_id: Vec<u32>,
     /// Pixels.
     pub area: Vec<u64>,
+    /// COCO `iscrowd` flags, as in the COCO file.
     pub iscrowd: Vec<u8>,
+    /// The buildings' 24-bit instance IDs.
     pub building_id: Vec<crate::scene::BuildingId>,
     /// The exact masks, compressed COCO RLE.
     pub segmentation: Vec<RleJson>,
@@ -69,6 +76,7 @@ pub struct HfObjects {
 /// Counts of one split.
 #[derive(Debug, Clone, Default, PartialEq, Eq, Serialize)]
 pub struct HfSplitSummary {
+    /// The split: train, val or test.
     pub split: String,
     /// Rows (photos) written.
     pub rows: u64,

@@ -35,12 +35,14 @@
 //! Made from a prepared scene: [`tiles`] (`export-tiles`, the scene as a 3D Tiles 1.1 tileset placed
 //! on the globe) and [`city_tileset`] (`export-tiles --style`, textured multi-level tilesets in the
 //! styles of real producers, the test tilesets of the photogrammetry path). GLB contents are
-//! assembled by [`crate::util::glb::GlbBuilder`], the crate's one GLB writer.
+//! assembled by [`crate::util::glb::GlbBuilder`], the crate's one GLB writer; their Draco and
+//! meshopt geometry is encoded by `compress` (the decoders are the reader's, in `lod/`).
 
 pub mod bundle;
 pub mod card;
 pub mod city_tileset;
 pub mod coco;
+pub(crate) mod compress;
 pub mod error;
 pub mod format;
 pub mod frames;

@@ -146,6 +146,20 @@ pub enum CrsError {
     Proj(#[from] ProjError),
 }
 
+/// The part of a CRS's coordinate system that PROJ could not read (see [`ProjError::Axes`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum CsPart {
+    /// The coordinate system itself.
+    #[error("coordinate system")]
+    CoordinateSystem,
+    /// Its axis count.
+    #[error("axis count")]
+    AxisCount,
+    /// One axis (0-based).
+    #[error("axis {0}")]
+    Axis(i32),
+}
+
 /// A PROJ call that failed. `reason` is PROJ's own explanation: its last logged message, else the text
 /// of its error number (PROJ reports errors only as text, so that is what is kept).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -184,10 +198,10 @@ pub enum ProjError {
         reason: String,
     },
     /// A CRS has no coordinate system, or its axes cannot be read.
-    #[error("{what} of {crs}: {reason}")]
+    #[error("{part} of {crs}: {reason}")]
     Axes {
-        /// "coordinate system", "axis count", "axis 2".
-        what: String,
+        /// The part that could not be read.
+        part: CsPart,
         /// The CRS.
         crs: String,
         /// PROJ's reason.

@@ -23,5 +23,5 @@ pub use crs::{
 };
 pub use ellipsoid::{ecef_to_geodetic, geodetic_to_ecef, Geodetic};
 pub use enu::EnuFrame;
-pub use error::{CrsError, GeoError, GeoTiffError, ProjError};
+pub use error::{CrsError, CsPart, GeoError, GeoTiffError, ProjError};
 pub use geoid::{Geoid, GeoidGrid};

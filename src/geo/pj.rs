@@ -19,6 +19,7 @@ use std::sync::Mutex;
 
 use proj_sys as sys;
 
+use super::error::CsPart;
 use super::ProjError;
 
 /// PROJ's "transformation failed" marker value (`HUGE_VAL`).
@@ -155,15 +156,15 @@ impl Context {
     /// The axes of a CRS's coordinate system, in the CRS's (authority) order.
     pub(crate) fn axes(&self, crs: &Obj) -> Result<Vec<AxisInfo>, ProjError> {
         self.clear_error();
-        let fail = |what: String, reason: String| ProjError::Axes { what, crs: crs.name(), reason };
+        let fail = |part: CsPart, reason: String| ProjError::Axes { part, crs: crs.name(), reason };
         // SAFETY: live context and object.
         let cs = self.wrap(unsafe { sys::proj_crs_get_coordinate_system(self.ptr, crs.ptr) }, |reason| {
-            fail("coordinate system".into(), reason)
+            fail(CsPart::CoordinateSystem, reason)
         })?;
         // SAFETY: live context and object.
         let n = unsafe { sys::proj_cs_get_axis_count(self.ptr, cs.ptr) };
         if n < 0 {
-            return Err(fail("axis count".into(), self.last_error()));
+            return Err(fail(CsPart::AxisCount, self.last_error()));
         }
         let mut out = Vec::with_capacity(n as usize);
         for i in 0..n {
@@ -189,7 +190,7 @@ impl Context {
                 )
             };
             if ok == 0 {
-                return Err(fail(format!("axis {i}"), self.last_error()));
+                return Err(fail(CsPart::Axis(i), self.last_error()));
             }
             // SAFETY: strings from PROJ as described above.
             unsafe {

@@ -132,10 +132,18 @@ impl OcclusionRecord {
 /// Errors of [`occlude`].
 #[derive(Debug, thiserror::Error)]
 pub enum OcclusionError {
+    /// The LoD render and the tileset render have different pixel counts.
     #[error("LoD and tileset depth differ in size: {lod} vs {tiles} pixels")]
-    SizeMismatch { lod: usize, tiles: usize },
+    SizeMismatch {
+        /// Pixels of the LoD depth map.
+        lod: usize,
+        /// Pixels of the tileset depth map.
+        tiles: usize,
+    },
+    /// The occlusion threshold (metres) is negative or not finite.
     #[error("occlusion threshold {0} m must be a finite number ≥ 0")]
     Threshold(f32),
+    /// The LoD ID map is not an ID map.
     #[error(transparent)]
     Ids(#[from] IdError),
 }

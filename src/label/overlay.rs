@@ -12,16 +12,37 @@ use crate::util::FileError;
 /// Errors of preview writing.
 #[derive(Debug, thiserror::Error)]
 pub enum OverlayError {
+    /// Reading the RGB frame or writing the preview failed.
     #[error(transparent)]
     File(#[from] FileError),
+    /// The RGB frame is not a PNG.
     #[error("{}: cannot decode the RGB frame", path.display())]
     Decode {
+        /// The RGB frame.
         path: std::path::PathBuf,
+        /// The PNG decoder's error.
         #[source]
         source: png::DecodingError,
     },
-    #[error("{}: unsupported PNG layout for an RGB frame ({what})", path.display())]
-    Unsupported { path: std::path::PathBuf, what: String },
+    /// The RGB frame's colour type is none of RGB, RGBA, grey, grey + alpha.
+    #[error("{}: unsupported PNG layout for an RGB frame ({color:?})", path.display())]
+    Unsupported {
+        /// The RGB frame.
+        path: std::path::PathBuf,
+        /// Its colour type.
+        color: png::ColorType,
+    },
+    /// The RGB frame is not 8 bits per channel (or its data does not fill its size).
+    #[error("{}: unsupported PNG layout for an RGB frame ({color:?} at {bit_depth:?} bits)", path.display())]
+    BitDepth {
+        /// The RGB frame.
+        path: std::path::PathBuf,
+        /// Its colour type.
+        color: png::ColorType,
+        /// Its bit depth.
+        bit_depth: png::BitDepth,
+    },
+    /// The preview PNG cannot be encoded.
     #[error("encoding the preview failed")]
     Encode(#[source] png::EncodingError),
 }
@@ -212,7 +233,8 @@ pub fn contact_sheet(tiles: &[RgbImage], columns: u32, tile_width_px: u32) -> Rg
 /// Reads an 8-bit PNG as RGB (grey, grey+alpha and RGBA are converted; alpha is dropped).
 ///
 /// # Errors
-/// [`OverlayError::File`], [`OverlayError::Decode`] or [`OverlayError::Unsupported`], naming `path`.
+/// [`OverlayError::File`], [`OverlayError::Decode`], [`OverlayError::Unsupported`] or [`OverlayError::BitDepth`],
+/// naming `path`.
 pub fn read_rgb_png(path: &Path) -> Result<RgbImage, OverlayError> {
     let bytes = crate::util::read_file(path)?;
     let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
@@ -230,15 +252,16 @@ pub fn read_rgb_png(path: &Path) -> Result<RgbImage, OverlayError> {
         png::ColorType::Grayscale => data.iter().flat_map(|&g| [g, g, g]).collect(),
         png::ColorType::GrayscaleAlpha => data.chunks_exact(2).flat_map(|p| [p[0], p[0], p[0]]).collect(),
         other => {
-            return Err(OverlayError::Unsupported { path: path.to_path_buf(), what: format!("{other:?}") });
+            return Err(OverlayError::Unsupported { path: path.to_path_buf(), color: other });
         }
     };
     if frame.bit_depth != png::BitDepth::Eight
         || rgb.len() != 3 * frame.width as usize * frame.height as usize
     {
-        return Err(OverlayError::Unsupported {
+        return Err(OverlayError::BitDepth {
             path: path.to_path_buf(),
-            what: format!("{:?} at {:?} bits", frame.color_type, frame.bit_depth),
+            color: frame.color_type,
+            bit_depth: frame.bit_depth,
         });
     }
     Ok(RgbImage { width: frame.width, height: frame.height, rgb })

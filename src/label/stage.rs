@@ -70,18 +70,30 @@ const TILE_WIDTH_PX: u32 = 480;
 /// Errors of the render-masks stage.
 #[derive(Debug, thiserror::Error)]
 pub enum StageError {
+    /// Reading or writing a file failed.
     #[error(transparent)]
     File(#[from] FileError),
     /// poses.jsonl is malformed.
     #[error(transparent)]
     Poses(#[from] CameraError),
-    /// The scene and its building table disagree.
-    #[error("scene: {what}")]
-    Scene { what: String },
+    /// The scene's mesh holds a building ID that its building table (`buildings.json`) lacks.
+    #[error(
+        "scene: the mesh holds building ID {id} but buildings.json has no such row; re-run `insgen prepare`"
+    )]
+    UnknownBuilding {
+        /// The smallest such ID.
+        id: BuildingId,
+    },
+    /// The thread writing the frames panicked (a bug); the frames it finished are complete.
+    #[error("a frame writer thread panicked")]
+    WriterPanicked,
+    /// The renderer failed.
     #[error(transparent)]
     Render(#[from] RenderError),
+    /// A rendered or stored ID map is not an ID map.
     #[error(transparent)]
     Ids(#[from] IdError),
+    /// A preview contact sheet cannot be written.
     #[error(transparent)]
     Overlay(#[from] OverlayError),
     /// Stopped by Ctrl-C; the frames written so far are complete.
@@ -90,16 +102,21 @@ pub enum StageError {
     /// The tileset of [`MaskPlan::tileset`] could not be read.
     #[error("reading the photogrammetry tileset ({})", path.display())]
     Tileset {
+        /// The tileset JSON.
         path: PathBuf,
+        /// The reader's or renderer's error.
         #[source]
         source: Box<dyn std::error::Error + Send + Sync>,
     },
+    /// The LoD and tileset renders cannot be compared.
     #[error(transparent)]
     Occlusion(#[from] OcclusionError),
     /// Writing the depth EXR failed.
     #[error("{}: writing the depth EXR failed", path.display())]
     Exr {
+        /// The EXR being written.
         path: PathBuf,
+        /// The EXR encoder's error.
         #[source]
         source: exr::error::Error,
     },
@@ -403,7 +420,7 @@ struct Job {
 /// Runs the stage (see the module doc) with `renderer` (wgpu from the CLI unless `--renderer cpu`).
 ///
 /// # Errors
-/// [`StageError::Poses`] for unreadable poses, [`StageError::Scene`] when the mesh
+/// [`StageError::Poses`] for unreadable poses, [`StageError::UnknownBuilding`] when the mesh
 /// holds IDs absent from the building table, [`StageError::Render`] when the renderer fails (fatal). A
 /// frame whose outputs cannot be written is reported in [`MaskReport::failed`] and the others go on.
 pub fn render_masks(
@@ -424,11 +441,7 @@ pub fn render_masks(
     let unknown =
         mesh.building_ids.iter().filter(|b| !b.is_background() && !source_ids.contains_key(b)).min();
     if let Some(b) = unknown {
-        return Err(StageError::Scene {
-            what: format!(
-                "the mesh holds building ID {b} but buildings.json has no such row; re-run `insgen prepare`"
-            ),
-        });
+        return Err(StageError::UnknownBuilding { id: *b });
     }
     // The area's meshes are relative to its origin, near every camera.
     let id_scene = renderer.prepare(&mesh, glam::DVec3::ZERO)?;
@@ -602,7 +615,7 @@ impl Frames<'_> {
             });
             drop(tx);
             if writer.join().is_err() {
-                return Err(StageError::Scene { what: "a frame writer thread panicked".into() });
+                return Err(StageError::WriterPanicked);
             }
             rendered?;
             stopped.map_or(Ok(()), Err)

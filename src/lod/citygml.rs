@@ -55,6 +55,7 @@ use std::path::Path;
 use quick_xml::events::{BytesStart, Event};
 use quick_xml::Reader;
 
+use super::error::{CityGmlProblem, NoBuildings, SyntaxProblem};
 use super::{
     clean_ring_indices, AxisConvention, FaceAppearance, Frame, Geometry, LodError, ModelAppearance, Polygon,
     ReadOptions, ReadStats, SourceBuilding, SourceModel, MAX_ABS_COORDINATE,
@@ -86,7 +87,7 @@ pub fn read(path: &Path, opts: &ReadOptions) -> Result<SourceModel, LodError> {
             return Err(LodError::invalid(
                 path,
                 "option lod",
-                format!("CityGML buildings are read at LoD \"0\", \"1\" or \"2\", not {other:?}"),
+                CityGmlProblem::LodOption { given: other.to_string() },
             ))
         }
     };
@@ -445,12 +446,12 @@ impl<'p> Parser<'p> {
                     let at = self.locate(reader.error_position());
                     // A tag, comment or CDATA left open at the very end: the file was cut.
                     let at_end = self.file_len.is_some_and(|n| reader.buffer_position() >= n);
-                    let what = if at_end && matches!(e, quick_xml::Error::Syntax(_)) {
-                        format!("truncated XML: the file ends inside markup that starts at {at}")
+                    let problem = if at_end && matches!(e, quick_xml::Error::Syntax(_)) {
+                        SyntaxProblem::XmlCut { at }
                     } else {
-                        format!("malformed XML at {at}")
+                        SyntaxProblem::Xml { at }
                     };
-                    return Err(LodError::unparsable(self.path, what, e));
+                    return Err(LodError::unparsable(self.path, problem, e));
                 }
             };
             match event {
@@ -505,19 +506,15 @@ impl<'p> Parser<'p> {
         }
         if self.names.len() > 0 {
             let at = self.locate(self.event_pos);
-            let inside = match &self.building {
-                Some(b) => format!(" inside building gml:id {:?}", b.id),
-                None => String::new(),
-            };
-            let innermost = self.names.get(self.names.len() - 1).to_string();
             return Err(LodError::malformed(
                 self.path,
-                format!(
-                    "truncated XML: the file ends at {at}{inside} with {} element(s) still open \
-                     (innermost <{innermost}>, outermost <{}>)",
-                    self.names.len(),
-                    self.names.get(0)
-                ),
+                SyntaxProblem::TruncatedXml {
+                    at,
+                    building: self.building.as_ref().map(|b| b.id.clone()),
+                    open: self.names.len(),
+                    innermost: self.names.get(self.names.len() - 1).to_string(),
+                    outermost: self.names.get(0).to_string(),
+                },
             ));
         }
         Ok(())
@@ -536,11 +533,7 @@ impl<'p> Parser<'p> {
             return Ok(());
         }
         let at = self.locate(self.event_pos);
-        Err(LodError::invalid(
-            self.path,
-            format!("root element <{name}> ({at})"),
-            "no CityModel element: this XML is not CityGML (its root must be <core:CityModel>)",
-        ))
+        Err(LodError::invalid(self.path, format!("root element <{name}> ({at})"), CityGmlProblem::NotCityGml))
     }
 
     /// The error for a file that is not XML at all, naming what it looks like.
@@ -575,7 +568,7 @@ impl<'p> Parser<'p> {
                         return Err(LodError::invalid(
                             self.path,
                             format!("gml:id {id:?} ({at})"),
-                            "this gml:id is used by two buildings; gml:ids must be unique in a document",
+                            CityGmlProblem::DuplicateId,
                         ));
                     }
                     self.building = Some(Building {
@@ -984,14 +977,14 @@ impl<'p> Parser<'p> {
                 let at = self.locate(self.event_pos);
                 LodError::unparsable(
                     self.path,
-                    format!("malformed XML attribute at {at}"),
+                    SyntaxProblem::XmlAttribute { at },
                     quick_xml::Error::from(err),
                 )
             })?;
             if local(attr.key.0) == local_name {
                 let value = attr.normalized_value(quick_xml::XmlVersion::Implicit1_0).map_err(|err| {
                     let at = self.locate(self.event_pos);
-                    LodError::unparsable(self.path, format!("malformed XML attribute value at {at}"), err)
+                    LodError::unparsable(self.path, SyntaxProblem::XmlAttributeValue { at }, err)
                 })?;
                 return Ok(Some(value.into_owned()));
             }
@@ -1002,7 +995,7 @@ impl<'p> Parser<'p> {
     fn parse_dim(&self, text: &str) -> Result<usize, LodError> {
         match text.trim().parse::<usize>() {
             Ok(d @ 2..=3) => Ok(d),
-            _ => Err(self.invalid_here(format!("srsDimension {text:?} is not supported (expected 2 or 3)"))),
+            _ => Err(self.invalid_here(CityGmlProblem::SrsDimension { given: text.to_string() })),
         }
     }
 
@@ -1034,11 +1027,11 @@ impl<'p> Parser<'p> {
         let mut values: Vec<f64> = Vec::new();
         let mut tuple_sizes: Vec<usize> = Vec::new();
         let parse = |tok: &str| -> Result<f64, LodError> {
-            let v = tok.parse::<f64>().map_err(|_| self.invalid_here(format!("{tok:?} is not a number")))?;
+            let v = tok
+                .parse::<f64>()
+                .map_err(|_| self.invalid_here(CityGmlProblem::NotANumber { token: tok.to_string() }))?;
             if !v.is_finite() || v.abs() > MAX_ABS_COORDINATE {
-                return Err(self.invalid_here(format!(
-                    "coordinate {tok} is not finite or beyond ±{MAX_ABS_COORDINATE:e}"
-                )));
+                return Err(self.invalid_here(CityGmlProblem::Coordinate { token: tok.to_string() }));
             }
             Ok(v)
         };
@@ -1070,15 +1063,16 @@ impl<'p> Parser<'p> {
             _ => values.len().is_multiple_of(dim),
         };
         if !(2..=3).contains(&dim) || !consistent {
-            let what = match role {
+            let element = match role {
                 Role::PosList => "gml:posList",
                 Role::Pos => "gml:pos",
                 _ => "gml:coordinates",
             };
-            return Err(self.invalid_here(format!(
-                "{what} holds {} number(s), which is not a whole number of {dim}-D points",
-                values.len()
-            )));
+            return Err(self.invalid_here(CityGmlProblem::PointCount {
+                element,
+                numbers: values.len(),
+                dimension: dim,
+            }));
         }
         let accepted_box = self.accepted_box;
         let b = self.building_mut();
@@ -1273,23 +1267,19 @@ impl<'p> Parser<'p> {
     fn finish(mut self) -> Result<SourceModel, LodError> {
         if self.buildings.is_empty() {
             let d = &self.dropping;
-            let lod = match self.forced_lod {
-                Some(l) => format!("LoD {}", LOD_NAMES[l]),
-                None => "LoD 0, 1 or 2".to_string(),
-            };
             return Err(LodError::invalid(
                 self.path,
                 "CityModel",
-                format!(
-                    "no buildings with geometry: {} building(s) found, {} without any {lod} surface, {} whose \
-                     {lod} surfaces are all degenerate ({} face(s) dropped: fewer than 3 distinct points, zero \
-                     area, or outside the document envelope); {} other city object(s) skipped",
-                    d.buildings_seen,
-                    d.buildings_empty,
-                    d.buildings_degenerate,
-                    self.stats.degenerate_faces,
-                    self.stats.skipped_non_building
-                ),
+                CityGmlProblem::NoBuildings {
+                    lod: self.forced_lod.map(|l| LOD_NAMES[l]),
+                    counts: NoBuildings {
+                        found: d.buildings_seen,
+                        without_surface: d.buildings_empty,
+                        all_degenerate: d.buildings_degenerate,
+                        faces_dropped: self.stats.degenerate_faces,
+                        others_skipped: self.stats.skipped_non_building,
+                    },
+                },
             ));
         }
         if let Some(at) = &self.first_bad_unused {
@@ -1328,7 +1318,7 @@ impl<'p> Parser<'p> {
     }
 
     /// An [`LodError::Invalid`] located at the current building (and polygon) and line.
-    fn invalid_here(&self, what: String) -> LodError {
+    fn invalid_here(&self, problem: CityGmlProblem) -> LodError {
         let line = self.locate(self.event_pos);
         let at = match &self.building {
             Some(b) => match b.polygon.as_ref().and_then(|p| p.id.as_ref()) {
@@ -1337,7 +1327,7 @@ impl<'p> Parser<'p> {
             },
             None => line,
         };
-        LodError::invalid(self.path, at, what)
+        LodError::invalid(self.path, at, problem)
     }
 
     /// "line L, column C (byte B)" of a byte offset, found by re-reading the file (error path only).

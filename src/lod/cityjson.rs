@@ -54,6 +54,7 @@ use std::path::Path;
 use serde::de::{self, DeserializeSeed, Deserializer, MapAccess, SeqAccess, Visitor};
 use serde::Deserialize;
 
+use super::error::{short, CityJsonProblem, NoBuildings, SyntaxProblem};
 use super::{
     clean_ring_indices, AxisConvention, FaceAppearance, Frame, Geometry, LodError, ModelAppearance, Polygon,
     ReadOptions, ReadStats, SourceBuilding, SourceModel, MAX_ABS_COORDINATE,
@@ -61,10 +62,10 @@ use super::{
 use crate::util::FileError;
 
 /// Highest LoD the default choice takes (CityJSON LoDs are "1", "1.2", "2.2", …).
-const MAX_DEFAULT_LOD: f64 = 2.2;
+pub(crate) const MAX_DEFAULT_LOD: f64 = 2.2;
 /// Lowest LoD the default choice prefers; LoD0 (flat footprints, roof edges) is taken only for a
 /// building that has nothing in [1, 2.2] (or with `lod = "0"`).
-const MIN_DEFAULT_LOD: f64 = 1.0;
+pub(crate) const MIN_DEFAULT_LOD: f64 = 1.0;
 
 /// Reads one CityJSON (`.json`) or CityJSONSeq (`.jsonl`) file.
 ///
@@ -752,7 +753,7 @@ impl<'p> Reader<'p> {
             return Err(LodError::invalid(
                 self.path,
                 format!("{at}type"),
-                format!("expected \"CityJSON\", found {:?}: not a CityJSON file", doc.kind),
+                CityJsonProblem::NotCityJson { found: doc.kind.clone() },
             ));
         }
         match doc.version.as_deref() {
@@ -761,7 +762,7 @@ impl<'p> Reader<'p> {
                 return Err(LodError::invalid(
                     self.path,
                     format!("{at}version"),
-                    format!("CityJSON version {v:?} is not supported (1.0, 1.1, 2.0 are)"),
+                    CityJsonProblem::Version { version: v.to_string() },
                 ))
             }
             None => log::warn!("{}: no CityJSON \"version\"; reading it as 2.0", self.path.display()),
@@ -775,7 +776,7 @@ impl<'p> Reader<'p> {
                 return Err(LodError::invalid(
                     self.path,
                     format!("{at}transform"),
-                    format!("scale {:?} / translate {:?} must be finite numbers", t.scale, t.translate),
+                    CityJsonProblem::Transform { scale: t.scale, translate: t.translate },
                 ));
             }
         }
@@ -818,14 +819,14 @@ impl<'p> Reader<'p> {
                 return Err(LodError::invalid(
                     self.path,
                     format!("{at}type"),
-                    format!("expected \"CityJSONFeature\" after the header line, found {:?}", doc.kind),
+                    CityJsonProblem::NotFeature { found: doc.kind.clone() },
                 ));
             }
             let vertices = std::mem::take(&mut doc.vertices);
             self.read_objects(doc.city_objects.0, &vertices, &at)?;
         }
         if !header_seen {
-            return Err(LodError::malformed(self.path, "empty CityJSONSeq file: no header line"));
+            return Err(LodError::malformed(self.path, SyntaxProblem::EmptySeq));
         }
         Ok(())
     }
@@ -843,7 +844,7 @@ impl<'p> Reader<'p> {
                 return Err(LodError::invalid(
                     self.path,
                     format!("{at}CityObjects[{key:?}]"),
-                    "this key appears twice in CityObjects",
+                    CityJsonProblem::DuplicateKey,
                 ));
             }
         }
@@ -1093,10 +1094,7 @@ impl<'p> Reader<'p> {
                 return Err(LodError::invalid(
                     self.path,
                     format!("{gpath}.type"),
-                    format!(
-                        "unknown geometry type {other:?} (expected MultiSurface, CompositeSurface, Solid, \
-                         MultiSolid, CompositeSolid, GeometryInstance, MultiPoint or MultiLineString)"
-                    ),
+                    CityJsonProblem::GeometryType { found: other.to_string() },
                 ))
             }
         };
@@ -1104,7 +1102,7 @@ impl<'p> Reader<'p> {
             return Err(LodError::invalid(
                 self.path,
                 gpath,
-                format!("{} geometry without \"lod\"", geom.kind),
+                CityJsonProblem::NoLod { kind: geom.kind.clone() },
             ));
         };
         let (polygons, appearance) = match &geom.boundaries {
@@ -1127,11 +1125,10 @@ impl<'p> Reader<'p> {
             return Err(LodError::invalid(
                 self.path,
                 format!("{gpath}.template"),
-                format!(
-                    "template {} does not exist (the file has {} geometry template(s))",
-                    geom.template.map_or("(missing)".to_string(), |t| t.to_string()),
-                    templates.map_or(0, |ts| ts.templates.len())
-                ),
+                CityJsonProblem::Template {
+                    template: geom.template,
+                    templates: templates.map_or(0, |ts| ts.templates.len()),
+                },
             ));
         };
         let m: [f64; 16] = match geom.transformation_matrix.as_deref() {
@@ -1145,7 +1142,7 @@ impl<'p> Reader<'p> {
                 return Err(LodError::invalid(
                     self.path,
                     format!("{gpath}.transformationMatrix"),
-                    format!("expected 16 finite numbers, found {} value(s)", m.len()),
+                    CityJsonProblem::TransformationMatrix { values: m.len() },
                 ))
             }
         };
@@ -1157,7 +1154,7 @@ impl<'p> Reader<'p> {
             return Err(LodError::invalid(
                 self.path,
                 format!("{gpath}.boundaries"),
-                "a GeometryInstance needs boundaries [reference vertex index]",
+                CityJsonProblem::NoReferenceVertex,
             ));
         };
         let r = self.vertex(source, reference, &format!("{gpath}.boundaries[0]"))?;
@@ -1208,11 +1205,11 @@ impl<'p> Reader<'p> {
             return Err(LodError::invalid(
                 self.path,
                 format!("{gpath}.boundaries"),
-                format!(
-                    "a {kind} needs vertex indices at nesting depth {}, found depth {}",
-                    depth + 1,
-                    found + 1
-                ),
+                CityJsonProblem::BoundaryDepth {
+                    kind: kind.to_string(),
+                    expected: depth + 1,
+                    found: found + 1,
+                },
             ));
         }
         let mut out = (Vec::new(), Vec::new());
@@ -1299,24 +1296,18 @@ impl<'p> Reader<'p> {
             return Err(LodError::invalid(
                 self.path,
                 at,
-                format!(
-                    "vertex index {i} is out of range ({} has {} vertices)",
-                    source.list_name,
-                    source.vertices.len()
-                ),
+                CityJsonProblem::VertexIndex {
+                    index: i,
+                    list: source.list_name,
+                    vertices: source.vertices.len(),
+                },
             ));
         };
         if p.iter().any(|v| !v.is_finite() || v.abs() > MAX_ABS_COORDINATE) {
             return Err(LodError::invalid(
                 self.path,
                 at,
-                format!(
-                    "{}[{i}] gives the coordinate [{}, {}, {}], which is not finite or beyond ±{MAX_ABS_COORDINATE:e}",
-                    source.list_name,
-                    short(p[0]),
-                    short(p[1]),
-                    short(p[2])
-                ),
+                CityJsonProblem::Coordinate { list: source.list_name, index: i, coordinate: p },
             ));
         }
         Ok(p)
@@ -1324,23 +1315,19 @@ impl<'p> Reader<'p> {
 
     fn finish(self) -> Result<SourceModel, LodError> {
         if self.buildings.is_empty() {
-            let lod = match &self.forced_lod {
-                Some(l) => format!("LoD {l:?}"),
-                None => format!("LoD {MIN_DEFAULT_LOD}–{MAX_DEFAULT_LOD}"),
-            };
             return Err(LodError::invalid(
                 self.path,
                 "CityObjects",
-                format!(
-                    "no buildings with geometry: {} building(s) found, {} without any {lod} surface, {} whose \
-                     {lod} surfaces are all degenerate ({} face(s) dropped: fewer than 3 distinct points or \
-                     zero area); {} other city object(s) skipped",
-                    self.buildings_seen,
-                    self.buildings_empty,
-                    self.buildings_degenerate,
-                    self.stats.degenerate_faces,
-                    self.stats.skipped_non_building
-                ),
+                CityJsonProblem::NoBuildings {
+                    lod: self.forced_lod.clone(),
+                    counts: NoBuildings {
+                        found: self.buildings_seen,
+                        without_surface: self.buildings_empty,
+                        all_degenerate: self.buildings_degenerate,
+                        faces_dropped: self.stats.degenerate_faces,
+                        others_skipped: self.stats.skipped_non_building,
+                    },
+                },
             ));
         }
         if let Some((at, p)) = &self.first_bad_unused {
@@ -1371,15 +1358,6 @@ impl<'p> Reader<'p> {
     }
 }
 
-/// A number for a message: plain when moderate, in exponent form when huge (`1e297`, not 298 digits).
-fn short(v: f64) -> String {
-    if v.is_finite() && v.abs() >= 1e15 {
-        format!("{v:e}")
-    } else {
-        v.to_string()
-    }
-}
-
 /// `gpath.boundaries[a][b]…` for the vertex at `prefix` + `rest`.
 fn index_path(gpath: &str, prefix: &[usize], rest: &[usize]) -> String {
     let mut s = format!("{gpath}.boundaries");
@@ -1399,18 +1377,12 @@ fn json_error(path: &Path, line_no: Option<usize>, e: serde_json::Error) -> LodE
         return LodError::File(FileError::new("reading", path, std::io::Error::from(e)));
     }
     if e.is_eof() {
-        return LodError::malformed(
-            path,
-            format!("truncated JSON: the file ends at line {line}, column {column} before the document is complete"),
-        );
+        return LodError::malformed(path, SyntaxProblem::TruncatedJson { line, column });
     }
     // serde_json's message ends with its own " at line L column C" (relative to the parsed text).
     let msg = e.to_string();
-    let mut msg = msg.rsplit_once(" at line ").map_or(msg.as_str(), |(m, _)| m).to_string();
-    if msg == "expected value" {
-        msg.push_str(" (NaN and Infinity are not JSON numbers)");
-    }
-    LodError::malformed(path, format!("malformed JSON at line {line}, column {column}: {msg}"))
+    let message = msg.rsplit_once(" at line ").map_or(msg.as_str(), |(m, _)| m).to_string();
+    LodError::malformed(path, SyntaxProblem::Json { line, column, message })
 }
 
 #[cfg(test)]

@@ -19,7 +19,10 @@ pub mod obj;
 pub mod split;
 pub mod tiles3d;
 
-pub use error::{LodError, ParseError};
+pub use error::{
+    CityGmlProblem, CityJsonProblem, LodError, LodProblem, NoBuildings, ObjProblem, ParseError,
+    ProceduralProblem, SyntaxProblem, TilesetIssue, TilesetProblem,
+};
 
 use std::path::{Path, PathBuf};
 
@@ -380,22 +383,9 @@ pub fn sniff(head: &[u8]) -> &'static str {
 
 /// A [`LodError::Malformed`] for a file that is not `expected` at all ("not JSON", "not XML"), naming
 /// what it looks like instead and, when that is another format insgen reads, how to read it as that.
-pub(crate) fn wrong_format(path: &Path, expected: &str, document: &str) -> LodError {
+pub(crate) fn wrong_format(path: &Path, expected: &'static str, document: &'static str) -> LodError {
     let looks = sniff(&head_of(path, 512));
-    let hint = match looks {
-        "JSON" => " (CityJSON or a tileset? name it .json / tileset.json or set `format` in the scene file)",
-        "XML" => " (CityGML? name it .gml or set format = \"citygml\" in the scene file)",
-        "a glTF binary (glb)" | "a 3D Tiles content (b3dm/cmpt/i3dm/pnts)" => {
-            " (3D Tiles? name it .glb/.b3dm or set format = \"3dtiles\" in the scene file)"
-        }
-        "a Wavefront OBJ" => " (name it .obj or set format = \"obj\" in the scene file)",
-        _ => "",
-    };
-    let holds = match looks {
-        "empty" => "the file is empty".to_string(),
-        other => format!("the file holds {other}{hint}"),
-    };
-    LodError::malformed(path, format!("not {expected}: {holds}, not {document}"))
+    LodError::malformed(path, error::SyntaxProblem::WrongFormat { expected, looks, document })
 }
 
 /// The first bytes of a file (at most `n`), for [`sniff`]; empty when unreadable.

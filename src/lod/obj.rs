@@ -30,6 +30,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use super::error::{ObjProblem, SyntaxProblem};
 use super::split::split_connected;
 use super::{
     AxisConvention, Frame, Geometry, LodError, ReadOptions, ReadStats, SourceBuilding, SourceModel, TriMesh,
@@ -85,20 +86,14 @@ pub fn find_sidecar(obj_path: &Path) -> Result<(PathBuf, ObjSidecar), LodError> 
         return Err(LodError::invalid(
             obj_path,
             "sidecar",
-            format!(
-                "an OBJ needs a sidecar JSON giving its CRS, offset and up axis, but neither {} nor {} \
-                 exists; create one, e.g. {{\"crs\": \"EPSG:6677\", \"offset\": [0, 0, 0], \"axes\": \
-                 \"z_up\"}} (schema: schemas/obj_sidecar.schema.json)",
-                candidates[0].display(),
-                candidates[1].display()
-            ),
+            ObjProblem::NoSidecar { tried: candidates.clone() },
         ));
     };
     let bytes = crate::util::read_file(found)?;
     let sidecar: ObjSidecar = serde_json::from_slice(&bytes)
-        .map_err(|e| LodError::unparsable(found, "not a valid OBJ sidecar (crs, offset, axes, lod)", e))?;
+        .map_err(|e| LodError::unparsable(found, SyntaxProblem::ObjSidecar, e))?;
     if let Some(bad) = sidecar.offset.iter().find(|c| !c.is_finite()) {
-        return Err(LodError::invalid(found, "offset", format!("offset component {bad} is not finite")));
+        return Err(LodError::invalid(found, "offset", ObjProblem::Offset { value: *bad }));
     }
     Ok((found.clone(), sidecar))
 }
@@ -128,7 +123,7 @@ pub fn read_with_sidecar(
     let text = String::from_utf8_lossy(&bytes);
     let (mesh, stats) = parse_obj(&text, sidecar, path)?;
     if mesh.triangles.is_empty() {
-        return Err(LodError::invalid(path, "faces", "the OBJ has no (non-degenerate) faces"));
+        return Err(LodError::invalid(path, "faces", ObjProblem::NoFaces));
     }
     let file_name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let lod = sidecar.lod.clone().unwrap_or_else(|| "unknown".to_string());
@@ -174,7 +169,7 @@ fn parse_obj(text: &str, sidecar: &ObjSidecar, path: &Path) -> Result<(TriMesh, 
     let (models, _materials) = tobj::load_obj_buf(&mut Cursor::new(filtered.as_bytes()), &load, |_| {
         Err(tobj::LoadError::OpenFileFailed)
     })
-    .map_err(|e| LodError::unparsable(path, "cannot parse OBJ", e))?;
+    .map_err(|e| LodError::unparsable(path, SyntaxProblem::Obj, e))?;
 
     let mut mesh = TriMesh::default();
     let mut stats = ReadStats::default();
@@ -186,7 +181,7 @@ fn parse_obj(text: &str, sidecar: &ObjSidecar, path: &Path) -> Result<(TriMesh, 
             let local = [v[0] as f64, v[1] as f64, v[2] as f64];
             if local.iter().any(|c| !c.is_finite()) {
                 let at = format!("vertex {} of object {:?}", k + 1, model.name);
-                return Err(LodError::invalid(path, at, format!("is not finite: {local:?}")));
+                return Err(LodError::invalid(path, at, ObjProblem::Vertex { position: local }));
             }
             let axed = match sidecar.axes {
                 ObjAxes::ZUp => local,

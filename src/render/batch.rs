@@ -123,8 +123,8 @@ impl Renderer {
             .enumerate()
             .map(|(i, v)| {
                 ViewUniform::new(v, &options.range).map_err(|e| match e {
-                    RenderError::InvalidView { what } => {
-                        RenderError::InvalidView { what: format!("view {i}: {what}") }
+                    RenderError::InvalidView { problem, .. } => {
+                        RenderError::InvalidView { view: Some(i), problem }
                     }
                     other => other,
                 })

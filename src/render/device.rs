@@ -89,7 +89,7 @@ impl Renderer {
             }
             let downlevel = adapter.get_downlevel_capabilities();
             if !downlevel.flags.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS) {
-                return Err(RenderError::Capability { adapter: name, what: "no compute shaders".into() });
+                return Err(RenderError::Capability { adapter: name, missing: "compute shaders" });
             }
             let (device, queue) = adapter
                 .request_device(&wgpu::DeviceDescriptor {

@@ -37,7 +37,7 @@ pub mod warp;
 
 pub use batch::{RenderOptions, FRAMES_IN_FLIGHT};
 pub use device::Renderer;
-pub use error::RenderError;
+pub use error::{MeshProblem, RenderError, ViewProblem};
 pub use scene::{BuildingRange, GpuScene};
 pub use seam::{
     resolve, CpuRenderer, IdRenderer, IdScene, RendererChoice, RendererKind, RendererRecord, Resolved,

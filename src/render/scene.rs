@@ -5,6 +5,7 @@
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
+use super::error::MeshProblem;
 use super::RenderError;
 use crate::scene::{BuildingId, SceneMesh};
 
@@ -73,45 +74,39 @@ impl GpuScene {
         mesh: &SceneMesh,
     ) -> Result<GpuScene, RenderError> {
         let _ = queue; // buffers are created initialised; the queue is taken for symmetry with the rest
-        let bad = |what: String| Err(RenderError::InvalidMesh { what });
+        let bad = |problem: MeshProblem| Err(RenderError::InvalidMesh(problem));
         if mesh.positions_m.len() != mesh.building_ids.len() {
-            return bad(format!(
-                "{} positions but {} building IDs",
-                mesh.positions_m.len(),
-                mesh.building_ids.len()
-            ));
+            return bad(MeshProblem::Lengths {
+                positions: mesh.positions_m.len(),
+                building_ids: mesh.building_ids.len(),
+            });
         }
         if !mesh.indices.len().is_multiple_of(3) {
-            return bad(format!("{} indices is not a multiple of 3", mesh.indices.len()));
+            return bad(MeshProblem::IndexCount { indices: mesh.indices.len() });
         }
         if mesh.indices.len() > u32::MAX as usize || mesh.positions_m.len() > u32::MAX as usize {
-            return bad(format!(
-                "too large: {} indices, {} vertices",
-                mesh.indices.len(),
-                mesh.positions_m.len()
-            ));
+            return bad(MeshProblem::TooLarge {
+                indices: mesh.indices.len(),
+                vertices: mesh.positions_m.len(),
+            });
         }
         if let Some((v, p)) =
             mesh.positions_m.iter().enumerate().find(|(_, p)| !p.iter().all(|c| c.is_finite()))
         {
-            return bad(format!("vertex {v} has a non-finite position {p:?}"));
+            return bad(MeshProblem::NonFinite { vertex: v, position_m: *p });
         }
         let n_vertices = mesh.positions_m.len();
         let mut tri_ids = Vec::with_capacity(mesh.triangle_count());
         for (t, tri) in mesh.indices.chunks_exact(3).enumerate() {
             if let Some(&i) = tri.iter().find(|&&i| i as usize >= n_vertices) {
-                return bad(format!(
-                    "triangle {t} refers to vertex {i}, but there are {n_vertices} vertices"
-                ));
+                return bad(MeshProblem::VertexIndex { triangle: t, vertex: i, vertices: n_vertices });
             }
             let ids = [tri[0], tri[1], tri[2]].map(|i| mesh.building_ids[i as usize]);
             if ids[0] != ids[1] || ids[0] != ids[2] {
                 if ids.iter().any(|id| id.is_background()) {
-                    return bad(format!(
-                        "triangle {t} mixes building ID 0 (an occluder) with a building: {ids:?}"
-                    ));
+                    return bad(MeshProblem::MixedOccluder { triangle: t, ids });
                 }
-                return bad(format!("triangle {t} joins vertices of buildings {ids:?}"));
+                return bad(MeshProblem::MixedBuildings { triangle: t, ids });
             }
             tri_ids.push(ids[0]);
         }

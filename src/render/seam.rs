@@ -25,6 +25,7 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 use super::cpu::{self, CpuScene, Frame, NEAR_M};
+use super::error::{MeshProblem, ViewProblem};
 use super::{DepthRange, GpuScene, RenderError, RenderOptions, RenderedFrame, Renderer, View};
 use crate::scene::{BuildingId, IdMap, SceneMesh};
 
@@ -143,16 +144,19 @@ impl IdRenderer for CpuRenderer {
         mesh: &SceneMesh,
         anchor_m: DVec3,
     ) -> Result<Box<dyn IdScene + 'r>, RenderError> {
-        if mesh.building_ids.len() != mesh.positions_m.len()
-            || mesh.indices.iter().any(|&i| i as usize >= mesh.positions_m.len())
-        {
-            return Err(RenderError::InvalidMesh {
-                what: format!(
-                    "{} positions, {} building IDs and an index beyond the positions",
-                    mesh.positions_m.len(),
-                    mesh.building_ids.len()
-                ),
-            });
+        let vertices = mesh.positions_m.len();
+        if mesh.building_ids.len() != vertices {
+            return Err(RenderError::InvalidMesh(MeshProblem::Lengths {
+                positions: vertices,
+                building_ids: mesh.building_ids.len(),
+            }));
+        }
+        if let Some((k, &vertex)) = mesh.indices.iter().enumerate().find(|(_, &i)| i as usize >= vertices) {
+            return Err(RenderError::InvalidMesh(MeshProblem::VertexIndex {
+                triangle: k / 3,
+                vertex,
+                vertices,
+            }));
         }
         Ok(Box::new(CpuScene::new(mesh, anchor_m)))
     }
@@ -164,11 +168,8 @@ fn check_cpu_range(range: &DepthRange) -> Result<(), RenderError> {
         Ok(())
     } else {
         Err(RenderError::InvalidView {
-            what: format!(
-                "the CPU rasteriser clips at a near plane of {NEAR_M} m, not {} m (far {} m); render \
-                 with wgpu for other clip planes",
-                range.near_m, range.far_m
-            ),
+            view: None,
+            problem: ViewProblem::CpuNearPlane { near_m: range.near_m, far_m: range.far_m },
         })
     }
 }

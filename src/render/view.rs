@@ -27,6 +27,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use super::error::ViewProblem;
 use super::RenderError;
 use crate::camera::{Intrinsics, Pose};
 
@@ -127,28 +128,22 @@ impl ViewUniform {
 /// [`RenderError::InvalidView`] naming the offending value.
 pub fn validate_view(view: &View, range: &DepthRange) -> Result<(), RenderError> {
     let k = &view.intrinsics;
-    let bad = |what: String| Err(RenderError::InvalidView { what });
+    let bad = |problem: ViewProblem| Err(RenderError::InvalidView { view: None, problem });
     if k.width_px == 0
         || k.height_px == 0
         || k.width_px > MAX_FRAME_SIDE_PX
         || k.height_px > MAX_FRAME_SIDE_PX
     {
-        return bad(format!(
-            "frame size {}×{} px is outside 1..={MAX_FRAME_SIDE_PX} px per side",
-            k.width_px, k.height_px
-        ));
+        return bad(ViewProblem::FrameSize { width_px: k.width_px, height_px: k.height_px });
     }
     if !(k.fx_px.is_finite() && k.fy_px.is_finite() && k.fx_px > 0.0 && k.fy_px > 0.0) {
-        return bad(format!(
-            "focal lengths must be finite and positive, got fx={} fy={} px",
-            k.fx_px, k.fy_px
-        ));
+        return bad(ViewProblem::Focal { fx_px: k.fx_px, fy_px: k.fy_px });
     }
     if !(k.cx_px.is_finite() && k.cy_px.is_finite()) {
-        return bad(format!("principal point must be finite, got ({}, {}) px", k.cx_px, k.cy_px));
+        return bad(ViewProblem::PrincipalPoint { cx_px: k.cx_px, cy_px: k.cy_px });
     }
     if !view.pose.centre_m.is_finite() {
-        return bad(format!("camera centre must be finite, got {:?} m", view.pose.centre_m));
+        return bad(ViewProblem::Centre { centre_m: view.pose.centre_m });
     }
     let r = &view.pose.r_world_from_cam;
     let worst = (r.transpose() * *r - glam::DMat3::IDENTITY)
@@ -157,20 +152,14 @@ pub fn validate_view(view: &View, range: &DepthRange) -> Result<(), RenderError>
         .fold(0.0f64, |w, v| w.max(v.abs()));
     let det = r.determinant();
     if !(worst <= 1e-6 && (det - 1.0).abs() <= 1e-6) {
-        return bad(format!(
-            "the pose rotation is not a rotation (|RᵀR − I| = {worst:.3e}, det = {det:.6}): {:?}",
-            view.pose.r_world_from_cam
-        ));
+        return bad(ViewProblem::Rotation { orthonormality: worst, det, rotation: *r });
     }
     if !(range.near_m.is_finite()
         && range.far_m.is_finite()
         && range.near_m > 0.0
         && range.far_m > range.near_m)
     {
-        return bad(format!(
-            "depth range must satisfy 0 < near < far, got near={} m far={} m",
-            range.near_m, range.far_m
-        ));
+        return bad(ViewProblem::DepthRange { near_m: range.near_m, far_m: range.far_m });
     }
     Ok(())
 }

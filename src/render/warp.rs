@@ -91,6 +91,7 @@ impl RotationFan {
         self.homographies.len()
     }
 
+    /// Whether the fan has no view.
     pub fn is_empty(&self) -> bool {
         self.homographies.is_empty()
     }

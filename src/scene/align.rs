@@ -72,21 +72,49 @@ pub enum AlignError {
         /// "LoD" or "reference".
         what: &'static str,
     },
-    /// The models do not overlap.
-    #[error("the models do not overlap: {what}")]
-    NoOverlap {
-        /// How they miss each other.
-        what: String,
+    /// Too few LoD roof cells find the tileset at a common height in the coarse search.
+    #[error(
+        "the models do not overlap: only {:.1} % of the LoD roof cells find the tileset at a common height \
+         within ±{search_m} m / ±{search_deg}°",
+        100.0 * inlier_fraction
+    )]
+    NoCommonHeight {
+        /// The fraction of roof cells that do.
+        inlier_fraction: f64,
+        /// The search window, metres.
+        search_m: f64,
+        /// The search window, degrees.
+        search_deg: f64,
+    },
+    /// Too few LoD surface samples lie near the tileset during the refinement.
+    #[error(
+        "the models do not overlap: only {samples} LoD surface samples lie within {gate_m} m of the tileset"
+    )]
+    FewSamples {
+        /// Samples within the gate.
+        samples: usize,
+        /// The gate, metres.
+        gate_m: f64,
     },
     /// The refinement is degenerate.
-    #[error("the refinement is degenerate ({what}): the surfaces do not fix all four parameters")]
+    #[error(
+        "the refinement is degenerate (normal matrix determinant {determinant:e}): the surfaces do not fix all \
+         four parameters"
+    )]
     Degenerate {
-        /// Which parameters are not fixed.
-        what: String,
+        /// The determinant of the normal equations.
+        determinant: f64,
     },
-    /// An option is out of range (named in the message).
-    #[error("invalid option: {0}")]
-    Option(String),
+    /// The search window is out of range.
+    #[error(
+        "invalid option: search window {search_m} m / {search_deg}° (expected 0 < m ≤ 100, 0 ≤ deg ≤ 20)"
+    )]
+    SearchWindow {
+        /// The window, metres.
+        search_m: f64,
+        /// The window, degrees.
+        search_deg: f64,
+    },
 }
 
 /// The estimate and how it was reached.
@@ -640,10 +668,7 @@ fn normal_equations(rows: &[Row], w: &[f64]) -> (DMat4, [f64; 4]) {
 pub fn estimate(lod: &TriMesh, tiles: &TriMesh, opts: &AlignOptions) -> Result<Estimate, AlignError> {
     let window_ok = opts.search_m > 0.0 && opts.search_m <= 100.0;
     if !(window_ok && opts.search_deg >= 0.0 && opts.search_deg <= 20.0) {
-        return Err(AlignError::Option(format!(
-            "search window {} m / {}° (expected 0 < m ≤ 100, 0 ≤ deg ≤ 20)",
-            opts.search_m, opts.search_deg
-        )));
+        return Err(AlignError::SearchWindow { search_m: opts.search_m, search_deg: opts.search_deg });
     }
     let (lo, hi) = bounds_2d(lod).ok_or(AlignError::Empty { what: "LoD" })?;
     bounds_2d(tiles).ok_or(AlignError::Empty { what: "tileset" })?;
@@ -675,13 +700,10 @@ pub fn estimate(lod: &TriMesh, tiles: &TriMesh, opts: &AlignOptions) -> Result<E
     let coarse_inlier_fraction = inliers as f64 / pts.len() as f64;
     log::debug!("align: coarse pass 2 done at {:.2} s: {coarse:?}", clock.elapsed().as_secs_f64());
     if coarse_inlier_fraction < 0.05 {
-        return Err(AlignError::NoOverlap {
-            what: format!(
-                "only {:.1} % of the LoD roof cells find the tileset at a common height within ±{} m / ±{}°",
-                100.0 * coarse_inlier_fraction,
-                opts.search_m,
-                opts.search_deg
-            ),
+        return Err(AlignError::NoCommonHeight {
+            inlier_fraction: coarse_inlier_fraction,
+            search_m: opts.search_m,
+            search_deg: opts.search_deg,
         });
     }
 
@@ -707,9 +729,7 @@ pub fn estimate(lod: &TriMesh, tiles: &TriMesh, opts: &AlignOptions) -> Result<E
         let gate = if it < 4 { 1.5 } else { (6.0 * sigma_m).clamp(0.3, 1.0) };
         let rows = correspondences(&samples, &grid, &c, gate);
         if rows.len() < 50 {
-            return Err(AlignError::NoOverlap {
-                what: format!("only {} LoD surface samples lie within {gate} m of the tileset", rows.len()),
-            });
+            return Err(AlignError::FewSamples { samples: rows.len(), gate_m: gate });
         }
         let abs: Vec<f64> = rows.iter().map(|r| r.1.abs()).collect();
         sigma_m = (1.4826 * crate::util::median(&abs).unwrap_or(0.0)).max(0.005);
@@ -719,7 +739,7 @@ pub fn estimate(lod: &TriMesh, tiles: &TriMesh, opts: &AlignOptions) -> Result<E
         // Relative to the diagonal's product (1 for an orthogonal design, 0 for a degenerate one).
         let diag = a.col(0).x * a.col(1).y * a.col(2).z * a.col(3).w;
         if !(det.is_finite() && diag > 0.0 && det / diag > 1e-9) {
-            return Err(AlignError::Degenerate { what: format!("normal matrix determinant {det:e}") });
+            return Err(AlignError::Degenerate { determinant: det });
         }
         let inv = a.inverse();
         let d = inv * glam::DVec4::from_array(g);
@@ -845,7 +865,10 @@ mod tests {
     fn disjoint_models_are_refused() {
         let lod = town();
         let far = moved(&lod, &Correction { east_m: 5000.0, ..Correction::IDENTITY });
-        assert!(matches!(estimate(&lod, &far, &AlignOptions::default()), Err(AlignError::NoOverlap { .. })));
+        assert!(matches!(
+            estimate(&lod, &far, &AlignOptions::default()),
+            Err(AlignError::NoCommonHeight { .. } | AlignError::FewSamples { .. })
+        ));
     }
 
     #[test]

@@ -228,14 +228,10 @@ impl PreparedScene {
     /// # Errors
     /// As [`PreparedScene::load`].
     pub fn load_as_prepared(dir: &std::path::Path) -> Result<PreparedScene, super::SceneError> {
-        use super::SceneError;
-        let hint = "run `insgen prepare --area <name>`";
+        use super::{ArtifactProblem, SceneError};
         let manifest_path = dir.join(MANIFEST_FILE);
         if !manifest_path.is_file() {
-            return Err(SceneError::Artifact {
-                path: manifest_path,
-                what: format!("no prepared scene here; {hint} first"),
-            });
+            return Err(SceneError::Artifact { path: manifest_path, problem: ArtifactProblem::NotPrepared });
         }
         let read_json =
             |name: &str| -> Result<Vec<u8>, SceneError> { Ok(crate::util::read_file(&dir.join(name))?) };
@@ -253,13 +249,12 @@ impl PreparedScene {
         {
             return Err(SceneError::Artifact {
                 path: dir.to_path_buf(),
-                what: format!(
-                    "inconsistent scene: manifest says {} buildings / {} triangles, files hold {} / {}; {hint} again",
-                    manifest.buildings,
-                    manifest.triangles,
-                    buildings.len(),
-                    mesh.triangle_count()
-                ),
+                problem: ArtifactProblem::Inconsistent {
+                    manifest_buildings: manifest.buildings,
+                    manifest_triangles: manifest.triangles,
+                    buildings: buildings.len() as u64,
+                    triangles: mesh.triangle_count() as u64,
+                },
             });
         }
         let clutter = match &manifest.clutter {

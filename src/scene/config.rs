@@ -43,6 +43,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use super::error::ConfigProblem;
 use super::SceneError;
 
 /// One area definition.
@@ -251,90 +252,80 @@ impl SceneConfig {
     }
 
     fn validate(&self, path: &Path) -> Result<(), SceneError> {
-        let err = |what: String| Err(SceneError::Config { path: path.into(), what });
+        let err = |problem: ConfigProblem| Err(SceneError::Config { path: path.into(), problem });
         if let Some(stem) = path.file_stem().and_then(|s| s.to_str()) {
             if stem != self.name {
-                return err(format!("name = {:?} does not match the file name {stem:?}", self.name));
+                return err(ConfigProblem::NameMismatch { name: self.name.clone(), stem: stem.to_string() });
             }
         }
         if self.sources.is_empty() {
-            return err("no [[sources]]: an area needs at least one source of building models".into());
+            return err(ConfigProblem::NoSources);
         }
         if let Some(c) = &self.alignment {
-            c.validate().or_else(|what| err(format!("[alignment]: {what}")))?;
+            c.validate().or_else(|e| err(ConfigProblem::Alignment(e)))?;
             if c.east_m.abs().max(c.north_m.abs()).max(c.up_m.abs()) > 1000.0 || c.yaw_deg.abs() > 180.0 {
-                return err(format!(
-                    "[alignment]: shift ({}, {}, {}) m / yaw {}° is not a residual correction (limits: 1000 m, 180°)",
-                    c.east_m, c.north_m, c.up_m, c.yaw_deg
-                ));
+                return err(ConfigProblem::AlignmentTooLarge {
+                    east_m: c.east_m,
+                    north_m: c.north_m,
+                    up_m: c.up_m,
+                    yaw_deg: c.yaw_deg,
+                });
             }
         }
-        for (i, s) in self.sources.iter().enumerate() {
+        for (index, s) in self.sources.iter().enumerate() {
             let procedural = s.format.as_deref() == Some("procedural");
             if !procedural && s.path.is_none() {
-                return err(format!("sources[{i}] has no `path`"));
+                return err(ConfigProblem::NoPath { index });
             }
             if let Some(f) = &s.format {
                 if !["citygml", "cityjson", "obj", "3dtiles", "procedural"].contains(&f.as_str()) {
-                    return err(format!(
-                        "sources[{i}].format = {f:?}: expected one of citygml, cityjson, obj, 3dtiles, procedural"
-                    ));
+                    return err(ConfigProblem::Format { index, format: f.clone() });
                 }
             }
             let above = s.heights == Some(Heights::AboveGround);
             if !above && (s.ground_attribute.is_some() || s.ground_height_m.is_some()) {
-                return err(format!(
-                    "sources[{i}]: ground_attribute / ground_height_m need heights = \"above_ground\""
-                ));
+                return err(ConfigProblem::GroundWithoutAboveGround { index });
             }
             if s.ground_attribute.is_some() && s.ground_height_m.is_some() {
-                return err(format!("sources[{i}]: give ground_attribute or ground_height_m, not both"));
+                return err(ConfigProblem::GroundTwice { index });
             }
             if let Some(g) = s.ground_height_m {
                 if !(g.is_finite() && g.abs() <= 1e4) {
-                    return err(format!("sources[{i}].ground_height_m = {g}: must be a height in metres"));
+                    return err(ConfigProblem::GroundHeight { index, value_m: g });
                 }
             }
             if let Some(t) = s.weld_tolerance_m {
                 if !(t.is_finite() && t >= 0.0) {
-                    return err(format!(
-                        "sources[{i}].weld_tolerance_m = {t}: must be a non-negative number"
-                    ));
+                    return err(ConfigProblem::WeldTolerance { index, value_m: t });
                 }
             }
         }
         match (self.geoid.model, self.geoid.undulation_m) {
-            (GeoidModel::Constant, None) => {
-                return err("[geoid] model = \"constant\" needs `undulation_m`".into());
-            }
+            (GeoidModel::Constant, None) => return err(ConfigProblem::NoUndulation),
             (GeoidModel::Constant, Some(n)) if !n.is_finite() || n.abs() > 200.0 => {
-                return err(format!("[geoid] undulation_m = {n}: geoid undulations lie within ±110 m"));
+                return err(ConfigProblem::Undulation { value_m: n });
             }
             _ => {}
         }
         if let Some(o) = &self.origin {
             if !(o.lat_deg.abs() <= 90.0 && o.lon_deg.abs() <= 180.0) {
-                return err(format!("[origin] lat_deg/lon_deg out of range: {}, {}", o.lat_deg, o.lon_deg));
+                return err(ConfigProblem::Origin { lat_deg: o.lat_deg, lon_deg: o.lon_deg });
             }
         }
         if let Some(a) = &self.area {
             match (&a.bbox_deg, &a.polygon_deg) {
-                (Some(_), Some(_)) => {
-                    return err("[area] give either bbox_deg or polygon_deg, not both".into())
-                }
+                (Some(_), Some(_)) => return err(ConfigProblem::AreaTwice),
                 (Some(b), None) => {
                     if !(b[0] < b[2] && b[1] < b[3]) || b.iter().any(|v| !v.is_finite()) {
-                        return err(format!(
-                            "[area] bbox_deg = {b:?}: expected [lon_min, lat_min, lon_max, lat_max]"
-                        ));
+                        return err(ConfigProblem::Bbox { bbox_deg: *b });
                     }
                 }
                 (None, Some(p)) => {
                     if p.len() < 3 {
-                        return err("[area] polygon_deg needs at least 3 points".into());
+                        return err(ConfigProblem::PolygonPoints);
                     }
                 }
-                (None, None) => return err("[area] needs bbox_deg or polygon_deg".into()),
+                (None, None) => return err(ConfigProblem::AreaEmpty),
             }
         }
         Ok(())
@@ -372,10 +363,10 @@ pub fn find_scene(scenes_dir: &Path, area: &str) -> Result<PathBuf, SceneError> 
     names.sort();
     Err(SceneError::Config {
         path,
-        what: if names.is_empty() {
-            format!("no such area, and {} holds no scene files (--scenes DIR)", scenes_dir.display())
-        } else {
-            format!("no such area {area:?}; available: {}", names.join(", "))
+        problem: ConfigProblem::NoSuchArea {
+            area: area.to_string(),
+            scenes_dir: scenes_dir.to_path_buf(),
+            available: names,
         },
     })
 }

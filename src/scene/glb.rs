@@ -63,32 +63,339 @@ use crate::util::FileError;
 /// Errors of the GLB writer and reader; every variant names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum GlbError {
+    /// Reading or writing the file failed.
     #[error(transparent)]
     File(#[from] FileError),
     /// The mesh or building table handed to [`write_glb`] cannot be written (inconsistent lengths,
     /// out-of-range indices or IDs, non-finite coordinates, an ID missing from the table).
-    #[error("{}: cannot write the scene: {what}", path.display())]
-    BadInput { path: PathBuf, what: String },
+    #[error("{}: cannot write the scene: {problem}", path.display())]
+    BadInput {
+        /// The GLB being written.
+        path: PathBuf,
+        /// What is wrong with the input.
+        problem: InputProblem,
+    },
     /// The data does not fit the GLB container (32-bit lengths).
     #[error("{}: the scene needs {bytes} bytes, more than a GLB file can hold (4 GiB); split the area", path.display())]
-    TooLarge { path: PathBuf, bytes: u64 },
+    TooLarge {
+        /// The GLB being written.
+        path: PathBuf,
+        /// Bytes it would need.
+        bytes: u64,
+    },
     /// The file is not a valid GLB/glTF document.
     #[error("{}: not a valid binary glTF file", path.display())]
     Parse {
+        /// The file.
         path: PathBuf,
+        /// The glTF reader's error.
         #[source]
         source: gltf::Error,
     },
     /// The file is not a GLB container (header or chunks).
     #[error("{}: not a valid binary glTF file", path.display())]
     Container {
+        /// The file.
         path: PathBuf,
+        /// The container reader's error.
         #[source]
         source: crate::util::glb::GlbError,
     },
+    /// The `EXT_mesh_features` extensions do not parse.
+    #[error("{}: meshes[*].primitives[*].extensions: unexpected EXT_mesh_features content", path.display())]
+    MeshFeatures {
+        /// The file.
+        path: PathBuf,
+        /// The JSON parser's error.
+        #[source]
+        source: serde_json::Error,
+    },
     /// The document is valid glTF but not an instanced scene insgen can read; `at` is a JSON path.
-    #[error("{}: {at}: {what}", path.display())]
-    Invalid { path: PathBuf, at: String, what: String },
+    #[error("{}: {at}: {problem}", path.display())]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// JSON path of the object at fault (`meshes[0].primitives[1].indices`).
+        at: String,
+        /// What is wrong there.
+        problem: SceneGlbProblem,
+    },
+}
+
+/// Why a mesh (or clutter layer) cannot be written as `scene.glb` (see [`GlbError::BadInput`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum InputProblem {
+    /// Positions and building IDs differ in number.
+    #[error("{positions} positions but {building_ids} building IDs")]
+    Lengths {
+        /// Positions.
+        positions: usize,
+        /// Building IDs.
+        building_ids: usize,
+    },
+    /// The mesh has no triangle.
+    #[error("the mesh has no triangles")]
+    NoTriangles,
+    /// The index count is not a multiple of 3.
+    #[error("{indices} indices is not a multiple of 3")]
+    IndexCount {
+        /// Indices.
+        indices: usize,
+    },
+    /// More vertices than a u32-indexed primitive holds.
+    #[error("{vertices} vertices: a u32-indexed primitive holds at most {}", u32::MAX - 1)]
+    TooManyVertices {
+        /// Vertices.
+        vertices: usize,
+    },
+    /// An index past the vertices.
+    #[error("index {index} is {value}, but there are only {vertices} vertices")]
+    IndexRange {
+        /// Position in the index list.
+        index: usize,
+        /// The index.
+        value: u32,
+        /// Vertices.
+        vertices: usize,
+    },
+    /// A vertex position is NaN or infinite.
+    #[error("vertex {vertex} has a non-finite coordinate {position_m:?}")]
+    NonFinite {
+        /// The vertex.
+        vertex: usize,
+        /// Its position, ENU metres.
+        position_m: [f32; 3],
+    },
+    /// A building table row with the background's ID.
+    #[error("building {source_id:?} has ID 0, the background's")]
+    BackgroundId {
+        /// The building's source id.
+        source_id: String,
+    },
+    /// Two building table rows with one ID.
+    #[error("ID {id} is used by both {first:?} and {second:?}")]
+    DuplicateId {
+        /// The ID.
+        id: BuildingId,
+        /// The first row's source id.
+        first: String,
+        /// The second row's source id.
+        second: String,
+    },
+    /// A vertex ID the building table lacks.
+    #[error("vertex {vertex} has building ID {id}, which is not in the building table")]
+    UnknownId {
+        /// The vertex.
+        vertex: usize,
+        /// Its building ID.
+        id: BuildingId,
+    },
+    /// Appearance data not parallel to the vertices.
+    #[error("{vertices} vertices but {uvs} texture coordinates and {appearances} appearance numbers")]
+    AppearanceLengths {
+        /// Vertices.
+        vertices: usize,
+        /// Texture coordinates.
+        uvs: usize,
+        /// Appearance numbers.
+        appearances: usize,
+    },
+    /// An appearance number past the materials.
+    #[error("appearance {appearance}, but there are {materials} materials")]
+    AppearanceIndex {
+        /// The appearance number.
+        appearance: u32,
+        /// Materials.
+        materials: usize,
+    },
+    /// A texture coordinate that is NaN or infinite.
+    #[error("non-finite texture coordinate {uv:?}")]
+    NonFiniteUv {
+        /// The coordinate.
+        uv: [f32; 2],
+    },
+    /// A clutter layer whose colours or indices do not fit its positions.
+    #[error("clutter layer {layer}: inconsistent buffers")]
+    LayerBuffers {
+        /// The layer.
+        layer: crate::scene::clutter::ClutterLayer,
+    },
+    /// A clutter layer with a non-finite coordinate.
+    #[error("clutter layer {layer}: a non-finite coordinate")]
+    LayerNonFinite {
+        /// The layer.
+        layer: crate::scene::clutter::ClutterLayer,
+    },
+    /// The scene GLB's JSON lacks a top-level list (`materials`, `meshes`, `nodes`).
+    #[error("the scene GLB has no {key} list")]
+    NoList {
+        /// The list's key.
+        key: &'static str,
+    },
+    /// The scene GLB's scene has no node list.
+    #[error("the scene GLB has no scene node list")]
+    NoSceneNodes,
+}
+
+/// Why a valid glTF is not a scene insgen can read (see [`GlbError::Invalid`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SceneGlbProblem {
+    /// A sparse accessor.
+    #[error("sparse accessors are not supported")]
+    Sparse,
+    /// An accessor without a buffer view.
+    #[error("accessor has no bufferView")]
+    NoBufferView,
+    /// Data outside the GLB's binary chunk.
+    #[error("data in an external buffer; scene.glb must be self-contained")]
+    ExternalBuffer,
+    /// A stride shorter than an element.
+    #[error("byteStride {stride} is smaller than the element size {element}")]
+    Stride {
+        /// The stride, bytes.
+        stride: usize,
+        /// The element size, bytes.
+        element: usize,
+    },
+    /// An accessor that runs past its view or the binary chunk.
+    #[error(
+        "{count} elements of {element} bytes (stride {stride}) at byte {start} overrun the buffer view (ends \
+         at {view_end}) or the binary chunk ({bin} bytes)"
+    )]
+    Overrun {
+        /// Elements.
+        count: usize,
+        /// Element size, bytes.
+        element: usize,
+        /// Stride, bytes.
+        stride: usize,
+        /// First byte.
+        start: u64,
+        /// End of the view, bytes.
+        view_end: u64,
+        /// Size of the binary chunk, bytes.
+        bin: usize,
+    },
+    /// POSITION not VEC3 FLOAT.
+    #[error("POSITION must be VEC3 FLOAT (quantized positions are not supported), found {dimensions:?} {data_type:?}")]
+    PositionType {
+        /// The accessor's type.
+        dimensions: gltf::accessor::Dimensions,
+        /// The accessor's component type.
+        data_type: gltf::accessor::DataType,
+    },
+    /// A feature ID attribute that is not a plain scalar.
+    #[error("a feature ID attribute must be SCALAR and not normalized")]
+    FeatureIdShape,
+    /// A feature ID component type that is not read.
+    #[error("feature IDs of component type {data_type:?} are not supported")]
+    FeatureIdType {
+        /// The component type.
+        data_type: gltf::accessor::DataType,
+    },
+    /// A float feature ID that is not a building ID.
+    #[error(
+        "vertex {vertex}: feature ID {value} is not a building ID (an integer in 1..={MAX_BUILDING_ID})"
+    )]
+    FeatureIdFloat {
+        /// The vertex.
+        vertex: usize,
+        /// Its feature ID.
+        value: f32,
+    },
+    /// An integer feature ID that is not a building ID (0, too large, or the null ID).
+    #[error(
+        "vertex {vertex}: feature ID {value} is not a building ID (1..={MAX_BUILDING_ID}, not the null ID)"
+    )]
+    FeatureIdValue {
+        /// The vertex.
+        vertex: usize,
+        /// Its feature ID.
+        value: u32,
+    },
+    /// Indices that are not scalar unsigned integers.
+    #[error("indices must be SCALAR unsigned integers, found {dimensions:?} {data_type:?}")]
+    IndexType {
+        /// The accessor's type.
+        dimensions: gltf::accessor::Dimensions,
+        /// The accessor's component type.
+        data_type: gltf::accessor::DataType,
+    },
+    /// An index count that is not whole triangles.
+    #[error("{count} indices is not a multiple of 3 (TRIANGLES)")]
+    IndexCount {
+        /// Indices.
+        count: usize,
+    },
+    /// An index past the primitive's vertices.
+    #[error("index {index} is {value}, but the primitive has {vertices} vertices")]
+    IndexRange {
+        /// Position in the index list.
+        index: usize,
+        /// The index.
+        value: u32,
+        /// The primitive's vertices.
+        vertices: usize,
+    },
+    /// The document has no scene.
+    #[error("the file has no scene")]
+    NoScene,
+    /// The scene has no triangle.
+    #[error("the scene has no triangles")]
+    NoTriangles,
+    /// A primitive that is not TRIANGLES.
+    #[error("mode {mode:?}: only TRIANGLES are supported")]
+    Mode {
+        /// Its mode.
+        mode: gltf::mesh::Mode,
+    },
+    /// A primitive without building IDs.
+    #[error(
+        "no EXT_mesh_features feature ID attribute: building IDs are missing (was this file written by \
+         `insgen prepare`?)"
+    )]
+    NoFeatureIds,
+    /// A primitive without POSITION.
+    #[error("no POSITION attribute")]
+    NoPosition,
+    /// `EXT_mesh_features` names an attribute the primitive lacks.
+    #[error("EXT_mesh_features names {attribute}, which is absent")]
+    MissingFeatureAttribute {
+        /// The attribute (`_FEATURE_ID_0`).
+        attribute: String,
+    },
+    /// POSITION and feature IDs differ in count.
+    #[error("{positions} positions but {feature_ids} feature IDs")]
+    CountMismatch {
+        /// Positions.
+        positions: usize,
+        /// Feature IDs.
+        feature_ids: usize,
+    },
+    /// More vertices than u32 indices reach.
+    #[error("more than 2^32 − 1 vertices in total")]
+    TooManyVertices,
+    /// A non-indexed primitive that is not whole triangles.
+    #[error("{vertices} vertices without indices is not whole triangles")]
+    Unindexed {
+        /// Vertices.
+        vertices: usize,
+    },
+    /// A clutter node of a layer insgen does not know.
+    #[error("unknown clutter layer {name:?}")]
+    UnknownLayer {
+        /// The layer's name.
+        name: String,
+    },
+    /// A clutter primitive without POSITION.
+    #[error("no POSITION")]
+    LayerNoPosition,
+    /// A clutter primitive whose colours and positions differ in count.
+    #[error("COLOR_0 and POSITION counts differ")]
+    LayerColors,
+    /// A clutter primitive without indices.
+    #[error("no indices")]
+    LayerNoIndices,
 }
 
 /// glTF `componentType` codes (glTF 2.0, accessor.componentType).
@@ -136,41 +443,45 @@ fn gltf_to_enu(p: [f32; 3]) -> [f32; 3] {
 
 /// Checks the mesh and the building table before anything is written.
 fn check_input(path: &Path, mesh: &SceneMesh, buildings: &[BuildingRecord]) -> Result<(), GlbError> {
-    let bad = |what: String| GlbError::BadInput { path: path.to_path_buf(), what };
+    let bad = |problem: InputProblem| GlbError::BadInput { path: path.to_path_buf(), problem };
     let n = mesh.positions_m.len();
     if mesh.building_ids.len() != n {
-        return Err(bad(format!("{} positions but {} building IDs", n, mesh.building_ids.len())));
+        return Err(bad(InputProblem::Lengths { positions: n, building_ids: mesh.building_ids.len() }));
     }
     if mesh.indices.is_empty() {
-        return Err(bad("the mesh has no triangles".into()));
+        return Err(bad(InputProblem::NoTriangles));
     }
     if !mesh.indices.len().is_multiple_of(3) {
-        return Err(bad(format!("{} indices is not a multiple of 3", mesh.indices.len())));
+        return Err(bad(InputProblem::IndexCount { indices: mesh.indices.len() }));
     }
     // glTF forbids the largest index value (primitive restart), so at most u32::MAX vertices.
     if n >= u32::MAX as usize {
-        return Err(bad(format!("{n} vertices: a u32-indexed primitive holds at most {}", u32::MAX - 1)));
+        return Err(bad(InputProblem::TooManyVertices { vertices: n }));
     }
     if let Some((k, &i)) = mesh.indices.iter().enumerate().find(|(_, &i)| i as usize >= n) {
-        return Err(bad(format!("index {k} is {i}, but there are only {n} vertices")));
+        return Err(bad(InputProblem::IndexRange { index: k, value: i, vertices: n }));
     }
     if let Some((k, p)) = mesh.positions_m.iter().enumerate().find(|(_, p)| !p.iter().all(|c| c.is_finite()))
     {
-        return Err(bad(format!("vertex {k} has a non-finite coordinate {p:?}")));
+        return Err(bad(InputProblem::NonFinite { vertex: k, position_m: *p }));
     }
     let mut known = BTreeMap::new();
     for b in buildings {
         if b.id.is_background() {
-            return Err(bad(format!("building {:?} has ID 0, the background's", b.source_id)));
+            return Err(bad(InputProblem::BackgroundId { source_id: b.source_id.clone() }));
         }
         if let Some(prev) = known.insert(b.id, &b.source_id) {
-            return Err(bad(format!("ID {} is used by both {prev:?} and {:?}", b.id, b.source_id)));
+            return Err(bad(InputProblem::DuplicateId {
+                id: b.id,
+                first: prev.clone(),
+                second: b.source_id.clone(),
+            }));
         }
     }
     let mut last = None;
     for (k, &id) in mesh.building_ids.iter().enumerate() {
         if last != Some(id) && !known.contains_key(&id) {
-            return Err(bad(format!("vertex {k} has building ID {id}, which is not in the building table")));
+            return Err(bad(InputProblem::UnknownId { vertex: k, id }));
         }
         last = Some(id);
     }
@@ -181,7 +492,9 @@ fn check_input(path: &Path, mesh: &SceneMesh, buildings: &[BuildingRecord]) -> R
 /// materials it numbers (appearance k = `materials[k − 1]`).
 #[derive(Debug, Clone, Copy)]
 pub struct GlbAppearance<'a> {
+    /// Per-vertex texture coordinates and appearance numbers, parallel to the mesh's vertices.
     pub vertices: &'a VertexAppearance,
+    /// The materials the appearance numbers count (appearance k = `materials[k − 1]`).
     pub materials: &'a [AppearanceMaterial],
 }
 
@@ -291,19 +604,19 @@ fn glb_error(path: &Path, e: crate::util::glb::GlbError) -> GlbError {
 /// Checks that the appearance data is parallel to the mesh's vertices and numbers existing materials.
 fn check_appearance(path: &Path, mesh: &SceneMesh, a: &GlbAppearance) -> Result<(), GlbError> {
     let n = mesh.positions_m.len();
-    let bad = |what: String| GlbError::BadInput { path: path.to_path_buf(), what };
+    let bad = |problem: InputProblem| GlbError::BadInput { path: path.to_path_buf(), problem };
     if a.vertices.uvs.len() != n || a.vertices.ids.len() != n {
-        return Err(bad(format!(
-            "{n} vertices but {} texture coordinates and {} appearance numbers",
-            a.vertices.uvs.len(),
-            a.vertices.ids.len()
-        )));
+        return Err(bad(InputProblem::AppearanceLengths {
+            vertices: n,
+            uvs: a.vertices.uvs.len(),
+            appearances: a.vertices.ids.len(),
+        }));
     }
     if let Some(&k) = a.vertices.ids.iter().find(|&&k| k as usize > a.materials.len()) {
-        return Err(bad(format!("appearance {k}, but there are {} materials", a.materials.len())));
+        return Err(bad(InputProblem::AppearanceIndex { appearance: k, materials: a.materials.len() }));
     }
     if let Some(uv) = a.vertices.uvs.iter().find(|uv| !uv.iter().all(|c| c.is_finite())) {
-        return Err(bad(format!("non-finite texture coordinate {uv:?}")));
+        return Err(bad(InputProblem::NonFiniteUv { uv: *uv }));
     }
     Ok(())
 }
@@ -562,28 +875,31 @@ fn accessor_bytes<'a>(
     bin: &'a [u8],
     elem_size: usize,
 ) -> Result<AccessorBytes<'a>, GlbError> {
-    let invalid = |what: String| GlbError::Invalid { path: path.to_path_buf(), at: at.to_string(), what };
+    let invalid = |problem| GlbError::Invalid { path: path.to_path_buf(), at: at.to_string(), problem };
     if acc.sparse().is_some() {
-        return Err(invalid("sparse accessors are not supported".into()));
+        return Err(invalid(SceneGlbProblem::Sparse));
     }
-    let view = acc.view().ok_or_else(|| invalid("accessor has no bufferView".into()))?;
+    let view = acc.view().ok_or_else(|| invalid(SceneGlbProblem::NoBufferView))?;
     if !matches!(view.buffer().source(), gltf::buffer::Source::Bin) {
-        return Err(invalid("data in an external buffer; scene.glb must be self-contained".into()));
+        return Err(invalid(SceneGlbProblem::ExternalBuffer));
     }
     let stride = view.stride().unwrap_or(elem_size);
     if stride < elem_size {
-        return Err(invalid(format!("byteStride {stride} is smaller than the element size {elem_size}")));
+        return Err(invalid(SceneGlbProblem::Stride { stride, element: elem_size }));
     }
     let count = acc.count();
     let start = view.offset() as u64 + acc.offset() as u64;
     let need = if count == 0 { 0 } else { (count as u64 - 1) * stride as u64 + elem_size as u64 };
     let view_end = view.offset() as u64 + view.length() as u64;
     if start + need > view_end || view_end > bin.len() as u64 {
-        return Err(invalid(format!(
-            "{count} elements of {elem_size} bytes (stride {stride}) at byte {start} overrun the buffer view \
-             (ends at {view_end}) or the binary chunk ({} bytes)",
-            bin.len()
-        )));
+        return Err(invalid(SceneGlbProblem::Overrun {
+            count,
+            element: elem_size,
+            stride,
+            start,
+            view_end,
+            bin: bin.len(),
+        }));
     }
     let data = &bin[start as usize..(start + need) as usize];
     Ok(AccessorBytes { data, stride, count })
@@ -607,11 +923,10 @@ fn read_positions(
         return Err(GlbError::Invalid {
             path: path.to_path_buf(),
             at: at.to_string(),
-            what: format!(
-                "POSITION must be VEC3 FLOAT (quantized positions are not supported), found {:?} {:?}",
-                acc.dimensions(),
-                acc.data_type()
-            ),
+            problem: SceneGlbProblem::PositionType {
+                dimensions: acc.dimensions(),
+                data_type: acc.data_type(),
+            },
         });
     }
     let a = accessor_bytes(path, at, acc, bin, 12)?;
@@ -639,15 +954,15 @@ fn read_feature_ids(
     out: &mut Vec<BuildingId>,
 ) -> Result<(), GlbError> {
     use gltf::accessor::{DataType, Dimensions};
-    let invalid = |what: String| GlbError::Invalid { path: path.to_path_buf(), at: at.to_string(), what };
+    let invalid = |problem| GlbError::Invalid { path: path.to_path_buf(), at: at.to_string(), problem };
     if acc.dimensions() != Dimensions::Scalar || acc.normalized() {
-        return Err(invalid("a feature ID attribute must be SCALAR and not normalized".into()));
+        return Err(invalid(SceneGlbProblem::FeatureIdShape));
     }
     let size = match acc.data_type() {
         DataType::U8 => 1,
         DataType::U16 => 2,
         DataType::U32 | DataType::F32 => 4,
-        other => return Err(invalid(format!("feature IDs of component type {other:?} are not supported"))),
+        other => return Err(invalid(SceneGlbProblem::FeatureIdType { data_type: other })),
     };
     let a = accessor_bytes(path, at, acc, bin, size)?;
     let elems = (0..a.count).map(|k| &a.data[k * a.stride..k * a.stride + size]);
@@ -660,9 +975,7 @@ fn read_feature_ids(
             for (k, e) in elems.enumerate() {
                 let v = le_f32(e);
                 if !(v >= 1.0 && v <= MAX_BUILDING_ID as f32 && v.fract() == 0.0) {
-                    return Err(invalid(format!(
-                        "vertex {k}: feature ID {v} is not a building ID (an integer in 1..={MAX_BUILDING_ID})"
-                    )));
+                    return Err(invalid(SceneGlbProblem::FeatureIdFloat { vertex: k, value: v }));
                 }
                 raw.push(v as u32);
             }
@@ -673,11 +986,7 @@ fn read_feature_ids(
     for (k, id) in raw.into_iter().enumerate() {
         match BuildingId::new(id) {
             Ok(b) if !b.is_background() && Some(u64::from(id)) != null_id => out.push(b),
-            _ => {
-                return Err(invalid(format!(
-                "vertex {k}: feature ID {id} is not a building ID (1..={MAX_BUILDING_ID}, not the null ID)"
-            )))
-            }
+            _ => return Err(invalid(SceneGlbProblem::FeatureIdValue { vertex: k, value: id })),
         }
     }
     Ok(())
@@ -694,18 +1003,16 @@ fn read_indices(
     out: &mut Vec<u32>,
 ) -> Result<(), GlbError> {
     use gltf::accessor::{DataType, Dimensions};
-    let invalid = |what: String| GlbError::Invalid { path: path.to_path_buf(), at: at.to_string(), what };
+    let invalid = |problem| GlbError::Invalid { path: path.to_path_buf(), at: at.to_string(), problem };
     let size = match (acc.dimensions(), acc.data_type()) {
         (Dimensions::Scalar, DataType::U8) => 1,
         (Dimensions::Scalar, DataType::U16) => 2,
         (Dimensions::Scalar, DataType::U32) => 4,
-        (d, t) => {
-            return Err(invalid(format!("indices must be SCALAR unsigned integers, found {d:?} {t:?}")))
-        }
+        (d, t) => return Err(invalid(SceneGlbProblem::IndexType { dimensions: d, data_type: t })),
     };
     let a = accessor_bytes(path, at, acc, bin, size)?;
     if a.count % 3 != 0 {
-        return Err(invalid(format!("{} indices is not a multiple of 3 (TRIANGLES)", a.count)));
+        return Err(invalid(SceneGlbProblem::IndexCount { count: a.count }));
     }
     let first = out.len();
     out.reserve(a.count);
@@ -716,7 +1023,7 @@ fn read_indices(
         _ => out.extend(elems.map(|e| u32::from_le_bytes([e[0], e[1], e[2], e[3]]))),
     }
     if let Some((k, &i)) = out[first..].iter().enumerate().find(|(_, &i)| i as usize >= n_vertices) {
-        return Err(invalid(format!("index {k} is {i}, but the primitive has {n_vertices} vertices")));
+        return Err(invalid(SceneGlbProblem::IndexRange { index: k, value: i, vertices: n_vertices }));
     }
     if base != 0 {
         for i in &mut out[first..] {
@@ -747,18 +1054,15 @@ pub fn read_glb(path: &Path) -> Result<SceneMesh, GlbError> {
     let root: gltf::json::Root =
         gltf::json::deserialize::from_slice(&glb.json).map_err(|e| parse(gltf::Error::Deserialize(e)))?;
     let doc = gltf::Document::from_json(root).map_err(parse)?;
-    let raw: RawRoot = serde_json::from_slice(&glb.json).map_err(|e| GlbError::Invalid {
-        path: path.to_path_buf(),
-        at: "meshes[*].primitives[*].extensions".into(),
-        what: format!("unexpected EXT_mesh_features content: {e}"),
-    })?;
+    let raw: RawRoot = serde_json::from_slice(&glb.json)
+        .map_err(|source| GlbError::MeshFeatures { path: path.to_path_buf(), source })?;
     let bin: &[u8] = glb.bin.as_deref().unwrap_or(&[]);
-    let invalid = |at: String, what: String| GlbError::Invalid { path: path.to_path_buf(), at, what };
+    let invalid = |at: String, problem| GlbError::Invalid { path: path.to_path_buf(), at, problem };
 
     let scene = doc
         .default_scene()
         .or_else(|| doc.scenes().next())
-        .ok_or_else(|| invalid("scenes".into(), "the file has no scene".into()))?;
+        .ok_or_else(|| invalid("scenes".into(), SceneGlbProblem::NoScene))?;
     // Depth-first over the scene graph, with world transforms (None = identity, kept exact).
     let mut stack: Vec<(gltf::Node<'_>, DMat4)> = scene.nodes().map(|n| (n, DMat4::IDENTITY)).collect();
     stack.reverse();
@@ -781,7 +1085,7 @@ pub fn read_glb(path: &Path) -> Result<SceneMesh, GlbError> {
         }
     }
     if mesh.indices.is_empty() {
-        return Err(invalid("meshes".into(), "the scene has no triangles".into()));
+        return Err(invalid("meshes".into(), SceneGlbProblem::NoTriangles));
     }
     Ok(mesh)
 }
@@ -796,10 +1100,10 @@ fn read_primitive(
     transform: Option<&DMat4>,
     mesh: &mut SceneMesh,
 ) -> Result<(), GlbError> {
-    let invalid = |at: String, what: String| GlbError::Invalid { path: path.to_path_buf(), at, what };
+    let invalid = |at: String, problem| GlbError::Invalid { path: path.to_path_buf(), at, problem };
     let at = format!("meshes[{}].primitives[{}]", m.index(), prim.index());
     if prim.mode() != gltf::mesh::Mode::Triangles {
-        return Err(invalid(at, format!("mode {:?}: only TRIANGLES are supported", prim.mode())));
+        return Err(invalid(at, SceneGlbProblem::Mode { mode: prim.mode() }));
     }
     let features = raw
         .meshes
@@ -812,12 +1116,7 @@ fn read_primitive(
         with_attr().find(|s| s.label.as_deref() == Some(FEATURE_LABEL)).or_else(|| with_attr().next())
     });
     let Some(set) = set else {
-        return Err(invalid(
-            at,
-            "no EXT_mesh_features feature ID attribute: building IDs are missing (was this file \
-             written by `insgen prepare`?)"
-                .into(),
-        ));
+        return Err(invalid(at, SceneGlbProblem::NoFeatureIds));
     };
     // Checked above: the set has an attribute.
     let attr_name = format!("_FEATURE_ID_{}", set.attribute.unwrap_or(0));
@@ -830,20 +1129,22 @@ fn read_primitive(
             _ => {}
         }
     }
-    let pos_acc =
-        pos_acc.ok_or_else(|| invalid(format!("{at}.attributes"), "no POSITION attribute".into()))?;
+    let pos_acc = pos_acc.ok_or_else(|| invalid(format!("{at}.attributes"), SceneGlbProblem::NoPosition))?;
     let id_acc = id_acc.ok_or_else(|| {
-        invalid(format!("{at}.attributes"), format!("EXT_mesh_features names {attr_name}, which is absent"))
+        invalid(
+            format!("{at}.attributes"),
+            SceneGlbProblem::MissingFeatureAttribute { attribute: attr_name.clone() },
+        )
     })?;
     if pos_acc.count() != id_acc.count() {
         return Err(invalid(
             format!("{at}.attributes"),
-            format!("{} positions but {} feature IDs", pos_acc.count(), id_acc.count()),
+            SceneGlbProblem::CountMismatch { positions: pos_acc.count(), feature_ids: id_acc.count() },
         ));
     }
     let base = mesh.positions_m.len();
     if base + pos_acc.count() >= u32::MAX as usize {
-        return Err(invalid(at, "more than 2^32 − 1 vertices in total".into()));
+        return Err(invalid(at, SceneGlbProblem::TooManyVertices));
     }
     read_positions(
         path,
@@ -868,7 +1169,7 @@ fn read_primitive(
         }
         None => {
             if n % 3 != 0 {
-                return Err(invalid(at, format!("{n} vertices without indices is not whole triangles")));
+                return Err(invalid(at, SceneGlbProblem::Unindexed { vertices: n }));
             }
             mesh.indices.extend(base as u32..(base + n) as u32);
         }
@@ -915,17 +1216,17 @@ fn add_layer(
     layer: crate::scene::clutter::ClutterLayer,
     m: &crate::scene::clutter::LayerMesh,
 ) -> Result<(), GlbError> {
-    let bad = |what: String| GlbError::BadInput { path: path.to_path_buf(), what };
+    let bad = |problem| GlbError::BadInput { path: path.to_path_buf(), problem };
     let count = |key: &str, doc: &Value| doc[key].as_array().map_or(0, |a| a.len());
     let n = m.positions_m.len();
     if m.colors_srgb.len() != n
         || !m.indices.len().is_multiple_of(3)
         || m.indices.iter().any(|&i| i as usize >= n)
     {
-        return Err(bad(format!("clutter layer {layer}: inconsistent buffers")));
+        return Err(bad(InputProblem::LayerBuffers { layer }));
     }
     if m.positions_m.iter().any(|p| !p.iter().all(|c| c.is_finite())) {
-        return Err(bad(format!("clutter layer {layer}: a non-finite coordinate")));
+        return Err(bad(InputProblem::LayerNonFinite { layer }));
     }
     let name = format!("{CLUTTER_NODE_PREFIX}{}", layer.name());
     let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
@@ -950,11 +1251,11 @@ fn add_layer(
                            "normalized": true, "count": n, "type": "VEC4"}));
     b.push_accessor(json!({"bufferView": v_idx, "componentType": COMPONENT_UNSIGNED_INT,
                            "count": m.indices.len(), "type": "SCALAR"}));
-    let list = |doc: &mut Value, key: &str| -> Result<usize, GlbError> {
+    let list = |doc: &mut Value, key: &'static str| -> Result<usize, GlbError> {
         let n = count(key, doc);
         match doc[key].as_array() {
             Some(_) => Ok(n),
-            None => Err(bad(format!("the scene GLB has no {key} list"))),
+            None => Err(bad(InputProblem::NoList { key })),
         }
     };
     let material = list(doc, "materials")?;
@@ -982,7 +1283,7 @@ fn add_layer(
     let scene = doc["scene"].as_u64().unwrap_or(0) as usize;
     doc["scenes"][scene]["nodes"]
         .as_array_mut()
-        .ok_or_else(|| bad("the scene GLB has no scene node list".into()))?
+        .ok_or_else(|| bad(InputProblem::NoSceneNodes))?
         .push(json!(node));
     Ok(())
 }
@@ -1002,20 +1303,20 @@ pub fn read_layers(path: &Path) -> Result<crate::scene::clutter::Clutter, GlbErr
         gltf::json::deserialize::from_slice(&glb.json).map_err(|e| parse(gltf::Error::Deserialize(e)))?;
     let doc = gltf::Document::from_json(root).map_err(parse)?;
     let bin: &[u8] = glb.bin.as_deref().unwrap_or(&[]);
-    let invalid = |at: String, what: String| GlbError::Invalid { path: path.to_path_buf(), at, what };
+    let invalid = |at: String, problem| GlbError::Invalid { path: path.to_path_buf(), at, problem };
     let mut out = Clutter::default();
     for node in doc.nodes() {
         let Some(name) = node.name().and_then(|n| n.strip_prefix(CLUTTER_NODE_PREFIX)) else { continue };
         let at = format!("nodes[{}]", node.index());
         let layer = ClutterLayer::from_name(name)
-            .ok_or_else(|| invalid(at.clone(), format!("unknown clutter layer {name:?}")))?;
+            .ok_or_else(|| invalid(at.clone(), SceneGlbProblem::UnknownLayer { name: name.to_string() }))?;
         let Some(mesh) = node.mesh() else { continue };
         let mut m = LayerMesh::default();
         for prim in mesh.primitives() {
             let at = format!("meshes[{}].primitives[{}]", mesh.index(), prim.index());
             let pos = prim
                 .get(&gltf::Semantic::Positions)
-                .ok_or_else(|| invalid(at.clone(), "no POSITION".into()))?;
+                .ok_or_else(|| invalid(at.clone(), SceneGlbProblem::LayerNoPosition))?;
             let base = m.positions_m.len();
             read_positions(path, &at, &pos, bin, None, &mut m.positions_m)?;
             match prim.get(&gltf::Semantic::Colors(0)) {
@@ -1029,9 +1330,9 @@ pub fn read_layers(path: &Path) -> Result<crate::scene::clutter::Clutter, GlbErr
                 _ => m.colors_srgb.extend(std::iter::repeat_n([128, 128, 128], pos.count())),
             }
             if m.colors_srgb.len() != m.positions_m.len() {
-                return Err(invalid(at, "COLOR_0 and POSITION counts differ".into()));
+                return Err(invalid(at, SceneGlbProblem::LayerColors));
             }
-            let acc = prim.indices().ok_or_else(|| invalid(at.clone(), "no indices".into()))?;
+            let acc = prim.indices().ok_or_else(|| invalid(at.clone(), SceneGlbProblem::LayerNoIndices))?;
             read_indices(
                 path,
                 &format!("{at}.indices"),

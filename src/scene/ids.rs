@@ -171,12 +171,21 @@ pub enum IdError {
         source: png::DecodingError,
     },
     /// The PNG is valid but is not a 24-bit RGB ID map.
-    #[error("{}: expected an 8-bit RGB ID map (R<<16 | G<<8 | B), found {what}", path.display())]
+    #[error(
+        "{}: expected an 8-bit RGB ID map (R<<16 | G<<8 | B), found {}",
+        path.display(),
+        match (color, bit_depth) {
+            (Some(c), Some(b)) => format!("{c:?} with {} bits per sample", *b as u8),
+            _ => "a truncated file (no IEND chunk)".to_string(),
+        }
+    )]
     NotAnIdMap {
         /// The file.
         path: PathBuf,
-        /// What it holds instead.
-        what: String,
+        /// Its colour type (`None`: the file is truncated).
+        color: Option<png::ColorType>,
+        /// Its bit depth (`None`: the file is truncated).
+        bit_depth: Option<png::BitDepth>,
     },
     /// The EXR cannot be read.
     #[error("{}: not a readable EXR", path.display())]
@@ -188,12 +197,33 @@ pub enum IdError {
         source: exr::error::Error,
     },
     /// The EXR is readable but does not hold IDs in a float32 `R` channel.
-    #[error("{}: {what}", path.display())]
+    #[error("{}: {problem}", path.display())]
     NotAnIdExr {
         /// The file.
         path: PathBuf,
         /// What is wrong with it.
-        what: String,
+        problem: ExrIdProblem,
+    },
+}
+
+/// Why an EXR is not an ID render (see [`IdError::NotAnIdExr`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ExrIdProblem {
+    /// No `R` channel.
+    #[error("no R channel")]
+    NoR,
+    /// The `R` channel is not float32.
+    #[error("the R channel is not float32 (IDs above 2048 need float32)")]
+    NotF32,
+    /// A pixel that is not a building ID.
+    #[error("pixel ({x}, {y}) holds {value}, not a building ID")]
+    Value {
+        /// Column.
+        x: usize,
+        /// Row.
+        y: usize,
+        /// The value.
+        value: f32,
     },
 }
 
@@ -350,10 +380,7 @@ impl IdMap {
             .and_then(|_| file.seek(SeekFrom::Start(0)))
             .map_err(|e| FileError::new("reading", path, e))?;
         if tail != IEND {
-            return Err(IdError::NotAnIdMap {
-                path: path.to_path_buf(),
-                what: "a truncated file (no IEND chunk)".into(),
-            });
+            return Err(IdError::NotAnIdMap { path: path.to_path_buf(), color: None, bit_depth: None });
         }
         let r = png_reader(path, std::io::BufReader::new(file))?;
         Ok((r.info().width, r.info().height))
@@ -365,29 +392,21 @@ impl IdMap {
     /// [`IdError::ExrDecode`] when the file is unreadable, [`IdError::NotAnIdExr`] when it has no
     /// float32 `R` channel or a value that is not an integer in 0 ..= 2²⁴ − 1 (naming the pixel).
     pub fn read_exr(path: &Path) -> Result<IdMap, IdError> {
-        let bad = |what: String| IdError::NotAnIdExr { path: path.to_path_buf(), what };
+        let bad = |problem| IdError::NotAnIdExr { path: path.to_path_buf(), problem };
         let image = exr::prelude::read_first_flat_layer_from_file(path)
             .map_err(|source| IdError::ExrDecode { path: path.to_path_buf(), source })?;
         let layer = &image.layer_data;
         let (w, h) = (layer.size.0, layer.size.1);
-        let r = layer
-            .channel_data
-            .list
-            .iter()
-            .find(|c| c.name.eq("R"))
-            .ok_or_else(|| bad("no R channel".into()))?;
+        let r =
+            layer.channel_data.list.iter().find(|c| c.name.eq("R")).ok_or_else(|| bad(ExrIdProblem::NoR))?;
         let values = match &r.sample_data {
             exr::prelude::FlatSamples::F32(v) => v,
-            _ => return Err(bad("the R channel is not float32 (IDs above 2048 need float32)".into())),
+            _ => return Err(bad(ExrIdProblem::NotF32)),
         };
         let mut ids = Vec::with_capacity(values.len());
         for (i, &v) in values.iter().enumerate() {
             if !(v >= 0.0 && v <= MAX_BUILDING_ID as f32 && v.fract() == 0.0) {
-                return Err(bad(format!(
-                    "pixel ({}, {}) holds {v}, not a building ID",
-                    i % w.max(1),
-                    i / w.max(1)
-                )));
+                return Err(bad(ExrIdProblem::Value { x: i % w.max(1), y: i / w.max(1), value: v }));
             }
             ids.push(BuildingId(v as u32));
         }
@@ -406,7 +425,8 @@ fn png_reader<R: std::io::BufRead + std::io::Seek>(
     if info.color_type != png::ColorType::Rgb || info.bit_depth != png::BitDepth::Eight {
         return Err(IdError::NotAnIdMap {
             path: path.to_path_buf(),
-            what: format!("{:?} with {} bits per sample", info.color_type, info.bit_depth as u8),
+            color: Some(info.color_type),
+            bit_depth: Some(info.bit_depth),
         });
     }
     Ok(reader)

@@ -29,7 +29,7 @@ pub mod prepare;
 pub mod triangulate;
 
 pub use artifact::{BuildingRecord, Manifest, PreparedScene};
-pub use error::SceneError;
+pub use error::{AreaProblem, ArtifactProblem, ConfigProblem, GeorefProblem, SceneError};
 pub use ids::{BuildingId, IdError, IdMap, MAX_BUILDING_ID};
 pub use mesh::SceneMesh;
 pub mod glb;

@@ -29,6 +29,7 @@ use crate::util::{self, Progress};
 use super::appearance::{AppearanceTable, VertexAppearance};
 use super::artifact::{self, BuildingRecord, GeoidUsed, Manifest, Origin, PreparedScene, SourceEntry};
 use super::config::{GeoidModel, Heights, SceneConfig, SourceConfig};
+use super::error::{AreaProblem, ConfigProblem, GeorefProblem};
 use super::ids::BuildingId;
 use super::mesh::SceneMesh;
 use super::triangulate::{triangulate_polygon, triangulate_polygon_uv};
@@ -94,17 +95,13 @@ impl GeoidSlot<'_> {
                         Some(p) => self.scene_file.parent().unwrap_or(Path::new(".")).join(p),
                         None => Geoid::find_egm96().ok_or_else(|| SceneError::Georef {
                             path: self.scene_file.into(),
-                            what:
-                                "orthometric source heights need a geoid, but the EGM96 grid (egm96_15.gtx, \
-                                   Debian package proj-data) was not found: run scripts/setup.sh, or set \
-                                   [geoid] model = \"constant\" with undulation_m"
-                                    .into(),
+                            problem: Box::new(GeorefProblem::NoEgm96),
                             source: None,
                         })?,
                     };
                     Geoid::Grid(geo::geoid::GeoidGrid::load(&path).map_err(|e| SceneError::Georef {
                         path: self.scene_file.into(),
-                        what: "loading the geoid grid".into(),
+                        problem: Box::new(GeorefProblem::GeoidGrid),
                         source: Some(e),
                     })?)
                 }
@@ -172,7 +169,7 @@ fn read_one(
     if !path.exists() {
         return Err(SceneError::Config {
             path: scene_file.into(),
-            what: format!("source {} does not exist", path.display()),
+            problem: ConfigProblem::SourceMissing { file: path },
         });
     }
     let format = match src.format.as_deref() {
@@ -202,16 +199,18 @@ fn read_one(
 /// `origin = { easting_m, northing_m }` in the generator's CRS.
 fn procedural_source(scene_file: &Path, mut table: toml::Table) -> Result<SourceModel, SceneError> {
     use super::procedural::{generate, PlaneOrigin, ProceduralSpec};
-    let cfg_err = |what: String| SceneError::Config {
-        path: scene_file.into(),
-        what: format!("[sources.procedural] {what}"),
+    let toml_err = |origin: bool| {
+        move |e: toml::de::Error| SceneError::ProceduralToml {
+            path: scene_file.into(),
+            origin,
+            source: Box::new(e),
+        }
     };
     let origin: PlaneOrigin = match table.remove("origin") {
-        Some(v) => v.try_into().map_err(|e: toml::de::Error| cfg_err(format!("origin: {e}")))?,
+        Some(v) => v.try_into().map_err(toml_err(true))?,
         None => PlaneOrigin::default(),
     };
-    let spec: ProceduralSpec =
-        toml::Value::Table(table).try_into().map_err(|e: toml::de::Error| cfg_err(e.to_string()))?;
+    let spec: ProceduralSpec = toml::Value::Table(table).try_into().map_err(toml_err(false))?;
     Ok(generate(&spec, origin)?)
 }
 
@@ -225,8 +224,8 @@ enum Conversion {
 }
 
 /// A [`SceneError::Georef`] for the source at `path`.
-fn georef_err(path: &Path, what: String, source: Option<geo::GeoError>) -> SceneError {
-    SceneError::Georef { path: path.to_path_buf(), what, source }
+fn georef_err(path: &Path, problem: GeorefProblem, source: Option<geo::GeoError>) -> SceneError {
+    SceneError::Georef { path: path.to_path_buf(), problem: Box::new(problem), source }
 }
 
 /// Converts one source model's buildings to ECEF. Returns the buildings, the conversion chain as the
@@ -324,14 +323,9 @@ fn source_crs_name(
             Ok(over.clone())
         }
         (None, Some(f)) => Ok(f.clone()),
-        (None, None) => Err(georef_err(
-            path,
-            format!(
-                "the file declares no CRS; set `crs = \"EPSG:NNNN\"` for this source in {}",
-                scene_file.display()
-            ),
-            None,
-        )),
+        (None, None) => {
+            Err(georef_err(path, GeorefProblem::NoCrs { scene_file: scene_file.to_path_buf() }, None))
+        }
     }
 }
 
@@ -348,7 +342,7 @@ fn crs_conversion(
 ) -> Result<(Conversion, String), SceneError> {
     let path = &model.path;
     let name = source_crs_name(scene_file, src, path, file_crs)?;
-    let crs_err = |e| georef_err(path, format!("CRS {name:?}"), Some(e));
+    let crs_err = |e| georef_err(path, GeorefProblem::Crs { name: name.clone() }, Some(e));
     let crs = Crs::parse(&name).map_err(crs_err)?;
     let orthometric = crs.heights() == HeightKind::Orthometric;
     let axes_s = match axes {
@@ -399,7 +393,7 @@ fn proj_vertical(
     axes: AxisConvention,
     geoid: &mut GeoidSlot,
 ) -> Result<Option<(geo::CrsTransform, geo::VerticalChoice)>, SceneError> {
-    let crs_err = |e| georef_err(&model.path, format!("CRS {name:?}"), Some(e));
+    let crs_err = |e| georef_err(&model.path, GeorefProblem::Crs { name: name.to_string() }, Some(e));
     let mut missing = Vec::new();
     let mut by_proj = None;
     if crs.vertical_epsg.is_some() {
@@ -454,15 +448,19 @@ impl ToEcef<'_> {
                 } else {
                     Err(georef_err(
                         self.path,
-                        format!("building {}: non-finite coordinate {p:?}", self.source_id),
+                        GeorefProblem::NonFinite { building: self.source_id.to_string(), coordinate: p },
                         None,
                     ))
                 }
             }
             Conversion::Crs { tf, axes, .. } => {
-                let mut g = tf
-                    .to_geodetic(p, *axes)
-                    .map_err(|e| georef_err(self.path, format!("building {}", self.source_id), Some(e)))?;
+                let mut g = tf.to_geodetic(p, *axes).map_err(|e| {
+                    georef_err(
+                        self.path,
+                        GeorefProblem::Building { building: self.source_id.to_string() },
+                        Some(e),
+                    )
+                })?;
                 if let Some(geoid) = self.geoid {
                     g.h_m += geoid.undulation_m(g.lat_deg, g.lon_deg);
                 }
@@ -604,7 +602,7 @@ fn heights_note(src: &SourceConfig, model: &lod::SourceModel) -> Result<Option<S
     if matches!(model.frame, lod::Frame::Ecef) {
         return Err(SceneError::Georef {
             path: model.path.clone(),
-            what: "heights = \"above_ground\" does not apply to an ECEF (3D Tiles) source".into(),
+            problem: Box::new(GeorefProblem::AboveGroundEcef),
             source: None,
         });
     }
@@ -864,10 +862,7 @@ fn read_sources(
         out.buildings.append(&mut bs);
     }
     if out.buildings.is_empty() {
-        return Err(SceneError::Area {
-            area: cfg.name.clone(),
-            what: "no building with usable geometry in any source".into(),
-        });
+        return Err(SceneError::Area { area: cfg.name.clone(), problem: AreaProblem::NoBuildings });
     }
     out.geoid = geoid.geoid;
     out.proj = geoid.proj;
@@ -1115,10 +1110,7 @@ fn instance(
         log::info!("{outside} buildings lie outside the [area] polygon and were left out");
     }
     if merged.is_empty() {
-        return Err(SceneError::Area {
-            area: cfg.name.clone(),
-            what: "no building lies inside the [area] polygon".into(),
-        });
+        return Err(SceneError::Area { area: cfg.name.clone(), problem: AreaProblem::OutsideArea });
     }
     BuildingId::from_index(merged.len() - 1)
         .map_err(|source| SceneError::Ids { area: cfg.name.clone(), source })?;

@@ -40,7 +40,9 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::geo::AxisConvention;
-use crate::lod::{Frame, Geometry, LodError, Polygon, ReadStats, SourceBuilding, SourceModel};
+use crate::lod::{
+    Frame, Geometry, LodError, Polygon, ProceduralProblem, ReadStats, SourceBuilding, SourceModel,
+};
 
 /// The CRS the demo city is generated in: JGD2011 / Japan Plane Rectangular CS IX (EPSG:6677), whose
 /// authority axis order is (X northing, Y easting); insgen emits (easting, northing) explicitly.
@@ -141,49 +143,51 @@ impl ProceduralSpec {
     /// # Errors
     /// [`LodError::Invalid`] with `at` = `procedural.<field>` and the accepted range.
     pub fn validate(&self) -> Result<(), LodError> {
-        let bad = |field: &str, what: String| {
-            Err(LodError::invalid(DEMO_SOURCE_PATH, format!("procedural.{field}"), what))
+        let bad = |field: &str, problem: ProceduralProblem| {
+            Err(LodError::invalid(DEMO_SOURCE_PATH, format!("procedural.{field}"), problem))
         };
         let in_range = |v: f64, lo: f64, hi: f64| v.is_finite() && v >= lo && v <= hi;
+        let count = |value: u32| ProceduralProblem::Count { value, min: 1, max: 200 };
+        let length =
+            |value_m: f64, min_m: f64, max_m: f64| ProceduralProblem::Length { value_m, min_m, max_m };
         if !(1..=200).contains(&self.blocks_x) {
-            return bad("blocks_x", format!("{} is outside 1..=200", self.blocks_x));
+            return bad("blocks_x", count(self.blocks_x));
         }
         if !(1..=200).contains(&self.blocks_y) {
-            return bad("blocks_y", format!("{} is outside 1..=200", self.blocks_y));
+            return bad("blocks_y", count(self.blocks_y));
         }
         if !in_range(self.block_size_m, 60.0, 400.0) {
-            return bad("block_size_m", format!("{} m is outside [60, 400] m", self.block_size_m));
+            return bad("block_size_m", length(self.block_size_m, 60.0, 400.0));
         }
         if !in_range(self.street_width_m, 4.0, 100.0) {
-            return bad("street_width_m", format!("{} m is outside [4, 100] m", self.street_width_m));
+            return bad("street_width_m", length(self.street_width_m, 4.0, 100.0));
         }
         if !in_range(self.avenue_width_m, self.street_width_m, 200.0) {
             return bad(
                 "avenue_width_m",
-                format!(
-                    "{} m is outside [street_width_m = {}, 200] m",
-                    self.avenue_width_m, self.street_width_m
-                ),
+                ProceduralProblem::AvenueWidth {
+                    avenue_width_m: self.avenue_width_m,
+                    street_width_m: self.street_width_m,
+                },
             );
         }
         if !in_range(self.grid_rotation_deg, -360.0, 360.0) {
             return bad(
                 "grid_rotation_deg",
-                format!("{} is outside [-360, 360] degrees", self.grid_rotation_deg),
+                ProceduralProblem::Angle {
+                    value_deg: self.grid_rotation_deg,
+                    min_deg: -360.0,
+                    max_deg: 360.0,
+                },
             );
         }
         if !in_range(self.ground_height_m, -500.0, 9000.0) {
-            return bad("ground_height_m", format!("{} m is outside [-500, 9000] m", self.ground_height_m));
+            return bad("ground_height_m", length(self.ground_height_m, -500.0, 9000.0));
         }
         let blocks = u64::from(self.blocks_x) * u64::from(self.blocks_y);
-        if u64::from(self.tower_blocks) + u64::from(self.plaza_blocks) > blocks {
-            return bad(
-                "tower_blocks",
-                format!(
-                    "tower_blocks + plaza_blocks = {} exceeds the {blocks} blocks",
-                    u64::from(self.tower_blocks) + u64::from(self.plaza_blocks)
-                ),
-            );
+        let special = u64::from(self.tower_blocks) + u64::from(self.plaza_blocks);
+        if special > blocks {
+            return bad("tower_blocks", ProceduralProblem::SpecialBlocks { special, blocks });
         }
         for (field, r, lo, hi) in [
             ("low_rise_m", self.low_rise_m, 3.0, 100.0),
@@ -191,7 +195,7 @@ impl ProceduralSpec {
             ("tower_m", self.tower_m, 20.0, 1000.0),
         ] {
             if !(in_range(r[0], lo, hi) && in_range(r[1], lo, hi) && r[0] <= r[1]) {
-                return bad(field, format!("{r:?} must be an ordered pair [min, max] within [{lo}, {hi}] m"));
+                return bad(field, ProceduralProblem::HeightRange { range_m: r, min_m: lo, max_m: hi });
             }
         }
         Ok(())
@@ -622,7 +626,11 @@ fn block_layouts(
 pub fn generate(spec: &ProceduralSpec, origin: PlaneOrigin) -> Result<SourceModel, LodError> {
     spec.validate()?;
     if !(origin.easting_m.is_finite() && origin.northing_m.is_finite()) {
-        return Err(LodError::invalid(DEMO_SOURCE_PATH, "origin", format!("not finite: {origin:?}")));
+        return Err(LodError::invalid(
+            DEMO_SOURCE_PATH,
+            "origin",
+            ProceduralProblem::Origin { easting_m: origin.easting_m, northing_m: origin.northing_m },
+        ));
     }
     let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
 

@@ -10,7 +10,6 @@
 //! chain reads `tileset.json: root.children[2].content.uri "a.glb" (tiles/a.glb): meshes[0]…: …`.
 //! Causes (JSON, I/O, gzip, Draco, meshopt, WebP, PNG) stay in `#[source]`.
 
-use std::fmt;
 use std::path::PathBuf;
 
 /// Names of the four b3dm header section lengths, in file order.
@@ -647,18 +646,104 @@ impl ContentError {
 }
 
 /// One problem found by the glTF validation pass: its JSON path and what is wrong there.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{at}: {problem}")]
 pub struct GltfIssue {
     /// `accessors[0].bufferView`, `nodes[2].children`, …
     pub at: String,
     /// What is wrong there.
-    pub what: String,
+    pub problem: GltfProblem,
 }
 
-impl fmt::Display for GltfIssue {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}: {}", self.at, self.what)
-    }
+/// A broken cross-reference or byte range of a glTF (see [`GltfIssue`]).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum GltfProblem {
+    /// A buffer with fewer bytes than its `byteLength`.
+    #[error("byteLength {byte_length} but only {available} bytes available")]
+    BufferShort {
+        /// `byteLength`.
+        byte_length: usize,
+        /// Bytes loaded.
+        available: usize,
+    },
+    /// An index to an object that does not exist.
+    #[error("{kind} {index} does not exist")]
+    Missing {
+        /// The kind of object: "buffer", "bufferView", "accessor", "node", "mesh", "scene".
+        kind: &'static str,
+        /// The index.
+        index: usize,
+    },
+    /// A buffer view past the end of its buffer.
+    #[error("bytes {offset}..+{length} exceed buffer {buffer} ({buffer_bytes} bytes)")]
+    ViewRange {
+        /// `byteOffset`.
+        offset: usize,
+        /// `byteLength`.
+        length: usize,
+        /// The buffer.
+        buffer: usize,
+        /// The buffer's size, bytes.
+        buffer_bytes: usize,
+    },
+    /// A `byteStride` outside 4..=252 or not a multiple of 4.
+    #[error("{stride} is not a multiple of 4 in 4..=252")]
+    Stride {
+        /// The stride, bytes.
+        stride: usize,
+    },
+    /// An accessor `type` or `componentType` glTF does not define.
+    #[error("unknown type {kind:?} / componentType {component_type}")]
+    AccessorType {
+        /// `type` as written.
+        kind: String,
+        /// `componentType`.
+        component_type: u32,
+    },
+    /// An accessor's elements past the end of its buffer view.
+    #[error(
+        "{count} elements of {element} bytes (stride {stride}) from offset {offset} exceed bufferView {view} \
+         ({view_bytes} bytes)"
+    )]
+    AccessorRange {
+        /// Elements.
+        count: usize,
+        /// Element size, bytes.
+        element: usize,
+        /// Stride, bytes.
+        stride: usize,
+        /// `byteOffset`.
+        offset: usize,
+        /// The buffer view.
+        view: usize,
+        /// The view's `byteLength`.
+        view_bytes: usize,
+    },
+    /// Sparse indices of a type that is not an unsigned integer.
+    #[error("{component_type} is not an unsigned integer")]
+    SparseIndexType {
+        /// `componentType`.
+        component_type: u32,
+    },
+    /// Sparse indices or values past the end of their buffer view.
+    #[error("{count} entries exceed bufferView {view}")]
+    SparseRange {
+        /// Entries.
+        count: usize,
+        /// The buffer view.
+        view: usize,
+    },
+    /// A node listed as the child of two nodes.
+    #[error("node {node} is already a child of node {first} (glTF nodes form trees)")]
+    SecondParent {
+        /// The child.
+        node: usize,
+        /// Its first parent.
+        first: usize,
+    },
+    /// A node transform with NaN or infinite values.
+    #[error("transform has non-finite values")]
+    NonFiniteTransform,
 }
 
 /// What is wrong with an accessor a primitive reads (see [`ContentError::Accessor`]).

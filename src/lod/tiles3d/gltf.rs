@@ -22,7 +22,7 @@ use serde::Deserialize;
 use serde_json::Value;
 
 use super::draco;
-use super::error::{AccessorProblem, ContentError, GltfIssue};
+use super::error::{AccessorProblem, ContentError, GltfIssue, GltfProblem};
 
 /// Required extensions this reader implements or that do not affect geometry.
 pub const HANDLED_EXTENSIONS: &[&str] = &[
@@ -1111,8 +1111,8 @@ struct Validator<'g, 'a> {
 }
 
 impl Validator<'_, '_> {
-    fn issue(&mut self, at: String, what: String) {
-        self.issues.push(GltfIssue { at, what });
+    fn issue(&mut self, at: String, problem: GltfProblem) {
+        self.issues.push(GltfIssue { at, problem });
     }
 
     /// `buffers[i]`: the bytes loaded for each buffer cover its `byteLength` (a meshopt fallback
@@ -1124,7 +1124,7 @@ impl Validator<'_, '_> {
             if have < b.byte_length && !(b.is_meshopt_fallback() && have == 0) {
                 self.issue(
                     format!("buffers[{i}]"),
-                    format!("byteLength {} but only {have} bytes available", b.byte_length),
+                    GltfProblem::BufferShort { byte_length: b.byte_length, available: have },
                 );
             }
         }
@@ -1137,30 +1137,28 @@ impl Validator<'_, '_> {
         for (i, v) in g.root.buffer_views.iter().enumerate() {
             let compressed = v.extensions.contains_key("EXT_meshopt_compression");
             match g.buffers.get(v.buffer) {
-                None => self
-                    .issue(format!("bufferViews[{i}].buffer"), format!("buffer {} does not exist", v.buffer)),
+                None => self.issue(
+                    format!("bufferViews[{i}].buffer"),
+                    GltfProblem::Missing { kind: "buffer", index: v.buffer },
+                ),
                 Some(_) if compressed => {}
                 Some(buf) => {
                     if v.byte_offset.checked_add(v.byte_length).is_none_or(|end| end > buf.len()) {
                         self.issue(
                             format!("bufferViews[{i}]"),
-                            format!(
-                                "bytes {}..+{} exceed buffer {} ({} bytes)",
-                                v.byte_offset,
-                                v.byte_length,
-                                v.buffer,
-                                buf.len()
-                            ),
+                            GltfProblem::ViewRange {
+                                offset: v.byte_offset,
+                                length: v.byte_length,
+                                buffer: v.buffer,
+                                buffer_bytes: buf.len(),
+                            },
                         );
                     }
                 }
             }
             if let Some(s) = v.byte_stride {
                 if !(4..=252).contains(&s) || !s.is_multiple_of(4) {
-                    self.issue(
-                        format!("bufferViews[{i}].byteStride"),
-                        format!("{s} is not a multiple of 4 in 4..=252"),
-                    );
+                    self.issue(format!("bufferViews[{i}].byteStride"), GltfProblem::Stride { stride: s });
                 }
             }
         }
@@ -1171,7 +1169,10 @@ impl Validator<'_, '_> {
         for (i, a) in self.gltf.root.accessors.iter().enumerate() {
             let at = format!("accessors[{i}]");
             let (Some(n), Some(size)) = (components(&a.kind), component_size(a.component_type)) else {
-                self.issue(at, format!("unknown type {:?} / componentType {}", a.kind, a.component_type));
+                self.issue(
+                    at,
+                    GltfProblem::AccessorType { kind: a.kind.clone(), component_type: a.component_type },
+                );
                 continue;
             };
             if let Some(bv) = a.buffer_view {
@@ -1186,7 +1187,7 @@ impl Validator<'_, '_> {
     /// The `count` elements of `element` bytes of accessor `a` (at `at`) fit in `bufferViews[bv]`.
     fn accessor_range(&mut self, at: &str, a: &Accessor, bv: usize, element: usize) {
         let Some(view) = self.gltf.root.buffer_views.get(bv) else {
-            self.issue(format!("{at}.bufferView"), format!("bufferView {bv} does not exist"));
+            self.issue(format!("{at}.bufferView"), GltfProblem::Missing { kind: "bufferView", index: bv });
             return;
         };
         let stride = view.byte_stride.unwrap_or(element);
@@ -1201,11 +1202,14 @@ impl Validator<'_, '_> {
         if need.is_none_or(|need| need > view.byte_length) {
             self.issue(
                 at.to_string(),
-                format!(
-                    "{} elements of {} bytes (stride {stride}) from offset {} exceed bufferView {bv} ({} \
-                     bytes)",
-                    a.count, element, a.byte_offset, view.byte_length
-                ),
+                GltfProblem::AccessorRange {
+                    count: a.count,
+                    element,
+                    stride,
+                    offset: a.byte_offset,
+                    view: bv,
+                    view_bytes: view.byte_length,
+                },
             );
         }
     }
@@ -1220,7 +1224,7 @@ impl Validator<'_, '_> {
             t => {
                 self.issue(
                     format!("{at}.sparse.indices.componentType"),
-                    format!("{t} is not an unsigned integer"),
+                    GltfProblem::SparseIndexType { component_type: t },
                 );
                 return;
             }
@@ -1230,7 +1234,10 @@ impl Validator<'_, '_> {
             ("values", s.values.buffer_view, s.values.byte_offset, element),
         ] {
             match self.gltf.root.buffer_views.get(bv) {
-                None => self.issue(format!("{at}.sparse.{what}.bufferView"), format!("{bv} does not exist")),
+                None => self.issue(
+                    format!("{at}.sparse.{what}.bufferView"),
+                    GltfProblem::Missing { kind: "bufferView", index: bv },
+                ),
                 Some(view) => {
                     if s.count
                         .checked_mul(len)
@@ -1239,7 +1246,7 @@ impl Validator<'_, '_> {
                     {
                         self.issue(
                             format!("{at}.sparse.{what}"),
-                            format!("{} entries exceed bufferView {bv}", s.count),
+                            GltfProblem::SparseRange { count: s.count, view: bv },
                         );
                     }
                 }
@@ -1257,13 +1264,16 @@ impl Validator<'_, '_> {
                     if acc >= r.accessors.len() {
                         self.issue(
                             format!("{at}.attributes[\"{sem}\"]"),
-                            format!("accessor {acc} does not exist"),
+                            GltfProblem::Missing { kind: "accessor", index: acc },
                         );
                     }
                 }
                 if let Some(acc) = prim.indices {
                     if acc >= r.accessors.len() {
-                        self.issue(format!("{at}.indices"), format!("accessor {acc} does not exist"));
+                        self.issue(
+                            format!("{at}.indices"),
+                            GltfProblem::Missing { kind: "accessor", index: acc },
+                        );
                     }
                 }
             }
@@ -1278,17 +1288,20 @@ impl Validator<'_, '_> {
         for (i, node) in r.nodes.iter().enumerate() {
             for &c in &node.children {
                 match parent_of.get_mut(c) {
-                    None => self.issue(format!("nodes[{i}].children"), format!("node {c} does not exist")),
+                    None => self.issue(
+                        format!("nodes[{i}].children"),
+                        GltfProblem::Missing { kind: "node", index: c },
+                    ),
                     Some(Some(first)) => self.issue(
                         format!("nodes[{i}].children"),
-                        format!("node {c} is already a child of node {first} (glTF nodes form trees)"),
+                        GltfProblem::SecondParent { node: c, first: *first },
                     ),
                     Some(slot) => *slot = Some(i),
                 }
             }
             if let Some(m) = node.mesh {
                 if m >= r.meshes.len() {
-                    self.issue(format!("nodes[{i}].mesh"), format!("mesh {m} does not exist"));
+                    self.issue(format!("nodes[{i}].mesh"), GltfProblem::Missing { kind: "mesh", index: m });
                 }
             }
             let finite = node.matrix.iter().flatten().all(|v| v.is_finite())
@@ -1296,7 +1309,7 @@ impl Validator<'_, '_> {
                 && node.rotation.iter().flatten().all(|v| v.is_finite())
                 && node.scale.iter().flatten().all(|v| v.is_finite());
             if !finite {
-                self.issue(format!("nodes[{i}]"), "transform has non-finite values".into());
+                self.issue(format!("nodes[{i}]"), GltfProblem::NonFiniteTransform);
             }
         }
     }
@@ -1307,13 +1320,13 @@ impl Validator<'_, '_> {
         for (s, scene) in r.scenes.iter().enumerate() {
             for &n in &scene.nodes {
                 if n >= r.nodes.len() {
-                    self.issue(format!("scenes[{s}].nodes"), format!("node {n} does not exist"));
+                    self.issue(format!("scenes[{s}].nodes"), GltfProblem::Missing { kind: "node", index: n });
                 }
             }
         }
         if let Some(s) = r.scene {
             if s >= r.scenes.len() {
-                self.issue("scene".into(), format!("scene {s} does not exist"));
+                self.issue("scene".into(), GltfProblem::Missing { kind: "scene", index: s });
             }
         }
     }
@@ -1481,7 +1494,10 @@ mod tests {
         assert_eq!(issues.len(), 5);
         assert_eq!(
             issues[0],
-            GltfIssue { at: "accessors[0].bufferView".into(), what: "bufferView 2 does not exist".into() }
+            GltfIssue {
+                at: "accessors[0].bufferView".into(),
+                problem: GltfProblem::Missing { kind: "bufferView", index: 2 }
+            }
         );
         let e = e.to_string();
         for part in [

@@ -23,6 +23,7 @@ use serde::Deserialize;
 
 use super::error::ContentError;
 use super::tileset::{resolve_uri, uri_error, BoundingVolume, ContentRef, Refine, Tile, TileJson};
+use crate::lod::error::{TilesetIssue, TilesetProblem};
 use crate::lod::LodError;
 
 /// `implicitTiling`.
@@ -55,38 +56,30 @@ impl ImplicitTilingJson {
 }
 
 /// Checks an `implicitTiling` object and its tile (volume kind, no children, no transform rules).
-pub(crate) fn validate(it: &ImplicitTilingJson, tile: &TileJson, at: &str, p: &mut Vec<(String, String)>) {
+pub(crate) fn validate(it: &ImplicitTilingJson, tile: &TileJson, at: &str, p: &mut Vec<TilesetIssue>) {
+    let mut push = |at: String, problem| p.push(TilesetIssue { at, problem });
     if !matches!(it.subdivision_scheme.to_ascii_uppercase().as_str(), "QUADTREE" | "OCTREE") {
-        p.push((
+        push(
             format!("{at}.subdivisionScheme"),
-            format!("{:?} is not QUADTREE or OCTREE", it.subdivision_scheme),
-        ));
+            TilesetProblem::SubdivisionScheme { found: it.subdivision_scheme.clone() },
+        );
     }
     if it.subtree_levels == 0 {
-        p.push((format!("{at}.subtreeLevels"), "must be at least 1".into()));
+        push(format!("{at}.subtreeLevels"), TilesetProblem::SubtreeLevels);
     }
     if it.levels() == 0 {
-        p.push((format!("{at}.availableLevels"), "is missing or 0".into()));
+        push(format!("{at}.availableLevels"), TilesetProblem::NoAvailableLevels);
     }
     if it.levels() > 31 {
-        p.push((
-            format!("{at}.availableLevels"),
-            format!("{} levels exceed the 31 insgen reads", it.levels()),
-        ));
+        push(format!("{at}.availableLevels"), TilesetProblem::TooManyLevels { levels: it.levels() });
     }
     if let Some(bv) = &tile.bounding_volume {
         if bv.sphere.is_some() && bv.box_.is_none() && bv.region.is_none() {
-            p.push((
-                at.replace(".implicitTiling", ".boundingVolume"),
-                "implicit tiling needs a box or region; a sphere cannot be subdivided".into(),
-            ));
+            push(at.replace(".implicitTiling", ".boundingVolume"), TilesetProblem::ImplicitSphere);
         }
     }
     if !tile.children.is_empty() {
-        p.push((
-            at.replace(".implicitTiling", ".children"),
-            "an implicit root tile may not list children".into(),
-        ));
+        push(at.replace(".implicitTiling", ".children"), TilesetProblem::ImplicitChildren);
     }
 }
 
@@ -323,11 +316,7 @@ pub(crate) fn expand(root: &Root<'_>, it: &ImplicitTilingJson, budget: &mut usiz
     let c0 = Coord { level: 0, x: 0, y: 0, z: 0 };
     let st = e.load_subtree(c0)?;
     if !st.tiles.get(0) {
-        return Err(LodError::invalid(
-            root.tileset,
-            root.at,
-            "the root subtree marks the implicit root tile unavailable",
-        ));
+        return Err(LodError::invalid(root.tileset, root.at, TilesetProblem::RootUnavailable));
     }
     e.tile(&st, c0, 0, (0, 0, 0))
 }
@@ -398,7 +387,7 @@ impl Expander<'_> {
             return Err(LodError::invalid(
                 self.root.tileset,
                 self.root.at,
-                format!("implicit tiling expands to more than {} tiles", super::tileset::MAX_IMPLICIT_TILES),
+                TilesetProblem::TooManyTiles { max: super::tileset::MAX_IMPLICIT_TILES },
             ));
         }
         *self.budget -= 1;

@@ -144,60 +144,9 @@ pub(crate) fn decode(ext: &MeshoptView, source: &[u8]) -> Result<Vec<u8>, Meshop
     Ok(out)
 }
 
-/// Encodes vertex data for an `ATTRIBUTES` view (codec version 0, which `EXT_meshopt_compression`
-/// requires), `stride` bytes per element.
-pub(crate) fn encode_attributes(data: &[u8], stride: usize) -> Vec<u8> {
-    let count = data.len() / stride;
-    // SAFETY: the bound is the encoder's worst case for count × stride; `data` holds that many bytes.
-    unsafe {
-        let bound = ::meshopt::ffi::meshopt_encodeVertexBufferBound(count, stride);
-        let mut out = vec![0u8; bound];
-        let n = ::meshopt::ffi::meshopt_encodeVertexBufferLevel(
-            out.as_mut_ptr(),
-            out.len(),
-            data.as_ptr().cast(),
-            count,
-            stride,
-            2,
-            0,
-        );
-        out.truncate(n);
-        out
-    }
-}
-
-/// Encodes a triangle index list for a `TRIANGLES` view (4-byte indices).
-pub(crate) fn encode_triangles(indices: &[u32], vertex_count: usize) -> Vec<u8> {
-    // The index codec's version 1 is what every decoder since meshoptimizer 0.14 reads, and what
-    // EXT_meshopt_compression allows.
-    ::meshopt::encoding::encode_index_buffer(indices, vertex_count).expect("encoding a valid index list")
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn attributes_and_triangles_round_trip() {
-        let verts: Vec<u8> =
-            (0..40u32).flat_map(|i| [(i * 7) as u16, (i * 3) as u16]).flat_map(u16::to_le_bytes).collect();
-        let enc = encode_attributes(&verts, 4);
-        let ext = |mode: &str, count, stride, len| MeshoptView {
-            buffer: 0,
-            byte_offset: 0,
-            byte_length: len,
-            byte_stride: stride,
-            count,
-            mode: mode.into(),
-            filter: None,
-        };
-        assert_eq!(decode(&ext("ATTRIBUTES", 40, 4, enc.len()), &enc).unwrap(), verts);
-        let idx: Vec<u32> = vec![0, 1, 2, 2, 1, 3, 3, 1, 4];
-        let enc = encode_triangles(&idx, 5);
-        let out = decode(&ext("TRIANGLES", 9, 4, enc.len()), &enc).unwrap();
-        let back: Vec<u32> = out.chunks_exact(4).map(|c| u32::from_le_bytes(c.try_into().unwrap())).collect();
-        assert_eq!(back, idx);
-    }
 
     #[test]
     fn broken_preconditions_and_garbage_are_errors() {

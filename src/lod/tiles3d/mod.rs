@@ -52,7 +52,7 @@ pub mod plain;
 pub mod tileset;
 
 pub use error::{
-    AccessorProblem, ContentError, DracoMeshError, GltfIssue, MeshoptError, UriError, WebpError,
+    AccessorProblem, ContentError, DracoMeshError, GltfIssue, GltfProblem, MeshoptError, UriError, WebpError,
 };
 pub use gltf::UpAxis;
 pub use tileset::{BoundingVolume, ContentRef, Refine, Tile, Tileset};

@@ -40,10 +40,11 @@ use serde::Deserialize;
 use super::error::{ContentError, UriError};
 use super::gltf::UpAxis;
 use super::implicit::{self, ImplicitTilingJson};
+use crate::lod::error::{TilesetIssue, TilesetProblem};
 use crate::lod::LodError;
 
 /// Tileset extensions insgen reads (or that need nothing from a reader of geometry).
-const HANDLED_TILESET_EXTENSIONS: &[&str] =
+pub(crate) const HANDLED_TILESET_EXTENSIONS: &[&str] =
     &["3DTILES_content_gltf", "3DTILES_implicit_tiling", "3DTILES_metadata", "3DTILES_multiple_contents"];
 
 /// The tileset JSON root.
@@ -339,18 +340,9 @@ impl Tileset {
         let json = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&bytes);
         let tileset: TilesetJson =
             serde_json::from_slice(json).map_err(|e| tiles3d_error(ContentError::TilesetJson(e)))?;
-        let problems = validate(&tileset);
-        if let Some((at, what)) = problems.first() {
-            let more = if problems.len() > 1 {
-                format!(
-                    " (and {} more: {})",
-                    problems.len() - 1,
-                    problems[1..].iter().map(|(a, w)| format!("{a}: {w}")).collect::<Vec<_>>().join("; ")
-                )
-            } else {
-                String::new()
-            };
-            return Err(LodError::invalid(path, at.clone(), format!("{what}{more}")));
+        let issues = validate(&tileset);
+        if !issues.is_empty() {
+            return Err(LodError::InvalidTileset { path: path.to_path_buf(), issues });
         }
         let up = match tileset.asset.gltf_up_axis.as_deref().map(str::to_ascii_uppercase).as_deref() {
             Some("X") => UpAxis::X,
@@ -390,7 +382,7 @@ impl Builder<'_> {
             .bounding_volume
             .as_ref()
             .and_then(BoundingVolume::from_json)
-            .ok_or_else(|| LodError::invalid(self.tileset, at, "no usable boundingVolume"))?;
+            .ok_or_else(|| LodError::invalid(self.tileset, at, TilesetProblem::UnusableBoundingVolume))?;
         let geometric_error_m = t.geometric_error.unwrap_or(0.0);
         let content_jsons: Vec<(String, &ContentJson)> = match (&t.content, &t.contents) {
             (Some(c), _) => vec![(format!("{at}.content"), c)],
@@ -534,15 +526,7 @@ fn walk_tileset(
         return Err(LodError::invalid(
             path,
             "root",
-            format!(
-                "external tilesets form a cycle: {}",
-                stack
-                    .iter()
-                    .chain([&canonical])
-                    .map(|p| p.display().to_string())
-                    .collect::<Vec<_>>()
-                    .join(" → ")
-            ),
+            TilesetProblem::Cycle { chain: stack.iter().cloned().chain([canonical]).collect() },
         ));
     }
     let tileset = Tileset::load(path, world_from_parent)?;
@@ -591,35 +575,36 @@ fn walk_tile(
     Ok(())
 }
 
-/// Every problem of a tileset, as (JSON path, what is wrong).
-pub(crate) fn validate(t: &TilesetJson) -> Vec<(String, String)> {
+/// Every problem of a tileset, each with its JSON path.
+pub(crate) fn validate(t: &TilesetJson) -> Vec<TilesetIssue> {
     let mut p = Vec::new();
     if !matches!(t.asset.version.as_str(), "0.0" | "1.0" | "1.1") {
         log::warn!("3D Tiles asset.version {:?} is not 0.0, 1.0 or 1.1; reading it as 1.1", t.asset.version);
     }
     if let Some(axis) = &t.asset.gltf_up_axis {
         if !matches!(axis.to_ascii_uppercase().as_str(), "X" | "Y" | "Z") {
-            p.push(("asset.gltfUpAxis".to_string(), format!("{axis:?} is not X, Y or Z")));
+            p.push(TilesetIssue {
+                at: "asset.gltfUpAxis".into(),
+                problem: TilesetProblem::UpAxis { axis: axis.clone() },
+            });
         }
     }
     for (i, e) in t.extensions_required.iter().enumerate() {
         if !HANDLED_TILESET_EXTENSIONS.contains(&e.as_str()) {
-            p.push((
-                format!("extensionsRequired[{i}]"),
-                format!(
-                    "the tileset requires extension {e}, which insgen does not read (it reads {})",
-                    HANDLED_TILESET_EXTENSIONS.join(", ")
-                ),
-            ));
+            p.push(TilesetIssue {
+                at: format!("extensionsRequired[{i}]"),
+                problem: TilesetProblem::RequiredExtension { extension: e.clone() },
+            });
         }
     }
     validate_tile(&t.root, "root", &mut p);
     p
 }
 
-fn validate_tile(tile: &TileJson, at: &str, p: &mut Vec<(String, String)>) {
+fn validate_tile(tile: &TileJson, at: &str, p: &mut Vec<TilesetIssue>) {
+    let mut push = |at: String, problem| p.push(TilesetIssue { at, problem });
     match &tile.bounding_volume {
-        None => p.push((format!("{at}.boundingVolume"), "is missing (needs a box, region or sphere)".into())),
+        None => push(format!("{at}.boundingVolume"), TilesetProblem::NoBoundingVolume),
         Some(bv) => {
             let lens = [
                 (bv.box_.as_ref(), 12, "box"),
@@ -627,50 +612,50 @@ fn validate_tile(tile: &TileJson, at: &str, p: &mut Vec<(String, String)>) {
                 (bv.sphere.as_ref(), 4, "sphere"),
             ];
             if lens.iter().all(|(v, _, _)| v.is_none()) {
-                p.push((format!("{at}.boundingVolume"), "needs a box, region or sphere".into()));
+                push(format!("{at}.boundingVolume"), TilesetProblem::EmptyBoundingVolume);
             }
             for (v, n, name) in lens {
                 if let Some(v) = v {
                     if v.len() != n || v.iter().any(|x| !x.is_finite()) {
-                        p.push((
+                        push(
                             format!("{at}.boundingVolume.{name}"),
-                            format!("needs {n} finite numbers, has {}", v.len()),
-                        ));
+                            TilesetProblem::BoundingVolume { needed: n, found: v.len() },
+                        );
                     }
                 }
             }
         }
     }
     match tile.geometric_error {
-        None => p.push((format!("{at}.geometricError"), "is missing".into())),
+        None => push(format!("{at}.geometricError"), TilesetProblem::NoGeometricError),
         Some(g) if !(g.is_finite() && g >= 0.0) => {
-            p.push((format!("{at}.geometricError"), format!("{g} is not a finite number ≥ 0")))
+            push(format!("{at}.geometricError"), TilesetProblem::GeometricError { value: g })
         }
         Some(_) => {}
     }
     if let Some(m) = &tile.transform {
         if m.len() != 16 {
-            p.push((format!("{at}.transform"), format!("has {} numbers, not 16", m.len())));
+            push(format!("{at}.transform"), TilesetProblem::TransformLength { found: m.len() });
         } else if m.iter().any(|v| !v.is_finite()) {
-            p.push((format!("{at}.transform"), "has non-finite numbers".into()));
+            push(format!("{at}.transform"), TilesetProblem::TransformNotFinite);
         }
     }
     if let Some(r) = &tile.refine {
         if parse_refine(Some(r)).is_none() {
-            p.push((format!("{at}.refine"), format!("{r:?} is not ADD or REPLACE")));
+            push(format!("{at}.refine"), TilesetProblem::Refine { found: r.clone() });
         }
     }
     if tile.content.is_some() && tile.contents.is_some() {
-        p.push((at.to_string(), "has both content and contents".into()));
+        push(at.to_string(), TilesetProblem::ContentAndContents);
     }
     if let Some(c) = &tile.content {
         if c.uri().is_none() {
-            p.push((format!("{at}.content"), "has no uri".into()));
+            push(format!("{at}.content"), TilesetProblem::NoUri);
         }
     }
     for (i, c) in tile.contents.iter().flatten().enumerate() {
         if c.uri().is_none() {
-            p.push((format!("{at}.contents[{i}]"), "has no uri".into()));
+            push(format!("{at}.contents[{i}]"), TilesetProblem::NoUri);
         }
     }
     if let Some(it) = &tile.implicit_tiling {
@@ -809,7 +794,7 @@ mod tests {
         )
         .unwrap();
         let p = validate(&t);
-        let at: Vec<&str> = p.iter().map(|(a, _)| a.as_str()).collect();
+        let at: Vec<&str> = p.iter().map(|i| i.at.as_str()).collect();
         assert_eq!(
             at,
             [
@@ -822,7 +807,12 @@ mod tests {
                 "root.children[1].geometricError"
             ]
         );
-        assert!(p[0].1.contains("VENDOR_x"), "{}", p[0].1);
+        assert_eq!(p[0].problem, TilesetProblem::RequiredExtension { extension: "VENDOR_x".into() });
+        assert_eq!(p[1].problem, TilesetProblem::TransformLength { found: 3 });
+        assert_eq!(p[2].problem, TilesetProblem::Refine { found: "MERGE".into() });
+        assert_eq!(p[4].problem, TilesetProblem::GeometricError { value: -1.0 });
+        assert_eq!(p[5].problem, TilesetProblem::NoUri);
+        assert_eq!(p[6].problem, TilesetProblem::NoGeometricError);
     }
 
     #[test]
