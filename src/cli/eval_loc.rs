@@ -47,6 +47,9 @@ pub enum CostArg {
     Semantic,
     /// Query instances merged into one mask, then instance scoring (the paper's ablation).
     Merged,
+    /// Each query instance matched to the union of rendered buildings that explains it best, split
+    /// pieces of one building scored together (robust to learned masks; blended like instance).
+    Grouped,
 }
 
 impl From<CostArg> for CostKind {
@@ -55,6 +58,7 @@ impl From<CostArg> for CostKind {
             CostArg::Instance => CostKind::Instance,
             CostArg::Semantic => CostKind::Semantic,
             CostArg::Merged => CostKind::Merged,
+            CostArg::Grouped => CostKind::Grouped,
         }
     }
 }
