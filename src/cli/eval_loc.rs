@@ -762,6 +762,18 @@ mod tests {
         }
     }
 
+    #[test]
+    fn segmenter_like_takes_the_preset_or_overrides_and_grouped_is_a_cost() {
+        assert_eq!(parse(&[]).unwrap().segmenter_like, None);
+        assert_eq!(parse(&["--segmenter-like"]).unwrap().segmenter_like, Some(SegmenterLike::learned()));
+        let a = parse(&["--segmenter-like", "learned,chain=0.2", "--cost", "grouped"]).unwrap();
+        assert_eq!(a.segmenter_like.map(|s| s.chain_share), Some(0.2));
+        assert_eq!(a.costs, vec![CostArg::Grouped]);
+        assert_eq!(CostKind::from(CostArg::Grouped), CostKind::Grouped);
+        let e = parse(&["--segmenter-like", "chain=2"]).unwrap_err().to_string();
+        assert!(e.contains("shares lie in [0, 1]"), "{e}");
+    }
+
     mod semantic_weight {
         use super::*;
 

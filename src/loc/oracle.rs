@@ -80,18 +80,20 @@ pub struct SegmenterLike {
 }
 
 impl SegmenterLike {
-    /// The model calibrated to the figures of issue 40 (see `bench/loc_learned.md` for how close the
-    /// degraded oracle lands on each shared area).
+    /// The model calibrated to the figures of issue 40 on 20 Shibuya cam2 frames (1.02 instances per
+    /// true one, precision/recall 0.49/0.50, building IoU 0.96; `bench/loc_learned.md` gives every shared
+    /// area). The rim stays at the issue's "about a pixel", which leaves the building IoU a little above
+    /// its 0.95.
     pub fn learned() -> SegmenterLike {
         SegmenterLike {
-            chain_share: 0.3,
-            max_chain: 5,
-            split_large_share: 0.5,
-            large_area_share: 0.01,
-            miss_small_probability: 0.5,
-            small_area_share: 0.0002,
+            chain_share: 0.6,
+            max_chain: 6,
+            split_large_share: 0.8,
+            large_area_share: 0.002,
+            miss_small_probability: 0.8,
+            small_area_share: 0.0005,
             rim_px_at_640: 1,
-            clutter_blobs: 2.0,
+            clutter_blobs: 7.0,
         }
     }
 
