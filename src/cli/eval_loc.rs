@@ -10,7 +10,7 @@ use std::path::PathBuf;
 use crate::camera::config::PriorNoise;
 use crate::loc::eval::{self, EvalOptions, QueryPoses};
 use crate::loc::map::{MapPerturbation, MapSummary};
-use crate::loc::oracle::Degradation;
+use crate::loc::oracle::{Degradation, SegmenterLike};
 use crate::loc::query::{load_predictions, QuerySource};
 use crate::loc::search::{
     BeamMode, CoarseParams, FineParams, PolishCost, Prune, SearchBounds, SearchOptions, Stages,
@@ -47,6 +47,9 @@ pub enum CostArg {
     Semantic,
     /// Query instances merged into one mask, then instance scoring (the paper's ablation).
     Merged,
+    /// Each query instance matched to the union of rendered buildings that explains it best, split
+    /// pieces of one building scored together (robust to learned masks; blended like instance).
+    Grouped,
 }
 
 impl From<CostArg> for CostKind {
@@ -55,6 +58,7 @@ impl From<CostArg> for CostKind {
             CostArg::Instance => CostKind::Instance,
             CostArg::Semantic => CostKind::Semantic,
             CostArg::Merged => CostKind::Merged,
+            CostArg::Grouped => CostKind::Grouped,
         }
     }
 }
@@ -89,7 +93,7 @@ pub struct Args {
     #[arg(long, value_name = "DIR", requires = "oracle")]
     pub masks: Option<PathBuf>,
     /// A COCO results file (list of {image_id, segmentation: RLE, score}) with predicted instances.
-    #[arg(long, value_name = "FILE", conflicts_with_all = ["erode", "dilate", "drop", "merge", "split", "false_positives", "score_jitter"])]
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["erode", "dilate", "drop", "merge", "split", "false_positives", "score_jitter", "segmenter_like"])]
     pub predictions: Option<PathBuf>,
     /// COCO instances file(s) mapping the results' image ids to frames [default:
     /// <workdir>/coco/instances_{train,val,test}.json].
@@ -142,6 +146,14 @@ pub struct Args {
     /// Score jitter σ (scores = 1 − |N(0, σ)|).
     #[arg(long, value_name = "SIGMA", default_value_t = 0.0)]
     pub score_jitter: f64,
+    /// Degrade the oracle masks as a learned segmenter does: chains of touching buildings along a row
+    /// merged, large instances split, small ones missed, rims moved ±1 px (at 640 px width), blobs at
+    /// the foot of buildings. `learned` (or the flag alone) is the model calibrated to a segmenter on an
+    /// unseen city (issue 40); KEY=VALUE pairs override it: chain, max-chain, split-large,
+    /// large-area, miss-small, small-area, rim, blobs (e.g. `learned,chain=0.4`).
+    #[arg(long, value_name = "learned|KEY=VALUE,…", num_args = 0..=1, default_missing_value = "learned",
+          value_parser = parse_segmenter, requires = "oracle")]
+    pub segmenter_like: Option<SegmenterLike>,
     /// Coarse stage only (ablation).
     #[arg(long)]
     pub no_refine: bool,
@@ -378,6 +390,11 @@ fn polish_cost(args: &Args) -> PolishCost {
     }
 }
 
+/// `--segmenter-like`'s value ([`SegmenterLike::parse`]).
+fn parse_segmenter(s: &str) -> Result<SegmenterLike, String> {
+    SegmenterLike::parse(s).map_err(|e| e.to_string())
+}
+
 /// A weight in [0, 1] (`--semantic-weight` and the polish's weights).
 fn parse_unit_fraction(s: &str) -> Result<f64, String> {
     let w: f64 = s.trim().parse().map_err(|_| format!("expected a number in [0, 1], got {s:?}"))?;
@@ -563,6 +580,7 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         split_fraction: args.split,
         false_positives: args.false_positives,
         score_jitter: args.score_jitter,
+        segmenter: args.segmenter_like,
     };
     for (name, f) in [("--drop", args.drop), ("--merge", args.merge), ("--split", args.split)] {
         anyhow::ensure!((0.0..=1.0).contains(&f), "{name} {f}: a fraction lies in [0, 1]");
@@ -742,6 +760,18 @@ mod tests {
             let e = parse(&["--prune", bad]).unwrap_err().to_string();
             assert!(e.contains("--prune"), "{bad}: {e}");
         }
+    }
+
+    #[test]
+    fn segmenter_like_takes_the_preset_or_overrides_and_grouped_is_a_cost() {
+        assert_eq!(parse(&[]).unwrap().segmenter_like, None);
+        assert_eq!(parse(&["--segmenter-like"]).unwrap().segmenter_like, Some(SegmenterLike::learned()));
+        let a = parse(&["--segmenter-like", "learned,chain=0.2", "--cost", "grouped"]).unwrap();
+        assert_eq!(a.segmenter_like.map(|s| s.chain_share), Some(0.2));
+        assert_eq!(a.costs, vec![CostArg::Grouped]);
+        assert_eq!(CostKind::from(CostArg::Grouped), CostKind::Grouped);
+        let e = parse(&["--segmenter-like", "chain=2"]).unwrap_err().to_string();
+        assert!(e.contains("shares lie in [0, 1]"), "{e}");
     }
 
     mod semantic_weight {

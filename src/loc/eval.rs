@@ -302,9 +302,9 @@ pub struct Evaluator<'a, S: IdScene + ?Sized = CpuScene> {
     pub query: &'a Query,
     /// The cost scored.
     pub kind: CostKind,
-    /// How the per-instance scores of [`CostKind::Instance`] are weighted.
+    /// How the per-instance scores of [`CostKind::Instance`] (and [`CostKind::Grouped`]) are weighted.
     pub weighting: Weighting,
-    /// The terms of [`CostKind::Instance`]: the semantic weight (see [`EvalOptions::semantic_weight`])
+    /// The terms of [`CostKind::Instance`] and [`CostKind::Grouped`]: the semantic weight (see [`EvalOptions::semantic_weight`])
     /// and the semantic term's spill weight (1 until [`Evaluate::enter_polish`] sets the polish's).
     pub blend: Blend,
     /// The largest dense building ID of the scene (the scorer's table size).
@@ -520,7 +520,7 @@ impl<S: IdScene + ?Sized> Evaluate for Evaluator<'_, S> {
     /// the instance and the semantic cost).
     fn enter_polish(&mut self, at: &Hypothesis, cost: &PolishCost) -> Result<(u64, bool), Self::Error> {
         let before = (self.blend, self.silhouette_offset_px);
-        if self.kind == CostKind::Instance {
+        if matches!(self.kind, CostKind::Instance | CostKind::Grouped) {
             self.blend.semantic_weight = cost.semantic_weight;
         }
         let max = cost.max_silhouette_offset_px as i32;
@@ -1211,6 +1211,10 @@ pub fn summarise(
             CostKind::Instance => format!("instance ({weighting:?})").to_lowercase(),
             CostKind::Semantic => "semantic IoU (LoD-Loc v2)".to_string(),
             CostKind::Merged => "merged instances".to_string(),
+            CostKind::Grouped if semantic_weight > 0.0 => {
+                format!("grouped ({weighting:?}) + {semantic_weight} semantic").to_lowercase()
+            }
+            CostKind::Grouped => format!("grouped ({weighting:?})").to_lowercase(),
         };
         push_rows(&name, &errs);
         let counted = |count: fn(&QueryResult) -> usize| -> Vec<(usize, f64, f64)> {

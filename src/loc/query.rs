@@ -120,6 +120,10 @@ fn oracle_queries(
     // resize to each target.
     let lab = label_components(&map, Connectivity::Eight);
     let q = oracle::degrade(w, h, &lab.labels, lab.components.len() as u32, d, seed);
+    if log::log_enabled!(log::Level::Debug) {
+        let a = oracle::agreement(&lab.labels, lab.components.len() as u32, &q);
+        log::debug!("{frame}: degraded masks against the truth: {}", serde_json::json!(a));
+    }
     let mut labels = vec![0u32; map.ids().len()];
     for (j, inst) in q.instances.iter().enumerate() {
         for p in inst.pixels() {

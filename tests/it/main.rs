@@ -28,6 +28,7 @@ mod geo_geoid_grids;
 mod geo_pyproj;
 mod label_occlusion;
 mod loc_eval;
+mod loc_learned;
 mod lod_citygml;
 mod lod_cityjson;
 mod lod_issue20;
