@@ -5,7 +5,7 @@
 #
 #   scripts/loc_sparse.sh [WORKDIR]
 #   (env: COUNT=30 AREAS="demo niiza denhaag delft tokyo komaba yokosuka" LOD1_AREAS="denhaag tokyo"
-#    SPARSE_AREA=tokyo SPARSE_MAX=7 SPARSE_LIMIT=40 SPEED_RUNS=3; REPORT_ONLY=1 rewrites the report
+#    SPARSE_AREA=tokyo SPARSE_MAX=7 SPARSE_LIMIT=30 SPEED_RUNS=3; REPORT_ONLY=1 rewrites the report
 #    from the runs already in WORKDIR)
 #
 # Every area is sampled with a *census* sampler that keeps every view the other checks allow
@@ -31,7 +31,7 @@ AREAS=${AREAS:-"demo niiza denhaag delft tokyo komaba yokosuka"}
 LOD1_AREAS=${LOD1_AREAS:-"denhaag tokyo"}
 SPARSE_AREA=${SPARSE_AREA:-tokyo}
 SPARSE_MAX=${SPARSE_MAX:-7}
-SPARSE_LIMIT=${SPARSE_LIMIT:-40}
+SPARSE_LIMIT=${SPARSE_LIMIT:-30}
 SPEED_RUNS=${SPEED_RUNS:-3}
 PY=${INSGEN_PYTHON:-.venv/bin/python}
 cargo build --release --quiet --bin insgen
@@ -98,6 +98,13 @@ EOF
     $IG render-masks --area "$SPARSE_AREA" --camera cam2-sparse --preview 0
     $IG $E --area "$SPARSE_AREA" --camera cam2-sparse --tag exact
     $IG $E --area "$SPARSE_AREA" --camera cam2-sparse --map-lod1 --tag lod1
+    # What the localizer could do with few buildings (issue 40): each variant on both maps.
+    for v in "spill01|--polish-spill-weight 0.1" "wide|--basins 8 --survivors 2 --coarse-yaw 12.5/2.5"; do
+      # shellcheck disable=SC2086  # the options are words
+      $IG $E --area "$SPARSE_AREA" --camera cam2-sparse ${v#*|} --tag "exact-${v%%|*}"
+      # shellcheck disable=SC2086
+      $IG $E --area "$SPARSE_AREA" --camera cam2-sparse --map-lod1 ${v#*|} --tag "lod1-${v%%|*}"
+    done
   fi
   # Speed: the default sampler's views of Shibuya, the issue's command.
   if [ -d "$W/tokyo/scene" ]; then
