@@ -61,6 +61,10 @@ pub struct PoseRecord {
     /// ([`super::visibility::ViewCensus::off_map_share`]; `sample` records it, absent elsewhere).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub off_map_share: Option<f64>,
+    /// Share of the census rays that hit a building
+    /// ([`super::visibility::ViewCensus::building_fraction`]; `sample` records it, absent elsewhere).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub building_fraction: Option<f64>,
 }
 
 /// A camera in the area's ENU frame: its intrinsics and its pose, given both as a 4×4 and in COLMAP's
@@ -136,6 +140,7 @@ impl PoseRecord {
             visible_buildings: None,
             covered_frame_cells: None,
             off_map_share: None,
+            building_fraction: None,
         }
     }
 

@@ -15,8 +15,10 @@
 //!   (horizontally) of it;
 //! - sees the city: at least `min_building_fraction` of a coarse grid of viewing rays hits a building
 //!   (its triangles), and at least `min_visible_buildings` distinct buildings are the first hit of some ray
-//!   ([`BuildingIndex::view_census`]): a view of one or two buildings cannot be localized from
-//!   silhouettes. Each pose records its count (`visible_buildings` in `poses.jsonl`);
+//!   ([`BuildingIndex::view_census`]). Each pose records its count (`visible_buildings` in
+//!   `poses.jsonl`) and its share of building rays (`building_fraction`);
+//! - sees ground between its buildings: at most `max_building_fraction` of the grid hits a building.
+//!   A frame filled by a few large roofs shows almost no outline to localize from;
 //! - looks at the map: at most `max_off_map_share` of that grid hits no building and lands beyond the
 //!   modelled ground (outside the convex hull of the building footprints, or the sky); each pose records
 //!   its share (`off_map_share`). With
@@ -61,6 +63,10 @@ pub struct SampleStats {
     /// `min_visible_buildings`.
     #[serde(default)]
     pub rejected_few_buildings: u64,
+    /// Candidates whose view is filled by buildings: more building rays than `max_building_fraction`
+    /// (no ground between them to outline them).
+    #[serde(default)]
+    pub rejected_filled: u64,
     /// Candidates that pass the other checks but whose buildings cover fewer of the frame's cells
     /// than `min_covered_cells`.
     #[serde(default)]
@@ -127,6 +133,7 @@ pub(crate) enum Reject {
     Clearance,
     Visibility,
     FewBuildings,
+    Filled,
     OffMap,
     Crowded,
 }
@@ -173,6 +180,8 @@ impl Ctx<'_> {
                 Err(Reject::Visibility)
             } else if v.visible_buildings < self.cfg.min_visible_buildings {
                 Err(Reject::FewBuildings)
+            } else if v.building_fraction > self.cfg.max_building_fraction {
+                Err(Reject::Filled)
             } else if v.off_map_share > self.cfg.max_off_map_share {
                 Err(Reject::OffMap)
             } else if v.covered_cells < self.cfg.min_covered_cells {
@@ -186,6 +195,7 @@ impl Ctx<'_> {
             Err(Reject::Clearance) => stats.rejected_clearance += 1,
             Err(Reject::Visibility) => stats.rejected_visibility += 1,
             Err(Reject::FewBuildings) => stats.rejected_few_buildings += 1,
+            Err(Reject::Filled) => stats.rejected_filled += 1,
             Err(Reject::OffMap) => stats.rejected_off_map += 1,
             Err(Reject::Crowded) => stats.rejected_crowded += 1,
             Ok(_) => {}
@@ -214,6 +224,13 @@ impl Ctx<'_> {
                 "raise max_off_map_share (now {}) in the scene file's [sampling] table, or lower the \
                  {strategy} height range or pitch: the views look past the modelled buildings",
                 self.cfg.max_off_map_share
+            )
+        } else if stats.rejected_filled > others.max(stats.rejected_few_buildings).max(stats.rejected_crowded)
+        {
+            format!(
+                "raise max_building_fraction (now {}) in the scene file's [sampling] table, or the {strategy} \
+                 height range: large buildings fill the views",
+                self.cfg.max_building_fraction
             )
         } else if stats.rejected_crowded > others.max(stats.rejected_few_buildings) {
             format!(
@@ -393,6 +410,7 @@ pub fn sample_area(
             record.visible_buildings = Some(v.visible_buildings);
             record.covered_frame_cells = Some(v.covered_cells);
             record.off_map_share = Some(v.off_map_share);
+            record.building_fraction = Some(v.building_fraction);
             record
         })
         .collect();

@@ -166,6 +166,11 @@ pub struct QueryResult {
     /// ([`crate::loc::cost::Query::covered_frame_cells`]): how far its silhouettes spread.
     #[serde(default)]
     pub covered_frame_cells: u32,
+    /// Share of the frame the query's buildings cover (the union of its instances; at the render
+    /// width): near 1, a few large roofs fill the frame and leave little outline to localize from
+    /// (issue 40; the sampler's `max_building_fraction`).
+    #[serde(default)]
+    pub query_building_share: f64,
     /// Buildings kept around the prior (the culled map).
     pub buildings_considered: usize,
     /// Hypotheses and seconds per stage of the search.
@@ -1145,12 +1150,24 @@ impl<'q, 'r> QuerySetup<'q, 'r> {
             setup_seconds: self.setup_seconds,
             query_instances: qf.instances.len(),
             covered_frame_cells: qf.covered_frame_cells(),
+            query_building_share: building_share(&qf),
             buildings_considered: self.buildings,
             stages: r.stages,
             on_search_boundary: r.on_boundary,
         };
         Ok(Localized { result, estimate: est })
     }
+}
+
+/// Share of the frame covered by the union of `q`'s instances (0 for an empty frame).
+fn building_share(q: &Query) -> f64 {
+    let mut union = vec![false; (q.width as usize) * (q.height as usize)];
+    for p in q.instances.iter().flat_map(|i| i.pixels()) {
+        if let Some(px) = union.get_mut(p as usize) {
+            *px = true;
+        }
+    }
+    union.iter().filter(|&&b| b).count() as f64 / union.len().max(1) as f64
 }
 
 /// Share of the results of cost `kind` within 2 m and 2°.

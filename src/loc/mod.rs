@@ -15,3 +15,5 @@ pub mod morph;
 pub mod oracle;
 pub mod query;
 pub mod search;
+#[cfg(test)]
+mod sparse_tests;

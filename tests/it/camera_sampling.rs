@@ -88,6 +88,7 @@ mod grid {
                 + out.stats.rejected_clearance
                 + out.stats.rejected_visibility
                 + out.stats.rejected_few_buildings
+                + out.stats.rejected_filled
                 + out.stats.rejected_off_map
                 + out.stats.rejected_crowded,
             "{:?}",
@@ -132,6 +133,7 @@ mod grid {
                 + spread.stats.rejected_clearance
                 + spread.stats.rejected_visibility
                 + spread.stats.rejected_few_buildings
+                + spread.stats.rejected_filled
                 + spread.stats.rejected_off_map
                 + spread.stats.rejected_crowded,
             "{:?}",
@@ -140,12 +142,74 @@ mod grid {
     }
 
     #[test]
+    fn views_filled_by_buildings_are_counted_and_refused() {
+        // Issue 40: a frame filled by roofs and walls shows almost no outline to localize from. The box
+        // city's 28–46 m blocks, 12–117 m tall, stand 60 m apart; from 200–220 m, 45° down, their walls
+        // fill 61–99 % of the census rays. Keeping every view, some exceed the default cap (0.8); the
+        // default refuses those, counts them, and each lattice node draws other heights and yaws until
+        // a view qualifies (as many views, more candidates).
+        let mut low = SamplingConfig::default();
+        low.grid.pitch_deg = vec![45.0];
+        low.grid.height_range_m = [200.0, 220.0];
+        let keep_all = run(
+            "cam2",
+            Trajectory::Grid,
+            &SamplingConfig { max_building_fraction: 1.0, ..low.clone() },
+            None,
+            1,
+        );
+        assert_eq!(keep_all.stats.rejected_filled, 0, "{:?}", keep_all.stats);
+        let share = |r: &PoseRecord| r.building_fraction.expect("sample records the share");
+        assert!(keep_all.poses.iter().any(|r| share(r) > 0.9), "some view is mostly buildings");
+        assert_eq!(low.max_building_fraction, 0.8, "the default cap");
+        let capped = run("cam2", Trajectory::Grid, &low, None, 1);
+        assert!(capped.stats.rejected_filled > 0, "{:?}", capped.stats);
+        assert!(capped.poses.iter().all(|r| (0.15..=0.8).contains(&share(r))));
+        assert_eq!(capped.poses.len(), keep_all.poses.len());
+        assert!(capped.stats.candidates > keep_all.stats.candidates, "{:?}", capped.stats);
+        assert_eq!(
+            capped.stats.candidates,
+            capped.stats.accepted
+                + capped.stats.rejected_outside
+                + capped.stats.rejected_clearance
+                + capped.stats.rejected_visibility
+                + capped.stats.rejected_few_buildings
+                + capped.stats.rejected_filled
+                + capped.stats.rejected_off_map
+                + capped.stats.rejected_crowded,
+            "{:?}",
+            capped.stats
+        );
+        // A cap below every view's share: none qualifies, and the error names the setting.
+        let none = SamplingConfig { min_building_fraction: 0.0, max_building_fraction: 0.01, ..low };
+        let e = sample_area(
+            &cs::city(),
+            &cs::with_strategy("cam2", Trajectory::Grid),
+            &none,
+            Some(3),
+            1,
+            &NoProgress,
+        )
+        .expect_err("no view qualifies");
+        assert!(e.to_string().contains("raise max_building_fraction (now 0.01)"), "{e}");
+        // The default cap ([`DEFAULT_MAX_BUILDING_FRACTION`]) and the minimum: a cap below the
+        // minimum is a configuration error naming both.
+        assert_eq!(SamplingConfig::default().max_building_fraction, 0.8);
+        let bad =
+            SamplingConfig::from_scene_toml("[sampling]\nmax_building_fraction = 0.1\n", None).unwrap_err();
+        assert!(bad.to_string().contains("max_building_fraction = 0.1"), "{bad}");
+        assert!(bad.to_string().contains("min_building_fraction (0.15)"), "{bad}");
+    }
+
+    #[test]
     fn views_that_look_past_the_map_are_counted_and_refused() {
         // The box city ends 240–300 m beyond the area's edges: from 400–500 m, 60° off nadir, the
         // centre of a view lands 690–870 m ahead, and a view looking out from near an edge sees
         // mostly the open plain around the city. The default refuses views beyond the map for more
         // than half their rays (each lattice node draws other heights and yaws instead); 1 keeps them.
-        let mut steep = SamplingConfig::default();
+        // The box city's walls fill most views this steep (its blocks are far taller than wide apart):
+        // the building-share cap is off here, this test is about the map's edge.
+        let mut steep = SamplingConfig { max_building_fraction: 1.0, ..SamplingConfig::default() };
         steep.grid.pitch_deg = vec![60.0];
         steep.grid.height_range_m = [400.0, 500.0];
         let everything = SamplingConfig { max_off_map_share: 1.0, ..steep.clone() };
@@ -249,7 +313,9 @@ mod grid {
         poly[1][0] = 2400.0;
         poly[2][0] = 2400.0;
         let scene = cs::city_with(poly.clone(), true);
-        let cfg = SamplingConfig::default();
+        // Without the building-share cap: the box city's walls fill many views, and this test counts
+        // the candidates of the nodes that see buildings.
+        let cfg = SamplingConfig { max_building_fraction: 1.0, ..SamplingConfig::default() };
         let run = |count: usize| {
             let out = sample_area(
                 &scene,
