@@ -1,0 +1,362 @@
+//! `insgen init`: a commented scene file (`scenes/<area>.toml`) written from the files of a new area.
+//!
+//! Each input (a file, a folder or a glob; see [`super::sources`]) becomes one `[[sources]]` entry
+//! whose `path` is the input as typed, rewritten relative to the scene file's folder (absolute inputs
+//! stay absolute). The files are surveyed as `insgen inspect` does ([`super::survey`]): the format and
+//! CRS each reader finds, the extent, and its centre, which becomes `[origin]` — the origin `prepare`
+//! would take itself, pinned so that adding files later does not move the area's frame. The file also
+//! gets `[geoid]` for the heights the CRS has, an attribution the user must fill in, and camera
+//! sampling hints scaled to the extent (from the camera stage, through [`InitPlan::sampling_hints`]).
+//!
+//! The text is parsed back with [`SceneConfig::parse`] and its sources expanded again before it is
+//! written (atomically), so what `init` writes is a file `prepare` takes as it is. An existing file
+//! is kept unless the plan says `force`.
+
+use std::fmt::Write as _;
+use std::path::{Component, Path, PathBuf};
+
+use crate::geo::HeightKind;
+use crate::lod::Format;
+use crate::util::{self, FileError, Progress};
+
+use super::config::{SceneConfig, Split};
+use super::sources::{self, SourcesError};
+use super::survey::{self, FileSurvey, Survey, SurveyOptions};
+use super::SceneError;
+
+/// Text that marks a value the user must fill in before publishing a dataset; `prepare` warns while
+/// the attribution still starts with it.
+pub const TODO: &str = "TODO:";
+
+/// What `insgen init` is asked to do.
+#[derive(Debug, Clone)]
+pub struct InitPlan {
+    /// The area's name (the scene file's stem).
+    pub name: String,
+    /// The scene file to write.
+    pub scene_file: PathBuf,
+    /// The inputs as typed: files, folders or globs, relative to `base` unless absolute.
+    pub inputs: Vec<PathBuf>,
+    /// The folder relative inputs start from (the working directory).
+    pub base: PathBuf,
+    /// The area's split.
+    pub split: Split,
+    /// A CRS for files that declare none (or to override theirs).
+    pub crs: Option<String>,
+    /// The reader for every file (`None`: from each name).
+    pub format: Option<Format>,
+    /// The LoD to read.
+    pub lod: Option<String>,
+    /// Replace an existing scene file.
+    pub force: bool,
+    /// The `[sampling]` part of the file for an area of this west–east and south–north size in
+    /// metres (the camera stage's [`crate::camera::hints::sampling_hints`], passed in because the
+    /// scene stage comes first); `None` writes none.
+    pub sampling_hints: Option<fn([f64; 2]) -> String>,
+}
+
+/// Why `init` wrote nothing.
+#[derive(Debug, thiserror::Error)]
+pub enum InitError {
+    /// The scene file exists and `force` was not given.
+    #[error("{} exists; pass --force to replace it", path.display())]
+    Exists {
+        /// The scene file.
+        path: PathBuf,
+    },
+    /// The name cannot name an area (a folder of the work directory and the scene file's stem).
+    #[error("area name {name:?}: use letters, digits, `-`, `_` and `.`, not starting with `.`")]
+    Name {
+        /// The name given.
+        name: String,
+    },
+    /// An input names no file to read.
+    #[error("{}", input.display())]
+    Input {
+        /// The input as typed.
+        input: PathBuf,
+        /// What it names (or does not).
+        #[source]
+        source: SourcesError,
+    },
+    /// The files of one input are in different CRSs: one `[[sources]]` entry cannot say how to read them.
+    #[error(
+        "{}: the files are in different CRSs ({}); give each CRS its own input (a folder or a glob per \
+         CRS), or --crs to read them all in one",
+        input.display(),
+        crs.iter().map(|(c, f)| format!("{c}: {}", f.display())).collect::<Vec<_>>().join("; ")
+    )]
+    MixedCrs {
+        /// The input as typed.
+        input: PathBuf,
+        /// Each CRS with its first file.
+        crs: Vec<(String, PathBuf)>,
+    },
+    /// The inputs hold no building.
+    #[error("no building in {} file(s) of {}", files, inputs)]
+    NoBuildings {
+        /// Files read.
+        files: usize,
+        /// The inputs, as typed.
+        inputs: String,
+    },
+    /// Reading or placing a file failed, or the written text would not parse (a bug).
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// Writing the scene file failed.
+    #[error(transparent)]
+    File(#[from] FileError),
+}
+
+/// What `init` wrote.
+#[derive(Debug, Clone)]
+pub struct InitReport {
+    /// The scene file written.
+    pub scene_file: PathBuf,
+    /// Its text.
+    pub text: String,
+    /// The survey of all files, in input order.
+    pub survey: Survey,
+    /// Files per input.
+    pub files_per_input: Vec<usize>,
+}
+
+/// Surveys the inputs and writes the scene file (see the module doc).
+///
+/// # Errors
+/// [`InitError`]: an existing file without `force`, a bad name, an input naming nothing, mixed CRSs
+/// within an input, no building, a file that cannot be read or placed, a failed write.
+pub fn init(plan: &InitPlan, progress: &dyn Progress) -> Result<InitReport, InitError> {
+    let ok_name = !plan.name.is_empty()
+        && !plan.name.starts_with('.')
+        && plan.name.chars().all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c));
+    if !ok_name {
+        return Err(InitError::Name { name: plan.name.clone() });
+    }
+    if plan.scene_file.exists() && !plan.force {
+        return Err(InitError::Exists { path: plan.scene_file.clone() });
+    }
+    let mut files = Vec::new();
+    let mut files_per_input = Vec::new();
+    for input in &plan.inputs {
+        let found = sources::expand(&plan.base, input, plan.format)
+            .map_err(|source| InitError::Input { input: input.clone(), source })?;
+        files_per_input.push(found.len());
+        files.extend(found);
+    }
+    let opts = SurveyOptions { lod: plan.lod.clone(), crs: plan.crs.clone(), format: plan.format };
+    let survey = survey::survey(&files, &opts, progress)?;
+    if survey.buildings == 0 {
+        let inputs = plan.inputs.iter().map(|i| i.display().to_string()).collect::<Vec<_>>().join(", ");
+        return Err(InitError::NoBuildings { files: files.len(), inputs });
+    }
+    let mut groups = Vec::new();
+    let mut start = 0;
+    for (input, n) in plan.inputs.iter().zip(&files_per_input) {
+        let group = &survey.files[start..start + n];
+        start += n;
+        let mut crs: Vec<(String, PathBuf)> = Vec::new();
+        for f in group {
+            if !crs.iter().any(|(c, _)| c == &f.crs) {
+                crs.push((f.crs.clone(), f.file.clone()));
+            }
+        }
+        if crs.len() > 1 {
+            return Err(InitError::MixedCrs { input: input.clone(), crs });
+        }
+        groups.push((input.clone(), group));
+    }
+    let text = render(plan, &survey, &groups);
+    let cfg = SceneConfig::parse(&text, &plan.scene_file)?;
+    // The scene file's folder must exist for its relative paths (`../data`) to resolve.
+    if let Some(dir) = plan.scene_file.parent().filter(|d| !d.as_os_str().is_empty()) {
+        util::create_dir_all(dir)?;
+    }
+    for i in 0..cfg.sources.len() {
+        cfg.source_files(&plan.scene_file, i)?;
+    }
+    util::write_atomic::<InitError, _>(&plan.scene_file, |w| {
+        use std::io::Write;
+        w.write_all(text.as_bytes()).map_err(|e| FileError::new("writing", &plan.scene_file, e).into())
+    })?;
+    Ok(InitReport { scene_file: plan.scene_file.clone(), text, survey, files_per_input })
+}
+
+/// A TOML string literal.
+fn quoted(s: &str) -> String {
+    toml::Value::String(s.to_string()).to_string()
+}
+
+/// The scene file's text.
+fn render(plan: &InitPlan, survey: &Survey, groups: &[(PathBuf, &[FileSurvey])]) -> String {
+    let mut t = String::new();
+    let n_files = survey.files.len();
+    let lods = survey.lod.iter().map(|(k, v)| format!("LoD{k}: {v}")).collect::<Vec<_>>().join(", ");
+    let _ = writeln!(
+        t,
+        "# Area {:?}, written by `insgen init` from {n_files} file(s): {} buildings ({lods}).",
+        plan.name, survey.buildings
+    );
+    let _ = writeln!(t, "# Check it, fill in the TODO, then run `insgen prepare --area {}`.", plan.name);
+    let _ = writeln!(t, "# Keys: README \"Your own city\", and the doc of src/scene/config.rs.");
+    let _ = writeln!(t, "name = {}", quoted(&plan.name));
+    let _ = writeln!(
+        t,
+        "split = {}  # train | val | test: which split of a dataset this area's frames go to",
+        quoted(plan.split.as_str())
+    );
+    let crs = survey.crs.join(", ");
+    let _ = writeln!(
+        t,
+        "description = {}",
+        quoted(&format!("{}: {} buildings ({crs})", plan.name, survey.buildings))
+    );
+    let _ = writeln!(t, "# Who made the 3D model and under which licence: copied into every dataset card.");
+    let _ = writeln!(
+        t,
+        "attribution = {}",
+        quoted(&format!("{TODO} the model's maker and licence (e.g. 3D city model © City of X, CC BY 4.0)"))
+    );
+    for (input, files) in groups {
+        render_source(&mut t, plan, input, files);
+    }
+    render_geoid_origin(&mut t, survey);
+    if let (Some(hints), Some(size_m)) = (plan.sampling_hints, survey.size_m) {
+        t.push_str(&hints(size_m));
+    }
+    t
+}
+
+fn render_source(t: &mut String, plan: &InitPlan, input: &Path, files: &[FileSurvey]) {
+    let first = &files[0];
+    let buildings: usize = files.iter().map(|f| f.buildings).sum();
+    let mut formats: Vec<String> = files.iter().map(|f| format!("{:?}", f.format).to_lowercase()).collect();
+    formats.sort();
+    formats.dedup();
+    let _ = writeln!(
+        t,
+        "\n# {}: {} file(s), {buildings} buildings, {}",
+        input.display(),
+        files.len(),
+        formats.join(" + ")
+    );
+    let _ = writeln!(t, "# CRS: {}", first.frame);
+    let _ = writeln!(t, "[[sources]]");
+    let path = scene_relative(&plan.base, input, &plan.scene_file);
+    let kind = if sources::is_glob(input) {
+        "a glob: the matching files, sorted"
+    } else if files.len() > 1 || plan.base.join(input).is_dir() {
+        "a folder: every file inside a reader takes, sorted"
+    } else {
+        "relative to this file"
+    };
+    let _ = writeln!(t, "path = {}  # {kind}", quoted(&path.to_string_lossy()));
+    if let Some(f) = plan.format {
+        let _ = writeln!(
+            t,
+            "format = {}",
+            quoted(&format!("{f:?}").to_lowercase().replace("tiles3d", "3dtiles"))
+        );
+    }
+    match (&plan.crs, &first.crs_declared) {
+        (Some(c), _) => {
+            let _ = writeln!(t, "crs = {}  # from --crs", quoted(c));
+        }
+        (None, Some(d)) => {
+            let _ = writeln!(
+                t,
+                "# crs = {}  # the files declare {d}; set crs only to override it",
+                quoted(&first.crs)
+            );
+        }
+        (None, None) => {}
+    }
+    match &plan.lod {
+        Some(l) => {
+            let _ = writeln!(t, "lod = {}", quoted(l));
+        }
+        None => {
+            let _ = writeln!(t, "# lod = \"2\"  # default: the highest LoD the files have (≤ 2.2)");
+        }
+    }
+    if let Some(r) = files.iter().find_map(|f| f.relative_heights.as_ref()) {
+        let _ = writeln!(
+            t,
+            "# {} building(s) start at z ≈ 0 m although their {} is not 0: heights above the ground?\n\
+             # If so, uncomment:\n# heights = \"above_ground\"\n# ground_attribute = {}",
+            r.buildings,
+            r.attribute,
+            quoted(&r.attribute)
+        );
+    }
+}
+
+fn render_geoid_origin(t: &mut String, survey: &Survey) {
+    let orthometric = survey.files.iter().any(|f| f.heights == HeightKind::Orthometric);
+    let _ = writeln!(t, "\n[geoid]");
+    if orthometric {
+        let _ = writeln!(
+            t,
+            "# The heights are orthometric: EGM96 turns them into ellipsoidal heights. \"proj\" uses the\n\
+             # CRS's national geoid grid when PROJ has it installed (see README, Geo-referencing).\nmodel = \"egm96\""
+        );
+    } else {
+        let _ = writeln!(t, "model = \"none\"  # the heights are ellipsoidal already");
+    }
+    let (Some(e), Some(c), Some(size)) = (survey.extent_deg, survey.centre_deg, survey.size_m) else {
+        return;
+    };
+    let _ = writeln!(
+        t,
+        "\n# The centre of the buildings' extent, the default origin of `prepare`, pinned so that more files\n\
+         # later do not move the area's frame. h_m (ellipsoidal) defaults to the median building base.\n\
+         [origin]\nlat_deg = {:.8}\nlon_deg = {:.8}",
+        c.lat_deg, c.lon_deg
+    );
+    let _ = writeln!(
+        t,
+        "\n# Optional: keep only the buildings inside (default: all). The extent, {:.0} m × {:.0} m:\n\
+         # [area]\n# bbox_deg = [{:.7}, {:.7}, {:.7}, {:.7}]  # lon_min, lat_min, lon_max, lat_max",
+        size[0], size[1], e.lon_min_deg, e.lat_min_deg, e.lon_max_deg, e.lat_max_deg
+    );
+}
+
+/// `input` (relative to `base` unless absolute) as the scene file at `scene_file` names it: relative
+/// to the scene file's folder when the input was relative, else as given.
+pub fn scene_relative(base: &Path, input: &Path, scene_file: &Path) -> PathBuf {
+    if input.is_absolute() {
+        return input.to_path_buf();
+    }
+    let target = normalize(&base.join(input));
+    let dir = normalize(&base.join(scene_file.parent().unwrap_or(Path::new(""))));
+    let (t, d): (Vec<Component>, Vec<Component>) =
+        (target.components().collect(), dir.components().collect());
+    let common = t.iter().zip(&d).take_while(|(a, b)| a == b).count();
+    let mut out = PathBuf::new();
+    for _ in common..d.len() {
+        out.push("..");
+    }
+    for c in &t[common..] {
+        out.push(c.as_os_str());
+    }
+    if out.as_os_str().is_empty() {
+        out.push(".");
+    }
+    out
+}
+
+/// `p` without `.` components and with `..` applied to what precedes it (lexically: no file system
+/// access, so globs and missing paths work too).
+fn normalize(p: &Path) -> PathBuf {
+    let mut out: Vec<Component> = Vec::new();
+    for c in p.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir if matches!(out.last(), Some(Component::Normal(_))) => {
+                out.pop();
+            }
+            c => out.push(c),
+        }
+    }
+    out.iter().map(|c| c.as_os_str()).collect()
+}
