@@ -53,3 +53,30 @@ pub fn sampling_hints(size: [f64; 2]) -> String {
     }
     t
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The hints parse as the scene file's `[sampling]` table.
+    fn parsed(text: &str) -> SamplingConfig {
+        SamplingConfig::from_scene_toml(text, Some(std::path::Path::new("x.toml"))).unwrap()
+    }
+
+    #[test]
+    fn a_city_keeps_the_defaults() {
+        let t = sampling_hints([2000.0, 1500.0]);
+        assert!(t.contains("a 100 m lattice: 300 node(s) here"), "{t}");
+        assert_eq!(parsed(&t), SamplingConfig::default());
+    }
+
+    #[test]
+    fn a_small_area_gets_a_closer_lattice() {
+        let t = sampling_hints([250.0, 180.0]);
+        let cfg = parsed(&t);
+        // min(250, 180) / 3 = 60 m → 4 × 3 nodes.
+        assert_eq!(cfg.grid.spacing_m, 60.0);
+        assert!(t.contains("60 m gives 12 node(s)"), "{t}");
+        assert_eq!(cfg.grid.height_range_m, SamplingConfig::default().grid.height_range_m);
+    }
+}

@@ -360,3 +360,163 @@ fn normalize(p: &Path) -> PathBuf {
     }
     out.iter().map(|c| c.as_os_str()).collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::util::NoProgress;
+
+    /// A 4 m cube as CityJSON, its south-west corner at `en_m` in `crs_url` (None: no CRS declared).
+    fn cube(path: &Path, en_m: [f64; 2], crs_url: Option<&str>) {
+        let meta =
+            crs_url.map_or(String::new(), |u| format!("\"metadata\": {{\"referenceSystem\": \"{u}\"}},"));
+        let text = format!(
+            "{{\"type\": \"CityJSON\", \"version\": \"2.0\", {meta}\
+             \"transform\": {{\"scale\": [0.001, 0.001, 0.001], \"translate\": [{}, {}, 0.0]}},\
+             \"CityObjects\": {{\"c{}\": {{\"type\": \"Building\", \"geometry\": [{{\"type\": \"Solid\", \"lod\": \"2\", \
+             \"boundaries\": [[[[0, 3, 2, 1]], [[4, 5, 6, 7]], [[0, 1, 5, 4]], [[1, 2, 6, 5]], [[2, 3, 7, 6]], \
+             [[3, 0, 4, 7]]]]}}]}}}},\
+             \"vertices\": [[0, 0, 0], [4000, 0, 0], [4000, 4000, 0], [0, 4000, 0], [0, 0, 3000], [4000, 0, 3000], \
+             [4000, 4000, 3000], [0, 4000, 3000]]}}",
+            en_m[0], en_m[1], en_m[0]
+        );
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(path, text).unwrap();
+    }
+
+    const RD: &str = "https://www.opengis.net/def/crs/EPSG/0/7415";
+
+    fn plan(dir: &Path, inputs: &[&str]) -> InitPlan {
+        InitPlan {
+            name: "city".into(),
+            scene_file: dir.join("scenes/city.toml"),
+            inputs: inputs.iter().map(PathBuf::from).collect(),
+            base: dir.to_path_buf(),
+            split: Split::Val,
+            crs: None,
+            format: None,
+            lod: None,
+            force: false,
+            sampling_hints: None,
+        }
+    }
+
+    mod writes {
+        use super::*;
+
+        #[test]
+        fn origin_is_the_centre_of_the_extent_and_the_file_parses_back() {
+            let d = tempfile::tempdir().unwrap();
+            cube(&d.path().join("city/a.city.json"), [85_000.0, 447_000.0], Some(RD));
+            cube(&d.path().join("city/sub/b.city.json"), [85_300.0, 447_200.0], Some(RD));
+            let r = init(&plan(d.path(), &["city"]), &NoProgress).unwrap();
+            assert_eq!(r.files_per_input, [2]);
+            let cfg = SceneConfig::load(&r.scene_file).unwrap();
+            assert_eq!((cfg.name.as_str(), cfg.split), ("city", Split::Val));
+            assert_eq!(cfg.sources[0].path.as_deref(), Some(Path::new("../city")));
+            assert_eq!(cfg.source_files(&r.scene_file, 0).unwrap().len(), 2);
+            // The reference: the footprint corners of both cubes through PROJ (every vertex lies above
+            // one of them), the centre of their latitude and longitude ranges.
+            let tf = crate::geo::Crs::parse("EPSG:7415").unwrap().transform().unwrap();
+            let mut lat = [f64::INFINITY, f64::NEG_INFINITY];
+            let mut lon = [f64::INFINITY, f64::NEG_INFINITY];
+            for (e, n) in [(85_000.0, 447_000.0), (85_300.0, 447_200.0)] {
+                for (de, dn) in [(0.0, 0.0), (4.0, 0.0), (4.0, 4.0), (0.0, 4.0)] {
+                    let g =
+                        tf.to_geodetic([e + de, n + dn, 0.0], crate::geo::AxisConvention::EastNorth).unwrap();
+                    lat = [lat[0].min(g.lat_deg), lat[1].max(g.lat_deg)];
+                    lon = [lon[0].min(g.lon_deg), lon[1].max(g.lon_deg)];
+                }
+            }
+            let o = cfg.origin.unwrap();
+            // init writes 8 decimals: within 5e-9° (≈ 0.5 mm) of the exact centre.
+            assert!((o.lat_deg - 0.5 * (lat[0] + lat[1])).abs() <= 5e-9, "{o:?} vs {lat:?}");
+            assert!((o.lon_deg - 0.5 * (lon[0] + lon[1])).abs() <= 5e-9, "{o:?} vs {lon:?}");
+            assert!(o.h_m.is_none(), "prepare takes the median building base");
+            assert_eq!(cfg.geoid.model, crate::scene::config::GeoidModel::Egm96, "EPSG:7415: NAP heights");
+            assert!(r.text.contains("# crs = \"EPSG:7415\""), "{}", r.text);
+        }
+
+        #[test]
+        fn an_existing_file_is_kept_unless_forced() {
+            let d = tempfile::tempdir().unwrap();
+            cube(&d.path().join("a.city.json"), [85_000.0, 447_000.0], Some(RD));
+            let mut p = plan(d.path(), &["a.city.json"]);
+            std::fs::create_dir_all(d.path().join("scenes")).unwrap();
+            std::fs::write(&p.scene_file, "mine").unwrap();
+            let e = init(&p, &NoProgress).unwrap_err();
+            assert!(matches!(&e, InitError::Exists { path } if path == &p.scene_file), "{e}");
+            assert_eq!(std::fs::read_to_string(&p.scene_file).unwrap(), "mine");
+            p.force = true;
+            init(&p, &NoProgress).unwrap();
+            let cfg = SceneConfig::load(&p.scene_file).unwrap();
+            assert_eq!(cfg.sources[0].path.as_deref(), Some(Path::new("../a.city.json")));
+        }
+
+        #[test]
+        fn a_file_without_crs_takes_the_one_given() {
+            let d = tempfile::tempdir().unwrap();
+            cube(&d.path().join("a.city.json"), [85_000.0, 447_000.0], None);
+            let mut p = plan(d.path(), &["a.city.json"]);
+            let e = crate::util::error_chain(&init(&p, &NoProgress).unwrap_err());
+            assert!(e.contains("a.city.json: the file declares no CRS") && e.contains("--crs"), "{e}");
+            p.crs = Some("EPSG:7415".into());
+            init(&p, &NoProgress).unwrap();
+            let cfg = SceneConfig::load(&p.scene_file).unwrap();
+            assert_eq!(cfg.sources[0].crs.as_deref(), Some("EPSG:7415"));
+        }
+    }
+
+    mod errors {
+        use super::*;
+
+        #[test]
+        fn mixed_crs_in_one_input_names_each_with_a_file() {
+            let d = tempfile::tempdir().unwrap();
+            cube(&d.path().join("mix/a.city.json"), [85_000.0, 447_000.0], Some(RD));
+            cube(&d.path().join("mix/b.city.json"), [690_000.0, 5_335_000.0], Some("EPSG:25832"));
+            let e = init(&plan(d.path(), &["mix/"]), &NoProgress).unwrap_err();
+            let InitError::MixedCrs { input, crs } = &e else { panic!("{e:?}") };
+            assert_eq!(input, Path::new("mix/"));
+            assert_eq!(crs.iter().map(|(c, _)| c.as_str()).collect::<Vec<_>>(), ["EPSG:7415", "EPSG:25832"]);
+            assert!(e.to_string().contains("b.city.json"), "{e}");
+            assert!(!d.path().join("scenes/city.toml").exists());
+            // One input per CRS works.
+            init(&plan(d.path(), &["mix/a.city.json", "mix/b*.json"]), &NoProgress).unwrap();
+        }
+
+        #[test]
+        fn inputs_naming_nothing_and_bad_names() {
+            let d = tempfile::tempdir().unwrap();
+            let e = init(&plan(d.path(), &["tiles/*.gml"]), &NoProgress).unwrap_err();
+            assert!(matches!(&e, InitError::Input { source: SourcesError::NoMatch { .. }, .. }), "{e:?}");
+            let chain = crate::util::error_chain(&e);
+            assert!(chain.contains("tiles/*.gml: the pattern matches no file"), "{chain}");
+            for bad in ["", ".hidden", "a/b", "a b"] {
+                let mut p = plan(d.path(), &["x"]);
+                p.name = bad.into();
+                assert!(matches!(init(&p, &NoProgress), Err(InitError::Name { .. })), "{bad:?}");
+            }
+        }
+    }
+
+    mod paths {
+        use super::*;
+
+        #[test]
+        fn inputs_are_named_from_the_scene_file() {
+            let b = Path::new("/home/u/work");
+            let s = Path::new("scenes/x.toml");
+            assert_eq!(scene_relative(b, Path::new("data/city/"), s), Path::new("../data/city"));
+            assert_eq!(scene_relative(b, Path::new("./data/*.gml"), s), Path::new("../data/*.gml"));
+            assert_eq!(scene_relative(b, Path::new("../other/a.gml"), s), Path::new("../../other/a.gml"));
+            assert_eq!(scene_relative(b, Path::new("/abs/a.gml"), s), Path::new("/abs/a.gml"));
+            assert_eq!(scene_relative(b, Path::new("scenes/a.gml"), s), Path::new("a.gml"));
+            assert_eq!(
+                scene_relative(b, Path::new("a.gml"), Path::new("/elsewhere/x.toml")),
+                Path::new("../home/u/work/a.gml")
+            );
+            assert_eq!(scene_relative(b, Path::new("scenes"), s), Path::new("."));
+        }
+    }
+}

@@ -230,7 +230,7 @@ mod tests {
         use super::*;
 
         #[test]
-        fn readable_files_recursively_in_byte_order() {
+        fn readable_files_recursively_in_path_order() {
             let d = tempfile::tempdir().unwrap();
             for f in [
                 "b/2.gml",
@@ -289,7 +289,7 @@ mod tests {
         use super::*;
 
         #[test]
-        fn star_and_double_star_in_byte_order() {
+        fn star_and_double_star_in_path_order() {
             let d = tempfile::tempdir().unwrap();
             for f in ["udx/bldg/b.gml", "udx/bldg/a.gml", "udx/bldg/sub/c.gml", "udx/tran/t.gml", "x.gml"] {
                 touch(d.path(), f);

@@ -35,6 +35,7 @@ mod lod_obj;
 mod lod_tiles3d;
 mod lod_tiles3d_generated;
 mod masks_tileset;
+mod onboard;
 mod render_analytic;
 mod render_cpu_agreement;
 mod render_depth_coverage;
