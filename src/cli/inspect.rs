@@ -203,7 +203,9 @@ pub fn summary_text(s: &Survey) -> String {
 /// The extent lines: in the source CRS (when there is one), in WGS84, its size and its centre.
 fn extent_lines(s: &Survey, line: &mut impl FnMut(&str, String)) {
     let src: Vec<&SourceExtent> = s.files.iter().filter_map(|f| f.extent_source.as_ref()).collect();
-    if s.crs.len() == 1 && !src.is_empty() {
+    // One frame for all files (one CRS, or none declared by any): their source extents add up.
+    let one_frame = s.files.windows(2).all(|w| w[0].crs == w[1].crs);
+    if one_frame && !src.is_empty() {
         let mut lo = [f64::INFINITY; 3];
         let mut hi = [f64::NEG_INFINITY; 3];
         for e in &src {
@@ -213,7 +215,11 @@ fn extent_lines(s: &Survey, line: &mut impl FnMut(&str, String)) {
             }
         }
         let axes = &src[0].axes;
-        let parts: Vec<String> = (0..3).map(|k| format!("{} {:.3} … {:.3}", axes[k], lo[k], hi[k])).collect();
+        // Millimetres, or about a centimetre in degrees.
+        let digits = |k: usize| if src[0].units[k].contains("degree") { 7 } else { 3 };
+        let parts: Vec<String> = (0..3)
+            .map(|k| format!("{} {:.*} … {:.*}", axes[k], digits(k), lo[k], digits(k), hi[k]))
+            .collect();
         line("extent", format!("{} (source CRS)", parts.join(", ")));
     }
     if let (Some(e), Some(c), Some(size)) = (s.extent_deg, s.centre_deg, s.size_m) {
@@ -221,7 +227,7 @@ fn extent_lines(s: &Survey, line: &mut impl FnMut(&str, String)) {
             "lon {:.7} … {:.7}, lat {:.7} … {:.7} (WGS84, degrees)",
             e.lon_min_deg, e.lon_max_deg, e.lat_min_deg, e.lat_max_deg
         );
-        line(if s.crs.len() == 1 { "" } else { "extent" }, ll);
+        line(if one_frame { "" } else { "extent" }, ll);
         line("size", format!("{:.0} m west–east × {:.0} m south–north", size[0], size[1]));
         line(
             "centre",

@@ -92,6 +92,12 @@ pub enum InitError {
         /// Each CRS with its first file.
         crs: Vec<(String, PathBuf)>,
     },
+    /// A file declares no CRS and none was given.
+    #[error("{}: the file declares no CRS; pass --crs EPSG:NNNN (the CRS of its coordinates)", file.display())]
+    NoCrs {
+        /// The file.
+        file: PathBuf,
+    },
     /// The inputs hold no building.
     #[error("no building in {} file(s) of {}", files, inputs)]
     NoBuildings {
@@ -136,6 +142,8 @@ pub fn init(plan: &InitPlan, progress: &dyn Progress) -> Result<InitReport, Init
     if plan.scene_file.exists() && !plan.force {
         return Err(InitError::Exists { path: plan.scene_file.clone() });
     }
+    let inputs = collapse_shell_globs(&plan.base, &plan.inputs, plan.format);
+    let plan = &InitPlan { inputs, ..plan.clone() };
     let mut files = Vec::new();
     let mut files_per_input = Vec::new();
     for input in &plan.inputs {
@@ -146,6 +154,9 @@ pub fn init(plan: &InitPlan, progress: &dyn Progress) -> Result<InitReport, Init
     }
     let opts = SurveyOptions { lod: plan.lod.clone(), crs: plan.crs.clone(), format: plan.format };
     let survey = survey::survey(&files, &opts, progress)?;
+    if let Some(f) = survey.files.iter().find(|f| f.crs.is_none()) {
+        return Err(InitError::NoCrs { file: f.file.clone() });
+    }
     if survey.buildings == 0 {
         let inputs = plan.inputs.iter().map(|i| i.display().to_string()).collect::<Vec<_>>().join(", ");
         return Err(InitError::NoBuildings { files: files.len(), inputs });
@@ -157,8 +168,9 @@ pub fn init(plan: &InitPlan, progress: &dyn Progress) -> Result<InitReport, Init
         start += n;
         let mut crs: Vec<(String, PathBuf)> = Vec::new();
         for f in group {
-            if !crs.iter().any(|(c, _)| c == &f.crs) {
-                crs.push((f.crs.clone(), f.file.clone()));
+            let c = f.crs.clone().expect("checked above: every file has a CRS");
+            if !crs.iter().any(|(k, _)| k == &c) {
+                crs.push((c, f.file.clone()));
             }
         }
         if crs.len() > 1 {
@@ -180,6 +192,48 @@ pub fn init(plan: &InitPlan, progress: &dyn Progress) -> Result<InitReport, Init
         w.write_all(text.as_bytes()).map_err(|e| FileError::new("writing", &plan.scene_file, e).into())
     })?;
     Ok(InitReport { scene_file: plan.scene_file.clone(), text, survey, files_per_input })
+}
+
+/// The inputs with every run of two or more files that is exactly what `<folder>/*.<ext>` matches
+/// (a glob the shell expanded before `init` saw it) replaced by that glob, so that the scene file
+/// keeps one `[[sources]]` per glob, as if it had been quoted.
+fn collapse_shell_globs(base: &Path, inputs: &[PathBuf], format: Option<Format>) -> Vec<PathBuf> {
+    let key = |p: &Path| -> Option<(PathBuf, String)> {
+        let full = base.join(p);
+        if sources::is_glob(p) || !full.is_file() {
+            return None;
+        }
+        let ext = p.file_name()?.to_str()?.rsplit_once('.')?.1.to_string();
+        Some((p.parent()?.to_path_buf(), ext))
+    };
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < inputs.len() {
+        let Some(k) = key(&inputs[i]) else {
+            out.push(inputs[i].clone());
+            i += 1;
+            continue;
+        };
+        let run = inputs[i..].iter().take_while(|p| key(p).as_ref() == Some(&k)).count();
+        let glob = k.0.join(format!("*.{}", k.1));
+        let given: std::collections::BTreeSet<PathBuf> =
+            inputs[i..i + run].iter().map(|p| normalize(&base.join(p))).collect();
+        let matched =
+            sources::expand(base, &glob, format).ok().map(|m| m.iter().map(|p| normalize(p)).collect());
+        if run > 1 && matched.as_ref() == Some(&given) {
+            log::info!(
+                "{} files of {} are what {} matches: written as that glob",
+                run,
+                k.0.display(),
+                glob.display()
+            );
+            out.push(glob);
+        } else {
+            out.extend(inputs[i..i + run].iter().cloned());
+        }
+        i += run;
+    }
+    out
 }
 
 /// A TOML string literal.
@@ -266,7 +320,7 @@ fn render_source(t: &mut String, plan: &InitPlan, input: &Path, files: &[FileSur
             let _ = writeln!(
                 t,
                 "# crs = {}  # the files declare {d}; set crs only to override it",
-                quoted(&first.crs)
+                quoted(first.crs.as_deref().unwrap_or(d))
             );
         }
         (None, None) => {}
@@ -502,6 +556,24 @@ mod tests {
 
     mod paths {
         use super::*;
+
+        #[test]
+        fn files_the_shell_expanded_from_a_glob_become_that_glob() {
+            let d = tempfile::tempdir().unwrap();
+            for n in ["a", "b", "c"] {
+                cube(&d.path().join(format!("t/{n}.city.json")), [85_000.0, 447_000.0], Some(RD));
+            }
+            let all: Vec<PathBuf> =
+                ["t/a.city.json", "t/b.city.json", "t/c.city.json"].map(PathBuf::from).to_vec();
+            assert_eq!(collapse_shell_globs(d.path(), &all, None), [PathBuf::from("t/*.json")]);
+            // Two of three are not what the glob matches: kept as they are.
+            assert_eq!(collapse_shell_globs(d.path(), &all[..2], None), &all[..2]);
+            let r = init(&plan(d.path(), &["t/a.city.json", "t/b.city.json", "t/c.city.json"]), &NoProgress)
+                .unwrap();
+            let cfg = SceneConfig::load(&r.scene_file).unwrap();
+            assert_eq!(cfg.sources.len(), 1);
+            assert_eq!(cfg.sources[0].path.as_deref(), Some(Path::new("../t/*.json")));
+        }
 
         #[test]
         fn inputs_are_named_from_the_scene_file() {

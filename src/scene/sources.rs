@@ -26,7 +26,7 @@ use crate::util::FileError;
 #[derive(Debug, thiserror::Error)]
 pub enum SourcesError {
     /// The path is neither a file nor a folder, and no glob.
-    #[error("{}: no such file or folder", path.display())]
+    #[error("{}: does not exist", path.display())]
     Missing {
         /// The path, resolved against the base folder.
         path: PathBuf,
@@ -281,7 +281,7 @@ mod tests {
                 "{e}"
             );
             let e = expand(d.path(), Path::new("nowhere"), None).unwrap_err().to_string();
-            assert!(e.ends_with("nowhere: no such file or folder"), "{e}");
+            assert!(e.ends_with("nowhere: does not exist"), "{e}");
         }
     }
 

@@ -98,6 +98,8 @@ pub struct LonLat {
 pub struct SourceExtent {
     /// The axes in the file's order (`E`, `N`, `h`; `Lat`, `Lon`, `h`; `X`, `Y`, `Z`).
     pub axes: [String; 3],
+    /// The unit of each axis (`metre`, `degree`, `US survey foot`; metres without a CRS).
+    pub units: [String; 3],
     /// Smallest coordinate per axis, in the CRS's units.
     pub min: [f64; 3],
     /// Largest coordinate per axis.
@@ -133,8 +135,9 @@ pub struct FileSurvey {
     pub file: PathBuf,
     /// The reader that read it.
     pub format: Format,
-    /// The CRS the coordinates are read in (the override, else the file's; `EPSG:4978` for 3D Tiles).
-    pub crs: String,
+    /// The CRS the coordinates are read in (the override, else the file's; `EPSG:4978` for 3D Tiles);
+    /// `None` when the file declares none and none was given (its extent in degrees is then unknown).
+    pub crs: Option<String>,
     /// The CRS the file itself declares, if any.
     pub crs_declared: Option<String>,
     /// PROJ's description of the CRS and the axis order, in words.
@@ -194,7 +197,8 @@ pub struct Survey {
 ///
 /// # Errors
 /// The first file (in order) that cannot be read ([`SceneError::Lod`]) or whose CRS cannot be placed
-/// on the globe ([`SceneError::Georef`] naming the file and the CRS).
+/// on the globe ([`SceneError::Georef`] naming the file and the CRS). A file without any CRS is no
+/// error: its [`FileSurvey::crs`] is `None`.
 pub fn survey(
     files: &[PathBuf],
     opts: &SurveyOptions,
@@ -217,8 +221,8 @@ pub fn survey(
         for (k, n) in &f.lod {
             *lod.entry(k.clone()).or_default() += n;
         }
-        if !crs.contains(&f.crs) {
-            crs.push(f.crs.clone());
+        if let Some(c) = f.crs.as_ref().filter(|c| !crs.contains(c)) {
+            crs.push(c.clone());
         }
     }
     let extent_deg = files.iter().filter_map(|f| f.extent_deg).reduce(|a, b| a.union(&b));
@@ -272,7 +276,7 @@ pub fn survey_file(file: &Path, opts: &SurveyOptions) -> Result<FileSurvey, Scen
                 hi[k] = hi[k].max(p[k]);
             }
         }
-        for g in frame.to_geodetic(&points, &model.path, &b.source_id)? {
+        for g in frame.to_geodetic(&points, &model.path, &b.source_id)?.into_iter().flatten() {
             extent_deg.add(g.lon_deg, g.lat_deg);
         }
     }
@@ -299,8 +303,13 @@ pub fn survey_file(file: &Path, opts: &SurveyOptions) -> Result<FileSurvey, Scen
             coloured_faces: app.coloured_faces,
         },
         stats: model.stats.clone(),
-        extent_source: has.then(|| SourceExtent { axes: frame.axes.clone(), min: lo, max: hi }),
-        extent_deg: has.then_some(extent_deg),
+        extent_source: has.then(|| SourceExtent {
+            axes: frame.axes.clone(),
+            units: frame.units.clone(),
+            min: lo,
+            max: hi,
+        }),
+        extent_deg: (has && frame.crs_id.is_some()).then_some(extent_deg),
         first_source_ids: model.buildings.iter().take(5).map(|b| b.source_id.clone()).collect(),
         relative_heights: lod::relative_heights(&model)
             .map(|r| RelativeHeightsNote { buildings: r.buildings, attribute: r.attribute }),
@@ -316,38 +325,39 @@ pub fn polygon_triangles(p: &lod::Polygon) -> u64 {
 
 /// A file's coordinates as `prepare` reads them: ECEF, or a CRS through PROJ.
 struct SourceFrame {
-    crs_id: String,
+    /// `None`: the file declares no CRS and none was given.
+    crs_id: Option<String>,
     describe: String,
     heights: HeightKind,
     axes: [String; 3],
+    units: [String; 3],
     conversion: Option<(geo::CrsTransform, AxisConvention)>,
 }
 
 impl SourceFrame {
     /// The file's frame, with `over` (a source's `crs`) replacing the CRS it declares.
     fn resolve(model: &SourceModel, over: Option<&str>) -> Result<SourceFrame, SceneError> {
-        let (name, axes) =
-            match (&model.frame, over) {
-                (Frame::Ecef, _) => {
-                    return Ok(SourceFrame {
-                        crs_id: "EPSG:4978".into(),
-                        describe: "EPSG:4978 (ECEF, X, Y, Z; ellipsoidal heights)".into(),
-                        heights: HeightKind::Ellipsoidal,
-                        axes: ["X".into(), "Y".into(), "Z".into()],
-                        conversion: None,
-                    })
-                }
-                (Frame::Crs { axes, .. }, Some(o)) => (o.to_string(), *axes),
-                (Frame::Crs { name: Some(n), axes }, None) => (n.clone(), *axes),
-                (Frame::Crs { name: None, .. }, None) => return Err(SceneError::Georef {
-                    path: model.path.clone(),
-                    what:
-                        "the file declares no CRS; name it (`crs = \"EPSG:NNNN\"` in the scene file, `--crs \
-                           EPSG:NNNN` on the command line)"
-                            .into(),
-                    source: None,
-                }),
-            };
+        let unplaced = |crs_id: Option<String>, describe: &str, heights, axes: [&str; 3]| SourceFrame {
+            crs_id,
+            describe: describe.into(),
+            heights,
+            axes: axes.map(String::from),
+            units: ["metre", "metre", "metre"].map(String::from),
+            conversion: None,
+        };
+        let (name, axes) = match (&model.frame, over) {
+            (Frame::Ecef, _) => {
+                let d = "EPSG:4978 (ECEF, X, Y, Z; ellipsoidal heights)";
+                return Ok(unplaced(Some("EPSG:4978".into()), d, HeightKind::Ellipsoidal, ["X", "Y", "Z"]));
+            }
+            (Frame::Crs { axes, .. }, Some(o)) => (o.to_string(), *axes),
+            (Frame::Crs { name: Some(n), axes }, None) => (n.clone(), *axes),
+            (Frame::Crs { name: None, .. }, None) => {
+                let d = "none declared (give one: `crs = \"EPSG:NNNN\"` in the scene file, --crs here)";
+                // Orthometric: what `prepare` assumes of a projected CRS without a vertical one.
+                return Ok(unplaced(None, d, HeightKind::Orthometric, ["x", "y", "z"]));
+            }
+        };
         let err = |e| SceneError::Georef {
             path: model.path.clone(),
             what: format!("CRS {name:?}"),
@@ -356,12 +366,14 @@ impl SourceFrame {
         let crs = Crs::parse(&name).map_err(err)?;
         let tf = crs.transform().map_err(err)?;
         let heights = crs.heights();
-        let mut names: Vec<String> = crs.axes.iter().map(|a| a.abbrev.clone()).collect();
+        let mut names: Vec<(String, String)> =
+            crs.axes.iter().map(|a| (a.abbrev.clone(), a.unit.clone())).collect();
         if axes == AxisConvention::EastNorth && names.len() >= 2 && crs.axes[0].direction.starts_with("north")
         {
             names.swap(0, 1);
         }
-        names.resize(3, "h".into());
+        // A 2D CRS: the heights are metres above its (implied) vertical datum.
+        names.resize(3, ("h".into(), "metre".into()));
         let axes_words = match axes {
             AxisConvention::Authority => "authority axis order",
             AxisConvention::EastNorth => "east/north axis order",
@@ -371,22 +383,27 @@ impl SourceFrame {
             HeightKind::Ellipsoidal => "ellipsoidal heights",
         };
         Ok(SourceFrame {
-            crs_id: crs.id(),
+            crs_id: Some(crs.id()),
             describe: format!("{} ({axes_words}, {heights_words})", crs.describe()),
             heights,
-            axes: [names[0].clone(), names[1].clone(), names[2].clone()],
+            axes: [names[0].0.clone(), names[1].0.clone(), names[2].0.clone()],
+            units: [names[0].1.clone(), names[1].1.clone(), names[2].1.clone()],
             conversion: Some((tf, axes)),
         })
     }
 
-    /// Latitudes and longitudes of `points` (their heights are not used).
-    fn to_geodetic(&self, points: &[[f64; 3]], file: &Path, id: &str) -> Result<Vec<Geodetic>, SceneError> {
+    /// Latitudes and longitudes of `points` (their heights are not used); `None` without a CRS.
+    fn to_geodetic(
+        &self,
+        points: &[[f64; 3]],
+        file: &Path,
+        id: &str,
+    ) -> Result<Option<Vec<Geodetic>>, SceneError> {
         match &self.conversion {
-            None => Ok(points.iter().map(|&p| geo::ecef_to_geodetic(p)).collect()),
-            Some((tf, axes)) => tf.to_geodetic_many(points, *axes).map_err(|e| SceneError::Georef {
-                path: file.into(),
-                what: format!("building {id}"),
-                source: Some(e),
+            None if self.crs_id.is_none() => Ok(None),
+            None => Ok(Some(points.iter().map(|&p| geo::ecef_to_geodetic(p)).collect())),
+            Some((tf, axes)) => tf.to_geodetic_many(points, *axes).map(Some).map_err(|e| {
+                SceneError::Georef { path: file.into(), what: format!("building {id}"), source: Some(e) }
             }),
         }
     }
