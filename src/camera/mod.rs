@@ -19,6 +19,7 @@ pub mod config;
 pub mod error;
 pub mod flight_plan;
 pub mod grid;
+pub mod hints;
 pub mod intrinsics;
 pub mod irregular;
 pub mod pose;

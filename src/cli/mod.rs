@@ -15,6 +15,7 @@ pub mod export_hf;
 pub mod export_panoptic;
 pub mod export_tiles;
 pub mod export_yolo;
+pub mod init;
 pub mod inspect;
 pub mod merge;
 pub mod prepare;
@@ -34,7 +35,8 @@ use clap::{Parser, Subcommand};
 #[derive(Debug, Parser)]
 #[command(name = "insgen", version, about, max_term_width = 100)]
 #[command(
-    after_long_help = "Typical run:\n  insgen prepare --area demo\n  insgen sample --area demo --camera cam2\n  \
+    after_long_help = "Typical run (your own city: `insgen init NAME FOLDER` writes scenes/NAME.toml; use --area NAME):\n  \
+insgen prepare --area demo\n  insgen sample --area demo --camera cam2\n  \
 insgen render-masks --area demo --camera cam2\n  insgen render-rgb --area demo --camera cam2\n  \
 insgen export-coco\n  insgen verify runs/coco\n\nOr all at once on the embedded city: insgen demo\n\n\
 Other formats: insgen export-panoptic, insgen export-yolo, insgen export-hf, insgen export-tiles --area demo\n\
@@ -81,6 +83,8 @@ impl Global {
 #[allow(clippy::large_enum_variant)]
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    /// Write a commented scene file for a new area from its building-model files.
+    Init(init::Args),
     /// Read an area's LoD models and write its instanced scene (GLB + manifest + building table).
     Prepare(prepare::Args),
     /// Run the whole pipeline on the embedded procedural demo city.
@@ -123,6 +127,7 @@ impl Command {
     /// The subcommand as typed (`render-masks`).
     pub fn name(&self) -> &'static str {
         match self {
+            Command::Init(_) => "init",
             Command::Prepare(_) => "prepare",
             Command::Demo(_) => "demo",
             Command::Sample(_) => "sample",
@@ -151,6 +156,7 @@ pub fn run_logged(cli: Cli, argv: &[String]) -> anyhow::Result<()> {
     let logged = !matches!(
         cli.command,
         Command::Demo(_)
+            | Command::Init(_)
             | Command::Inspect(_)
             | Command::Verify(_)
             | Command::Completions(_)
@@ -181,6 +187,7 @@ pub fn run_logged(cli: Cli, argv: &[String]) -> anyhow::Result<()> {
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     let g = &cli.global;
     match &cli.command {
+        Command::Init(a) => init::run(a, g),
         Command::Prepare(a) => prepare::run(a, g),
         Command::Demo(a) => demo::run(a, g),
         Command::Sample(a) => sample::run(a, g),

@@ -8,6 +8,7 @@
 //!
 //! [[sources]]
 //! path = "../../shared/data/jp_tokyo_shibuya_plateau_3dtiles/tileset.json"  # relative to this file
+//! # path = "plateau/udx/bldg/*.gml"  # or a glob, or a folder (see scene::sources)
 //! format = "3dtiles"             # optional: citygml | cityjson | obj | 3dtiles | procedural
 //! crs = "EPSG:6697"              # optional override; required when the file declares none
 //! lod = "2"                      # optional LoD choice
@@ -113,8 +114,8 @@ fn default_split() -> Split {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SourceConfig {
-    /// Path of the file (or tileset.json), relative to the scene file's directory. Not used by
-    /// `format = "procedural"`.
+    /// Path of the file (or tileset.json), a folder or a glob (`udx/bldg/*.gml`; see
+    /// [`super::sources`]), relative to the scene file's directory. Not used by `format = "procedural"`.
     #[serde(default)]
     pub path: Option<PathBuf>,
     /// `citygml`, `cityjson`, `obj`, `3dtiles` or `procedural` (default: from the file name).
@@ -156,6 +157,20 @@ pub struct SourceConfig {
     /// white walls); the procedural look is then closer to a photograph.
     #[serde(default)]
     pub materials: Option<bool>,
+}
+
+impl SourceConfig {
+    /// The reader `format` names (`None`: from each file's name, or procedural).
+    pub fn format(&self) -> Option<crate::lod::Format> {
+        use crate::lod::Format;
+        match self.format.as_deref() {
+            Some("citygml") => Some(Format::CityGml),
+            Some("cityjson") => Some(Format::CityJson),
+            Some("obj") => Some(Format::Obj),
+            Some("3dtiles") => Some(Format::Tiles3d),
+            _ => None,
+        }
+    }
 }
 
 /// What a source's heights are measured from.
@@ -245,7 +260,15 @@ impl SceneConfig {
     pub fn load(path: &Path) -> Result<SceneConfig, SceneError> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| SceneError::File(crate::util::FileError::new("reading", path, e)))?;
-        let cfg: SceneConfig = toml::from_str(&text)
+        SceneConfig::parse(&text, path)
+    }
+
+    /// Parses and checks the text of a scene file that is (or will be) at `path`.
+    ///
+    /// # Errors
+    /// As [`SceneConfig::load`], less the reading.
+    pub fn parse(text: &str, path: &Path) -> Result<SceneConfig, SceneError> {
+        let cfg: SceneConfig = toml::from_str(text)
             .map_err(|e| SceneError::ConfigToml { path: path.into(), source: Box::new(e) })?;
         cfg.validate(path)?;
         Ok(cfg)
@@ -329,6 +352,24 @@ impl SceneConfig {
             }
         }
         Ok(())
+    }
+
+    /// The files of `sources[index]` (one, or those its folder or glob names; see [`super::sources`]),
+    /// resolved against the scene file's directory, in their sorted order. Empty for a procedural
+    /// source.
+    ///
+    /// # Errors
+    /// [`SceneError::Sources`] naming the scene file, the source and the path or pattern when it names
+    /// nothing to read.
+    pub fn source_files(&self, scene_file: &Path, index: usize) -> Result<Vec<PathBuf>, SceneError> {
+        let src = &self.sources[index];
+        let Some(path) = &src.path else { return Ok(Vec::new()) };
+        let base = scene_file.parent().unwrap_or(Path::new("."));
+        super::sources::expand(base, path, src.format()).map_err(|source| SceneError::Sources {
+            scene: scene_file.into(),
+            index,
+            source,
+        })
     }
 
     /// The absolute path of a source, resolved against the scene file's directory.

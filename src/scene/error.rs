@@ -30,6 +30,18 @@ pub enum SceneError {
         #[source]
         source: Box<toml::de::Error>,
     },
+    /// A `[[sources]] path` names nothing to read: a missing path, a folder without readable files, a
+    /// glob that matches no file.
+    #[error("{}: sources[{index}].path", scene.display())]
+    Sources {
+        /// The scene file.
+        scene: PathBuf,
+        /// The source's index in `[[sources]]`.
+        index: usize,
+        /// What the path names (or does not).
+        #[source]
+        source: super::sources::SourcesError,
+    },
     /// The scene file is not TOML, or has unknown keys, missing keys or wrong types.
     #[error("{}: invalid scene file", path.display())]
     ConfigToml {

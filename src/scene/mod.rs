@@ -1,6 +1,9 @@
 //! Scenes: area definitions, triangulation, instancing, and the prepared scene artifact.
 //!
 //! - [`config`] — `scenes/<area>.toml`;
+//! - [`sources`] — a source path (file, folder or glob) as the list of files it names;
+//! - [`survey`] — what source files hold (format, CRS, extent, centre, counts), for `inspect` and `init`;
+//! - [`init`] — a commented scene file written from the survey of a new area's files (`insgen init`);
 //! - [`appearance`] — textures and colours of LoD faces, carried into the scene GLB;
 //! - [`triangulate`] — planar polygons with holes → triangles;
 //! - [`prepare`] — the `prepare` stage (read → geo-reference → triangulate → instance → write);
@@ -23,9 +26,12 @@ pub mod config;
 pub mod correction;
 pub mod error;
 pub mod ids;
+pub mod init;
 pub mod mesh;
 pub mod photogrammetry;
 pub mod prepare;
+pub mod sources;
+pub mod survey;
 pub mod triangulate;
 
 pub use artifact::{BuildingRecord, Manifest, PreparedScene};

@@ -156,29 +156,18 @@ fn first_vertex(model: &SourceModel) -> Option<[f64; 3]> {
     })
 }
 
+/// Reads one file of a source (`path`), or generates a procedural source (`path` = `None`); returns
+/// the model and its format's name for the manifest.
 fn read_one(
     scene_file: &Path,
-    cfg: &SceneConfig,
     src: &SourceConfig,
+    path: Option<&Path>,
 ) -> Result<(SourceModel, String), SceneError> {
-    if src.format.as_deref() == Some("procedural") {
+    let Some(path) = path else {
         let model = procedural_source(scene_file, src.procedural.clone().unwrap_or_default())?;
         return Ok((model, "procedural".into()));
-    }
-    let path = cfg.resolve(scene_file, src).expect("validated: non-procedural sources have a path");
-    if !path.exists() {
-        return Err(SceneError::Config {
-            path: scene_file.into(),
-            problem: ConfigProblem::SourceMissing { file: path },
-        });
-    }
-    let format = match src.format.as_deref() {
-        Some("citygml") => Some(Format::CityGml),
-        Some("cityjson") => Some(Format::CityJson),
-        Some("obj") => Some(Format::Obj),
-        Some("3dtiles") => Some(Format::Tiles3d),
-        _ => None,
     };
+    let format = src.format();
     let opts = ReadOptions {
         lod: src.lod.clone(),
         weld_tolerance_m: src.weld_tolerance_m,
@@ -186,9 +175,9 @@ fn read_one(
         no_appearance: !src.appearance.unwrap_or(true),
         no_materials: !src.materials.unwrap_or(true),
     };
-    let model = lod::read_source(&path, format, &opts)?;
+    let model = lod::read_source(path, format, &opts)?;
     let fmt = format
-        .or_else(|| Format::from_path(&path))
+        .or_else(|| Format::from_path(path))
         .map(|f| format!("{f:?}").to_lowercase())
         .unwrap_or_default();
     Ok((model, fmt))
@@ -741,6 +730,13 @@ pub fn prepare_with(
 ) -> Result<PrepareReport, SceneError> {
     let started = Instant::now();
     let cfg = SceneConfig::load(scene_file)?;
+    if cfg.attribution.as_deref().is_some_and(|a| a.starts_with(super::init::TODO)) {
+        log::warn!(
+            "{}: the attribution is still the placeholder `insgen init` wrote; name the model's maker and \
+             licence before publishing a dataset",
+            scene_file.display()
+        );
+    }
     let sources = read_sources(scene_file, &cfg, progress)?;
     let (mut scene, appearance) = instance(&cfg, sources)?;
     if let Some(spec) = &options.clutter {
@@ -797,69 +793,23 @@ fn read_sources(
         missing_grids: Vec::new(),
         appearance: AppearanceTable::default(),
     };
-    for src in &cfg.sources {
-        let (model, fmt) = read_one(scene_file, cfg, src)?;
-        let label = match &src.path {
-            Some(p) => p.display().to_string(),
-            None => "procedural".to_string(),
+    let base = scene_file.parent().unwrap_or(Path::new("."));
+    for (index, src) in cfg.sources.iter().enumerate() {
+        let files: Vec<Option<PathBuf>> = if src.format.as_deref() == Some("procedural") {
+            vec![None]
+        } else {
+            cfg.source_files(scene_file, index)?.into_iter().map(Some).collect()
         };
-        let sha256 = match cfg.resolve(scene_file, src) {
-            Some(p) => util::sha256_file(&p)?,
-            None => String::from("procedural"),
-        };
-        let stats = model.stats.clone();
-        let model_path = model.path.clone();
-        let heights = heights_note(src, &model)?;
-        let model_appearance = model.appearance.clone();
-        if let Some(theme) = &src.theme {
-            if !model_appearance.themes.contains(theme) {
-                log::warn!(
-                    "{}: theme {theme:?} is not in the file (its themes: {}); no face gets a texture or colour",
-                    model_path.display(),
-                    if model_appearance.themes.is_empty() {
-                        "none".to_string()
-                    } else {
-                        model_appearance.themes.iter().map(|t| format!("{t:?}")).collect::<Vec<_>>().join(", ")
-                    }
-                );
-            }
+        if files.len() > 1 {
+            log::info!(
+                "sources[{index}] {}: {} files",
+                src.path.as_deref().unwrap_or(Path::new("")).display(),
+                files.len()
+            );
         }
-        let missing_before = out.appearance.missing.len();
-        let asked_before = out.appearance.images_asked();
-        let (mut bs, chain, dropped_here) =
-            georeference(scene_file, src, model, &label, &mut geoid, &mut out.appearance, progress)?;
-        let appearance = appearance_entry(
-            &model_appearance,
-            (out.appearance.images_asked() - asked_before) as u64,
-            &out.appearance.missing[missing_before..],
-        );
-        if let Some(a) = &appearance {
-            if a.missing_images > 0 {
-                log::warn!(
-                    "{}: {} of {} texture image(s) are missing or unreadable (first: {}); their faces keep the \
-                     procedural look",
-                    model_path.display(),
-                    a.missing_images,
-                    a.images,
-                    a.missing_examples.first().map_or("", String::as_str)
-                );
-            }
+        for file in files {
+            read_file(scene_file, src, file.as_deref(), base, &mut geoid, &mut out, progress)?;
         }
-        log::info!("{}: {} buildings ({chain})", model_path.display(), bs.len());
-        let dropped = stats.degenerate_faces + dropped_here;
-        out.degenerate_faces += dropped;
-        out.entries.push(SourceEntry {
-            path: label,
-            format: fmt,
-            sha256,
-            crs_chain: chain,
-            buildings: bs.len() as u64,
-            degenerate_faces: dropped,
-            attribution: cfg.attribution.clone(),
-            heights,
-            appearance,
-        });
-        out.buildings.append(&mut bs);
     }
     if out.buildings.is_empty() {
         return Err(SceneError::Area { area: cfg.name.clone(), problem: AreaProblem::NoBuildings });
@@ -868,6 +818,83 @@ fn read_sources(
     out.proj = geoid.proj;
     out.missing_grids = geoid.missing_grids;
     Ok(out)
+}
+
+/// Reads and geo-references one file of a source (`None`: the procedural city) into `out`.
+fn read_file(
+    scene_file: &Path,
+    src: &SourceConfig,
+    file: Option<&Path>,
+    base: &Path,
+    geoid: &mut GeoidSlot,
+    out: &mut Sources,
+    progress: &dyn Progress,
+) -> Result<(), SceneError> {
+    let cfg = geoid.cfg;
+    let (model, fmt) = read_one(scene_file, src, file)?;
+    // The file as the manifest names it: relative to the scene file's folder, as written there.
+    let label = match file {
+        Some(p) => p.strip_prefix(base).unwrap_or(p).display().to_string(),
+        None => "procedural".to_string(),
+    };
+    let sha256 = match file {
+        Some(p) => util::sha256_file(p)?,
+        None => String::from("procedural"),
+    };
+    let stats = model.stats.clone();
+    let model_path = model.path.clone();
+    let heights = heights_note(src, &model)?;
+    let model_appearance = model.appearance.clone();
+    if let Some(theme) = &src.theme {
+        if !model_appearance.themes.contains(theme) {
+            log::warn!(
+                "{}: theme {theme:?} is not in the file (its themes: {}); no face gets a texture or colour",
+                model_path.display(),
+                if model_appearance.themes.is_empty() {
+                    "none".to_string()
+                } else {
+                    model_appearance.themes.iter().map(|t| format!("{t:?}")).collect::<Vec<_>>().join(", ")
+                }
+            );
+        }
+    }
+    let missing_before = out.appearance.missing.len();
+    let asked_before = out.appearance.images_asked();
+    let (mut bs, chain, dropped_here) =
+        georeference(scene_file, src, model, &label, geoid, &mut out.appearance, progress)?;
+    let appearance = appearance_entry(
+        &model_appearance,
+        (out.appearance.images_asked() - asked_before) as u64,
+        &out.appearance.missing[missing_before..],
+    );
+    if let Some(a) = &appearance {
+        if a.missing_images > 0 {
+            log::warn!(
+                "{}: {} of {} texture image(s) are missing or unreadable (first: {}); their faces keep the \
+                 procedural look",
+                model_path.display(),
+                a.missing_images,
+                a.images,
+                a.missing_examples.first().map_or("", String::as_str)
+            );
+        }
+    }
+    log::info!("{}: {} buildings ({chain})", model_path.display(), bs.len());
+    let dropped = stats.degenerate_faces + dropped_here;
+    out.degenerate_faces += dropped;
+    out.entries.push(SourceEntry {
+        path: label,
+        format: fmt,
+        sha256,
+        crs_chain: chain,
+        buildings: bs.len() as u64,
+        degenerate_faces: dropped,
+        attribution: cfg.attribution.clone(),
+        heights,
+        appearance,
+    });
+    out.buildings.append(&mut bs);
+    Ok(())
 }
 
 /// What the manifest records of a source's appearances (`None` when it has none).

@@ -86,7 +86,11 @@ mod unusable_coordinates {
             err.contains("1 vertex coordinate(s) are not finite or beyond ±1e9 (first: vertices[5] = [1e297, 447000, 0])"),
             "{err}"
         );
-        assert!(stdout(&out).contains("\"bad_coordinates_unused\":1"), "{}", stdout(&out));
+        assert!(
+            stdout(&out).contains("\nunused:     1 bad coordinate(s) outside any building (ignored)\n"),
+            "{}",
+            stdout(&out)
+        );
     }
 
     #[test]

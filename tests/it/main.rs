@@ -37,6 +37,7 @@ mod lod_tiles3d;
 mod lod_tiles3d_generated;
 mod masks_tileset;
 mod metadata;
+mod onboard;
 mod render_analytic;
 mod render_cpu_agreement;
 mod render_depth_coverage;
