@@ -29,7 +29,7 @@ use crate::util::{self, Progress};
 use super::appearance::{AppearanceTable, VertexAppearance};
 use super::artifact::{self, BuildingRecord, GeoidUsed, Manifest, Origin, PreparedScene, SourceEntry};
 use super::config::{GeoidModel, Heights, SceneConfig, SourceConfig};
-use super::error::{AreaProblem, ConfigProblem, GeorefProblem};
+use super::error::{AreaProblem, GeorefProblem};
 use super::ids::BuildingId;
 use super::mesh::SceneMesh;
 use super::triangulate::{triangulate_polygon, triangulate_polygon_uv};

@@ -17,6 +17,7 @@ use crate::geo::{self, AxisConvention, Crs, EnuFrame, Geodetic, HeightKind};
 use crate::lod::{self, Format, Frame, Geometry, ReadOptions, ReadStats, SourceModel};
 use crate::util::Progress;
 
+use super::error::GeorefProblem;
 use super::SceneError;
 
 /// How to read the files of a survey (what a scene file's source would say).
@@ -360,7 +361,7 @@ impl SourceFrame {
         };
         let err = |e| SceneError::Georef {
             path: model.path.clone(),
-            what: format!("CRS {name:?}"),
+            problem: Box::new(GeorefProblem::Crs { name: name.clone() }),
             source: Some(e),
         };
         let crs = Crs::parse(&name).map_err(err)?;
@@ -402,9 +403,13 @@ impl SourceFrame {
         match &self.conversion {
             None if self.crs_id.is_none() => Ok(None),
             None => Ok(Some(points.iter().map(|&p| geo::ecef_to_geodetic(p)).collect())),
-            Some((tf, axes)) => tf.to_geodetic_many(points, *axes).map(Some).map_err(|e| {
-                SceneError::Georef { path: file.into(), what: format!("building {id}"), source: Some(e) }
-            }),
+            Some((tf, axes)) => {
+                tf.to_geodetic_many(points, *axes).map(Some).map_err(|e| SceneError::Georef {
+                    path: file.into(),
+                    problem: Box::new(GeorefProblem::Building { building: id.to_string() }),
+                    source: Some(e),
+                })
+            }
         }
     }
 }
