@@ -24,7 +24,7 @@
 //!   dataset.json, README.md            the manifest and the dataset card
 //!   index.html                         the dataset in a browser: summary, statistics, figures, links
 //!   stats.md, stats.json, hist_*.png, contact_sheet.png                 the statistics report
-//!   figures/<split>/<area>/contact_sheet.png, figures/<area>/<camera>/flight_plan.png
+//!   figures/<area>/contact_sheet.png, figures/<area>/<camera>/flight_plan.png    shown by index.html
 //!   instances_<split>.json             COCO files; names relative to the folder (image_root ".")
 //!   images/<split>/<area>/<camera>/<frame>.png         photos (hard links or copies)
 //!   images/<split>/metadata.jsonl      export-hf: the Hugging Face imagefolder metadata
@@ -96,7 +96,7 @@ pub const STATS_JSON_FILE: &str = "stats.json";
 
 /// `index.html`, the page that shows an export in a browser (`export-coco`).
 pub const INDEX_FILE: &str = "index.html";
-/// The figures the index shows beside the report's: `figures/<split>/<area>/contact_sheet.png` and
+/// The figures the index shows beside the report's: `figures/<area>/contact_sheet.png` and
 /// `figures/<area>/<camera>/flight_plan.png`.
 pub const FIGURES_DIR: &str = "figures";
 
@@ -268,9 +268,9 @@ impl ExportDir {
     }
 
     /// The name, relative to the export folder, of the contact sheet of one area:
-    /// `figures/<split>/<area>/contact_sheet.png`.
-    pub fn contact_sheet_name(split: &str, area: &str) -> String {
-        format!("{FIGURES_DIR}/{split}/{area}/{CONTACT_SHEET_FILE}")
+    /// `figures/<area>/contact_sheet.png`.
+    pub fn contact_sheet_name(area: &str) -> String {
+        format!("{FIGURES_DIR}/{area}/{CONTACT_SHEET_FILE}")
     }
 
     /// The name, relative to the export folder, of the copy of a camera's flight plan:
@@ -339,7 +339,7 @@ mod tests {
         assert_eq!(ExportDir::image_name("train", "demo", "cam2", "f.png"), "images/train/demo/cam2/f.png");
         assert_eq!(ExportDir::mask_name("test", "demo", "cam2", "f.png"), "masks/test/demo/cam2/f.png");
         assert_eq!(e.index(), Path::new("runs/coco/index.html"));
-        assert_eq!(ExportDir::contact_sheet_name("val", "demo"), "figures/val/demo/contact_sheet.png");
+        assert_eq!(ExportDir::contact_sheet_name("demo"), "figures/demo/contact_sheet.png");
         assert_eq!(ExportDir::flight_plan_name("demo", "cam2"), "figures/demo/cam2/flight_plan.png");
         assert_eq!(cam.flight_plan(), Path::new("runs/demo/cam2/flight_plan.png"));
     }

@@ -5,7 +5,7 @@
 //! The page is static HTML with inline CSS: no script, no font or file from the network, and every
 //! link and image relative to the export folder, so the page works from `file://` and keeps working
 //! after the folder is moved or archived. The figures it shows beside the statistics report's are
-//! written into the folder: `figures/<split>/<area>/contact_sheet.png` (drawn here) and
+//! written into the folder: `figures/<area>/contact_sheet.png` (drawn here) and
 //! `figures/<area>/<camera>/flight_plan.png` (copied from the work directory, where `sample` drew
 //! it; a camera without one is named on the page instead).
 
@@ -66,7 +66,7 @@ pub fn write_index(
     for a in &manifest.areas {
         let sheet = match Split::parse(&a.split) {
             Some(split) if per_area > 0 => {
-                let name = ExportDir::contact_sheet_name(&a.split, &a.name);
+                let name = ExportDir::contact_sheet_name(&a.name);
                 let path = plan.out_dir.join(&name);
                 let of_split: Vec<(Split, &Dataset)> =
                     datasets.iter().filter(|(s, _)| *s == split).copied().collect();
@@ -169,6 +169,18 @@ fn index_html(m: &DatasetManifest, stats: &Stats, fig: &Figures, present: &[Stri
     };
     for f in present {
         let _ = write!(s, "<a href=\"{}\">{} (<code>{}</code>)</a>", href(f), describe(f), escape_html(f));
+    }
+    s.push_str("</nav>\n<nav>");
+    for (id, name) in [
+        ("splits", "Splits"),
+        ("areas", "Areas and cameras"),
+        ("statistics", "Statistics"),
+        ("charts", "Charts"),
+        ("contact-sheets", "Contact sheets"),
+        ("flight-plans", "Flight plans"),
+        ("sources", "Sources and licences"),
+    ] {
+        let _ = write!(s, "<a href=\"#{id}\">{name}</a>");
     }
     s.push_str("</nav>\n");
     s.push_str(&splits_section(m));

@@ -582,7 +582,7 @@ fn contact_sheet(
                 }
             }
         }
-        let label = format!("{} · {} · {}", split.as_str(), im.area_name, im.frame);
+        let label = format!("{} · {}", split.as_str(), im.frame);
         tile.text_on(0, 0, &label, TextStyle::new(text::TICK_PX, [255, 255, 255]), [0, 0, 0], 3);
         let (col, row) = (t as u32 % cols, t as u32 / cols);
         let (ox, oy) = (col * TILE_W + (TILE_W - tw) / 2, row * TILE_H + (TILE_H - th) / 2);

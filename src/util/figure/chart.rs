@@ -49,6 +49,8 @@ pub struct ChartLayout {
 
 /// Height of the plot area, px.
 const PLOT_H: i64 = 280;
+/// Narrowest chart, px.
+const MIN_WIDTH: i64 = 560;
 
 /// Round tick values from 0 up to at least `max`: steps of 1, 2 or 5 × 10ⁿ, about `target` of them
 /// (at least one step; integer steps when `integers`).
@@ -89,16 +91,21 @@ impl BarChart {
         // Groups: room for the bars, and for every category name when there are few.
         let bar_w = if n_cat * n_ser > 60 { 5 } else { 14 };
         let widest = self.categories.iter().map(|c| measure(c, text::TICK_PX)[0]).max().unwrap_or(0);
-        let group_w = if n_cat <= 12 { (n_ser * bar_w + 10).max(widest + 14) } else { n_ser * bar_w + 6 };
         let label_h = text::line_height(text::LABEL_PX);
         let tick_w = tick_labels.iter().map(|l| measure(l, text::TICK_PX)[0]).max().unwrap_or(0);
         let left = 12 + label_h + 10 + tick_w + 8;
+        // Few categories spread over the narrowest chart rather than crowd its left side.
+        let group_w = if n_cat <= 12 {
+            (n_ser * bar_w + 10).max(widest + 14).max((MIN_WIDTH - 24 - left) / n_cat)
+        } else {
+            n_ser * bar_w + 6
+        };
         let legend: Vec<LegendItem> =
             self.series.iter().map(|s| LegendItem::new(Swatch::Square(s.colour), s.name.clone())).collect();
         let show_legend = self.series.len() > 1;
         let title_h = text::line_height(text::TITLE_PX);
         let plot_w = n_cat * group_w;
-        let width = (left + plot_w + 24).max(560).max(measure(&self.title, text::TITLE_PX)[0] + 24);
+        let width = (left + plot_w + 24).max(MIN_WIDTH).max(measure(&self.title, text::TITLE_PX)[0] + 24);
         let [leg_w, leg_h] =
             if show_legend { legend_size(&legend, text::TICK_PX, width - left) } else { [0, 0] };
         let top = 12 + title_h + 10 + if show_legend { leg_h + 10 } else { 0 } + 8;
