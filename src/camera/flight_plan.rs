@@ -350,7 +350,7 @@ fn draw_map(scene: &PreparedScene, poses: &[PoseRecord]) -> (Canvas, Option<[f64
             }
         }
     }
-    let heights = z_hi.is_finite().then(|| [z_lo - m.ground_enu_m, z_hi - m.ground_enu_m]);
+    let heights = z_hi.is_finite().then_some([z_lo - m.ground_enu_m, z_hi - m.ground_enu_m]);
     (canvas, heights)
 }
 

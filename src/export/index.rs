@@ -136,7 +136,8 @@ padding-bottom:4px;margin-top:36px}table{border-collapse:collapse;margin:8px 0;f
 th,td{border:1px solid #ccc;padding:4px 8px;text-align:left;vertical-align:top}th{background:#f2f2f2}\
 .n{text-align:right}figure{margin:12px 0 24px}figure img{max-width:100%;height:auto;border:1px solid #ddd}\
 figcaption{color:#444;font-size:14px}nav a{margin-right:14px}.note{color:#555;font-size:14px}\
-.grid{display:flex;flex-wrap:wrap;gap:16px}.grid figure{flex:1 1 560px}code{background:#f4f4f4;padding:0 3px}";
+code{background:#f4f4f4;padding:0 3px}\
+.plans{display:grid;grid-template-columns:repeat(auto-fill,minmax(400px,1fr));gap:16px}.plans figure{margin:0}";
 
 /// The page.
 fn index_html(m: &DatasetManifest, stats: &Stats, fig: &Figures, present: &[String]) -> String {
@@ -191,11 +192,10 @@ fn index_html(m: &DatasetManifest, stats: &Stats, fig: &Figures, present: &[Stri
         stats::splits_table(stats).html(),
         escape_html(stats::SIZE_CLASSES_NOTE)
     );
-    s.push_str("<h2 id=\"charts\">Charts</h2>\n<div class=\"grid\">\n");
+    s.push_str("<h2 id=\"charts\">Charts</h2>\n");
     for (file, caption) in &fig.charts {
         s.push_str(&figure(file, caption));
     }
-    s.push_str("</div>\n");
     s.push_str(&figures_section(m, fig));
     s.push_str(&sources_section(m));
     s.push_str("</body>\n</html>\n");
@@ -208,6 +208,16 @@ fn figure(file: &str, caption: &str) -> String {
         "<figure><img src=\"{}\" alt=\"{}\"><figcaption>{}</figcaption></figure>\n",
         href(file),
         escape_html(caption),
+        escape_html(caption)
+    )
+}
+
+/// `<figure>` of an image shown smaller than it is, linked to itself at full size.
+fn thumbnail(file: &str, caption: &str) -> String {
+    format!(
+        "<figure><a href=\"{0}\"><img src=\"{0}\" alt=\"{1}\"></a><figcaption>{1} (click for full size)\
+         </figcaption></figure>\n",
+        href(file),
         escape_html(caption)
     )
 }
@@ -293,19 +303,27 @@ fn figures_section(m: &DatasetManifest, fig: &Figures) -> String {
     if let Some(file) = &fig.contact_sheet {
         s.push_str(&figure(file, "Frames of every split"));
     }
-    s.push_str("<h2 id=\"flight-plans\">Flight plans</h2>\n<p class=\"note\">Top views (north up) of each \
-         camera's sampled poses over its area, drawn by <code>insgen sample</code>.</p>\n<div class=\"grid\">\n");
+    s.push_str(
+        "<h2 id=\"flight-plans\">Flight plans</h2>\n<p class=\"note\">Top views (north up) of each camera's \
+         sampled poses over its area, drawn by <code>insgen sample</code>.</p>\n",
+    );
+    let missing: Vec<String> = fig
+        .flight_plans
+        .iter()
+        .filter(|f| f.2.is_none())
+        .map(|(area, camera, _)| format!("{} / {}", escape_html(area), escape_html(camera)))
+        .collect();
+    if !missing.is_empty() {
+        let _ = writeln!(
+            s,
+            "<p class=\"note\">No flight plan in the work directory for: {}.</p>",
+            missing.join(", ")
+        );
+    }
+    s.push_str("<div class=\"plans\">\n");
     for (area, camera, file) in &fig.flight_plans {
-        match file {
-            Some(file) => s.push_str(&figure(file, &format!("{area} / {camera}"))),
-            None => {
-                let _ = writeln!(
-                    s,
-                    "<p class=\"note\">{} / {}: no flight plan in the work directory.</p>",
-                    escape_html(area),
-                    escape_html(camera)
-                );
-            }
+        if let Some(file) = file {
+            s.push_str(&thumbnail(file, &format!("{area} / {camera}")));
         }
     }
     s.push_str("</div>\n");

@@ -72,7 +72,12 @@ fn index_html_shows_the_export_in_a_browser_after_the_folder_moved() {
         stats::compute(&ex.datasets.iter().map(|(s, d)| (*s, d)).collect::<Vec<_>>(), &p.out_dir).unwrap();
     assert!(card.contains(&stats::splits_table(&st).markdown()), "{card}");
     assert!(html.contains(&stats::splits_table(&st).html()), "{html}");
-    assert!(html.contains("bravo / cam2: no flight plan in the work directory."), "{html}");
+    assert!(
+        html.contains(
+            "No flight plan in the work directory for: bravo / cam2, charlie / cam2, delta / cam2."
+        ),
+        "{html}"
+    );
     assert!(!html.contains("<script") && !html.contains("http://") && !html.contains("https://"), "{html}");
     // Same inputs, same page and figures.
     let p2 = plan(&wd, "coco2");
