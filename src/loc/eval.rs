@@ -1356,18 +1356,18 @@ pub fn write_outputs(out_dir: &Path, outputs: &Outputs) -> Result<(), EvalError>
     let summary = &outputs.summary;
     util::write_json_atomic(&out_dir.join("summary.json"), summary)?;
     let md = format!(
-        "# Localization on {}\n\n{}{} queries; median {:.2} s per query (search; the query's setup takes {:.2} s \
-         more); {:.0} hypotheses/s.\n\n{}\nRecall at (2 m, 2°) by the number of query instances:\n\n{}\n\
+        "# Localization on {}\n\n{} queries; median {:.2} s per query (search; the query's setup takes {:.2} s \
+         more); {:.0} hypotheses/s.\n\n{}{}\nRecall at (2 m, 2°) by the number of query instances:\n\n{}\n\
          Recall at (2 m, 2°) by how many of the frame's 4 × 4 cells hold buildings (silhouettes crowded into one \
          part of the frame leave the depth along the axis weakly observed):\n\n{}\n\
          Translation errors along the ground truth's viewing direction (axial) and across it (lateral):\n\n{}\n\
          Estimates on the boundary of the search volume around the prior ({}):\n\n{}",
         out_dir.display(),
-        source_note(summary.source.as_ref()),
         summary.queries,
         summary.median_seconds_per_query,
         summary.median_setup_seconds,
         summary.hypotheses_per_second,
+        source_note(summary.source.as_ref()),
         metrics::markdown(&summary.rows),
         metrics::bucket_markdown("query instances", &summary.instance_buckets),
         metrics::bucket_markdown("frame cells with buildings", &summary.coverage_buckets),
