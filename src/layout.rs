@@ -22,6 +22,9 @@
 //! ```text
 //! <export>/                            export-coco --out (default <workdir>/coco)
 //!   dataset.json, README.md            the manifest and the dataset card
+//!   index.html                         the dataset in a browser: summary, statistics, figures, links
+//!   stats.md, stats.json, hist_*.png, contact_sheet.png                 the statistics report
+//!   figures/<area>/contact_sheet.png, figures/<area>/<camera>/flight_plan.png    shown by index.html
 //!   instances_<split>.json             COCO files; names relative to the folder (image_root ".")
 //!   images/<split>/<area>/<camera>/<frame>.png         photos (hard links or copies)
 //!   images/<split>/metadata.jsonl      export-hf: the Hugging Face imagefolder metadata
@@ -79,6 +82,25 @@ pub const EXPORT_IMAGES_DIR: &str = "images";
 pub const EXPORT_MASKS_DIR: &str = "masks";
 /// The Hugging Face `imagefolder` metadata of a split, in `images/<split>/` (`export-hf`).
 pub const HF_METADATA_FILE: &str = "metadata.jsonl";
+
+/// `hist_instances_per_image.png`: images by their number of instances, per split.
+pub const HIST_INSTANCES_FILE: &str = "hist_instances_per_image.png";
+/// `hist_sizes.png`: instances by COCO size class, per split.
+pub const HIST_SIZES_FILE: &str = "hist_sizes.png";
+/// `hist_consistency.png`: images by LoD/tileset consistency score, per split (only when scored).
+pub const HIST_CONSISTENCY_FILE: &str = "hist_consistency.png";
+/// `contact_sheet.png`: annotated frames of every split (`export-coco`, `insgen stats`).
+pub const CONTACT_SHEET_FILE: &str = "contact_sheet.png";
+/// `stats.md`, the statistics report.
+pub const STATS_MD_FILE: &str = "stats.md";
+/// `stats.json`, the statistics.
+pub const STATS_JSON_FILE: &str = "stats.json";
+
+/// `index.html`, the page that shows an export in a browser (`export-coco`).
+pub const INDEX_FILE: &str = "index.html";
+/// The figures the index shows beside the report's: `figures/<area>/contact_sheet.png` and
+/// `figures/<area>/<camera>/flight_plan.png`.
+pub const FIGURES_DIR: &str = "figures";
 
 /// A work directory (`--workdir`): one folder per area, and the provenance log.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -200,6 +222,11 @@ impl CameraDir {
         self.rgb().join(format!("{frame}.{RGB_META_SUFFIX}"))
     }
 
+    /// `flight_plan.png`, the picture of the sampled poses.
+    pub fn flight_plan(&self) -> PathBuf {
+        self.0.join(FLIGHT_PLAN_FILE)
+    }
+
     /// `blender/`.
     pub fn blender(&self) -> PathBuf {
         self.0.join(BLENDER_DIR)
@@ -240,6 +267,23 @@ impl ExportDir {
     /// `instances_<split>.json`.
     pub fn instances(&self, split: &str) -> PathBuf {
         self.0.join(format!("instances_{split}.json"))
+    }
+
+    /// `index.html`, the dataset's page.
+    pub fn index(&self) -> PathBuf {
+        self.0.join(INDEX_FILE)
+    }
+
+    /// The name, relative to the export folder, of the contact sheet of one area:
+    /// `figures/<area>/contact_sheet.png`.
+    pub fn contact_sheet_name(area: &str) -> String {
+        format!("{FIGURES_DIR}/{area}/{CONTACT_SHEET_FILE}")
+    }
+
+    /// The name, relative to the export folder, of the copy of a camera's flight plan:
+    /// `figures/<area>/<camera>/flight_plan.png`.
+    pub fn flight_plan_name(area: &str, camera: &str) -> String {
+        format!("{FIGURES_DIR}/{area}/{camera}/{FLIGHT_PLAN_FILE}")
     }
 
     /// `parts/`, where shards write before `merge`.
@@ -301,6 +345,10 @@ mod tests {
         assert_eq!(e.hf_metadata("val"), Path::new("runs/coco/images/val/metadata.jsonl"));
         assert_eq!(ExportDir::image_name("train", "demo", "cam2", "f.png"), "images/train/demo/cam2/f.png");
         assert_eq!(ExportDir::mask_name("test", "demo", "cam2", "f.png"), "masks/test/demo/cam2/f.png");
+        assert_eq!(e.index(), Path::new("runs/coco/index.html"));
+        assert_eq!(ExportDir::contact_sheet_name("demo"), "figures/demo/contact_sheet.png");
+        assert_eq!(ExportDir::flight_plan_name("demo", "cam2"), "figures/demo/cam2/flight_plan.png");
+        assert_eq!(cam.flight_plan(), Path::new("runs/demo/cam2/flight_plan.png"));
     }
 
     #[test]

@@ -1,24 +1,30 @@
-//! `flight_plan.png`: a top view (north up) of the area with the sampled cameras.
+//! `flight_plan.png`: a top view (north up) of the area with the sampled cameras, under a title (area,
+//! camera, number of poses, nadir/tilted counts, sampling, frame size) and above a scale bar with its
+//! length in metres and a legend of every mark.
 //!
-//! Drawn, back to front:
+//! The map, back to front:
 //! - the area polygon, filled pale green, outlined dark green;
 //! - the buildings: the scene mesh's triangles projected to the ground and rasterised with the highest
 //!   point per pixel, shaded from light grey (ground level) to dark slate (tallest roof); without a mesh,
 //!   the building boxes of `buildings.json`;
 //! - each sequence's path (consecutive camera positions joined, one colour per sequence);
-//! - each camera as a disc (blue, radius 2: nadir; orange, radius 3: tilted more than 1°) with a tick
-//!   in its view direction, longer the more it is tilted;
-//! - a scale bar (bottom left; its length, a round number of metres, is also in the image's
-//!   `tEXt` chunk `scale_bar_m`, with the `metres_per_px` of the drawing).
+//! - each camera's heading: a line with an arrowhead in its view direction, longer the more it is
+//!   tilted;
+//! - each camera as a disc (blue with a white rim, radius 4: nadir; orange with a dark rim, radius 5:
+//!   tilted more than 1°).
 //!
-//! The raster code (lines, discs, triangles, scanline polygon fill) is our own and integer-exact, so the
-//! picture is byte-identical for identical inputs.
+//! The scale bar's length (a round number of metres), the `metres_per_px` of the map and where the map
+//! lies in the picture are also in the PNG's `tEXt` chunks. The map's raster code (lines, discs,
+//! triangles, scanline polygon fill) is our own and integer-exact, the words go through
+//! [`crate::util::figure`], so the picture is byte-identical for identical inputs.
 
 use std::io::Write;
 use std::path::Path;
 
 use super::{CameraError, PoseRecord};
 use crate::scene::PreparedScene;
+use crate::util::figure::legend::legend_size;
+use crate::util::figure::{text, Align, LegendItem, RgbImage, Swatch, TextStyle, WHITE};
 
 /// Longest side of the picture, pixels.
 pub const MAX_SIDE_PX: u32 = 1600;
@@ -30,6 +36,10 @@ const OUTLINE: Rgb = [40, 120, 40];
 const NADIR: Rgb = [30, 90, 200];
 const TILTED: Rgb = [225, 110, 20];
 const INK: Rgb = [20, 20, 20];
+/// Building shading: the lowest roof …
+const RAMP_LOW: Rgb = [205, 205, 210];
+/// … and the highest.
+const RAMP_HIGH: Rgb = [45, 55, 90];
 const PATHS: [Rgb; 6] =
     [[200, 40, 120], [20, 140, 160], [150, 90, 20], [100, 60, 180], [30, 150, 60], [190, 60, 40]];
 
@@ -158,19 +168,6 @@ impl Canvas {
             }
         }
     }
-
-    /// Encodes the picture as an 8-bit RGB PNG with the given `tEXt` entries.
-    pub fn encode_png<W: Write>(&self, w: W, text: &[(&str, String)]) -> Result<(), png::EncodingError> {
-        let mut enc = png::Encoder::new(w, self.width_px, self.height_px);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        for (k, v) in text {
-            enc.add_text_chunk(k.to_string(), v.clone())?;
-        }
-        let mut writer = enc.write_header()?;
-        writer.write_image_data(&self.rgb)?;
-        writer.finish()
-    }
 }
 
 /// Per-pixel highest ground-projected building point (ENU up, metres), NaN where no building is.
@@ -238,9 +235,29 @@ pub fn scale_bar_m(width_m: f64) -> f64 {
     [5.0, 2.0, 1.0].into_iter().map(|k| k * p).find(|&v| v <= target).unwrap_or(p)
 }
 
-/// Draws the flight plan of `poses` over `scene`.
-pub fn draw_flight_plan(scene: &PreparedScene, poses: &[PoseRecord]) -> (Canvas, f64) {
-    let m = &scene.manifest;
+/// Height of the title band above the map, px.
+const HEADER_PX: i64 = 64;
+/// Narrowest picture, px (a tall, narrow area still gets a readable legend).
+const MIN_WIDTH_PX: i64 = 960;
+/// Radius of a nadir camera's disc, px (tilted ones are one larger).
+const NADIR_R_PX: i64 = 4;
+
+/// A drawn flight plan: the picture and where its map is.
+pub struct FlightPlan {
+    /// The picture: title band, map, legend and scale bar.
+    pub image: RgbImage,
+    /// The map inside the picture.
+    pub map: Canvas,
+    /// Column of the map's left edge in the picture, px.
+    pub map_left_px: i64,
+    /// Row of the map's top edge in the picture, px.
+    pub map_top_px: i64,
+    /// The scale bar's length, metres.
+    pub scale_bar_m: f64,
+}
+
+/// The map's extent: the area polygon and the cameras, padded.
+fn extent(scene: &PreparedScene, poses: &[PoseRecord]) -> ([f64; 2], [f64; 2]) {
     let mut lo = [f64::INFINITY; 2];
     let mut hi = [f64::NEG_INFINITY; 2];
     let mut grow = |p: [f64; 2]| {
@@ -251,7 +268,7 @@ pub fn draw_flight_plan(scene: &PreparedScene, poses: &[PoseRecord]) -> (Canvas,
             }
         }
     };
-    m.area_polygon_enu_m.iter().for_each(|p| grow(*p));
+    scene.manifest.area_polygon_enu_m.iter().for_each(|p| grow(*p));
     for r in poses {
         let c = r.pose().centre_m;
         grow([c[0], c[1]]);
@@ -261,9 +278,16 @@ pub fn draw_flight_plan(scene: &PreparedScene, poses: &[PoseRecord]) -> (Canvas,
         hi = [50.0, 50.0];
     }
     let pad = 0.04 * (hi[0] - lo[0]).max(hi[1] - lo[1]) + 20.0;
-    let mut canvas =
-        Canvas::new([lo[0] - pad, lo[1] - pad], [hi[0] + pad, hi[1] + pad], MAX_SIDE_PX, OUTSIDE);
+    ([lo[0] - pad, lo[1] - pad], [hi[0] + pad, hi[1] + pad])
+}
 
+/// Draws the map: area, buildings shaded by height, flight lines, cameras and their headings. Returns
+/// the canvas and the roof heights above ground of the shading's ends (metres), `None` without
+/// buildings.
+fn draw_map(scene: &PreparedScene, poses: &[PoseRecord]) -> (Canvas, Option<[f64; 2]>) {
+    let m = &scene.manifest;
+    let (lo, hi) = extent(scene, poses);
+    let mut canvas = Canvas::new(lo, hi, MAX_SIDE_PX, OUTSIDE);
     let ring_px: Vec<[f64; 2]> = m.area_polygon_enu_m.iter().map(|p| canvas.to_px(*p)).collect();
     if ring_px.len() >= 3 {
         canvas.fill_polygon(&ring_px, INSIDE);
@@ -280,7 +304,11 @@ pub fn draw_flight_plan(scene: &PreparedScene, poses: &[PoseRecord]) -> (Canvas,
         }
         let t = ((z - z_lo) / span).clamp(0.0, 1.0);
         let lerp = |a: f64, b: f64| (a + (b - a) * t).round() as u8;
-        let c = [lerp(205.0, 45.0), lerp(205.0, 55.0), lerp(210.0, 90.0)];
+        let c = [
+            lerp(RAMP_LOW[0] as f64, RAMP_HIGH[0] as f64),
+            lerp(RAMP_LOW[1] as f64, RAMP_HIGH[1] as f64),
+            lerp(RAMP_LOW[2] as f64, RAMP_HIGH[2] as f64),
+        ];
         canvas.rgb[3 * i..3 * i + 3].copy_from_slice(&c);
     }
     for i in 0..ring_px.len() {
@@ -291,41 +319,123 @@ pub fn draw_flight_plan(scene: &PreparedScene, poses: &[PoseRecord]) -> (Canvas,
         if w[0].sequence == w[1].sequence && w[1].index == w[0].index + 1 {
             let (a, b) = (w[0].pose().centre_m, w[1].pose().centre_m);
             let col = PATHS[w[0].sequence as usize % PATHS.len()];
-            canvas.line(canvas.to_px([a[0], a[1]]), canvas.to_px([b[0], b[1]]), 1, col);
+            canvas.line(canvas.to_px([a[0], a[1]]), canvas.to_px([b[0], b[1]]), 3, col);
         }
     }
-    // Cameras and their view directions: ticks first, then tilted cameras (radius 3), then nadir ones
-    // (radius 2) on top, so that a nadir and a tilted pose at one grid node both stay visible.
+    // Headings first: a line from the camera in its view direction, longer the more it is tilted,
+    // with an arrowhead. Then tilted cameras (larger discs), then nadir ones on top, so that a nadir
+    // and a tilted pose at one grid node both stay visible. Each disc has a contrasting rim.
     for r in poses {
         let c = r.pose().centre_m;
         let at = canvas.to_px([c[0], c[1]]);
-        let len_px = 7.0 + 18.0 * r.geo.pitch_deg.to_radians().sin();
+        let len_px = NADIR_R_PX as f64 + 9.0 + 20.0 * r.geo.pitch_deg.to_radians().sin().abs();
         let yaw = r.geo.yaw_deg.to_radians();
-        canvas.line(at, [at[0] + len_px * yaw.sin(), at[1] - len_px * yaw.cos()], 1, INK);
+        let tip = [at[0] + len_px * yaw.sin(), at[1] - len_px * yaw.cos()];
+        canvas.line(at, tip, 3, INK);
+        for side in [-1.0, 1.0] {
+            let back = yaw + side * 2.6;
+            canvas.line(tip, [tip[0] + 7.0 * back.sin(), tip[1] - 7.0 * back.cos()], 3, INK);
+        }
     }
     for nadir_pass in [false, true] {
         for r in poses.iter().filter(|r| (r.geo.pitch_deg <= 1.0) == nadir_pass) {
             let c = r.pose().centre_m;
             let at = canvas.to_px([c[0], c[1]]);
             if nadir_pass {
-                canvas.disc(at, 2, NADIR);
+                canvas.disc(at, NADIR_R_PX + 1, [255, 255, 255]);
+                canvas.disc(at, NADIR_R_PX, NADIR);
             } else {
-                canvas.disc(at, 3, TILTED);
+                canvas.disc(at, NADIR_R_PX + 2, INK);
+                canvas.disc(at, NADIR_R_PX + 1, TILTED);
             }
         }
     }
-    // Scale bar.
-    let width_m = canvas.width_px as f64 * canvas.metres_per_px();
-    let bar_m = scale_bar_m(width_m);
-    let bar_px = bar_m / canvas.metres_per_px();
-    let y = canvas.height_px as f64 - 14.0;
-    canvas.line([12.0, y], [12.0 + bar_px, y], 3, INK);
-    canvas.line([12.0, y - 6.0], [12.0, y + 6.0], 1, INK);
-    canvas.line([12.0 + bar_px, y - 6.0], [12.0 + bar_px, y + 6.0], 1, INK);
-    (canvas, bar_m)
+    let heights = z_hi.is_finite().then_some([z_lo - m.ground_enu_m, z_hi - m.ground_enu_m]);
+    (canvas, heights)
 }
 
-/// Draws and writes `flight_plan.png` atomically.
+/// What the legend explains: each mark of the map that is in it.
+fn legend_items(poses: &[PoseRecord], heights: Option<[f64; 2]>) -> Vec<LegendItem> {
+    let nadir = poses.iter().filter(|r| r.geo.pitch_deg <= 1.0).count();
+    let mut items = Vec::new();
+    if nadir > 0 {
+        let swatch = Swatch::Disc { fill: NADIR, outline: [255, 255, 255], radius_px: NADIR_R_PX };
+        items.push(LegendItem::new(swatch, "nadir camera (pitch ≤ 1°)"));
+    }
+    if nadir < poses.len() {
+        let swatch = Swatch::Disc { fill: TILTED, outline: INK, radius_px: NADIR_R_PX + 1 };
+        items.push(LegendItem::new(swatch, "tilted camera (pitch > 1°)"));
+    }
+    if !poses.is_empty() {
+        let swatch = Swatch::Line { colour: INK, width_px: 3 };
+        items.push(LegendItem::new(swatch, "heading (view direction; longer = more tilted)"));
+    }
+    if poses.windows(2).any(|w| w[0].sequence == w[1].sequence && w[1].index == w[0].index + 1) {
+        items.push(LegendItem::new(
+            Swatch::Line { colour: PATHS[0], width_px: 3 },
+            "flight line (one colour per sequence)",
+        ));
+    }
+    items.push(LegendItem::new(Swatch::Line { colour: OUTLINE, width_px: 3 }, "area polygon"));
+    if let Some([lo, hi]) = heights {
+        let label = format!("building roofs, {lo:.0} m to {hi:.0} m above ground");
+        items.push(LegendItem::new(Swatch::Ramp(RAMP_LOW, RAMP_HIGH), label));
+    }
+    items
+}
+
+/// Draws the flight plan of `poses` over `scene`: a title band (area, camera, poses), the map (north
+/// up) and below it a scale bar with its length and a legend of every mark.
+pub fn draw_flight_plan(scene: &PreparedScene, poses: &[PoseRecord]) -> FlightPlan {
+    let (map, heights) = draw_map(scene, poses);
+    let (mw, mh) = (map.width_px as i64, map.height_px as i64);
+    let width = mw.max(MIN_WIDTH_PX);
+    let bar_m = scale_bar_m(mw as f64 * map.metres_per_px());
+    let bar_px = (bar_m / map.metres_per_px()).round() as i64;
+    let items = legend_items(poses, heights);
+    let legend_x = 12 + bar_px.max(60) + 32;
+    let [_, leg_h] = legend_size(&items, text::TICK_PX, width - legend_x - 12);
+    let footer = leg_h.max(40) + 24;
+    let height = HEADER_PX + mh + footer;
+    let mut img = RgbImage::new(width as u32, height as u32, WHITE);
+    let map_left = (width - mw) / 2;
+    img.paste(
+        &RgbImage { width: map.width_px, height: map.height_px, data: map.rgb.clone() },
+        map_left,
+        HEADER_PX,
+    );
+    img.stroke_rect(map_left, HEADER_PX, mw, mh, [170, 170, 170]);
+    // Title band.
+    let nadir = poses.iter().filter(|r| r.geo.pitch_deg <= 1.0).count();
+    let camera = poses.first().map_or("no camera", |r| r.preset.as_str());
+    let title =
+        format!("Flight plan: area {} · camera {camera} · {} poses", scene.manifest.area, poses.len());
+    img.text(12, 8, &title, TextStyle::new(text::TITLE_PX, INK));
+    let mut sub = format!("{nadir} nadir, {} tilted", poses.len() - nadir);
+    if let Some(r) = poses.first() {
+        let k = &r.view.intrinsics;
+        sub.push_str(
+            &format!(" · {:?} sampling · frames {} × {} px", r.trajectory, k.width_px, k.height_px)
+                .to_lowercase(),
+        );
+    }
+    sub.push_str(" · top view, north up");
+    img.text(
+        12,
+        8 + text::line_height(text::TITLE_PX) + 4,
+        &sub,
+        TextStyle::new(text::LABEL_PX, [70, 70, 70]),
+    );
+    img.text(width - 14, 10, "↑ N", TextStyle::new(text::TITLE_PX, INK).aligned(Align::Right));
+    // Scale bar and legend under the map.
+    let foot = HEADER_PX + mh + 12;
+    img.scale_bar(12, foot, bar_px, &format!("{bar_m} m"), text::LABEL_PX);
+    img.legend(legend_x, foot, &items, text::TICK_PX, width - legend_x - 12);
+    FlightPlan { image: img, map, map_left_px: map_left, map_top_px: HEADER_PX, scale_bar_m: bar_m }
+}
+
+/// Draws and writes `flight_plan.png` atomically. Its `tEXt` chunks hold `Title`, `scale_bar_m`,
+/// `metres_per_px` and where the map is in the picture (`map_left_px`, `map_top_px`).
 ///
 /// # Errors
 /// [`CameraError::File`] for I/O, [`CameraError::Png`] for encoding.
@@ -334,15 +444,31 @@ pub fn write_flight_plan(
     scene: &PreparedScene,
     poses: &[PoseRecord],
 ) -> Result<(), CameraError> {
-    let (canvas, bar_m) = draw_flight_plan(scene, poses);
+    let plan = draw_flight_plan(scene, poses);
     let text = [
         ("Title", format!("insgen flight plan: {} ({} frames)", scene.manifest.area, poses.len())),
-        ("scale_bar_m", format!("{bar_m}")),
-        ("metres_per_px", format!("{}", canvas.metres_per_px())),
+        ("scale_bar_m", format!("{}", plan.scale_bar_m)),
+        ("metres_per_px", format!("{}", plan.map.metres_per_px())),
+        ("map_left_px", format!("{}", plan.map_left_px)),
+        ("map_top_px", format!("{}", plan.map_top_px)),
     ];
     crate::util::write_atomic(path, |w| {
-        canvas.encode_png(w, &text).map_err(|source| CameraError::Png { path: path.to_path_buf(), source })
+        encode_png(&plan.image, w, &text)
+            .map_err(|source| CameraError::Png { path: path.to_path_buf(), source })
     })
+}
+
+/// Encodes `img` as an 8-bit RGB PNG with the given `tEXt` entries.
+fn encode_png<W: Write>(img: &RgbImage, w: W, text: &[(&str, String)]) -> Result<(), png::EncodingError> {
+    let mut enc = png::Encoder::new(w, img.width, img.height);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    for (k, v) in text {
+        enc.add_text_chunk(k.to_string(), v.clone())?;
+    }
+    let mut writer = enc.write_header()?;
+    writer.write_image_data(&img.data)?;
+    writer.finish()
 }
 
 #[cfg(test)]

@@ -44,19 +44,18 @@ pub fn card_markdown(m: &DatasetManifest, stats: &Stats) -> String {
         );
     }
     let _ = writeln!(s, "\n## Areas and cameras\n");
-    let _ = writeln!(s, "| area | split | buildings | camera (preset) | frame size | images | annotations |");
+    let _ = writeln!(s, "| area | split | buildings | camera | frame size | images | annotations |");
     let _ = writeln!(s, "|---|---|---:|---|---|---:|---:|");
     for a in &m.areas {
         for c in &a.cameras {
             let _ = writeln!(
                 s,
-                "| {}{} | {} | {} | {} ({}) | {}×{} | {} | {} |",
+                "| {}{} | {} | {} | {} | {}×{} | {} | {} |",
                 a.name,
                 if a.held_out { " (held out)" } else { "" },
                 a.split,
                 a.buildings,
-                c.name,
-                c.preset,
+                camera_and_preset(&c.name, &c.preset),
                 c.width_px,
                 c.height_px,
                 c.images,
@@ -75,7 +74,7 @@ pub fn card_markdown(m: &DatasetManifest, stats: &Stats) -> String {
         };
         let _ = writeln!(s, "- **{}**: {attribution}", a.name);
         for src in &a.sources {
-            let _ = writeln!(s, "  - `{}` (SHA-256 `{}`)", src.path, src.sha256);
+            let _ = writeln!(s, "  - {}", source_line(&src.path, &src.sha256));
         }
     }
     let _ = writeln!(
@@ -118,36 +117,38 @@ pub fn card_markdown(m: &DatasetManifest, stats: &Stats) -> String {
     s
 }
 
-/// The card's statistics table, one row per split (`stats.md` has the full table and histograms).
+/// The card's statistics: the table `stats.md` and `index.html` show too.
 fn statistics_section(stats: &Stats) -> String {
-    let mut s = String::new();
-    let _ = writeln!(s, "\n## Statistics\n");
-    let _ = writeln!(
-        s,
-        "| split | images | without annotations | annotations | mean / max per image | small / medium / large | median area (px) |"
-    );
-    let _ = writeln!(s, "|---|---:|---:|---:|---|---|---:|");
-    for sp in &stats.splits {
-        let _ = writeln!(
-            s,
-            "| {} | {} | {} | {} | {:.1} / {} | {} / {} / {} | {} |",
-            sp.split,
-            sp.images,
-            sp.images_without_annotations,
-            sp.annotations,
-            sp.mean_instances_per_image,
-            sp.max_instances_per_image,
-            sp.sizes.small,
-            sp.sizes.medium,
-            sp.sizes.large,
-            sp.median_area_px
-        );
+    format!(
+        "\n## Statistics\n\n{}\n{} `stats.md` has the histograms; `index.html` shows them with contact sheets and \
+         flight plans.\n",
+        super::stats::splits_table(stats).markdown(),
+        super::stats::SIZE_CLASSES_NOTE
+    )
+}
+
+/// A camera as the card names it: `name`, or `name (preset P)` when it was sampled with a preset of
+/// another name.
+pub fn camera_and_preset(name: &str, preset: &str) -> String {
+    if name == preset || preset.is_empty() {
+        name.to_string()
+    } else {
+        format!("{name} (preset {preset})")
     }
-    let _ = writeln!(
-        s,
-        "\nSize classes are COCO's (below 32², below 96², above). `stats.md` has the histograms."
-    );
-    s
+}
+
+/// A source as the card lists it: the file with its SHA-256, or, for the generated demo city (no
+/// file: `prepare` records [`crate::scene::procedural::DEMO_SOURCE_PATH`] for both), what it is.
+pub fn source_line(path: &str, sha256: &str) -> String {
+    use crate::scene::procedural::DEMO_SOURCE_PATH;
+    if sha256 == DEMO_SOURCE_PATH {
+        format!(
+            "`{path}`: procedural (insgen's embedded demo city generator; no source file to hash — the scene \
+             file's `[sources.procedural]` table and its seed define the city)"
+        )
+    } else {
+        format!("`{path}` (SHA-256 `{sha256}`)")
+    }
 }
 
 /// `a` quoted for a POSIX shell when it holds anything but safe characters.
@@ -170,5 +171,18 @@ mod tests {
         assert_eq!(shell_word("a b"), "'a b'");
         assert_eq!(shell_word("it's"), r"'it'\''s'");
         assert_eq!(shell_word(""), "''");
+    }
+
+    #[test]
+    fn cameras_and_sources_say_each_thing_once() {
+        assert_eq!(camera_and_preset("cam2-quarter", "cam2-quarter"), "cam2-quarter");
+        assert_eq!(camera_and_preset("low", "cam2"), "low (preset cam2)");
+        let demo = source_line("procedural", "procedural");
+        assert!(
+            demo.starts_with("`procedural`: procedural (insgen's embedded demo city")
+                && !demo.contains("SHA"),
+            "{demo}"
+        );
+        assert_eq!(source_line("a.gml", "ab12"), "`a.gml` (SHA-256 `ab12`)");
     }
 }

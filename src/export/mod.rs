@@ -26,7 +26,11 @@
 //!   their contrast in the photos, sizes, masks split by occluders);
 //! - [`manifest`], [`card`], [`verify`]: the dataset manifest (`dataset.json`), the dataset card
 //!   (`README.md`) and the check of a dataset against them (`insgen verify`);
-//! - [`raster`]: a tiny raster for figures (ID maps are [`crate::scene::IdMap`]).
+//! - [`table`]: tables written as Markdown and HTML from one definition;
+//! - [`index`]: `index.html`, the export in a browser (summary, statistics, charts, contact sheets per
+//!   area, flight plans, links to the card and the JSON files);
+//! - [`raster`]: PNG input and output of the figures' raster ([`crate::util::figure`] draws them; ID
+//!   maps are [`crate::scene::IdMap`]).
 //!
 //! Made from a COCO export: [`panoptic`] (`export-panoptic`, COCO panoptic PNGs and JSON), [`yolo`]
 //! (`export-yolo`, Ultralytics YOLO segmentation labels and `data.yaml`) and [`hf`] (`export-hf`, the
@@ -47,6 +51,7 @@ pub mod error;
 pub mod format;
 pub mod frames;
 pub mod hf;
+pub mod index;
 pub mod learnability;
 pub mod manifest;
 pub mod panoptic;
@@ -56,6 +61,7 @@ pub mod raster;
 pub mod results;
 pub mod rle;
 pub mod stats;
+pub mod table;
 pub mod tiles;
 pub mod verify;
 pub mod yolo;

@@ -20,9 +20,15 @@ use serde::Serialize;
 use super::coco::Split;
 use super::format::{Dataset, Segmentation};
 use super::learnability::Learnability;
-use super::raster::{bar_chart, palette, read_png_rgb, RgbImage, Series};
+use super::raster::{palette, read_png_rgb, RgbImage};
+use super::table::Table;
 use super::CocoError;
+use crate::layout::{
+    CONTACT_SHEET_FILE, HIST_CONSISTENCY_FILE, HIST_INSTANCES_FILE, HIST_SIZES_FILE, STATS_JSON_FILE,
+    STATS_MD_FILE,
+};
 use crate::scene::BuildingId;
+use crate::util::figure::{text, BarChart, Series, TextStyle};
 
 /// Upper bound (exclusive) of COCO's "small" class, px.
 pub const SMALL_MAX_PX: u64 = 32 * 32;
@@ -243,7 +249,8 @@ impl Default for ReportOptions {
 const SPLIT_COLOURS: [[u8; 3]; 3] = [[31, 119, 180], [255, 127, 14], [44, 160, 44]];
 
 /// Writes the statistics report of an export next to its COCO files (`plan.out_dir`), computing
-/// the statistics unless the export carries them; returns the files written.
+/// the statistics unless the export carries them, and the export's `index.html` with its figures
+/// ([`super::index`]); returns the files written.
 ///
 /// # Errors
 /// As [`compute`] and [`write_report`].
@@ -257,7 +264,9 @@ pub fn write_export_report(
         Some(st) => st.clone(),
         None => compute(&refs, plan.names_root())?,
     };
-    write_report(&st, &refs, &plan.out_dir, plan.names_root(), opts)
+    let mut written = write_report(&st, &refs, &plan.out_dir, plan.names_root(), opts)?;
+    written.extend(super::index::write_index(plan, &refs, &st, opts.contact_sheet_images)?);
+    Ok(written)
 }
 
 /// Writes `stats.json`, `stats.md`, `hist_instances_per_image.png`, `hist_sizes.png` and (unless
@@ -275,121 +284,140 @@ pub fn write_report(
     opts: ReportOptions,
 ) -> Result<Vec<PathBuf>, CocoError> {
     let mut written = Vec::new();
-    let json_path = out_dir.join("stats.json");
+    let json_path = out_dir.join(STATS_JSON_FILE);
     crate::util::write_json_atomic(&json_path, stats)?;
     written.push(json_path);
 
-    // Instances per image, grouped into at most 25 bins.
-    let max = stats.splits.iter().map(|s| s.max_instances_per_image).max().unwrap_or(0);
-    let width = (max + 1).div_ceil(25).max(1);
-    let n_bins = (max / width + 1) as usize;
-    let cats: Vec<String> = (0..n_bins as u64)
-        .map(|b| if width == 1 { format!("{b}") } else { format!("{}", b * width) })
-        .collect();
-    let series: Vec<Series> = stats
-        .splits
-        .iter()
-        .enumerate()
-        .map(|(i, s)| {
-            let mut values = vec![0.0; n_bins];
-            for bin in &s.instances_per_image {
-                values[(bin.instances / width) as usize] += bin.images as f64;
-            }
-            Series { name: s.split.clone(), colour: SPLIT_COLOURS[i % 3], values }
-        })
-        .collect();
-    let title = if width == 1 {
-        "images by instances per image".to_string()
-    } else {
-        format!("images by instances per image (bins of {width})")
-    };
-    let p = out_dir.join("hist_instances_per_image.png");
-    bar_chart(&title, &cats, &series).save(&p)?;
-    written.push(p);
-
-    let size_series: Vec<Series> = stats
-        .splits
-        .iter()
-        .enumerate()
-        .map(|(i, s)| Series {
-            name: s.split.clone(),
-            colour: SPLIT_COLOURS[i % 3],
-            values: vec![s.sizes.small as f64, s.sizes.medium as f64, s.sizes.large as f64],
-        })
-        .collect();
-    let p = out_dir.join("hist_sizes.png");
-    let size_cats = ["small <32^2".to_string(), "medium <96^2".to_string(), "large".to_string()];
-    bar_chart("instances by size (px)", &size_cats, &size_series).save(&p)?;
-    written.push(p);
-
-    // Consistency scores (render-masks --tileset), when any image has one.
-    if stats.splits.iter().any(|s| s.consistency.is_some()) {
-        let cats: Vec<String> =
-            (0..CONSISTENCY_BINS).map(|b| format!("{:.1}", b as f64 / CONSISTENCY_BINS as f64)).collect();
-        let series: Vec<Series> = stats
-            .splits
-            .iter()
-            .enumerate()
-            .filter_map(|(i, s)| {
-                let c = s.consistency.as_ref()?;
-                Some(Series {
-                    name: s.split.clone(),
-                    colour: SPLIT_COLOURS[i % 3],
-                    values: c.bins.iter().map(|&n| n as f64).collect(),
-                })
-            })
-            .collect();
-        let p = out_dir.join("hist_consistency.png");
-        bar_chart("images by LoD/tileset consistency score (bins of 0.1)", &cats, &series).save(&p)?;
+    for (file, chart) in charts(stats) {
+        let p = out_dir.join(file);
+        chart.draw().0.save(&p)?;
         written.push(p);
     }
 
     let sheet = opts.contact_sheet_images > 0;
     if sheet {
-        let p = out_dir.join("contact_sheet.png");
-        contact_sheet(datasets, image_root, opts.contact_sheet_images)?.save(&p)?;
+        let p = out_dir.join(CONTACT_SHEET_FILE);
+        contact_sheet(datasets, image_root, &pick_images(datasets, opts.contact_sheet_images, None))?
+            .save(&p)?;
         written.push(p);
     }
 
-    let md_path = out_dir.join("stats.md");
+    let md_path = out_dir.join(STATS_MD_FILE);
     crate::util::write_bytes_atomic(&md_path, markdown(stats, sheet).as_bytes())?;
     written.push(md_path);
     Ok(written)
+}
+
+/// The report's charts with their file names, in the order they appear: instances per image, sizes
+/// and (when any image was scored) consistency, one series per split.
+pub fn charts(stats: &Stats) -> Vec<(&'static str, BarChart)> {
+    let series = |values: &dyn Fn(&SplitStats) -> Option<Vec<f64>>| -> Vec<Series> {
+        stats
+            .splits
+            .iter()
+            .enumerate()
+            .filter_map(|(i, s)| {
+                Some(Series { name: s.split.clone(), colour: SPLIT_COLOURS[i % 3], values: values(s)? })
+            })
+            .collect()
+    };
+    // Instances per image, grouped into at most 25 bins.
+    let max = stats.splits.iter().map(|s| s.max_instances_per_image).max().unwrap_or(0);
+    let width = (max + 1).div_ceil(25).max(1);
+    let n_bins = (max / width + 1) as usize;
+    let per_image = BarChart {
+        title: if width == 1 {
+            "Images by number of instances".to_string()
+        } else {
+            format!("Images by number of instances (bins of {width})")
+        },
+        x_label: if width == 1 {
+            "instances (building masks) per image".to_string()
+        } else {
+            format!("instances per image (lower bound of a bin of {width})")
+        },
+        y_label: "images".into(),
+        categories: (0..n_bins as u64).map(|b| format!("{}", b * width)).collect(),
+        series: series(&|s| {
+            let mut values = vec![0.0; n_bins];
+            for bin in &s.instances_per_image {
+                values[(bin.instances / width) as usize] += bin.images as f64;
+            }
+            Some(values)
+        }),
+    };
+    let sizes = BarChart {
+        title: "Instances by COCO size class".into(),
+        x_label: "mask area (px)".into(),
+        y_label: "instances".into(),
+        categories: vec!["small: < 32²".into(), "medium: 32²–96²".into(), "large: ≥ 96²".into()],
+        series: series(&|s| Some(vec![s.sizes.small as f64, s.sizes.medium as f64, s.sizes.large as f64])),
+    };
+    let mut out = vec![(HIST_INSTANCES_FILE, per_image), (HIST_SIZES_FILE, sizes)];
+    // Consistency scores (render-masks --tileset), when any image has one.
+    if stats.splits.iter().any(|s| s.consistency.is_some()) {
+        out.push((
+            HIST_CONSISTENCY_FILE,
+            BarChart {
+                title: "Images by LoD/tileset consistency score".into(),
+                x_label: "consistency score (lower bound of a bin of 0.1)".into(),
+                y_label: "images".into(),
+                categories: (0..CONSISTENCY_BINS)
+                    .map(|b| format!("{:.1}", b as f64 / CONSISTENCY_BINS as f64))
+                    .collect(),
+                series: series(&|s| Some(s.consistency.as_ref()?.bins.iter().map(|&n| n as f64).collect())),
+            },
+        ));
+    }
+    out
+}
+
+/// What the size columns of [`splits_table`] count.
+pub const SIZE_CLASSES_NOTE: &str =
+    "Size classes are COCO's: small < 32² px, medium < 96² px, large ≥ 96² px (area = mask pixel count).";
+
+/// The statistics table, one row per split: the one table the dataset card, `stats.md` and
+/// `index.html` show.
+pub fn splits_table(stats: &Stats) -> Table {
+    let mut t = Table::new(&[
+        ("split", false),
+        ("areas", false),
+        ("images", true),
+        ("without annotations", true),
+        ("annotations", true),
+        ("per image (mean / max)", true),
+        ("small", true),
+        ("medium", true),
+        ("large", true),
+        ("truncated", true),
+        ("crowd", true),
+        ("median area (px)", true),
+    ]);
+    for sp in &stats.splits {
+        t.push(vec![
+            sp.split.clone(),
+            if sp.areas.is_empty() { "—".to_string() } else { sp.areas.join(", ") },
+            sp.images.to_string(),
+            sp.images_without_annotations.to_string(),
+            sp.annotations.to_string(),
+            format!("{:.2} / {}", sp.mean_instances_per_image, sp.max_instances_per_image),
+            sp.sizes.small.to_string(),
+            sp.sizes.medium.to_string(),
+            sp.sizes.large.to_string(),
+            sp.truncated.to_string(),
+            sp.crowd.to_string(),
+            sp.median_area_px.to_string(),
+        ]);
+    }
+    t
 }
 
 fn markdown(stats: &Stats, sheet: bool) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "# COCO export statistics\n\nWritten by insgen {}.\n", stats.insgen_version);
     let _ = writeln!(s, "## Splits\n");
-    let _ = writeln!(
-        s,
-        "| split | areas | images | without annotations | annotations | per image (mean / max) | small | medium | \
-         large | truncated | crowd | median area px |"
-    );
-    let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
-    for sp in &stats.splits {
-        let _ = writeln!(
-            s,
-            "| {} | {} | {} | {} | {} | {:.2} / {} | {} | {} | {} | {} | {} | {} |",
-            sp.split,
-            if sp.areas.is_empty() { "—".to_string() } else { sp.areas.join(", ") },
-            sp.images,
-            sp.images_without_annotations,
-            sp.annotations,
-            sp.mean_instances_per_image,
-            sp.max_instances_per_image,
-            sp.sizes.small,
-            sp.sizes.medium,
-            sp.sizes.large,
-            sp.truncated,
-            sp.crowd,
-            sp.median_area_px
-        );
-    }
-    let _ = writeln!(
-        s,
-        "\nSize classes: small < 32² px, medium < 96² px, large ≥ 96² px (area = mask pixel count).\n"
-    );
+    s.push_str(&splits_table(stats).markdown());
+    let _ = writeln!(s, "\n{SIZE_CLASSES_NOTE}\n");
     if stats.splits.iter().any(|sp| sp.consistency.is_some()) {
         let _ = writeln!(s, "## LoD/tileset consistency\n\n| split | images scored | mean | median | min |");
         let _ = writeln!(s, "|---|---:|---:|---:|---:|");
@@ -445,29 +473,54 @@ const TILE_W: u32 = 320;
 const TILE_H: u32 = 240;
 const COLUMNS: u32 = 4;
 
-/// Picks up to `n` images spread evenly over the splits and over each split's images.
-fn pick_images(datasets: &[(Split, &Dataset)], n: usize) -> Vec<(Split, usize)> {
-    let non_empty: Vec<_> = datasets.iter().filter(|(_, d)| !d.images.is_empty()).collect();
-    if non_empty.is_empty() || n == 0 {
+/// Picks up to `n` images (of `area` only, when given) spread evenly over the splits and over each
+/// split's images.
+fn pick_images(datasets: &[(Split, &Dataset)], n: usize, area: Option<&str>) -> Vec<(Split, usize)> {
+    let candidates: Vec<(Split, Vec<usize>)> = datasets
+        .iter()
+        .map(|(split, ds)| {
+            let of_area =
+                ds.images.iter().enumerate().filter(|(_, im)| area.is_none_or(|a| im.area_name == a));
+            (*split, of_area.map(|(i, _)| i).collect::<Vec<usize>>())
+        })
+        .filter(|(_, idx)| !idx.is_empty())
+        .collect();
+    if candidates.is_empty() || n == 0 {
         return Vec::new();
     }
-    let per = n.div_ceil(non_empty.len());
+    let per = n.div_ceil(candidates.len());
     let mut out = Vec::new();
-    for (split, ds) in non_empty {
-        let len = ds.images.len();
+    for (split, idx) in candidates {
+        let len = idx.len();
         let k = per.min(len);
         for j in 0..k {
-            out.push((*split, j * len / k));
+            out.push((split, idx[j * len / k]));
         }
     }
     out.truncate(n);
     out
 }
 
+/// The contact sheet of one area: up to `n` of its frames, annotated as on `contact_sheet.png`.
+///
+/// # Errors
+/// As the report's contact sheet (an unreadable photo is drawn grey and logged, not an error).
+pub fn area_contact_sheet(
+    datasets: &[(Split, &Dataset)],
+    area: &str,
+    image_root: &Path,
+    n: usize,
+) -> Result<RgbImage, CocoError> {
+    contact_sheet(datasets, image_root, &pick_images(datasets, n, Some(area)))
+}
+
 /// Draws the contact sheet: each picked frame (RGB when `file_name` is an RGB render, else grey) with
 /// its annotations filled and outlined in per-building colours, labelled with split and frame.
-fn contact_sheet(datasets: &[(Split, &Dataset)], image_root: &Path, n: usize) -> Result<RgbImage, CocoError> {
-    let picks = pick_images(datasets, n);
+fn contact_sheet(
+    datasets: &[(Split, &Dataset)],
+    image_root: &Path,
+    picks: &[(Split, usize)],
+) -> Result<RgbImage, CocoError> {
     let cols = COLUMNS.min(picks.len().max(1) as u32);
     let rows = (picks.len() as u32).div_ceil(cols).max(1);
     let mut sheet = RgbImage::new(cols * TILE_W, rows * TILE_H, [32, 32, 32]);
@@ -529,9 +582,8 @@ fn contact_sheet(datasets: &[(Split, &Dataset)], image_root: &Path, n: usize) ->
                 }
             }
         }
-        let label = format!("{} {}", split.as_str(), im.frame);
-        tile.fill_rect(0, 0, super::raster::text_width(&label, 1) + 4, 9, [0, 0, 0]);
-        tile.text(2, 2, &label, 1, [255, 255, 255]);
+        let label = format!("{} · {}", split.as_str(), im.frame);
+        tile.text_on(0, 0, &label, TextStyle::new(text::TICK_PX, [255, 255, 255]), [0, 0, 0], 3);
         let (col, row) = (t as u32 % cols, t as u32 / cols);
         let (ox, oy) = (col * TILE_W + (TILE_W - tw) / 2, row * TILE_H + (TILE_H - th) / 2);
         sheet.paste(&tile, ox as i64, oy as i64);
@@ -610,7 +662,7 @@ mod tests {
     #[test]
     fn picks_spread_over_splits() {
         let ds = dataset(&[]);
-        let picks = pick_images(&[(Split::Train, &ds), (Split::Val, &ds)], 4);
+        let picks = pick_images(&[(Split::Train, &ds), (Split::Val, &ds)], 4, None);
         assert_eq!(picks, [(Split::Train, 0), (Split::Train, 1), (Split::Val, 0), (Split::Val, 1)]);
     }
 }

@@ -12,8 +12,8 @@
 //! Outputs in `<workdir>/<area>/<camera>/loc/<tag>/`: `results.jsonl` (one line per query and cost),
 //! `est_poses_<cost>.txt` (COLMAP `NAME qw qx qy qz tx ty tz`), `summary.md` / `summary.json` (recall at
 //! (2 m, 2°), (3 m, 3°), (5 m, 5°), median errors; the prior's own row first; per trajectory group),
-//! and `overlays/<frame>.png` for the first queries (query outlines over the renders at the prior, the
-//! estimate and the ground truth).
+//! and `overlays/<frame>.png` for the first queries ([`super::overlay`]: query outlines over the
+//! renders at the prior, the estimate and the ground truth, each captioned with its error).
 //!
 //! A shard `i/N` of the queries (positions ≡ i mod N in the query list, after `limit`) writes its
 //! `results.jsonl` and `est_poses_<cost>.txt` to `<out>/parts/<i>-of-<N>/` with a `part.json`
@@ -218,6 +218,11 @@ pub struct Summary {
     /// renderer could be chosen).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub renderer: Option<RendererRecord>,
+    /// Where the queries' instances came from: oracle masks (the ground truth, with their
+    /// degradations) or a segmentation model's predictions (by SHA-256). Absent in summaries written
+    /// before it was recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source: Option<PartSource>,
 }
 
 /// How many of one cost's estimates lie on the boundary of the search volume.
@@ -724,13 +729,13 @@ pub fn evaluate(
         for &kind in &opts.costs {
             let run = setup.localize(opts, kind)?;
             if position < opts.overlays && kind == opts.costs[0] {
-                write_overlay(
+                super::overlay::write_overlay(
                     &opts.out_dir,
-                    &q.name,
                     &*setup.scene,
                     &setup.k_fine,
                     &setup.query_fine,
                     [&q.prior, &run.estimate, &q.gt],
+                    &run.result,
                 )?;
             }
             runs.push(run);
@@ -744,6 +749,13 @@ pub fn evaluate(
         summarise(&results, &opts.costs, opts.weighting, opts.semantic_weight, &opts.search, &opts.map);
     let record = renderer.record();
     summary.renderer = (record.kind != RendererKind::Cpu).then_some(record);
+    let source = match &opts.source {
+        QuerySource::Oracle { degradation, .. } => PartSource::Oracle { degradation: degradation.clone() },
+        QuerySource::Predictions(p) => {
+            PartSource::Predictions { sha256: util::sha256_file(&p.path)?, min_score: p.min_score }
+        }
+    };
+    summary.source = Some(source.clone());
     let (jsonl, est) = output_texts(&opts.out_dir, &runs)?;
     if opts.shard.is_whole() {
         write_outputs(
@@ -767,14 +779,7 @@ pub fn evaluate(
             search: opts.search.clone(),
             map: opts.map.clone(),
             seed: opts.seed,
-            source: match &opts.source {
-                QuerySource::Oracle { degradation, .. } => {
-                    PartSource::Oracle { degradation: degradation.clone() }
-                }
-                QuerySource::Predictions(p) => {
-                    PartSource::Predictions { sha256: util::sha256_file(&p.path)?, min_score: p.min_score }
-                }
-            },
+            source,
             render_width_px: opts.render_width_px,
             coarse_width_px: opts.coarse_width_px,
             yaw_fan: opts.yaw_fan,
@@ -994,8 +999,9 @@ pub fn combine_parts(parts: &BTreeMap<Shard, PathBuf>, out_dir: &Path) -> Result
             })
         })
         .collect::<Result<_, _>>()?;
-    let summary =
+    let mut summary =
         summarise(&results, costs, first.weighting, first.semantic_weight, &first.search, &first.map);
+    summary.source = Some(first.source.clone());
     Ok(Outputs { results_jsonl, est_poses, summary })
 }
 
@@ -1281,6 +1287,7 @@ pub fn summarise(
         search: search.clone(),
         map: map.clone(),
         renderer: None,
+        source: None,
     }
 }
 
@@ -1290,6 +1297,37 @@ fn bounds_text(b: &search::SearchBounds) -> String {
         "within {:.1} m of the prior horizontally, {:.1} m in height and {:.1}° in yaw; {}",
         b.radius_m, b.height_m, b.yaw_deg, b.origin
     )
+}
+
+/// What the figures of `summary.md` are worth given where the query masks came from, as a paragraph
+/// (empty when unknown): oracle masks make them an upper bound, predictions are named.
+fn source_note(source: Option<&PartSource>) -> String {
+    match source {
+        Some(PartSource::Oracle { degradation }) if degradation.is_perfect() => "**Upper bound.** The query \
+            masks are oracle masks: the ground truth itself, with no segmenter and no simulated error. A \
+            localizer fed by a real segmentation model does at best as well as these figures.\n\n"
+            .to_string(),
+        Some(PartSource::Oracle { degradation: d }) => format!(
+            "**Upper bound.** The query masks are oracle masks: the ground truth with simulated segmentation \
+             errors ({}, {:.0} % of instances dropped, {:.0} % merged, {:.0} % split, {} false positives), \
+             no segmenter. A localizer fed by a real segmentation model is expected to do worse than these \
+             figures.\n\n",
+            match d.morph_px {
+                0 => "boundaries as they are".to_string(),
+                px if px > 0 => format!("dilated by {px} px"),
+                px => format!("eroded by {} px", -px),
+            },
+            100.0 * d.drop_fraction,
+            100.0 * d.merge_fraction,
+            100.0 * d.split_fraction,
+            d.false_positives
+        ),
+        Some(PartSource::Predictions { sha256, min_score }) => format!(
+            "The query masks are a segmentation model's predictions (COCO results file with SHA-256 `{sha256}`, \
+             scores ≥ {min_score}).\n\n"
+        ),
+        None => String::new(),
+    }
 }
 
 /// The boundary rows as Markdown.
@@ -1340,7 +1378,7 @@ pub fn write_outputs(out_dir: &Path, outputs: &Outputs) -> Result<(), EvalError>
     util::write_json_atomic(&out_dir.join("summary.json"), summary)?;
     let md = format!(
         "# Localization on {}\n\n{} queries; median {:.2} s per query (search; the query's setup takes {:.2} s \
-         more); {:.0} hypotheses/s.\n\n{}\nRecall at (2 m, 2°) by the number of query instances:\n\n{}\n\
+         more); {:.0} hypotheses/s.\n\n{}{}\nRecall at (2 m, 2°) by the number of query instances:\n\n{}\n\
          Recall at (2 m, 2°) by how many of the frame's 4 × 4 cells hold buildings (silhouettes crowded into one \
          part of the frame leave the depth along the axis weakly observed):\n\n{}\n\
          Translation errors along the ground truth's viewing direction (axial) and across it (lateral):\n\n{}\n\
@@ -1350,6 +1388,7 @@ pub fn write_outputs(out_dir: &Path, outputs: &Outputs) -> Result<(), EvalError>
         summary.median_seconds_per_query,
         summary.median_setup_seconds,
         summary.hypotheses_per_second,
+        source_note(summary.source.as_ref()),
         metrics::markdown(&summary.rows),
         metrics::bucket_markdown("query instances", &summary.instance_buckets),
         metrics::bucket_markdown("frame cells with buildings", &summary.coverage_buckets),
@@ -1359,69 +1398,6 @@ pub fn write_outputs(out_dir: &Path, outputs: &Outputs) -> Result<(), EvalError>
     );
     util::write_bytes_atomic(&out_dir.join("summary.md"), md.as_bytes())?;
     Ok(())
-}
-
-fn palette(id: u32) -> [u8; 3] {
-    if id == 0 {
-        return [20, 20, 24];
-    }
-    let h = id.wrapping_mul(2_654_435_761);
-    [(h >> 24) as u8 | 0x40, (h >> 16) as u8 | 0x40, (h >> 8) as u8 | 0x40]
-}
-
-/// Three panels (render at the prior, the estimate, the ground truth), each with the query instances'
-/// outlines drawn in white.
-#[allow(clippy::too_many_arguments)]
-fn write_overlay(
-    out_dir: &Path,
-    name: &str,
-    scene: &dyn IdScene,
-    k: &Intrinsics,
-    q: &Query,
-    poses: [&Pose; 3],
-) -> Result<(), EvalError> {
-    let (w, h) = (k.width_px as usize, k.height_px as usize);
-    let mut qlab = vec![0u32; w * h];
-    for (j, inst) in q.instances.iter().enumerate() {
-        for p in inst.pixels() {
-            qlab[p as usize] = j as u32 + 1;
-        }
-    }
-    let gap = 4;
-    let total_w = 3 * w + 2 * gap;
-    let mut rgb = vec![255u8; total_w * h * 3];
-    let mut frame = Frame::default();
-    for (panel, pose) in poses.iter().enumerate() {
-        scene.render_into(&View { intrinsics: *k, pose: **pose }, &mut frame)?;
-        for y in 0..h {
-            for x in 0..w {
-                let i = y * w + x;
-                let l = qlab[i];
-                let edge = l != 0
-                    && ((x > 0 && qlab[i - 1] != l)
-                        || (x + 1 < w && qlab[i + 1] != l)
-                        || (y > 0 && qlab[i - w] != l)
-                        || (y + 1 < h && qlab[i + w] != l));
-                let c = if edge { [255, 255, 255] } else { palette(frame.ids[i]) };
-                let o = (y * total_w + panel * (w + gap) + x) * 3;
-                rgb[o..o + 3].copy_from_slice(&c);
-            }
-        }
-    }
-    let path = out_dir.join("overlays").join(format!("{name}.png"));
-    util::write_atomic(&path, |wr| {
-        let mut enc = png::Encoder::new(wr, total_w as u32, h as u32);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        let mut writer = enc
-            .write_header()
-            .map_err(|e| util::FileError::new("encoding PNG", &path, std::io::Error::other(e)))?;
-        writer
-            .write_image_data(&rgb)
-            .map_err(|e| util::FileError::new("encoding PNG", &path, std::io::Error::other(e)))?;
-        writer.finish().map_err(|e| util::FileError::new("encoding PNG", &path, std::io::Error::other(e)))?;
-        Ok::<(), EvalError>(())
-    })
 }
 
 #[cfg(test)]

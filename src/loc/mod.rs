@@ -5,7 +5,8 @@
 //! - [`search`]: coarse grid + particle filter over x, y, z, yaw;
 //! - [`map`]: the map (another prepared area) and its seeded perturbations (LoD1, heights, footprints,
 //!   drops, merges, offset);
-//! - [`metrics`]: errors, recall at (2 m, 2°)/(3 m, 3°)/(5 m, 5°), medians, the summary table.
+//! - [`metrics`]: errors, recall at (2 m, 2°)/(3 m, 3°)/(5 m, 5°), medians, the summary table;
+//! - [`overlay`]: the overlay pictures of `eval-loc` (prior, estimate, truth, with their errors).
 
 pub mod cost;
 pub mod eval;
@@ -13,6 +14,7 @@ pub mod map;
 pub mod metrics;
 pub mod morph;
 pub mod oracle;
+pub mod overlay;
 pub mod query;
 pub mod search;
 #[cfg(test)]

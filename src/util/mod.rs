@@ -1,5 +1,6 @@
-//! Small shared helpers: atomic file output, progress reporting, hashing, the error chain, and (in
-//! [`math`]) the median and point-in-polygon test.
+//! Small shared helpers: atomic file output, progress reporting, hashing, the error chain, (in
+//! [`math`]) the median and point-in-polygon test, and (in [`figure`]) the text, charts and legends of
+//! every figure a stage draws.
 //!
 //! Every stage writes its files through [`write_atomic`], so an interrupted or failed run never leaves a
 //! half-written file behind, and reports long work through the [`Progress`] trait, which the CLI
@@ -13,6 +14,7 @@ use std::fs;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
+pub mod figure;
 pub mod glb;
 pub mod interrupt;
 pub mod merge;

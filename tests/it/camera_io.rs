@@ -290,19 +290,37 @@ mod flight_plan {
         let (tmp, out) = sampled("cam2", 30);
         let (w, h, rgb, text) = decode(&tmp.path().join("flight_plan.png"));
         assert_eq!(w.max(h), 1600);
-        let mpp: f64 = text.iter().find(|t| t.0 == "metres_per_px").unwrap().1.parse().unwrap();
-        // Picture extent: polygon bbox (1200 × 900 m) padded by 4 % of 1200 m + 20 m per side.
+        let value = |k: &str| -> f64 { text.iter().find(|t| t.0 == k).unwrap().1.parse().unwrap() };
+        let mpp = value("metres_per_px");
+        // Map extent: polygon bbox (1200 × 900 m) padded by 4 % of 1200 m + 20 m per side, 1600 px wide,
+        // under the title band.
         assert!((mpp - (1200.0 + 2.0 * 68.0) / 1600.0).abs() < 1e-9, "{mpp}");
+        let (left, top) = (value("map_left_px") as usize, value("map_top_px") as usize);
+        assert_eq!(left, 0);
+        assert!(top > 40, "a title band of {top} px");
+        let map_h = ((900.0 + 2.0 * 68.0) / mpp).ceil() as u32;
+        assert!(h > top as u32 + map_h + 40, "a legend and scale bar below the map: {h} px tall");
         let px = |e: f64, n: f64| -> [u8; 3] {
-            let (x, y) = (((e + 668.0) / mpp) as usize, ((518.0 - n) / mpp) as usize);
+            let (x, y) = (left + ((e + 668.0) / mpp) as usize, top + ((518.0 - n) / mpp) as usize);
             let i = 3 * (y * w as usize + x);
             [rgb[i], rgb[i + 1], rgb[i + 2]]
         };
+        assert_eq!(value("scale_bar_m"), 200.0, "a fifth of the 1336 m wide map, rounded down to 1-2-5");
         // Nadir cameras are drawn last (blue disc at their position); tilted ones show as orange rings.
         let nadir = out.poses.iter().rev().find(|r| r.geo.pitch_deg <= 1.0).expect("a nadir pose");
         let c = nadir.pose().centre_m;
         assert_eq!(px(c[0], c[1]), [30, 90, 200]);
-        assert!(rgb.chunks_exact(3).any(|p| p == [225, 110, 20]), "no tilted camera drawn");
+        let in_map = &rgb[3 * top * w as usize..3 * (top + map_h as usize) * w as usize];
+        assert!(in_map.chunks_exact(3).any(|p| p == [225, 110, 20]), "no tilted camera drawn");
+        // The title band and the legend hold text (dark anti-aliased pixels on white).
+        let dark = |rows: std::ops::Range<usize>| {
+            rgb[3 * rows.start * w as usize..3 * rows.end * w as usize]
+                .chunks_exact(3)
+                .filter(|p| p[0] < 90)
+                .count()
+        };
+        assert!(dark(0..top) > 500, "title");
+        assert!(dark(top + map_h as usize..h as usize) > 1000, "scale bar and legend");
         // A building pixel has the ramp colour (205, 205, 210) → (45, 55, 90) at some t in [0, 1].
         let on_ramp = |p: &[u8]| {
             let t = (205.0 - p[0] as f64) / 160.0;
@@ -310,8 +328,9 @@ mod flight_plan {
                 && (p[1] as f64 - (205.0 - 150.0 * t)).abs() <= 1.0
                 && (p[2] as f64 - (210.0 - 120.0 * t)).abs() <= 1.0
         };
-        let shaded = rgb.chunks_exact(3).filter(|p| on_ramp(p)).count() as f64;
-        let (e0, e1, n0, n1) = (-668.0, -668.0 + w as f64 * mpp, 518.0 - h as f64 * mpp, 518.0);
+        // Shaded pixels of the map only (the legend shows the ramp too).
+        let shaded = in_map.chunks_exact(3).filter(|p| on_ramp(p)).count() as f64;
+        let (e0, e1, n0, n1) = (-668.0, -668.0 + w as f64 * mpp, 518.0 - map_h as f64 * mpp, 518.0);
         let footprint: f64 = cs::boxes()
             .iter()
             .map(|(lo, hi)| {

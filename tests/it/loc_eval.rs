@@ -138,6 +138,28 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
         assert!((f[..4].iter().map(|q| q * q).sum::<f64>() - 1.0).abs() < 1e-9, "{line}");
     }
     assert!(out.join("overlays").read_dir().unwrap().count() == 1, "one overlay PNG");
+    // Issue 39: oracle masks make the figures an upper bound, and summary.md says so.
+    assert_eq!(summary["source"]["kind"], "oracle", "{}", summary["source"]);
+    assert!(md.contains("**Upper bound.** The query masks are oracle masks"), "{md}");
+    // The overlay: three panels at the render width (640 px by default) under a title band, captioned
+    // below; the title of a success (every query here is within 2 m, 2°) is drawn in green.
+    let overlay = std::fs::read_dir(out.join("overlays")).unwrap().next().unwrap().unwrap().path();
+    let img = insgen::export::raster::read_png_rgb(&overlay).unwrap();
+    let panel_h = (640.0 * 9.0f64 / 16.0).round() as u32; // cam2's 16:9 frames
+    assert_eq!((img.width, img.height), (3 * 640 + 2 * 8, 60 + panel_h + 30));
+    let green = (0..60)
+        .flat_map(|y| (0..img.width).map(move |x| (x, y)))
+        .filter(|&(x, y)| img.get(x, y) == [20, 130, 50]);
+    assert!(green.count() > 100, "the title of a success is green");
+    let caption_ink = (60 + panel_h..img.height)
+        .flat_map(|y| (0..img.width).map(move |x| (x, y)))
+        .filter(|&(x, y)| img.get(x, y)[0] < 100)
+        .count();
+    assert!(caption_ink > 300, "the panels are captioned");
+    if let Some(keep) = std::env::var_os("INSGEN_FIGURES_PREVIEW") {
+        std::fs::create_dir_all(&keep).unwrap();
+        std::fs::copy(&overlay, std::path::Path::new(&keep).join("eval_loc_overlay.png")).unwrap();
+    }
 
     // 2. The ground truth as a segmentation model's COCO results (score 1, compressed RLE); no RGB
     //    frames were rendered, so the export is label-only.
@@ -159,6 +181,11 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
     std::fs::write(&preds_path, serde_json::to_vec(&preds).unwrap()).unwrap();
     ok(cwd, &eval_loc(&["--predictions", "preds.json", "--overlays", "0"]));
     let predicted = results(&cam.join("loc/predictions/results.jsonl"));
+    let md = std::fs::read_to_string(cam.join("loc/predictions/summary.md")).unwrap();
+    assert!(
+        md.contains("The query masks are a segmentation model's predictions") && !md.contains("Upper bound"),
+        "{md}"
+    );
     for (p, o) in predicted.iter().zip(&oracle) {
         assert_eq!(p["name"], o["name"]);
         assert!(p["translation_error_m"].as_f64().unwrap() < 2.0, "{p}");

@@ -22,6 +22,7 @@ mod coco_export;
 mod coco_rle;
 mod crash;
 mod demo_dataset;
+mod export_index;
 mod exports;
 mod fuzz;
 mod geo_geoid_grids;
