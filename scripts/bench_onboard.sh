@@ -72,10 +72,10 @@ out=bench/onboard.md
     echo "|---|---|---|"
     total=0
     for s in "${steps[@]}"; do
-        m=$(echo "${times[$s]}" | median)
+        m=$(printf '%.2f' "$(echo "${times[$s]}" | median)")
         total=$(echo "$total + $m" | bc)
         echo "| $s | \`insgen $(step_cmd "$s" | sed "s|$work|…|g")\` | $m |"
     done
-    echo "| **total** | | **$total** |"
+    echo "| **total** | | **$(printf '%.2f' "$total")** |"
 } > "$out"
 cat "$out"

@@ -10,6 +10,6 @@ cargo install --locked --path . "$@"
 if bin="$(command -v insgen)"; then
     echo "insgen is $bin ($("$bin" --version))"
 else
-    echo "insgen is installed in ${CARGO_HOME:-$HOME/.cargo}/bin, which is not on PATH; add it:" >&2
-    echo "  export PATH=\"${CARGO_HOME:-$HOME/.cargo}/bin:\$PATH\"" >&2
+    echo "insgen is not on PATH yet: add the folder cargo installed it into (above; by default" >&2
+    echo "${CARGO_HOME:-$HOME/.cargo}/bin), e.g. export PATH=\"${CARGO_HOME:-$HOME/.cargo}/bin:\$PATH\"" >&2
 fi
