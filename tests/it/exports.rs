@@ -389,12 +389,12 @@ pub(crate) fn assert_moved_export_loads(moved: &Path, coco_images: usize) {
     let sums = |dir: &Path| {
         Command::new("sha256sum").args(["-c", "--quiet", "SHA256SUMS"]).current_dir(dir).output().unwrap()
     };
-    let o = sums(&moved);
+    let o = sums(moved);
     assert!(o.status.success(), "sha256sum -c: {}{}", String::from_utf8_lossy(&o.stdout), stderr(&o));
     let listed = std::fs::read_to_string(moved.join("SHA256SUMS")).unwrap().lines().count();
     assert!(listed > 2 * coco_images, "{listed} files listed for {coco_images} images");
-    let copy = elsewhere.path().join("copy");
-    assert!(Command::new("cp").arg("-a").arg(&moved).arg(&copy).status().unwrap().success());
+    let copy = elsewhere.join("copy");
+    assert!(Command::new("cp").arg("-a").arg(moved).arg(&copy).status().unwrap().success());
     let photo = image_files(&copy.join("images"))[0].clone();
     let mut bytes = std::fs::read(&photo).unwrap();
     let last = bytes.len() - 20;
