@@ -392,8 +392,16 @@ fn neighbour_contrast(
     {
         return Ok(None);
     }
-    let scene = crate::scene::PreparedScene::load(scene_dir)?;
-    let (contrast, (same, pairs)) = crate::blender::look::BuildingContrast::of_mesh(&scene.mesh);
+    // Only the mesh is needed (plan adjacency does not move with an alignment correction).
+    let glb = scene_dir.join(GLB_FILE);
+    let mesh = match crate::scene::glb::read_glb(&glb) {
+        Ok(m) => m,
+        Err(e) => {
+            log::warn!("neighbour contrast off: {}", crate::util::error_chain(&e));
+            return Ok(None);
+        }
+    };
+    let (contrast, (same, pairs)) = crate::blender::look::BuildingContrast::of_mesh(&mesh);
     log::info!(
         "neighbour contrast: {} buildings in {} classes, {pairs} touching pairs, {same} of them in the same class",
         contrast.building_classes.len(),
