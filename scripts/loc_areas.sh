@@ -17,6 +17,7 @@
 # sampler's error names the count; the table says how many queries ran); one that holds fewer than 4 is
 # skipped with the sampler's reason.
 set -euo pipefail
+. "$(dirname "$0")/loc_common.sh"
 cd "$(dirname "$0")/.."
 W="${1:-target/loc-areas}"
 COUNT=${COUNT:-40}
@@ -58,14 +59,7 @@ sample_views() {
 }
 
 for a in $AREAS; do
-  if ! $IG prepare --area "$a" 2>"$W/prepare.err"; then
-    if grep -q -i "not found\|no such file\|missing" "$W/prepare.err" && [ "${CI:-}" != true ]; then
-      echo "== skipping $a: $(head -1 "$W/prepare.err")"
-      continue
-    fi
-    cat "$W/prepare.err" >&2
-    exit 1
-  fi
+  prepare_or_skip "$IG" "$W" "$a" || continue
   for cam in cam2 cam3; do
     if ! sample_views "$a" "$cam"; then
       echo "== skipping $a/$cam: fewer than 4 views: $(tail -1 "$W/sample.err" | cut -c1-300)"

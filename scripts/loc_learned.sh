@@ -8,12 +8,13 @@
 #
 #   scripts/loc_learned.sh [WORKDIR]
 #   (env: COUNT=20 AREAS="demo niiza denhaag delft tokyo" SEGMENTER=learned
-#    LOOP=/work/main/runs/closed_loop_small (a closed-loop work directory; copied, never written)
+#    LOOP=runs/closed_loop_small (a closed-loop work directory; copied, never written)
 #    REPORT_ONLY=1 rewrites the report from the runs already in WORKDIR)
 #
 # Areas whose data is absent under ../shared/data are skipped with a printed reason; so is the learned
 # run when LOOP holds no U-Net predictions.
 set -euo pipefail
+. "$(dirname "$0")/loc_common.sh"
 cd "$(dirname "$0")/.."
 W="${1:-target/loc-learned}"
 COUNT=${COUNT:-20}
@@ -32,14 +33,7 @@ else
 fi
 
 for a in $AREAS; do
-  if ! $IG prepare --area "$a" 2>"$W/prepare.err"; then
-    if grep -q -i "not found\|no such file\|missing" "$W/prepare.err" && [ "${CI:-}" != true ]; then
-      echo "== skipping $a: $(head -1 "$W/prepare.err")"
-      continue
-    fi
-    cat "$W/prepare.err" >&2
-    exit 1
-  fi
+  prepare_or_skip "$IG" "$W" "$a" || continue
   $IG sample --area "$a" --camera cam2 --count "$COUNT"
   $IG render-masks --area "$a" --camera cam2 --preview 0
   for masks in oracle segmenter; do

@@ -23,6 +23,7 @@
 # Chosen on: tokyo (Shibuya) and denhaag. Reported on: the others (demo, niiza, delft, komaba,
 # yokosuka), which played no part in the choice. Areas whose data is absent are skipped.
 set -euo pipefail
+. "$(dirname "$0")/loc_common.sh"
 cd "$(dirname "$0")/.."
 export NODEVICE_SELECT=1
 W="${1:-target/loc-sparse}"
@@ -66,14 +67,7 @@ sample_views() {
 
 if [ "${REPORT_ONLY:-0}" != 1 ]; then
   for a in $AREAS; do
-    if ! $IG prepare --area "$a" 2>"$W/prepare.err"; then
-      if grep -q -i "not found\|no such file\|missing" "$W/prepare.err" && [ "${CI:-}" != true ]; then
-        echo "== skipping $a: $(head -1 "$W/prepare.err")"
-        continue
-      fi
-      cat "$W/prepare.err" >&2
-      exit 1
-    fi
+    prepare_or_skip "$IG" "$W" "$a" || continue
     sample_views "$a" || { echo "== skipping $a: $(tail -1 "$W/sample.err" | cut -c1-300)"; continue; }
     $IG render-masks --area "$a" --camera cam2 --preview 0
     $IG $E --area "$a" --camera cam2 --tag exact
