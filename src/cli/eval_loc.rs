@@ -13,7 +13,7 @@ use crate::loc::map::{MapPerturbation, MapSummary};
 use crate::loc::oracle::{Degradation, SegmenterLike};
 use crate::loc::query::{load_predictions, QuerySource};
 use crate::loc::search::{
-    BeamMode, CoarseParams, FineParams, PolishCost, Prune, SearchBounds, SearchOptions, Stages,
+    BeamMode, CoarseParams, FineParams, OnBoundary, PolishCost, Prune, SearchBounds, SearchOptions, Stages,
 };
 use crate::render::{RendererChoice, Workload};
 use crate::scene::PreparedScene;
@@ -237,6 +237,13 @@ pub struct Args {
     /// prior's (not searched).
     #[arg(long, value_name = "DEG", value_parser = parse_half_range)]
     pub search_yaw_deg: Option<f64>,
+    /// Report the search's best pose even when it ends on the boundary of the search volume.
+    ///
+    /// By default such a query reports its prior (the cost still improved towards poses the prior
+    /// rules out, so the pose it found is not trusted) and is flagged in results.jsonl (kept_prior)
+    /// and summary.md; this flag keeps the pose found, to study a cost.
+    #[arg(long)]
+    pub keep_boundary_estimates: bool,
     /// Particle-filter iterations [default: 20; --paper: 40].
     #[arg(long, value_name = "N")]
     pub iterations: Option<u32>,
@@ -428,6 +435,7 @@ fn parse_prune(s: &str) -> Result<PruneFlag, String> {
 fn search_options(args: &Args, bounds: SearchBounds) -> SearchOptions {
     SearchOptions {
         bounds,
+        on_boundary: if args.keep_boundary_estimates { OnBoundary::Keep } else { OnBoundary::Prior },
         coarse: {
             let d = CoarseParams::default();
             let (xy_range_m, xy_step_m) = args.coarse_xy.unwrap_or((d.xy_range_m, d.xy_step_m));

@@ -176,11 +176,15 @@ pub struct QueryResult {
     /// Hypotheses and seconds per stage of the search.
     #[serde(default)]
     pub stages: search::StageCosts,
-    /// Whether the estimate lies on the boundary of the search volume around the prior
+    /// Whether the search's best pose lay on the boundary of the search volume around the prior
     /// ([`search::SearchBounds`], within [`search::BOUNDARY_TOLERANCE`] of a half-range): the cost's
     /// optimum may lie beyond, where the prior says the camera cannot be.
     #[serde(default)]
     pub on_search_boundary: bool,
+    /// Whether the estimate is the prior because the search's best pose lay on the boundary
+    /// ([`search::OnBoundary::Prior`], the default).
+    #[serde(default)]
+    pub kept_prior: bool,
 }
 
 /// The run's summary.
@@ -232,8 +236,11 @@ pub struct BoundaryRow {
     pub method: String,
     /// Queries localized.
     pub queries: usize,
-    /// Estimates with `on_search_boundary` (see [`QueryResult`]).
+    /// Queries whose search ended on the boundary (`on_search_boundary`, see [`QueryResult`]).
     pub on_search_boundary: usize,
+    /// Of those, the queries whose estimate is the prior (`kept_prior`).
+    #[serde(default)]
+    pub kept_prior: usize,
 }
 
 /// Intrinsics scaled to `width_px` (height rounded to keep the aspect ratio).
@@ -1119,6 +1126,7 @@ impl<'q, 'r> QuerySetup<'q, 'r> {
                 hypotheses_scored: 0,
                 stages: Default::default(),
                 on_boundary: false,
+                kept_prior: false,
             }
         } else {
             search::search(
@@ -1160,6 +1168,7 @@ impl<'q, 'r> QuerySetup<'q, 'r> {
             buildings_considered: self.buildings,
             stages: r.stages,
             on_search_boundary: r.on_boundary,
+            kept_prior: r.kept_prior,
         };
         Ok(Localized { result, estimate: est })
     }
@@ -1267,6 +1276,7 @@ pub fn summarise(
             method: name.clone(),
             queries: split.len(),
             on_search_boundary: results.iter().filter(|r| r.cost == kind && r.on_search_boundary).count(),
+            kept_prior: results.iter().filter(|r| r.cost == kind && r.kept_prior).count(),
         });
     }
     let secs: Vec<f64> = results.iter().map(|r| r.seconds).collect();
@@ -1332,9 +1342,13 @@ fn source_note(source: Option<&PartSource>) -> String {
 
 /// The boundary rows as Markdown.
 fn boundary_markdown(rows: &[BoundaryRow]) -> String {
-    let mut s = String::from("| method | queries | on the boundary |\n|---|---:|---:|\n");
+    let mut s =
+        String::from("| method | queries | on the boundary | prior reported |\n|---|---:|---:|---:|\n");
     for r in rows {
-        s.push_str(&format!("| {} | {} | {} |\n", r.method, r.queries, r.on_search_boundary));
+        s.push_str(&format!(
+            "| {} | {} | {} | {} |\n",
+            r.method, r.queries, r.on_search_boundary, r.kept_prior
+        ));
     }
     s
 }
@@ -1382,7 +1396,7 @@ pub fn write_outputs(out_dir: &Path, outputs: &Outputs) -> Result<(), EvalError>
          Recall at (2 m, 2°) by how many of the frame's 4 × 4 cells hold buildings (silhouettes crowded into one \
          part of the frame leave the depth along the axis weakly observed):\n\n{}\n\
          Translation errors along the ground truth's viewing direction (axial) and across it (lateral):\n\n{}\n\
-         Estimates on the boundary of the search volume around the prior ({}):\n\n{}",
+         Searches that ended on the boundary of the search volume around the prior ({}). {}\n\n{}",
         out_dir.display(),
         summary.queries,
         summary.median_seconds_per_query,
@@ -1394,6 +1408,11 @@ pub fn write_outputs(out_dir: &Path, outputs: &Outputs) -> Result<(), EvalError>
         metrics::bucket_markdown("frame cells with buildings", &summary.coverage_buckets),
         metrics::axis_markdown(&summary.axis_rows),
         bounds_text(&summary.search.bounds),
+        match summary.search.on_boundary {
+            search::OnBoundary::Prior => "There the cost still improves towards poses the prior rules out; the \
+                                          prior is reported instead of the pose found:",
+            search::OnBoundary::Keep => "The pose found there is reported (--keep-boundary-estimates):",
+        },
         boundary_markdown(&summary.boundary_rows)
     );
     util::write_bytes_atomic(&out_dir.join("summary.md"), md.as_bytes())?;

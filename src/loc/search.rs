@@ -46,7 +46,8 @@ impl Hypothesis {
 /// grid leaves out its cells outside the volume, the particle filter's draws and the polish's points
 /// are projected onto it (the nearest pose inside: a draw inside is left bit for bit as it was, so a
 /// search that never reaches the boundary runs exactly as an unbounded one), and the basins start
-/// from coarse cells. [`SearchResult::on_boundary`] says when the estimate ends on the boundary.
+/// from coarse cells. [`SearchResult::on_boundary`] says when the best pose ends on the boundary;
+/// the search then reports the prior ([`OnBoundary`]).
 ///
 /// # Units
 /// Metres and degrees, each a half-range about the prior.
@@ -483,6 +484,24 @@ pub struct SearchOptions {
     /// The volume around the prior every stage keeps to.
     #[serde(default)]
     pub bounds: SearchBounds,
+    /// What the search reports when its best pose ends on the boundary of `bounds`.
+    #[serde(default)]
+    pub on_boundary: OnBoundary,
+}
+
+/// What a search reports when its best pose ends on the boundary of its volume
+/// ([`Volume::on_boundary`]). There the cost still improves towards poses the prior rules out (with
+/// the default volume, beyond 4σ of the prior's noise, which a true pose reaches with a probability
+/// under 10⁻⁴): the cost is degenerate on this query, and the pose it found says nothing a
+/// navigator should act on.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum OnBoundary {
+    /// Report the prior (no worse than the prior's own error) and flag the query (the default).
+    #[default]
+    Prior,
+    /// Report the best pose on the boundary (`eval-loc --keep-boundary-estimates`: to study a cost).
+    Keep,
 }
 
 impl Default for SearchOptions {
@@ -492,6 +511,7 @@ impl Default for SearchOptions {
             fine: FineParams::default(),
             stages: Stages::CoarseAndFine,
             bounds: SearchBounds::default(),
+            on_boundary: OnBoundary::default(),
         }
     }
 }
@@ -512,11 +532,15 @@ pub struct SearchResult {
     /// Hypotheses and seconds per stage (where a query's time goes).
     #[serde(default)]
     pub stages: StageCosts,
-    /// Whether `best` lies on the boundary of [`SearchOptions::bounds`] (or within
+    /// Whether the search's best pose lay on the boundary of [`SearchOptions::bounds`] (or within
     /// [`BOUNDARY_TOLERANCE`] of it): the cost's optimum may lie beyond, where the prior says the
     /// camera cannot be.
     #[serde(default)]
     pub on_boundary: bool,
+    /// Whether `best` is the prior because the search's best pose lay on the boundary
+    /// ([`OnBoundary::Prior`]); `best_score` is then the prior's.
+    #[serde(default)]
+    pub kept_prior: bool,
 }
 
 /// Hypotheses scored and wall-clock seconds spent scoring them in one stage of the search.
@@ -655,6 +679,11 @@ pub fn search<E: Evaluate>(
             counter.charge(Stage::Polish, n, started.elapsed().as_secs_f64());
         }
     }
+    let on_boundary = volume.on_boundary(&best);
+    let kept_prior = on_boundary && opts.on_boundary == OnBoundary::Prior;
+    if kept_prior {
+        (best, best_score) = (prior, eval.evaluate(&[prior])?[0]);
+    }
     Ok(SearchResult {
         best,
         best_score,
@@ -662,7 +691,8 @@ pub fn search<E: Evaluate>(
         coarse_score,
         hypotheses_scored: counter.scored,
         stages: counter.stages,
-        on_boundary: volume.on_boundary(&best),
+        on_boundary,
+        kept_prior,
     })
 }
 
@@ -1596,15 +1626,17 @@ mod tests {
         }
 
         /// Issue 40: a cost whose optimum lies 300 m from the prior pulls no stage out of the volume;
-        /// the estimate ends on its boundary, flagged.
+        /// the best pose ends on its boundary, flagged (reported as found with
+        /// [`OnBoundary::Keep`]; the prior is reported by default, see the next test).
         #[test]
         fn issue_40_a_degenerate_optimum_300_m_away_cannot_pull_the_estimate_out() {
             let far = Hypothesis { centre_m: DVec3::new(400.0, -50.0, 300.0), yaw_deg: 30.0 };
+            let keep = OnBoundary::Keep;
             let modes = [
-                SearchOptions::default(),
-                SearchOptions { fine: FineParams::paper(), ..Default::default() },
-                SearchOptions { stages: Stages::FineOnly, ..Default::default() },
-                SearchOptions { stages: Stages::CoarseOnly, ..Default::default() },
+                SearchOptions { on_boundary: keep, ..Default::default() },
+                SearchOptions { fine: FineParams::paper(), on_boundary: keep, ..Default::default() },
+                SearchOptions { stages: Stages::FineOnly, on_boundary: keep, ..Default::default() },
+                SearchOptions { stages: Stages::CoarseOnly, on_boundary: keep, ..Default::default() },
             ];
             for opts in modes {
                 let (mut coarse, mut fine) = (Ramp { far, seen: Vec::new() }, Ramp { far, seen: Vec::new() });
@@ -1616,6 +1648,7 @@ mod tests {
                 // The coarse grid alone ends at its own edge, inside the volume.
                 let coarse_only = opts.stages == Stages::CoarseOnly;
                 assert_eq!(r.on_boundary, !coarse_only, "{:?}: flag at {:?}", opts.stages, r.best);
+                assert!(!r.kept_prior);
                 // Towards the optimum: east, at the full radius (the coarse grid's edge at 20 m alone).
                 let reach_m = if opts.stages == Stages::CoarseOnly { 20.0 } else { v.radius_m };
                 assert!((r.best.centre_m.x - prior().centre_m.x - reach_m).abs() < 0.5, "{:?}", r.best);
@@ -1638,6 +1671,24 @@ mod tests {
             );
         }
 
+        /// By default a best pose on the boundary is not reported: the prior is, with its score, and
+        /// the query is flagged; a search whose best lies inside is untouched (previous test, and
+        /// the next).
+        #[test]
+        fn a_best_pose_on_the_boundary_reports_the_prior() {
+            let far = Hypothesis { centre_m: DVec3::new(400.0, -50.0, 300.0), yaw_deg: 30.0 };
+            for fine in [FineParams::default(), FineParams::paper()] {
+                let opts = SearchOptions { fine, ..Default::default() };
+                let (mut coarse, mut eval) = (Ramp { far, seen: Vec::new() }, Ramp { far, seen: Vec::new() });
+                let r = search(&mut coarse, &mut eval, prior(), &opts, 5, None).unwrap();
+                assert!(r.on_boundary && r.kept_prior, "{r:?}");
+                assert_eq!(r.best, prior());
+                assert_eq!(r.best_score, Ramp { far, seen: Vec::new() }.evaluate(&[prior()]).unwrap()[0]);
+                // The coarse stage's best is still what the grid found (towards the optimum).
+                assert!(r.coarse_best.centre_m.x > prior().centre_m.x + 10.0, "{:?}", r.coarse_best);
+            }
+        }
+
         #[test]
         fn a_cost_whose_optimum_lies_well_inside_runs_as_if_unbounded() {
             let target = Hypothesis { centre_m: DVec3::new(110.0, -55.0, 296.0), yaw_deg: 33.0 };
@@ -1650,7 +1701,7 @@ mod tests {
                 let (bounded, free) = (run(SearchBounds::default()), run(unbounded()));
                 let key = |r: &SearchResult| (r.best, r.best_score, r.coarse_best, r.hypotheses_scored);
                 assert_eq!(key(&bounded), key(&free), "{stages:?}");
-                assert!(!bounded.on_boundary);
+                assert!(!bounded.on_boundary && !bounded.kept_prior);
                 assert!(bounded.best.centre_m.distance(target.centre_m) < 0.5, "{:?}", bounded.best);
             }
         }

@@ -161,6 +161,41 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
         std::fs::copy(&overlay, std::path::Path::new(&keep).join("eval_loc_overlay.png")).unwrap();
     }
 
+    // Issue 40: a search that ends on the boundary of its volume reports the prior. A 1 m radius
+    // leaves every truth (the priors are metres off) outside: the cost improves up to the boundary.
+    let tight = ["--oracle", "--cost", "instance", "--overlays", "0", "--search-radius-m", "1"];
+    let (prior_out, keep_out) = (cam.join("loc/tight_prior"), cam.join("loc/tight_keep"));
+    let prior_dir = prior_out.to_str().unwrap();
+    ok(cwd, &[&["--no-progress"][..], &eval_loc(&tight), &["--out", prior_dir]].concat());
+    let keep_dir = keep_out.to_str().unwrap();
+    ok(
+        cwd,
+        &[&["--no-progress"][..], &eval_loc(&tight), &["--out", keep_dir, "--keep-boundary-estimates"]]
+            .concat(),
+    );
+    let (reported, kept) =
+        (results(&prior_out.join("results.jsonl")), results(&keep_out.join("results.jsonl")));
+    let on_boundary: Vec<&Value> = reported.iter().filter(|r| r["on_search_boundary"] == true).collect();
+    assert!(!on_boundary.is_empty(), "a 1 m volume: some search ends on its boundary: {reported:?}");
+    for r in &reported {
+        assert_schema("loc_result.schema.json", r);
+        assert_eq!(r["kept_prior"], r["on_search_boundary"], "{r}");
+    }
+    for r in on_boundary {
+        let (t, pt) =
+            (r["translation_error_m"].as_f64().unwrap(), r["prior_translation_error_m"].as_f64().unwrap());
+        assert!((t - pt).abs() < 1e-6, "the prior is reported: {t} m vs the prior's {pt} m: {r}");
+        let k = kept.iter().find(|k| k["name"] == r["name"]).unwrap();
+        assert!(k["on_search_boundary"] == true && k["kept_prior"] == false, "{k}");
+        assert_ne!(k["estimate"], r["estimate"], "--keep-boundary-estimates reports the pose found");
+    }
+    let tight_summary: Value =
+        serde_json::from_slice(&std::fs::read(prior_out.join("summary.json")).unwrap()).unwrap();
+    assert_schema("loc_summary.schema.json", &tight_summary);
+    assert_eq!(tight_summary["search"]["on_boundary"], "prior");
+    let row = &tight_summary["boundary_rows"][0];
+    assert_eq!(row["kept_prior"], row["on_search_boundary"], "{row}");
+
     // 2. The ground truth as a segmentation model's COCO results (score 1, compressed RLE); no RGB
     //    frames were rendered, so the export is label-only.
     ok(cwd, &["export-coco", "--label-only"]);
