@@ -158,6 +158,19 @@ if stage_on report; then
     "$PY" "$ROOT/scripts/train/fix_figure.py" --rgb "$W/$fa/$CAMERA/rgb" --before "$alt/masks" \
         --after "$W/$fa/$CAMERA/masks" --out "bench/closed_loop_fix_rooftop.png" \
         --title "$fa: photo | rooftop units as occluders (before) | units part of their building (now)"
+    # And the neighbour contrast: the same poses rendered without and with it (a few frames each, into
+    # cameras of their own, so the loop's photos are untouched).
+    for v in off on; do
+        alt="$W/$fa/$CAMERA-contrast-$v"
+        mkdir -p "$alt"
+        cp "$W/$fa/$CAMERA/poses.jsonl" "$W/$fa/$CAMERA/camera.json" "$alt/"
+        flag=(); [ "$v" = off ] && flag=(--no-neighbour-contrast)
+        "${B[@]}" -q render-rgb --area "$fa" --camera "$CAMERA-contrast-$v" --limit 3 "${flag[@]}"
+    done
+    "$PY" "$ROOT/scripts/train/contrast_figure.py" --before "$W/$fa/$CAMERA-contrast-off/rgb" \
+        --after "$W/$fa/$CAMERA-contrast-on/rgb" --masks "$W/$fa/$CAMERA/masks" \
+        --out "bench/closed_loop_fix_contrast.jpg" \
+        --title "$fa: photo without neighbour contrast (before) | with (now) | touching boundaries"
     "$PY" "$ROOT/scripts/train/loop_report.py" --workdir "$W" --report bench/closed_loop.md
 fi
 say "done"

@@ -116,6 +116,12 @@ def section(w: Path, bench: Path) -> str:
         out += ["Data fix: rooftop units no longer punch holes in the roof masks (`render-masks --occluders` "
                 "default `trees,cars`; the units belong to the building they stand on). Before | after on the "
                 "first training area, changed pixels in yellow:", "", "![rooftop fix](closed_loop_fix_rooftop.png)", ""]
+    if (bench / "closed_loop_fix_contrast.jpg").exists():
+        out += ["Data fix: touching buildings get contrasting looks (`render-rgb`'s neighbour contrast; "
+                "`--no-neighbour-contrast` turns it off), so the boundary the masks draw between row houses shows "
+                "in the photo. The same poses rendered without and with it, touching boundaries in yellow; the "
+                "header gives the colour contrast across touching and building / background boundaries:", "",
+                "![neighbour contrast fix](closed_loop_fix_contrast.jpg)", ""]
     out.append(f"<!-- end:{label} -->")
     return "\n".join(out) + "\n"
 
