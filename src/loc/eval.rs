@@ -1573,6 +1573,48 @@ mod tests {
     use super::*;
     use crate::render::cpu as raster;
 
+    mod errors {
+        use super::*;
+
+        #[test]
+        fn problems_name_the_file_and_what_is_wrong_in_it() {
+            let e = EvalError::Input {
+                path: "cam/intrinsics.txt".into(),
+                problem: InputProblem::NotPinhole { query: "q1.jpg".into(), model: "OPENCV".into() },
+            };
+            assert_eq!(
+                e.to_string(),
+                "cam/intrinsics.txt: query q1.jpg: camera model OPENCV is not a pinhole (SIMPLE_PINHOLE or \
+                 PINHOLE)"
+            );
+            let missing = vec![Shard { index: 1, count: 3 }, Shard { index: 2, count: 3 }];
+            let e = EvalError::Parts {
+                dir: "loc/parts".into(),
+                problem: PartsProblem::MissingShards { missing, count: 3 },
+            };
+            assert_eq!(
+                e.to_string(),
+                "loc/parts: shard(s) 1/3, 2/3 of the evaluation are missing; run `insgen eval-loc … --shard \
+                 I/3` for them"
+            );
+        }
+
+        #[test]
+        fn no_parts_and_a_foreign_marker_are_refused() {
+            let t = tempfile::tempdir().unwrap();
+            let e = combine_parts(&BTreeMap::new(), t.path()).unwrap_err();
+            assert!(matches!(e, EvalError::Parts { problem: PartsProblem::NoParts, .. }), "{e:?}");
+            let dir = t.path().join(PARTS_DIR).join("0-of-1");
+            std::fs::create_dir_all(&dir).unwrap();
+            std::fs::write(dir.join(PART_MARKER), "{\"kind\": \"eval-loc\"}").unwrap();
+            let parts = BTreeMap::from([(Shard { index: 0, count: 1 }, dir.clone())]);
+            let e = combine_parts(&parts, t.path()).unwrap_err();
+            let EvalError::PartMarker { path, .. } = &e else { panic!("{e:?}") };
+            assert_eq!(path, &dir.join(PART_MARKER));
+            assert!(e.to_string().ends_with("part.json: not an eval-loc part marker"), "{e}");
+        }
+    }
+
     #[test]
     fn dense_ids_are_contiguous() {
         let mut m = SceneMesh::default();
