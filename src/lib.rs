@@ -26,6 +26,8 @@
 //!   [i, i+1) × [j, j+1) and its centre is (i + 0.5, j + 0.5) — the COLMAP and rasteriser convention.
 //! - Camera axes are OpenCV's (x right, y down, z forward).
 
+#![warn(missing_docs)]
+
 pub mod blender;
 pub mod camera;
 pub mod cli;

@@ -3,6 +3,8 @@
 //! Exit status: 0 success, 1 failure (the cause chain on one stderr line), 2 usage error (clap),
 //! 130 stopped by Ctrl-C (SIGINT/SIGTERM) between items.
 
+#![warn(missing_docs)]
+
 use std::process::ExitCode;
 
 use clap::Parser;

@@ -14,9 +14,10 @@
 //!   tilted more than 1°).
 //!
 //! The scale bar's length (a round number of metres), the `metres_per_px` of the map and where the map
-//! lies in the picture are also in the PNG's `tEXt` chunks. The map's raster code (lines, discs,
-//! triangles, scanline polygon fill) is our own and integer-exact, the words go through
-//! [`crate::util::figure`], so the picture is byte-identical for identical inputs.
+//! lies in the picture are also in the PNG's `tEXt` chunks. The map is an [`RgbImage`] drawn with
+//! [`crate::util::figure`]'s integer-exact primitives (lines, discs, scanline polygon fill; the roofs'
+//! triangles are rasterised here), and the words go through the same module, so the picture is
+//! byte-identical for identical inputs.
 
 use std::io::Write;
 use std::path::Path;
@@ -24,18 +25,16 @@ use std::path::Path;
 use super::{CameraError, PoseRecord};
 use crate::scene::PreparedScene;
 use crate::util::figure::legend::legend_size;
-use crate::util::figure::{text, Align, LegendItem, RgbImage, Swatch, TextStyle, WHITE};
+use crate::util::figure::{text, Align, LegendItem, Rgb, RgbImage, Swatch, TextStyle, INK, WHITE};
 
 /// Longest side of the picture, pixels.
 pub const MAX_SIDE_PX: u32 = 1600;
 
-type Rgb = [u8; 3];
 const OUTSIDE: Rgb = [250, 250, 250];
 const INSIDE: Rgb = [232, 240, 226];
 const OUTLINE: Rgb = [40, 120, 40];
 const NADIR: Rgb = [30, 90, 200];
 const TILTED: Rgb = [225, 110, 20];
-const INK: Rgb = [20, 20, 20];
 /// Building shading: the lowest roof …
 const RAMP_LOW: Rgb = [205, 205, 210];
 /// … and the highest.
@@ -43,29 +42,25 @@ const RAMP_HIGH: Rgb = [45, 55, 90];
 const PATHS: [Rgb; 6] =
     [[200, 40, 120], [20, 140, 160], [150, 90, 20], [100, 60, 180], [30, 150, 60], [190, 60, 40]];
 
-/// An RGB raster with a world (ENU) → pixel mapping, north up.
-pub struct Canvas {
-    /// Width, pixels.
-    pub width_px: u32,
-    /// Height, pixels.
-    pub height_px: u32,
-    /// RGB8, row-major from the top row.
-    pub rgb: Vec<u8>,
+/// The map: a raster of [`crate::util::figure`] with its world (ENU) → pixel mapping, north up.
+pub struct Map {
+    /// The map's pixels; lines, discs and the area's fill are drawn with [`RgbImage`]'s primitives.
+    pub image: RgbImage,
     /// ENU (east, north) of the top-left corner of the picture, metres.
     top_left_m: [f64; 2],
     /// Pixels per metre.
     scale_px_per_m: f64,
 }
 
-impl Canvas {
-    /// A canvas covering [min, max] (ENU metres) with the longest side `max_side_px`, filled with `bg`.
+impl Map {
+    /// A map covering [min, max] (ENU metres) with the longest side `max_side_px`, filled with `bg`.
     pub fn new(min_m: [f64; 2], max_m: [f64; 2], max_side_px: u32, bg: Rgb) -> Self {
         let extent = (max_m[0] - min_m[0]).max(max_m[1] - min_m[1]).max(1.0);
         let scale = max_side_px as f64 / extent;
         let width_px = (((max_m[0] - min_m[0]) * scale).ceil() as u32).clamp(1, max_side_px);
         let height_px = (((max_m[1] - min_m[1]) * scale).ceil() as u32).clamp(1, max_side_px);
-        let rgb = bg.repeat((width_px * height_px) as usize);
-        Canvas { width_px, height_px, rgb, top_left_m: [min_m[0], max_m[1]], scale_px_per_m: scale }
+        let image = RgbImage::new(width_px, height_px, bg);
+        Map { image, top_left_m: [min_m[0], max_m[1]], scale_px_per_m: scale }
     }
 
     /// Metres per pixel.
@@ -80,99 +75,17 @@ impl Canvas {
             (self.top_left_m[1] - p_m[1]) * self.scale_px_per_m,
         ]
     }
+}
 
-    /// The colour at pixel (x, y), or `None` outside.
-    pub fn get(&self, x: i64, y: i64) -> Option<Rgb> {
-        if x < 0 || y < 0 || x >= self.width_px as i64 || y >= self.height_px as i64 {
-            return None;
-        }
-        let i = 3 * (y as usize * self.width_px as usize + x as usize);
-        Some([self.rgb[i], self.rgb[i + 1], self.rgb[i + 2]])
-    }
-
-    /// Sets pixel (x, y) (ignored outside the picture).
-    pub fn set(&mut self, x: i64, y: i64, c: Rgb) {
-        if x < 0 || y < 0 || x >= self.width_px as i64 || y >= self.height_px as i64 {
-            return;
-        }
-        let i = 3 * (y as usize * self.width_px as usize + x as usize);
-        self.rgb[i..i + 3].copy_from_slice(&c);
-    }
-
-    /// A filled disc of radius `r_px` around the pixel containing `c_px`.
-    pub fn disc(&mut self, c_px: [f64; 2], r_px: i64, col: Rgb) {
-        let (cx, cy) = (c_px[0].floor() as i64, c_px[1].floor() as i64);
-        for dy in -r_px..=r_px {
-            for dx in -r_px..=r_px {
-                if dx * dx + dy * dy <= r_px * r_px + r_px / 2 {
-                    self.set(cx + dx, cy + dy, col);
-                }
-            }
-        }
-    }
-
-    /// A line between two pixel positions (Bresenham), `thickness_px` ≥ 1 wide.
-    pub fn line(&mut self, a_px: [f64; 2], b_px: [f64; 2], thickness_px: i64, col: Rgb) {
-        let clampf = |v: f64| v.clamp(-1.0e6, 1.0e6).floor() as i64;
-        let (mut x0, mut y0) = (clampf(a_px[0]), clampf(a_px[1]));
-        let (x1, y1) = (clampf(b_px[0]), clampf(b_px[1]));
-        let dx = (x1 - x0).abs();
-        let dy = -(y1 - y0).abs();
-        let sx = if x0 < x1 { 1 } else { -1 };
-        let sy = if y0 < y1 { 1 } else { -1 };
-        let mut err = dx + dy;
-        let r = (thickness_px - 1) / 2;
-        let mut guard = 0u64;
-        loop {
-            if r == 0 {
-                self.set(x0, y0, col);
-            } else {
-                self.disc([x0 as f64, y0 as f64], r, col);
-            }
-            if (x0 == x1 && y0 == y1) || guard > 4_000_000 {
-                break;
-            }
-            guard += 1;
-            let e2 = 2 * err;
-            if e2 >= dy {
-                err += dy;
-                x0 += sx;
-            }
-            if e2 <= dx {
-                err += dx;
-                y0 += sy;
-            }
-        }
-    }
-
-    /// Fills a polygon given in pixel coordinates (even–odd rule, sampled at pixel centres).
-    pub fn fill_polygon(&mut self, ring_px: &[[f64; 2]], col: Rgb) {
-        let n = ring_px.len();
-        for y in 0..self.height_px as i64 {
-            let yc = y as f64 + 0.5;
-            let mut xs: Vec<f64> = Vec::new();
-            for i in 0..n {
-                let (a, b) = (ring_px[i], ring_px[(i + 1) % n]);
-                if (a[1] > yc) != (b[1] > yc) {
-                    xs.push(a[0] + (yc - a[1]) / (b[1] - a[1]) * (b[0] - a[0]));
-                }
-            }
-            xs.sort_by(f64::total_cmp);
-            for pair in xs.chunks_exact(2) {
-                // Pixels whose centre x + 0.5 lies in [x0, x1).
-                let x_start = (pair[0] - 0.5).ceil().max(0.0) as i64;
-                let x_end = ((pair[1] - 0.5).ceil() as i64).min(self.width_px as i64);
-                for x in x_start..x_end {
-                    self.set(x, y, col);
-                }
-            }
-        }
-    }
+/// The pixel containing the continuous position `p_px`; far-off (or non-finite) positions are clamped
+/// to ±10⁶ px so that a line towards them stays a bounded number of steps.
+fn pixel(p_px: [f64; 2]) -> [i64; 2] {
+    p_px.map(|v| v.clamp(-1.0e6, 1.0e6).floor() as i64)
 }
 
 /// Per-pixel highest ground-projected building point (ENU up, metres), NaN where no building is.
-fn building_heights(canvas: &Canvas, scene: &PreparedScene) -> Vec<f64> {
-    let (w, h) = (canvas.width_px as i64, canvas.height_px as i64);
+fn building_heights(map: &Map, scene: &PreparedScene) -> Vec<f64> {
+    let (w, h) = (map.image.width as i64, map.image.height as i64);
     let mut top = vec![f64::NAN; (w * h) as usize];
     let mut put = |x: i64, y: i64, z: f64| {
         if x >= 0 && y >= 0 && x < w && y < h {
@@ -187,7 +100,7 @@ fn building_heights(canvas: &Canvas, scene: &PreparedScene) -> Vec<f64> {
         for tri in mesh.indices.chunks_exact(3) {
             let v = [0, 1, 2].map(|k| mesh.positions_m.get(tri[k] as usize).copied());
             let [Some(a), Some(b), Some(c)] = v else { continue };
-            let [pa, pb, pc] = [a, b, c].map(|p| canvas.to_px([p[0] as f64, p[1] as f64]));
+            let [pa, pb, pc] = [a, b, c].map(|p| map.to_px([p[0] as f64, p[1] as f64]));
             let area = (pb[0] - pa[0]) * (pc[1] - pa[1]) - (pb[1] - pa[1]) * (pc[0] - pa[0]);
             if area.abs() < 1e-9 || !area.is_finite() {
                 // A wall seen from above: it covers no pixel centre of its own.
@@ -211,8 +124,8 @@ fn building_heights(canvas: &Canvas, scene: &PreparedScene) -> Vec<f64> {
         }
     } else {
         for b in &scene.buildings {
-            let p0 = canvas.to_px([b.bbox_min_enu_m[0], b.bbox_max_enu_m[1]]);
-            let p1 = canvas.to_px([b.bbox_max_enu_m[0], b.bbox_min_enu_m[1]]);
+            let p0 = map.to_px([b.bbox_min_enu_m[0], b.bbox_max_enu_m[1]]);
+            let p1 = map.to_px([b.bbox_max_enu_m[0], b.bbox_min_enu_m[1]]);
             if !(p0[0].is_finite() && p0[1].is_finite() && p1[0].is_finite() && p1[1].is_finite()) {
                 continue;
             }
@@ -247,7 +160,7 @@ pub struct FlightPlan {
     /// The picture: title band, map, legend and scale bar.
     pub image: RgbImage,
     /// The map inside the picture.
-    pub map: Canvas,
+    pub map: Map,
     /// Column of the map's left edge in the picture, px.
     pub map_left_px: i64,
     /// Row of the map's top edge in the picture, px.
@@ -282,17 +195,17 @@ fn extent(scene: &PreparedScene, poses: &[PoseRecord]) -> ([f64; 2], [f64; 2]) {
 }
 
 /// Draws the map: area, buildings shaded by height, flight lines, cameras and their headings. Returns
-/// the canvas and the roof heights above ground of the shading's ends (metres), `None` without
+/// the map and the roof heights above ground of the shading's ends (metres), `None` without
 /// buildings.
-fn draw_map(scene: &PreparedScene, poses: &[PoseRecord]) -> (Canvas, Option<[f64; 2]>) {
+fn draw_map(scene: &PreparedScene, poses: &[PoseRecord]) -> (Map, Option<[f64; 2]>) {
     let m = &scene.manifest;
     let (lo, hi) = extent(scene, poses);
-    let mut canvas = Canvas::new(lo, hi, MAX_SIDE_PX, OUTSIDE);
-    let ring_px: Vec<[f64; 2]> = m.area_polygon_enu_m.iter().map(|p| canvas.to_px(*p)).collect();
+    let mut map = Map::new(lo, hi, MAX_SIDE_PX, OUTSIDE);
+    let ring_px: Vec<[f64; 2]> = m.area_polygon_enu_m.iter().map(|p| map.to_px(*p)).collect();
     if ring_px.len() >= 3 {
-        canvas.fill_polygon(&ring_px, INSIDE);
+        map.image.fill_polygon(&ring_px, INSIDE);
     }
-    let tops = building_heights(&canvas, scene);
+    let tops = building_heights(&map, scene);
     let (z_lo, z_hi) = tops
         .iter()
         .filter(|z| !z.is_nan())
@@ -309,17 +222,17 @@ fn draw_map(scene: &PreparedScene, poses: &[PoseRecord]) -> (Canvas, Option<[f64
             lerp(RAMP_LOW[1] as f64, RAMP_HIGH[1] as f64),
             lerp(RAMP_LOW[2] as f64, RAMP_HIGH[2] as f64),
         ];
-        canvas.rgb[3 * i..3 * i + 3].copy_from_slice(&c);
+        map.image.data[3 * i..3 * i + 3].copy_from_slice(&c);
     }
     for i in 0..ring_px.len() {
-        canvas.line(ring_px[i], ring_px[(i + 1) % ring_px.len()], 3, OUTLINE);
+        map.image.line(pixel(ring_px[i]), pixel(ring_px[(i + 1) % ring_px.len()]), 3, OUTLINE);
     }
     // Sequence paths.
     for w in poses.windows(2) {
         if w[0].sequence == w[1].sequence && w[1].index == w[0].index + 1 {
             let (a, b) = (w[0].pose().centre_m, w[1].pose().centre_m);
             let col = PATHS[w[0].sequence as usize % PATHS.len()];
-            canvas.line(canvas.to_px([a[0], a[1]]), canvas.to_px([b[0], b[1]]), 3, col);
+            map.image.line(pixel(map.to_px([a[0], a[1]])), pixel(map.to_px([b[0], b[1]])), 3, col);
         }
     }
     // Headings first: a line from the camera in its view direction, longer the more it is tilted,
@@ -327,31 +240,31 @@ fn draw_map(scene: &PreparedScene, poses: &[PoseRecord]) -> (Canvas, Option<[f64
     // and a tilted pose at one grid node both stay visible. Each disc has a contrasting rim.
     for r in poses {
         let c = r.pose().centre_m;
-        let at = canvas.to_px([c[0], c[1]]);
+        let at = map.to_px([c[0], c[1]]);
         let len_px = NADIR_R_PX as f64 + 9.0 + 20.0 * r.geo.pitch_deg.to_radians().sin().abs();
         let yaw = r.geo.yaw_deg.to_radians();
         let tip = [at[0] + len_px * yaw.sin(), at[1] - len_px * yaw.cos()];
-        canvas.line(at, tip, 3, INK);
+        map.image.line(pixel(at), pixel(tip), 3, INK);
         for side in [-1.0, 1.0] {
             let back = yaw + side * 2.6;
-            canvas.line(tip, [tip[0] + 7.0 * back.sin(), tip[1] - 7.0 * back.cos()], 3, INK);
+            map.image.line(pixel(tip), pixel([tip[0] + 7.0 * back.sin(), tip[1] - 7.0 * back.cos()]), 3, INK);
         }
     }
     for nadir_pass in [false, true] {
         for r in poses.iter().filter(|r| (r.geo.pitch_deg <= 1.0) == nadir_pass) {
             let c = r.pose().centre_m;
-            let at = canvas.to_px([c[0], c[1]]);
+            let [x, y] = pixel(map.to_px([c[0], c[1]]));
             if nadir_pass {
-                canvas.disc(at, NADIR_R_PX + 1, [255, 255, 255]);
-                canvas.disc(at, NADIR_R_PX, NADIR);
+                map.image.disc(x, y, NADIR_R_PX + 1, WHITE);
+                map.image.disc(x, y, NADIR_R_PX, NADIR);
             } else {
-                canvas.disc(at, NADIR_R_PX + 2, INK);
-                canvas.disc(at, NADIR_R_PX + 1, TILTED);
+                map.image.disc(x, y, NADIR_R_PX + 2, INK);
+                map.image.disc(x, y, NADIR_R_PX + 1, TILTED);
             }
         }
     }
     let heights = z_hi.is_finite().then_some([z_lo - m.ground_enu_m, z_hi - m.ground_enu_m]);
-    (canvas, heights)
+    (map, heights)
 }
 
 /// What the legend explains: each mark of the map that is in it.
@@ -359,7 +272,7 @@ fn legend_items(poses: &[PoseRecord], heights: Option<[f64; 2]>) -> Vec<LegendIt
     let nadir = poses.iter().filter(|r| r.geo.pitch_deg <= 1.0).count();
     let mut items = Vec::new();
     if nadir > 0 {
-        let swatch = Swatch::Disc { fill: NADIR, outline: [255, 255, 255], radius_px: NADIR_R_PX };
+        let swatch = Swatch::Disc { fill: NADIR, outline: WHITE, radius_px: NADIR_R_PX };
         items.push(LegendItem::new(swatch, "nadir camera (pitch ≤ 1°)"));
     }
     if nadir < poses.len() {
@@ -388,7 +301,7 @@ fn legend_items(poses: &[PoseRecord], heights: Option<[f64; 2]>) -> Vec<LegendIt
 /// up) and below it a scale bar with its length and a legend of every mark.
 pub fn draw_flight_plan(scene: &PreparedScene, poses: &[PoseRecord]) -> FlightPlan {
     let (map, heights) = draw_map(scene, poses);
-    let (mw, mh) = (map.width_px as i64, map.height_px as i64);
+    let (mw, mh) = (map.image.width as i64, map.image.height as i64);
     let width = mw.max(MIN_WIDTH_PX);
     let bar_m = scale_bar_m(mw as f64 * map.metres_per_px());
     let bar_px = (bar_m / map.metres_per_px()).round() as i64;
@@ -399,11 +312,7 @@ pub fn draw_flight_plan(scene: &PreparedScene, poses: &[PoseRecord]) -> FlightPl
     let height = HEADER_PX + mh + footer;
     let mut img = RgbImage::new(width as u32, height as u32, WHITE);
     let map_left = (width - mw) / 2;
-    img.paste(
-        &RgbImage { width: map.width_px, height: map.height_px, data: map.rgb.clone() },
-        map_left,
-        HEADER_PX,
-    );
+    img.paste(&map.image, map_left, HEADER_PX);
     img.stroke_rect(map_left, HEADER_PX, mw, mh, [170, 170, 170]);
     // Title band.
     let nadir = poses.iter().filter(|r| r.geo.pitch_deg <= 1.0).count();
@@ -484,18 +393,22 @@ mod tests {
     }
 
     #[test]
-    fn polygon_fill_and_lines() {
-        let mut c = Canvas::new([0.0, 0.0], [10.0, 10.0], 10, [0, 0, 0]);
+    fn map_is_north_up_and_fills_the_area() {
+        let mut map = Map::new([0.0, 0.0], [10.0, 10.0], 10, [0, 0, 0]);
+        assert_eq!(map.metres_per_px(), 1.0);
         // Square from (2, 2) to (6, 6) metres = pixels x 2..6, y 4..8 (north up).
         let ring: Vec<[f64; 2]> =
-            [[2.0, 2.0], [6.0, 2.0], [6.0, 6.0], [2.0, 6.0]].iter().map(|p| c.to_px(*p)).collect();
-        c.fill_polygon(&ring, [9, 9, 9]);
-        let filled = (0..100).filter(|i| c.rgb[3 * i] == 9).count();
-        assert_eq!(filled, 16);
-        assert_eq!(c.get(2, 4), Some([9, 9, 9]));
-        assert_eq!(c.get(1, 4), Some([0, 0, 0]));
-        assert_eq!(c.get(2, 8), Some([0, 0, 0]));
-        c.line([0.5, 0.5], [9.5, 9.5], 1, [5, 5, 5]);
-        assert!((0..10).all(|k| c.get(k, k) == Some([5, 5, 5])));
+            [[2.0, 2.0], [6.0, 2.0], [6.0, 6.0], [2.0, 6.0]].iter().map(|p| map.to_px(*p)).collect();
+        map.image.fill_polygon(&ring, [9, 9, 9]);
+        assert_eq!(map.image.data.chunks_exact(3).filter(|p| p[0] == 9).count(), 16);
+        assert_eq!(map.image.get(2, 4), [9, 9, 9]);
+        assert_eq!(map.image.get(1, 4), [0, 0, 0]);
+        assert_eq!(map.image.get(2, 8), [0, 0, 0]);
+    }
+
+    #[test]
+    fn far_off_positions_are_clamped() {
+        assert_eq!(pixel([2.7, -0.2]), [2, -1]);
+        assert_eq!(pixel([f64::INFINITY, -1.0e12]), [1_000_000, -1_000_000]);
     }
 }

@@ -81,6 +81,7 @@ insgen eval-loc --area tokyo --camera uav --oracle --masks uav/masks --query-lis
 --gt-poses uav/gt.txt --prior-poses uav/prior.txt --out uav/loc")]
 #[command(group(clap::ArgGroup::new("source").required(true).args(["oracle", "predictions"])))]
 pub struct Args {
+    /// The area whose queries are localized (a prepared scene under <workdir>/<NAME>/scene).
     #[arg(long, value_name = "NAME")]
     pub area: String,
     /// The queries' camera: a preset, the camera's name, or the camera TOML file given to `sample`.
@@ -251,6 +252,9 @@ pub struct Args {
     /// [default: those before the perturbation decay reaches its floor γ: 14 of 20, 28 of 40].
     #[arg(long, value_name = "N")]
     pub lowres_iterations: Option<u32>,
+    /// Seed of the random draws: the oracle's degradations, the particle filter, the map perturbation.
+    ///
+    /// Each query mixes it with its own name; --map-seed, when given, seeds the map perturbation instead.
     #[arg(long, value_name = "SEED", default_value_t = 0)]
     pub seed: u64,
     /// Evaluate only the first N queries.

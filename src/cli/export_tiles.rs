@@ -58,9 +58,13 @@ fn parse_offset(s: &str) -> Result<[f64; 4], String> {
 /// Style of a synthetic tileset.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum StyleArg {
+    /// Cesium ion photogrammetry: Draco, unlit, rotated and scaled root, REPLACE and ADD refinement.
     CesiumIon,
+    /// Google Photorealistic 3D Tiles: Draco without building IDs, boxes in ECEF.
     Google,
+    /// Project PLATEAU: feature IDs with gml_id metadata, WebP textures, region bounds.
     Plateau,
+    /// 3D BAG: implicit quadtree with subtree files, meshopt-compressed geometry.
     #[value(name = "3dbag")]
     Bag3d,
 }

@@ -43,8 +43,10 @@ Other formats: insgen export-panoptic, insgen export-yolo, insgen export-hf, ins
 Shell completions and man pages: insgen completions bash, insgen man --out target/man"
 )]
 pub struct Cli {
+    /// Options every command takes (`--workdir`, `--scenes`, `-v`, `-q`, …).
     #[command(flatten)]
     pub global: Global,
+    /// The command to run, with its own options.
     #[command(subcommand)]
     pub command: Command,
 }
@@ -81,6 +83,7 @@ impl Global {
 
 // One value per process, parsed once: the size difference between variants costs nothing.
 #[allow(clippy::large_enum_variant)]
+/// The `insgen` commands, one variant each, with the options of that command.
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Write a commented scene file for a new area from its building-model files.

@@ -28,9 +28,13 @@ pub enum DeviceArg {
     Auto,
     /// The CPU (default).
     Cpu,
+    /// NVIDIA GPUs through CUDA.
     Cuda,
+    /// NVIDIA RTX GPUs through OptiX.
     Optix,
+    /// AMD GPUs through HIP.
     Hip,
+    /// Intel GPUs through oneAPI.
     Oneapi,
 }
 
@@ -50,8 +54,11 @@ impl From<DeviceArg> for Device {
 /// Denoiser quality on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum DenoiseQualityArg {
+    /// Fastest: FAST denoising and prefilter.
     Fast,
+    /// BALANCED denoising with the FAST prefilter.
     Balanced,
+    /// Best and slowest: HIGH denoising with the ACCURATE prefilter.
     High,
 }
 

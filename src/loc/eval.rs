@@ -48,29 +48,183 @@ use glam::DVec3;
 /// Errors of the eval-loc stage.
 #[derive(Debug, thiserror::Error)]
 pub enum EvalError {
+    /// A file cannot be read or written.
     #[error(transparent)]
     File(#[from] util::FileError),
+    /// The query instances (masks or predictions) cannot be built.
     #[error(transparent)]
     Query(#[from] QueryError),
+    /// A pose, prior or COLMAP list cannot be read.
     #[error(transparent)]
     Camera(#[from] crate::camera::CameraError),
-    #[error("{}: {what}", path.display())]
-    Input { path: PathBuf, what: String },
+    /// A query list, or a file a shard wrote, holds what the evaluation cannot use.
+    #[error("{}: {problem}", path.display())]
+    Input {
+        /// The file (the camera directory's `poses.jsonl` when it lists no query).
+        path: PathBuf,
+        /// What is wrong in it.
+        problem: InputProblem,
+    },
+    /// A part's `part.json` is not the marker eval-loc writes ([`PartInfo`]).
+    #[error("{}: not an eval-loc part marker", path.display())]
+    PartMarker {
+        /// The `part.json`.
+        path: PathBuf,
+        /// The parser's complaint.
+        #[source]
+        source: serde_json::Error,
+    },
+    /// A line of the parts' combined `results.jsonl` is not a [`QueryResult`].
+    #[error("{}: combined line {line} is not a result", path.display())]
+    ResultLine {
+        /// The `results.jsonl` being combined (in the output directory).
+        path: PathBuf,
+        /// The 1-based line in the combined file.
+        line: usize,
+        /// The parser's complaint.
+        #[source]
+        source: serde_json::Error,
+    },
+    /// A part's text file is not UTF-8.
+    #[error("{}: not UTF-8 text", path.display())]
+    NotUtf8 {
+        /// The file.
+        path: PathBuf,
+        /// Where the first invalid byte is.
+        #[source]
+        source: std::string::FromUtf8Error,
+    },
     /// Stopped by Ctrl-C between queries; nothing was written.
     #[error(transparent)]
     Interrupted(#[from] util::interrupt::Interrupted),
     /// The parts shards wrote of an evaluation do not make one evaluation.
-    #[error("{}: {what}", dir.display())]
-    Parts { dir: PathBuf, what: String },
+    #[error("{}: {problem}", dir.display())]
+    Parts {
+        /// The part directory concerned (the parts directory when all are).
+        dir: PathBuf,
+        /// Why the parts do not combine.
+        problem: PartsProblem,
+    },
+    /// A part does not hold its share of the queries.
     #[error("{}: the parts do not interleave", dir.display())]
     Interleave {
+        /// The parts directory.
         dir: PathBuf,
+        /// Which shard holds how many lines.
         #[source]
         source: util::ShardError,
     },
     /// The renderer failed (a wgpu device error; the CPU rasteriser does not fail).
     #[error("rendering the hypotheses")]
     Render(#[from] RenderError),
+}
+
+/// What is wrong inside a query list or a part's file: the text after the path of an
+/// [`EvalError::Input`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum InputProblem {
+    /// A ground-truth pose has no prior of the same name in the priors file.
+    #[error("no prior for query {query}")]
+    NoPrior {
+        /// The query's frame name.
+        query: String,
+    },
+    /// A ground-truth pose has no camera of the same name in the COLMAP intrinsics list.
+    #[error("no intrinsics for query {query}")]
+    NoIntrinsics {
+        /// The query's frame name.
+        query: String,
+    },
+    /// A query's COLMAP camera model has distortion parameters (or is unknown).
+    #[error("query {query}: camera model {model} is not a pinhole (SIMPLE_PINHOLE or PINHOLE)")]
+    NotPinhole {
+        /// The query's frame name.
+        query: String,
+        /// The COLMAP model name as written.
+        model: String,
+    },
+    /// The query list is empty (after `--limit`).
+    #[error("no queries")]
+    NoQueries,
+    /// A part's results or pose file does not hold the same number of lines for every query.
+    #[error("{lines} lines, not {per_query} per query")]
+    LinesPerQuery {
+        /// Lines in the file.
+        lines: usize,
+        /// Lines each query should have (one per cost, or per occurrence of a cost).
+        per_query: usize,
+    },
+}
+
+/// Why the parts of an evaluation do not combine: the text after the directory of an
+/// [`EvalError::Parts`].
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PartsProblem {
+    /// No part was given.
+    #[error("no parts")]
+    NoParts,
+    /// A part's marker is of another kind or version, or names another shard than its directory.
+    #[error(
+        "{PART_MARKER} is a {kind:?} part (version {version}) of shard {said}, expected a {PART_KIND:?} \
+         part (version {PART_VERSION}) of shard {shard}"
+    )]
+    WrongMarker {
+        /// The marker's `kind`.
+        kind: String,
+        /// The marker's `version`.
+        version: u32,
+        /// The shard the marker names, as written.
+        said: String,
+        /// The shard of the directory.
+        shard: Shard,
+    },
+    /// Parts of runs with different shard counts.
+    #[error(
+        "{} is shard {shard} and {} shard {first_shard}: parts of one run have one shard count",
+        dir.display(),
+        first_dir.display()
+    )]
+    MixedCounts {
+        /// A part whose count differs from the first part's.
+        dir: PathBuf,
+        /// Its shard.
+        shard: Shard,
+        /// The first part.
+        first_dir: PathBuf,
+        /// The first part's shard.
+        first_shard: Shard,
+    },
+    /// Parts of runs with different options (queries, costs, weighting, search, map, source).
+    #[error(
+        "{} (shard {shard}) and {} (shard {first_shard}) are parts of different runs: they differ in {} \
+         (values of shard {first_shard} vs shard {shard}); merge the parts of one run",
+        dir.display(),
+        first_dir.display(),
+        differences.join(", ")
+    )]
+    DifferentRuns {
+        /// A part that differs from the first part.
+        dir: PathBuf,
+        /// Its shard.
+        shard: Shard,
+        /// The first part.
+        first_dir: PathBuf,
+        /// The first part's shard.
+        first_shard: Shard,
+        /// The differing options, as [`part_differences`] lists them (`seed: 1 vs 2`).
+        differences: Vec<String>,
+    },
+    /// Shards of the evaluation are missing.
+    #[error(
+        "shard(s) {} of the evaluation are missing; run `insgen eval-loc … --shard I/{count}` for them",
+        missing.iter().map(Shard::to_string).collect::<Vec<_>>().join(", ")
+    )]
+    MissingShards {
+        /// The missing shards.
+        missing: Vec<Shard>,
+        /// The shard count.
+        count: u32,
+    },
 }
 
 /// Options of an evaluation run.
@@ -640,10 +794,20 @@ pub struct QueryPose {
 #[derive(Debug, Clone)]
 pub enum QueryPoses {
     /// `poses.jsonl` (ground truth) and `priors.jsonl` of a camera directory, from `insgen sample`.
-    Sample { camera_dir: PathBuf },
+    Sample {
+        /// `<workdir>/<area>/<camera>/`.
+        camera_dir: PathBuf,
+    },
     /// The LoD-Loc lists: intrinsics (`NAME MODEL W H PARAMS[]`), ground-truth and prior poses
     /// (`NAME QW QX QY QZ TX TY TZ`, world-to-camera in the area's ENU frame).
-    Colmap { intrinsics: PathBuf, gt: PathBuf, prior: PathBuf },
+    Colmap {
+        /// The query list: one camera per query, COLMAP `SIMPLE_PINHOLE` or `PINHOLE`.
+        intrinsics: PathBuf,
+        /// The ground-truth poses.
+        gt: PathBuf,
+        /// The prior poses the search starts from (same names as the ground truth).
+        prior: PathBuf,
+    },
 }
 
 /// Reads the queries, in the ground-truth file's order.
@@ -662,7 +826,7 @@ pub fn load_queries(src: &QueryPoses) -> Result<Vec<QueryPose>, EvalError> {
                 .map(|gt| {
                     let prior = priors.get(&gt.name).ok_or_else(|| EvalError::Input {
                         path: prior_path.clone(),
-                        what: format!("no prior for query {}", gt.name),
+                        problem: InputProblem::NoPrior { query: gt.name.clone() },
                     })?;
                     Ok(QueryPose {
                         name: gt.name.clone(),
@@ -684,18 +848,18 @@ pub fn load_queries(src: &QueryPoses) -> Result<Vec<QueryPose>, EvalError> {
                 .map(|im| {
                     let cam = cams.get(&im.name).ok_or_else(|| EvalError::Input {
                         path: intrinsics.clone(),
-                        what: format!("no intrinsics for query {}", im.name),
+                        problem: InputProblem::NoIntrinsics { query: im.name.clone() },
                     })?;
                     let k = cam.intrinsics().ok_or_else(|| EvalError::Input {
                         path: intrinsics.clone(),
-                        what: format!(
-                            "query {}: camera model {} is not a pinhole (SIMPLE_PINHOLE or PINHOLE)",
-                            im.name, cam.model
-                        ),
+                        problem: InputProblem::NotPinhole {
+                            query: im.name.clone(),
+                            model: cam.model.clone(),
+                        },
                     })?;
                     let p = priors.get(&im.name).ok_or_else(|| EvalError::Input {
                         path: prior.clone(),
-                        what: format!("no prior for query {}", im.name),
+                        problem: InputProblem::NoPrior { query: im.name.clone() },
                     })?;
                     Ok(QueryPose {
                         name: im.name.clone(),
@@ -763,7 +927,7 @@ pub fn evaluate(
         }
     };
     summary.source = Some(source.clone());
-    let (jsonl, est) = output_texts(&opts.out_dir, &runs)?;
+    let (jsonl, est) = output_texts(&runs);
     if opts.shard.is_whole() {
         write_outputs(
             &opts.out_dir,
@@ -849,9 +1013,17 @@ pub struct PartInfo {
 pub enum PartSource {
     /// `--oracle`: the ground-truth masks with these degradations (the masks directory is not recorded:
     /// shards on different machines read it from different places).
-    Oracle { degradation: Degradation },
+    Oracle {
+        /// What was done to the true instances.
+        degradation: Degradation,
+    },
     /// `--predictions`: the results file, by content, and `--min-score`.
-    Predictions { sha256: String, min_score: f64 },
+    Predictions {
+        /// SHA-256 of the COCO results file, lowercase hex.
+        sha256: String,
+        /// Predictions scored below this were ignored.
+        min_score: f64,
+    },
 }
 
 /// The options two parts of an evaluation differ in, as `name: a vs b` (JSON paths into
@@ -907,56 +1079,52 @@ pub struct Outputs {
 /// share of the queries; I/O and JSON errors naming the file.
 pub fn combine_parts(parts: &BTreeMap<Shard, PathBuf>, out_dir: &Path) -> Result<Outputs, EvalError> {
     let parts_dir = out_dir.join(PARTS_DIR);
-    let fail = |what: String| EvalError::Parts { dir: parts_dir.clone(), what };
+    let fail = |problem: PartsProblem| EvalError::Parts { dir: parts_dir.clone(), problem };
     let mut infos = Vec::new();
     for (&shard, dir) in parts {
         let path = dir.join(PART_MARKER);
         let info: PartInfo = serde_json::from_slice(&util::read_file(&path)?)
-            .map_err(|e| EvalError::Input { path: path.clone(), what: e.to_string() })?;
+            .map_err(|source| EvalError::PartMarker { path: path.clone(), source })?;
         if info.kind != PART_KIND || info.version != PART_VERSION || info.shard != shard.to_string() {
             return Err(EvalError::Parts {
                 dir: dir.clone(),
-                what: format!(
-                    "{PART_MARKER} is a {:?} part (version {}) of shard {}, expected a {PART_KIND:?} part \
-                     (version {PART_VERSION}) of shard {shard}",
-                    info.kind, info.version, info.shard
-                ),
+                problem: PartsProblem::WrongMarker {
+                    kind: info.kind,
+                    version: info.version,
+                    said: info.shard,
+                    shard,
+                },
             });
         }
         infos.push((shard, info, dir));
     }
-    let Some((first_shard, first, _)) = infos.first() else { return Err(fail("no parts".into())) };
+    let Some((first_shard, first, _)) = infos.first() else { return Err(fail(PartsProblem::NoParts)) };
     let count = first_shard.count;
     let first_dir = infos[0].2;
     for (shard, info, dir) in &infos {
         if shard.count != count {
-            return Err(fail(format!(
-                "{} is shard {shard} and {} shard {first_shard}: parts of one run have one shard count",
-                dir.display(),
-                first_dir.display()
-            )));
+            return Err(fail(PartsProblem::MixedCounts {
+                dir: dir.to_path_buf(),
+                shard: *shard,
+                first_dir: first_dir.to_path_buf(),
+                first_shard: *first_shard,
+            }));
         }
         let differences = part_differences(first, info);
         if !differences.is_empty() {
-            return Err(fail(format!(
-                "{} (shard {shard}) and {} (shard {first_shard}) are parts of different runs: they differ \
-                 in {} (values of shard {first_shard} vs shard {shard}); merge the parts of one run",
-                dir.display(),
-                first_dir.display(),
-                differences.join(", ")
-            )));
+            return Err(fail(PartsProblem::DifferentRuns {
+                dir: dir.to_path_buf(),
+                shard: *shard,
+                first_dir: first_dir.to_path_buf(),
+                first_shard: *first_shard,
+                differences,
+            }));
         }
     }
-    let missing: Vec<String> = (0..count)
-        .map(|index| Shard { index, count })
-        .filter(|s| !parts.contains_key(s))
-        .map(|s| s.to_string())
-        .collect();
+    let missing: Vec<Shard> =
+        (0..count).map(|index| Shard { index, count }).filter(|s| !parts.contains_key(s)).collect();
     if !missing.is_empty() {
-        return Err(fail(format!(
-            "shard(s) {} of the evaluation are missing; run `insgen eval-loc … --shard I/{count}` for them",
-            missing.join(", ")
-        )));
+        return Err(fail(PartsProblem::MissingShards { missing, count }));
     }
     let costs = &first.costs;
     let total = first.queries;
@@ -968,7 +1136,7 @@ pub fn combine_parts(parts: &BTreeMap<Shard, PathBuf>, out_dir: &Path) -> Result
             let path = dir.join(file);
             let text = if path.exists() {
                 String::from_utf8(util::read_file(&path)?)
-                    .map_err(|e| EvalError::Input { path: path.clone(), what: e.to_string() })?
+                    .map_err(|source| EvalError::NotUtf8 { path: path.clone(), source })?
             } else {
                 String::new()
             };
@@ -976,7 +1144,7 @@ pub fn combine_parts(parts: &BTreeMap<Shard, PathBuf>, out_dir: &Path) -> Result
             if per_query == 0 || !lines.len().is_multiple_of(per_query) {
                 return Err(EvalError::Input {
                     path,
-                    what: format!("{} lines, not {per_query} per query", lines.len()),
+                    problem: InputProblem::LinesPerQuery { lines: lines.len(), per_query },
                 });
             }
             per_part.push(
@@ -1000,9 +1168,10 @@ pub fn combine_parts(parts: &BTreeMap<Shard, PathBuf>, out_dir: &Path) -> Result
         .lines()
         .enumerate()
         .map(|(i, l)| {
-            serde_json::from_str(l).map_err(|e| EvalError::Input {
+            serde_json::from_str(l).map_err(|source| EvalError::ResultLine {
                 path: out_dir.join(RESULTS_FILE),
-                what: format!("combined line {}: {e}", i + 1),
+                line: i + 1,
+                source,
             })
         })
         .collect::<Result<_, _>>()?;
@@ -1030,7 +1199,7 @@ fn load_selected_queries(opts: &EvalOptions) -> Result<Vec<QueryPose>, EvalError
                 QueryPoses::Sample { camera_dir } => camera_dir.join(crate::layout::POSES_FILE),
                 QueryPoses::Colmap { gt, .. } => gt.clone(),
             },
-            what: "no queries".into(),
+            problem: InputProblem::NoQueries,
         });
     }
     Ok(queries)
@@ -1360,14 +1529,13 @@ pub fn est_poses_file(kind: CostKind) -> String {
 
 /// The text of `results.jsonl` and of each `est_poses_<cost>.txt` (LoD-Loc's `NAME QW QX QY QZ TX TY
 /// TZ`, by file name) for `runs`.
-fn output_texts(out_dir: &Path, runs: &[Localized]) -> Result<(String, BTreeMap<String, String>), EvalError> {
+fn output_texts(runs: &[Localized]) -> (String, BTreeMap<String, String>) {
     let mut jsonl = String::new();
     let mut est_lines: BTreeMap<String, String> = BTreeMap::new();
     for Localized { result: r, estimate } in runs {
-        jsonl.push_str(
-            &serde_json::to_string(r)
-                .map_err(|e| EvalError::Input { path: out_dir.to_path_buf(), what: e.to_string() })?,
-        );
+        // A result holds only strings, numbers, booleans, unit enums and structs of them, which
+        // serde_json writes without failing (a non-finite number becomes null).
+        jsonl.push_str(&serde_json::to_string(r).expect("a QueryResult has no map with non-string keys"));
         jsonl.push('\n');
         let (q, t) = (estimate.colmap_qvec(), estimate.t_cam_from_world());
         est_lines.entry(est_poses_file(r.cost)).or_default().push_str(&format!(
@@ -1375,7 +1543,7 @@ fn output_texts(out_dir: &Path, runs: &[Localized]) -> Result<(String, BTreeMap<
             r.name, q[0], q[1], q[2], q[3], t[0], t[1], t[2]
         ));
     }
-    Ok((jsonl, est_lines))
+    (jsonl, est_lines)
 }
 
 /// Writes `results.jsonl`, `est_poses_<cost>.txt`, `summary.json` and `summary.md` into `out_dir`,
@@ -1423,6 +1591,48 @@ pub fn write_outputs(out_dir: &Path, outputs: &Outputs) -> Result<(), EvalError>
 mod tests {
     use super::*;
     use crate::render::cpu as raster;
+
+    mod errors {
+        use super::*;
+
+        #[test]
+        fn problems_name_the_file_and_what_is_wrong_in_it() {
+            let e = EvalError::Input {
+                path: "cam/intrinsics.txt".into(),
+                problem: InputProblem::NotPinhole { query: "q1.jpg".into(), model: "OPENCV".into() },
+            };
+            assert_eq!(
+                e.to_string(),
+                "cam/intrinsics.txt: query q1.jpg: camera model OPENCV is not a pinhole (SIMPLE_PINHOLE or \
+                 PINHOLE)"
+            );
+            let missing = vec![Shard { index: 1, count: 3 }, Shard { index: 2, count: 3 }];
+            let e = EvalError::Parts {
+                dir: "loc/parts".into(),
+                problem: PartsProblem::MissingShards { missing, count: 3 },
+            };
+            assert_eq!(
+                e.to_string(),
+                "loc/parts: shard(s) 1/3, 2/3 of the evaluation are missing; run `insgen eval-loc … --shard \
+                 I/3` for them"
+            );
+        }
+
+        #[test]
+        fn no_parts_and_a_foreign_marker_are_refused() {
+            let t = tempfile::tempdir().unwrap();
+            let e = combine_parts(&BTreeMap::new(), t.path()).unwrap_err();
+            assert!(matches!(e, EvalError::Parts { problem: PartsProblem::NoParts, .. }), "{e:?}");
+            let dir = t.path().join(PARTS_DIR).join("0-of-1");
+            std::fs::create_dir_all(&dir).unwrap();
+            std::fs::write(dir.join(PART_MARKER), "{\"kind\": \"eval-loc\"}").unwrap();
+            let parts = BTreeMap::from([(Shard { index: 0, count: 1 }, dir.clone())]);
+            let e = combine_parts(&parts, t.path()).unwrap_err();
+            let EvalError::PartMarker { path, .. } = &e else { panic!("{e:?}") };
+            assert_eq!(path, &dir.join(PART_MARKER));
+            assert!(e.to_string().ends_with("part.json: not an eval-loc part marker"), "{e}");
+        }
+    }
 
     #[test]
     fn dense_ids_are_contiguous() {

@@ -136,17 +136,25 @@ impl SegmenterLike {
 /// A `--segmenter-like` value that does not parse ([`SegmenterLike::parse`]).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SegmenterSpecError {
+    /// An item of the comma-separated list has no `=` and is not `learned` (the item as given).
     #[error("{0:?}: expected KEY=VALUE (e.g. chain=0.3) or `learned`")]
     NotKeyValue(String),
+    /// A key that is no parameter of the segmenter-like degradation (the key as given).
     #[error(
         "unknown key {0:?}: expected one of chain, max-chain, split-large, large-area, miss-small, small-area, \
          rim, blobs"
     )]
     Key(String),
+    /// A value that is not a number, or out of its key's range.
     #[error(
         "{key}={value}: shares lie in [0, 1], max-chain is a count ≥ 2, rim a count of pixels, blobs ≥ 0"
     )]
-    Value { key: String, value: String },
+    Value {
+        /// The key, as given.
+        key: String,
+        /// The value, as given.
+        value: String,
+    },
 }
 
 /// How degraded (or predicted) instances agree with the true ones, as a segmentation benchmark counts

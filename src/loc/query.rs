@@ -23,17 +23,42 @@ use crate::scene::IdMap;
 /// Errors while building queries.
 #[derive(Debug, thiserror::Error)]
 pub enum QueryError {
+    /// The predictions file cannot be read as COCO results.
     #[error(transparent)]
     Coco(#[from] crate::export::CocoError),
-    #[error("{}: {what}", path.display())]
-    Input { path: PathBuf, what: String },
+    /// The COCO instances file(s) hold no image of the area and camera evaluated.
+    #[error("{}: no image of area {area:?}, camera {camera:?} in the COCO instances file(s)", path.display())]
+    NoImages {
+        /// The first instances file given (empty when none was).
+        path: PathBuf,
+        /// The area evaluated.
+        area: String,
+        /// The camera evaluated.
+        camera: String,
+    },
+    /// None of the predictions' image ids is an image of the area and camera evaluated.
+    #[error(
+        "{}: none of its image ids belongs to area {area:?}, camera {camera:?} (ids come from the COCO \
+         instances file the predictions were made for)",
+        path.display()
+    )]
+    NoPredictions {
+        /// The predictions (COCO results) file.
+        path: PathBuf,
+        /// The area evaluated.
+        area: String,
+        /// The camera evaluated.
+        camera: String,
+    },
     /// An oracle query's ID map cannot be read.
     #[error("query mask unavailable (run `insgen render-masks` for this camera first)")]
     Mask(#[source] crate::scene::IdError),
     /// A file given as COCO instances does not parse as one.
     #[error("{}: not a COCO instances file", path.display())]
     Instances {
+        /// The file given as COCO instances.
         path: PathBuf,
+        /// The parser's complaint.
         #[source]
         source: serde_json::Error,
     },
@@ -53,8 +78,13 @@ pub struct FramePredictions {
 /// Where queries come from.
 #[derive(Debug, Clone)]
 pub enum QuerySource {
-    /// Ground-truth masks in `masks_dir`, degraded.
-    Oracle { masks_dir: PathBuf, degradation: Degradation },
+    /// Ground-truth masks, degraded.
+    Oracle {
+        /// The camera's `masks/` directory (`<frame>.png` ID maps from `render-masks`).
+        masks_dir: PathBuf,
+        /// What is done to the true instances before they are used as the query.
+        degradation: Degradation,
+    },
     /// A segmentation model's predictions.
     Predictions(FramePredictions),
 }
@@ -209,9 +239,10 @@ pub fn load_predictions(
         }
     }
     if frames.is_empty() {
-        return Err(QueryError::Input {
+        return Err(QueryError::NoImages {
             path: instances_files.first().cloned().unwrap_or_default(),
-            what: format!("no image of area {area:?}, camera {camera:?} in the COCO instances file(s)"),
+            area: area.to_string(),
+            camera: camera.to_string(),
         });
     }
     let mut by_frame: BTreeMap<String, Vec<Prediction>> = BTreeMap::new();
@@ -221,12 +252,10 @@ pub fn load_predictions(
         }
     }
     if by_frame.is_empty() {
-        return Err(QueryError::Input {
+        return Err(QueryError::NoPredictions {
             path: results_path.to_path_buf(),
-            what: format!(
-                "none of its image ids belongs to area {area:?}, camera {camera:?} (ids come from the COCO \
-                 instances file the predictions were made for)"
-            ),
+            area: area.to_string(),
+            camera: camera.to_string(),
         });
     }
     Ok(FramePredictions { by_frame, path: results_path.to_path_buf(), min_score })

@@ -1,7 +1,8 @@
 //! Figures: the one place that draws text and the furniture that explains a picture — titles, axis
 //! labels and ticks, legends, scale bars, labelled boxes — on an 8-bit RGB raster.
 //!
-//! - [`RgbImage`]: the raster (pixels, rectangles, lines, discs, blending, nearest-neighbour scaling);
+//! - [`RgbImage`]: the raster (pixels, rectangles, lines, discs, filled polygons, blending,
+//!   nearest-neighbour scaling);
 //!   its PNG reading and writing live with the stage that owns the files ([`crate::export::raster`]);
 //! - [`text`]: text in DejaVu Sans (embedded, `assets/fonts/`), anti-aliased by [`ab_glyph`];
 //! - [`chart`]: grouped bar charts with a title, axis labels, ticks with values on both axes, grid
@@ -9,7 +10,7 @@
 //! - [`legend`]: legends, scale bars and labelled boxes.
 //!
 //! Every stage that draws a figure (the flight plan of `sample`, the statistics of `export-coco`, the
-//! overlays of `eval-loc`) draws its words through here. Everything is integer placement plus `f32`
+//! overlays of `eval-loc`) draws its words, and its lines, discs and filled shapes, through here. Everything is integer placement plus `f32`
 //! glyph coverage computed the same way every time: the same inputs give byte-identical pictures.
 
 pub mod chart;
@@ -135,6 +136,31 @@ impl RgbImage {
         }
     }
 
+    /// Fills a polygon given in continuous pixel coordinates (x right, y down; the ring's last point
+    /// joins its first): the pixels whose centre (x + 0.5, y + 0.5) lies inside by the even–odd rule.
+    pub fn fill_polygon(&mut self, ring_px: &[[f64; 2]], c: Rgb) {
+        let n = ring_px.len();
+        for y in 0..self.height as i64 {
+            let yc = y as f64 + 0.5;
+            let mut xs: Vec<f64> = Vec::new();
+            for i in 0..n {
+                let (a, b) = (ring_px[i], ring_px[(i + 1) % n]);
+                if (a[1] > yc) != (b[1] > yc) {
+                    xs.push(a[0] + (yc - a[1]) / (b[1] - a[1]) * (b[0] - a[0]));
+                }
+            }
+            xs.sort_by(f64::total_cmp);
+            for pair in xs.chunks_exact(2) {
+                // Pixels whose centre x + 0.5 lies in [x0, x1).
+                let x_start = (pair[0] - 0.5).ceil().max(0.0) as i64;
+                let x_end = ((pair[1] - 0.5).ceil() as i64).min(self.width as i64);
+                for x in x_start..x_end {
+                    self.put(x, y, c);
+                }
+            }
+        }
+    }
+
     /// Copies `src` with its top-left corner at (x, y) (clipped).
     pub fn paste(&mut self, src: &RgbImage, x: i64, y: i64) {
         for sy in 0..src.height {
@@ -174,6 +200,18 @@ mod tests {
         assert_eq!(big.get(3, 3), [9, 9, 9]);
         assert_eq!(big.get(2, 2), [9, 9, 9]);
         assert_eq!(big.get(1, 1), [0, 0, 0]);
+    }
+
+    #[test]
+    fn polygon_fill_samples_pixel_centres() {
+        let mut img = RgbImage::new(10, 10, [0, 0, 0]);
+        // A square with corners on pixel edges covers exactly the pixels inside: x 2..6, y 4..8.
+        img.fill_polygon(&[[2.0, 4.0], [6.0, 4.0], [6.0, 8.0], [2.0, 8.0]], [9, 9, 9]);
+        assert_eq!(img.data.chunks_exact(3).filter(|p| p[0] == 9).count(), 16);
+        assert_eq!(img.get(2, 4), [9, 9, 9]);
+        assert_eq!(img.get(5, 7), [9, 9, 9]);
+        assert_eq!(img.get(1, 4), [0, 0, 0]);
+        assert_eq!(img.get(2, 8), [0, 0, 0]);
     }
 
     #[test]
