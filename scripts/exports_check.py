@@ -6,8 +6,9 @@ parse it and assert on it) and exits non-zero only when a client refuses to read
 
   colmap DIR POSES_JSONL   pycolmap.Reconstruction(DIR): cameras, images and poses against poses.jsonl
   panoptic COCO_DIR        panopticapi (rgb2id, pq_compute) + pycocotools: every panoptic_<split>.json
-  hf COCO_DIR              Hugging Face datasets: load_dataset("imagefolder", data_dir=COCO_DIR/images);
-                           rows, decoded photos and every object against instances_<split>.json
+  hf COCO_DIR              Hugging Face datasets: load_dataset(COCO_DIR), nothing else (the dataset card's
+                           front matter names the splits); rows, decoded photos and every object against
+                           instances_<split>.json
   yolo DATA_YAML COCO_DIR  Ultralytics' label rules (reimplemented from ultralytics/data/utils.py,
                            verify_image_label and img2label_paths; the ultralytics package pulls in
                            torch) + an even-odd rasteriser: IoU of every label line with its instance
@@ -295,11 +296,30 @@ def yolo(data_yaml, coco_dir):
 
 
 def hf(coco_dir):
+    import shutil
+    import tempfile
+
+    # A local folder: nothing to fetch, and a cache of its own that goes with this check.
+    os.environ.setdefault("HF_HUB_OFFLINE", "1")
+    cache = tempfile.mkdtemp(prefix="insgen-hf-cache-")
+    try:
+        _hf(coco_dir, cache)
+    finally:
+        shutil.rmtree(cache, ignore_errors=True)
+
+
+def _hf(coco_dir, cache):
     import datasets
     from pycocotools import mask as mask_utils
 
-    ds = datasets.load_dataset("imagefolder", data_dir=os.path.join(coco_dir, "images"))
-    out = {"datasets": datasets.__version__, "loaded_splits": sorted(ds.keys()), "splits": {}}
+    # The folder alone, as a user on another machine would load it: no loader name, no data_dir.
+    ds = datasets.load_dataset(os.path.abspath(coco_dir), cache_dir=cache)
+    out = {
+        "datasets": datasets.__version__,
+        "loaded_splits": sorted(ds.keys()),
+        "columns": {k: sorted(v.column_names) for k, v in ds.items()},
+        "splits": {},
+    }
     for split, hf_split in (("train", "train"), ("val", "validation"), ("test", "test")):
         with open(os.path.join(coco_dir, f"instances_{split}.json")) as f:
             inst = json.load(f)

@@ -311,6 +311,12 @@ impl ExportDir {
         self.split_images(split).join(HF_METADATA_FILE)
     }
 
+    /// The name, relative to the export folder (`/`-separated), of the photos' folder of one split:
+    /// `images/<split>`.
+    pub fn split_images_name(split: &str) -> String {
+        format!("{EXPORT_IMAGES_DIR}/{split}")
+    }
+
     /// The name, relative to the export folder (`/`-separated, as COCO files hold it), of a frame's
     /// photo: `images/<split>/<area>/<camera>/<file>`.
     pub fn image_name(split: &str, area: &str, camera: &str, file: &str) -> String {
@@ -344,6 +350,7 @@ mod tests {
         assert_eq!(e.manifest(), Path::new("runs/coco/dataset.json"));
         assert_eq!(e.hf_metadata("val"), Path::new("runs/coco/images/val/metadata.jsonl"));
         assert_eq!(ExportDir::image_name("train", "demo", "cam2", "f.png"), "images/train/demo/cam2/f.png");
+        assert_eq!(ExportDir::split_images_name("val"), "images/val");
         assert_eq!(ExportDir::mask_name("test", "demo", "cam2", "f.png"), "masks/test/demo/cam2/f.png");
         assert_eq!(e.index(), Path::new("runs/coco/index.html"));
         assert_eq!(ExportDir::contact_sheet_name("demo"), "figures/demo/contact_sheet.png");

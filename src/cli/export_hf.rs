@@ -1,4 +1,5 @@
-//! `insgen export-hf`: the Hugging Face `datasets` image-folder metadata of a COCO export.
+//! `insgen export-hf`: the Hugging Face `datasets` metadata of a COCO export and the card's front
+//! matter that names it.
 
 use std::path::PathBuf;
 
@@ -11,15 +12,17 @@ use crate::export::hf::{export_hf, HfPlan};
 /// Reads instances_{train,val,test}.json of a self-contained export (`insgen export-coco` without
 /// --link-root) and writes, per split with images, images/<split>/metadata.jsonl: one row per photo
 /// (`file_name`, `image_id`, size, area, camera, frame) with its instances in `objects` (ids, boxes,
-/// categories, areas, iscrowd, building IDs, and the exact masks as COCO RLE). The photos are the
-/// export's own; nothing is copied. Load with
-/// `datasets.load_dataset("imagefolder", data_dir="<export>/images")` (splits train, validation, test).
+/// categories, areas, iscrowd, building IDs, and the exact masks as COCO RLE), and the dataset card's
+/// YAML front matter (`configs:`, the files of each split) that `datasets` reads. The photos are the
+/// export's own; nothing is copied. `export-coco` writes all of this already; this command rewrites it
+/// (the same bytes), or adds it to an export made by an older insgen. Load with
+/// `datasets.load_dataset("<export>")` (splits train, validation, test).
 #[derive(Debug, Clone, clap::Args)]
 #[command(after_long_help = "Examples:\n  insgen export-coco && insgen export-hf\n  \
 insgen export-hf --coco datasets/buildings\n\n\
 Load in Python:\n  \
 from datasets import load_dataset\n  \
-ds = load_dataset(\"imagefolder\", data_dir=\"runs/coco/images\")\n  \
+ds = load_dataset(\"runs/coco\")\n  \
 ds[\"train\"][0][\"objects\"][\"bbox\"]")]
 pub struct Args {
     /// COCO directory written by `export-coco` [default: <workdir>/coco].

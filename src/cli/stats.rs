@@ -6,6 +6,7 @@ use anyhow::Context;
 
 use crate::export::coco::{read_json, Split};
 use crate::export::format::Dataset;
+use crate::export::index::FlightPlans;
 use crate::export::stats::{self, ReportOptions};
 
 /// Summarise a COCO export: images, instances per image, size classes, buildings seen per area, and per
@@ -14,7 +15,10 @@ use crate::export::stats::{self, ReportOptions};
 ///
 /// Reads instances_{train,val,test}.json from the COCO directory (those present) and the images and ID
 /// maps they name (found through `info.image_root`; those not on disk are skipped). Writes stats.md, stats.json,
-/// hist_instances_per_image.png, hist_sizes.png and contact_sheet.png into the same directory.
+/// hist_instances_per_image.png, hist_sizes.png and contact_sheet.png into the same directory, and, in
+/// an export-coco folder (one with dataset.json), the page that shows them: index.html with each
+/// area's contact sheet (figures/), as export-coco writes it (the flight plans the folder holds are
+/// kept), so the page never shows other numbers than stats.md.
 #[derive(Debug, Clone, clap::Args)]
 #[command(after_long_help = "Examples:\n  insgen stats --coco runs/coco\n  \
 insgen stats --json | jq '.splits[] | {split, images, annotations}'")]
@@ -55,11 +59,14 @@ pub fn run(args: &Args, global: &super::Global) -> anyhow::Result<()> {
     let refs: Vec<_> = datasets.iter().map(|(s, d)| (*s, d)).collect();
     let st = stats::compute(&refs, &image_root)
         .with_context(|| format!("computing the statistics of {}", dir.display()))?;
-    let files = stats::write_report(
+    // The page beside the report shows its numbers and charts: rewritten with it, as export-coco
+    // writes it, keeping the flight plans the export holds (its work directory may be elsewhere).
+    let files = stats::write_report_and_index(
         &st,
         &refs,
         &dir,
         &image_root,
+        FlightPlans::InExport,
         ReportOptions { contact_sheet_images: args.contact_sheet },
     )
     .with_context(|| format!("writing the statistics report in {}", dir.display()))?;

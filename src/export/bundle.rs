@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 
 use crate::layout::ExportDir;
-use crate::util::FileError;
+use crate::util::{FileError, Placed};
 
 use super::coco::Split;
 use super::format::Dataset;
@@ -95,13 +95,21 @@ pub fn place_files(
             }
             Ok(Some(crate::util::link_or_copy(src, dst)?))
         })
-        .collect::<Result<Vec<Option<bool>>, CocoError>>()?;
+        .collect::<Result<Vec<Option<Placed>>, CocoError>>()?;
     let keep: BTreeSet<&Path> = jobs.iter().map(|(_, dst, _)| dst.as_path()).collect();
     let export = ExportDir::new(out_dir);
     for dir in [export.images(), export.masks()] {
         remove_unlisted(&dir, &keep)?;
     }
-    let count = written.iter().filter(|w| **w == Some(true)).count() as u64;
+    let count = written.iter().filter(|w| w.is_some_and(Placed::written)).count() as u64;
+    let copied = written.iter().filter(|w| **w == Some(Placed::Copied)).count();
+    if copied > 0 {
+        log::info!(
+            "copied {copied} photo and ID map file(s) into {}: no hard link possible (another file system?), \
+             so they take space of their own",
+            out_dir.display()
+        );
+    }
     let placed =
         placements.into_iter().zip(&written).filter(|(_, w)| w.is_some()).map(|(p, _)| p.to).collect();
     Ok((count, placed))

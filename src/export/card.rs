@@ -5,15 +5,19 @@
 
 use std::fmt::Write as _;
 
+use super::coco::Split;
+use super::format::SourceInfo;
 use super::manifest::DatasetManifest;
 use super::stats::Stats;
 
 /// File name of the card in a dataset directory.
 pub use crate::layout::CARD_FILE;
 
-/// The card's Markdown.
-pub fn card_markdown(m: &DatasetManifest, stats: &Stats) -> String {
-    let mut s = String::new();
+/// The card's Markdown; `hf_splits`: the splits with Hugging Face `datasets` metadata
+/// (`images/<split>/metadata.jsonl`), named in the YAML front matter ([`super::hf::front_matter`]) so
+/// that `datasets.load_dataset("<this folder>")` loads them.
+pub fn card_markdown(m: &DatasetManifest, stats: &Stats, hf_splits: &[Split]) -> String {
+    let mut s = super::hf::front_matter(hf_splits);
     let total_images: u64 = m.files.iter().map(|f| f.images).sum();
     let total_anns: u64 = m.files.iter().map(|f| f.annotations).sum();
     let _ = writeln!(s, "# Building-instance dataset (insgen)\n");
@@ -74,7 +78,7 @@ pub fn card_markdown(m: &DatasetManifest, stats: &Stats) -> String {
         };
         let _ = writeln!(s, "- **{}**: {attribution}", a.name);
         for src in &a.sources {
-            let _ = writeln!(s, "  - {}", source_line(&src.path, &src.sha256));
+            let _ = writeln!(s, "  - {}", source_line(src));
         }
     }
     let _ = writeln!(
@@ -114,7 +118,23 @@ pub fn card_markdown(m: &DatasetManifest, stats: &Stats) -> String {
          position and yaw/pitch/roll) and `mask_file`, the lossless 24-bit ID map (building ID = R·2¹⁶ + \
          G·2⁸ + B). `insgen verify <this directory>` checks the files against `dataset.json`."
     );
+    s.push_str(&hf_loading(hf_splits));
     s
+}
+
+/// The card's lines on loading the dataset with Hugging Face `datasets` (none without metadata).
+fn hf_loading(hf_splits: &[Split]) -> String {
+    if hf_splits.is_empty() {
+        return String::new();
+    }
+    let names: Vec<&str> = hf_splits.iter().map(|s| super::hf::split_name(*s)).collect();
+    format!(
+        "\nWith Hugging Face `datasets` (the front matter above names the splits: {}):\n\n```python\n\
+         from datasets import load_dataset\nds = load_dataset(\"path/to/this/directory\")\nrow = ds[\"{}\"][0]\n\
+         row[\"image\"], row[\"objects\"][\"bbox\"], row[\"objects\"][\"segmentation\"]  # PIL image, [x, y, w, h], COCO RLE\n```\n",
+        names.join(", "),
+        names[0]
+    )
 }
 
 /// The card's statistics: the table `stats.md` and `index.html` show too.
@@ -138,16 +158,23 @@ pub fn camera_and_preset(name: &str, preset: &str) -> String {
 }
 
 /// A source as the card lists it: the file with its SHA-256, or, for the generated demo city (no
-/// file: `prepare` records [`crate::scene::procedural::DEMO_SOURCE_PATH`] for both), what it is.
-pub fn source_line(path: &str, sha256: &str) -> String {
+/// file: `prepare` records [`crate::scene::procedural::DEMO_SOURCE_PATH`] for both), the seed and
+/// parameters that define it (from the scene manifest's record; an export of a scene prepared before
+/// the record existed says where they are instead).
+pub fn source_line(src: &SourceInfo) -> String {
     use crate::scene::procedural::DEMO_SOURCE_PATH;
-    if sha256 == DEMO_SOURCE_PATH {
-        format!(
+    let path = &src.path;
+    match (&src.procedural, src.sha256 == DEMO_SOURCE_PATH) {
+        (Some(city), _) => format!(
+            "`{path}`: procedural (insgen's embedded demo city generator; no source file to hash — these \
+             parameters define the city: {})",
+            city.describe()
+        ),
+        (None, true) => format!(
             "`{path}`: procedural (insgen's embedded demo city generator; no source file to hash — the scene \
              file's `[sources.procedural]` table and its seed define the city)"
-        )
-    } else {
-        format!("`{path}` (SHA-256 `{sha256}`)")
+        ),
+        (None, false) => format!("`{path}` (SHA-256 `{}`)", src.sha256),
     }
 }
 
@@ -177,12 +204,35 @@ mod tests {
     fn cameras_and_sources_say_each_thing_once() {
         assert_eq!(camera_and_preset("cam2-quarter", "cam2-quarter"), "cam2-quarter");
         assert_eq!(camera_and_preset("low", "cam2"), "low (preset cam2)");
-        let demo = source_line("procedural", "procedural");
+        let source = |path: &str, sha256: &str| SourceInfo {
+            path: path.into(),
+            sha256: sha256.into(),
+            procedural: None,
+        };
+        let demo = source_line(&source("procedural", "procedural"));
         assert!(
             demo.starts_with("`procedural`: procedural (insgen's embedded demo city")
                 && !demo.contains("SHA"),
             "{demo}"
         );
-        assert_eq!(source_line("a.gml", "ab12"), "`a.gml` (SHA-256 `ab12`)");
+        assert_eq!(source_line(&source("a.gml", "ab12")), "`a.gml` (SHA-256 `ab12`)");
+    }
+
+    #[test]
+    fn a_generated_city_is_named_by_its_seed_and_parameters() {
+        use crate::scene::procedural::{PlaneOrigin, ProceduralCity, ProceduralSpec};
+        let spec =
+            ProceduralSpec { seed: 4242, blocks_x: 6, tower_m: [90.0, 150.5], ..ProceduralSpec::default() };
+        let city = ProceduralCity { spec, origin: PlaneOrigin { easting_m: -900.0, northing_m: -40800.0 } };
+        let src =
+            SourceInfo { path: "procedural".into(), sha256: "procedural".into(), procedural: Some(city) };
+        let line = source_line(&src);
+        assert_eq!(
+            line,
+            "`procedural`: procedural (insgen's embedded demo city generator; no source file to hash — these \
+             parameters define the city: seed 4242; 6 × 10 blocks of 80 m, streets 14 m wide, avenues 30 m wide \
+             every 4 streets, grid rotated 17°; ground at 3 m; 5 tower blocks, 2 plazas; heights: low-rise \
+             6–25 m, mid-rise 25–60 m, towers 90–150.5 m; centre EPSG:6677 E -900 m N -40800 m)"
+        );
     }
 }

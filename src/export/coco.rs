@@ -772,7 +772,11 @@ fn empty_datasets(
                             .manifest
                             .sources
                             .iter()
-                            .map(|s| SourceInfo { path: s.path.clone(), sha256: s.sha256.clone() })
+                            .map(|s| SourceInfo {
+                                path: s.path.clone(),
+                                sha256: s.sha256.clone(),
+                                procedural: s.procedural.clone(),
+                            })
                             .collect(),
                         attributions: a.manifest.attributions.clone(),
                     })
@@ -918,6 +922,17 @@ pub fn write_export(plan: &ExportPlan, mut ex: Export) -> Result<(Export, Vec<Pa
         files.push((*split, split.file_name(), crate::util::sha256_file(&path)?));
         written.push(path);
     }
+    // Hugging Face `datasets` metadata beside the photos of a self-contained export whose photos are
+    // all there (not label-only); the card's front matter names it.
+    let mut hf_splits = Vec::new();
+    if !plan.link_root && !ex.datasets.iter().any(|(_, ds)| ds.info.images_missing) {
+        let hf = super::hf::write_metadata(&plan.out_dir, &ex.datasets)?;
+        hf_splits = super::hf::loadable_splits(&hf);
+        for f in hf.into_iter().filter_map(|h| h.file) {
+            placed.push(relative_name(&plan.out_dir, &f));
+            written.push(f);
+        }
+    }
     // The manifest and the card last: they describe the files above.
     let mut manifest = super::manifest::DatasetManifest::new(plan, &ex.datasets, &files, rgb_render);
     if !plan.link_root {
@@ -931,12 +946,18 @@ pub fn write_export(plan: &ExportPlan, mut ex: Export) -> Result<(Export, Vec<Pa
     written.push(plan.out_dir.join(super::manifest::MANIFEST_FILE));
     let refs: Vec<(Split, &Dataset)> = ex.datasets.iter().map(|(s, d)| (*s, d)).collect();
     let stats = super::stats::compute(&refs, plan.names_root())?;
-    let card = super::card::card_markdown(&manifest, &stats);
+    let card = super::card::card_markdown(&manifest, &stats, &hf_splits);
     let card_path = plan.out_dir.join(super::card::CARD_FILE);
     crate::util::write_bytes_atomic(&card_path, card.as_bytes())?;
     written.push(card_path);
     ex.stats = Some(stats);
     Ok((ex, written))
+}
+
+/// `path` (inside `dir`) relative to `dir`, `/`-separated, as `SHA256SUMS` names files.
+fn relative_name(dir: &Path, path: &Path) -> String {
+    let rel = path.strip_prefix(dir).unwrap_or(path);
+    rel.components().map(|c| c.as_os_str().to_string_lossy()).collect::<Vec<_>>().join("/")
 }
 
 /// Writes a dataset as compact JSON atomically.

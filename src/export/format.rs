@@ -89,6 +89,9 @@ pub struct SourceInfo {
     pub path: String,
     /// SHA-256 of its bytes, hex.
     pub sha256: String,
+    /// A generated city: the seed and parameters that define it (the scene manifest's record).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub procedural: Option<crate::scene::procedural::ProceduralCity>,
 }
 
 /// One annotation per connected component, or per building.

@@ -35,12 +35,17 @@ pub struct ExportSplit {
 impl ExportSplit {
     /// The annotations of every image, in image order (annotation order kept within an image).
     pub fn annotations_by_image(&self) -> Vec<(&Image, Vec<&Annotation>)> {
-        let mut by_id: std::collections::HashMap<u64, Vec<&Annotation>> = std::collections::HashMap::new();
-        for a in &self.dataset.annotations {
-            by_id.entry(a.image_id).or_default().push(a);
-        }
-        self.dataset.images.iter().map(|im| (im, by_id.remove(&im.id).unwrap_or_default())).collect()
+        annotations_by_image(&self.dataset)
     }
+}
+
+/// The annotations of every image of `ds`, in image order (annotation order kept within an image).
+pub fn annotations_by_image(ds: &Dataset) -> Vec<(&Image, Vec<&Annotation>)> {
+    let mut by_id: std::collections::HashMap<u64, Vec<&Annotation>> = std::collections::HashMap::new();
+    for a in &ds.annotations {
+        by_id.entry(a.image_id).or_default().push(a);
+    }
+    ds.images.iter().map(|im| (im, by_id.remove(&im.id).unwrap_or_default())).collect()
 }
 
 /// Reads the split files present in `coco_dir` (at least one), in [`Split::ALL`] order.

@@ -12,7 +12,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use super::coco::{ExportPlan, Split};
+use super::coco::Split;
 use super::format::Dataset;
 use super::manifest::DatasetManifest;
 use super::stats::{self, Stats};
@@ -39,19 +39,33 @@ struct Figures {
     flight_plans: Vec<(String, String, Option<String>)>,
 }
 
-/// Draws each area's contact sheet, copies each camera's flight plan into the export, and writes
-/// `index.html` (see the module doc); `contact_sheet_images` is the report's `--contact-sheet` (0: no
-/// contact sheets). Returns the files written.
+/// Where [`write_index`] finds each camera's flight plan.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FlightPlans<'a> {
+    /// In the work directory at this path, where `sample` drew them: each is copied into the export
+    /// (`export-coco`, `merge`).
+    WorkDir(&'a Path),
+    /// Already in the export, where the export that wrote it copied them: kept as they are (`insgen
+    /// stats`, which may run on a folder moved away from its work directory).
+    InExport,
+}
+
+/// Draws each area's contact sheet, places each camera's flight plan in the export (`flight_plans`),
+/// and writes `index.html` (see the module doc) into `out_dir`; `names_root` is the directory the COCO
+/// files' names are relative to, `contact_sheet_images` the report's `--contact-sheet` (0: no contact
+/// sheets). Returns the files written.
 ///
 /// # Errors
 /// The manifest (`dataset.json`, written before) unreadable; I/O and PNG errors naming the file.
 pub fn write_index(
-    plan: &ExportPlan,
+    out_dir: &Path,
+    names_root: &Path,
+    flight_plans: FlightPlans,
     datasets: &[(Split, &Dataset)],
     stats: &Stats,
     contact_sheet_images: usize,
 ) -> Result<Vec<PathBuf>, CocoError> {
-    let out = ExportDir::new(&plan.out_dir);
+    let out = ExportDir::new(out_dir);
     let manifest_path = out.manifest();
     let bytes = crate::util::read_file(&manifest_path)?;
     let manifest: DatasetManifest =
@@ -67,10 +81,10 @@ pub fn write_index(
         let sheet = match Split::parse(&a.split) {
             Some(split) if per_area > 0 => {
                 let name = ExportDir::contact_sheet_name(&a.name);
-                let path = plan.out_dir.join(&name);
+                let path = out_dir.join(&name);
                 let of_split: Vec<(Split, &Dataset)> =
                     datasets.iter().filter(|(s, _)| *s == split).copied().collect();
-                stats::area_contact_sheet(&of_split, &a.name, plan.names_root(), per_area)?.save(&path)?;
+                stats::area_contact_sheet(&of_split, &a.name, names_root, per_area)?.save(&path)?;
                 written.push(path);
                 Some(name)
             }
@@ -78,28 +92,51 @@ pub fn write_index(
         };
         figures.area_sheets.push((a.name.clone(), sheet));
         for c in &a.cameras {
-            let from = WorkDir::new(&plan.workdir).area(&a.name).camera(&c.name).flight_plan();
-            let copied = if from.is_file() {
-                let name = ExportDir::flight_plan_name(&a.name, &c.name);
-                let to = plan.out_dir.join(&name);
-                crate::util::write_bytes_atomic(&to, &crate::util::read_file(&from)?)?;
-                written.push(to);
-                Some(name)
-            } else {
-                log::warn!(
-                    "index.html: no flight plan at {} (run `insgen sample` to draw it)",
-                    from.display()
-                );
-                None
-            };
-            figures.flight_plans.push((a.name.clone(), c.name.clone(), copied));
+            let placed = place_flight_plan(out_dir, flight_plans, &a.name, &c.name, &mut written)?;
+            figures.flight_plans.push((a.name.clone(), c.name.clone(), placed));
         }
     }
-    let html = index_html(&manifest, stats, &figures, &present(&plan.out_dir));
+    let html = index_html(&manifest, stats, &figures, &present(out_dir));
     let path = out.index();
     crate::util::write_bytes_atomic(&path, html.as_bytes())?;
     written.push(path);
     Ok(written)
+}
+
+/// The flight plan of `area`/`camera` in the export (its name there), copied from the work directory
+/// (and added to `written`) or found in the export; `None` when there is none.
+fn place_flight_plan(
+    out_dir: &Path,
+    flight_plans: FlightPlans,
+    area: &str,
+    camera: &str,
+    written: &mut Vec<PathBuf>,
+) -> Result<Option<String>, CocoError> {
+    let name = ExportDir::flight_plan_name(area, camera);
+    let to = out_dir.join(&name);
+    match flight_plans {
+        FlightPlans::WorkDir(workdir) => {
+            let from = WorkDir::new(workdir).area(area).camera(camera).flight_plan();
+            if !from.is_file() {
+                log::warn!(
+                    "index.html: no flight plan at {} (run `insgen sample` to draw it)",
+                    from.display()
+                );
+                return Ok(None);
+            }
+            crate::util::write_bytes_atomic(&to, &crate::util::read_file(&from)?)?;
+            written.push(to);
+            Ok(Some(name))
+        }
+        FlightPlans::InExport => {
+            if to.is_file() {
+                Ok(Some(name))
+            } else {
+                log::info!("index.html: the export holds no flight plan for {area} / {camera}");
+                Ok(None)
+            }
+        }
+    }
 }
 
 /// Which of the report's optional files are in `dir` (so the page links only to what exists).
@@ -340,7 +377,7 @@ fn sources_section(m: &DatasetManifest) -> String {
         };
         let _ = write!(s, "<li><b>{}</b>: {}<ul>", escape_html(&a.name), escape_html(&attribution));
         for src in &a.sources {
-            let line = super::card::source_line(&src.path, &src.sha256).replace('`', "");
+            let line = super::card::source_line(src).replace('`', "");
             let _ = write!(s, "<li>{}</li>", escape_html(&line));
         }
         s.push_str("</ul></li>\n");

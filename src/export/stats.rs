@@ -250,7 +250,8 @@ const SPLIT_COLOURS: [[u8; 3]; 3] = [[31, 119, 180], [255, 127, 14], [44, 160, 4
 
 /// Writes the statistics report of an export next to its COCO files (`plan.out_dir`), computing
 /// the statistics unless the export carries them, and the export's `index.html` with its figures
-/// ([`super::index`]); returns the files written.
+/// ([`write_report_and_index`], flight plans copied from the work directory); returns the files
+/// written.
 ///
 /// # Errors
 /// As [`compute`] and [`write_report`].
@@ -264,8 +265,38 @@ pub fn write_export_report(
         Some(st) => st.clone(),
         None => compute(&refs, plan.names_root())?,
     };
-    let mut written = write_report(&st, &refs, &plan.out_dir, plan.names_root(), opts)?;
-    written.extend(super::index::write_index(plan, &refs, &st, opts.contact_sheet_images)?);
+    let flight_plans = super::index::FlightPlans::WorkDir(&plan.workdir);
+    write_report_and_index(&st, &refs, &plan.out_dir, plan.names_root(), flight_plans, opts)
+}
+
+/// Writes the statistics report ([`write_report`]) and, in an export folder with a manifest
+/// (`dataset.json`), the page that shows it, `index.html` with its figures ([`super::index`]), so that
+/// the page never shows other numbers or charts than the report beside it: what `export-coco` and
+/// `merge` write after the COCO files, and what `insgen stats` rewrites. Returns the files written.
+///
+/// # Errors
+/// As [`write_report`] and [`super::index::write_index`].
+pub fn write_report_and_index(
+    stats: &Stats,
+    datasets: &[(Split, &Dataset)],
+    out_dir: &Path,
+    image_root: &Path,
+    flight_plans: super::index::FlightPlans,
+    opts: ReportOptions,
+) -> Result<Vec<PathBuf>, CocoError> {
+    let mut written = write_report(stats, datasets, out_dir, image_root, opts)?;
+    if crate::layout::ExportDir::new(out_dir).manifest().is_file() {
+        written.extend(super::index::write_index(
+            out_dir,
+            image_root,
+            flight_plans,
+            datasets,
+            stats,
+            opts.contact_sheet_images,
+        )?);
+    } else {
+        log::info!("{}: no dataset.json (not an export-coco folder), so no index.html", out_dir.display());
+    }
     Ok(written)
 }
 

@@ -90,6 +90,10 @@ pub struct SourceEntry {
     /// Textures and materials the source has (absent when it has none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub appearance: Option<AppearanceEntry>,
+    /// A generated city (`format = "procedural"`): the seed and parameters that define it (there is
+    /// no file to hash). Absent for every other source.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub procedural: Option<super::procedural::ProceduralCity>,
 }
 
 /// A source's appearances as `prepare` used them.

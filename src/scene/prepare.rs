@@ -32,6 +32,7 @@ use super::config::{GeoidModel, Heights, SceneConfig, SourceConfig};
 use super::error::{AreaProblem, GeorefProblem};
 use super::ids::BuildingId;
 use super::mesh::SceneMesh;
+use super::procedural::ProceduralCity;
 use super::triangulate::{triangulate_polygon, triangulate_polygon_uv};
 use super::SceneError;
 
@@ -157,15 +158,15 @@ fn first_vertex(model: &SourceModel) -> Option<[f64; 3]> {
 }
 
 /// Reads one file of a source (`path`), or generates a procedural source (`path` = `None`); returns
-/// the model and its format's name for the manifest.
+/// the model, its format's name for the manifest and, for a generated city, what defines it.
 fn read_one(
     scene_file: &Path,
     src: &SourceConfig,
     path: Option<&Path>,
-) -> Result<(SourceModel, String), SceneError> {
+) -> Result<(SourceModel, String, Option<ProceduralCity>), SceneError> {
     let Some(path) = path else {
-        let model = procedural_source(scene_file, src.procedural.clone().unwrap_or_default())?;
-        return Ok((model, "procedural".into()));
+        let (model, city) = procedural_source(scene_file, src.procedural.clone().unwrap_or_default())?;
+        return Ok((model, "procedural".into(), Some(city)));
     };
     let format = src.format();
     let opts = ReadOptions {
@@ -180,13 +181,16 @@ fn read_one(
         .or_else(|| Format::from_path(path))
         .map(|f| format!("{f:?}").to_lowercase())
         .unwrap_or_default();
-    Ok((model, fmt))
+    Ok((model, fmt, None))
 }
 
 /// Generates the procedural city of a `format = "procedural"` source: the `[sources.procedural]` table
 /// holds any [`ProceduralSpec`](super::procedural::ProceduralSpec) fields plus an optional
-/// `origin = { easting_m, northing_m }` in the generator's CRS.
-fn procedural_source(scene_file: &Path, mut table: toml::Table) -> Result<SourceModel, SceneError> {
+/// `origin = { easting_m, northing_m }` in the generator's CRS. Returns the city and its parameters.
+fn procedural_source(
+    scene_file: &Path,
+    mut table: toml::Table,
+) -> Result<(SourceModel, ProceduralCity), SceneError> {
     use super::procedural::{generate, PlaneOrigin, ProceduralSpec};
     let toml_err = |origin: bool| {
         move |e: toml::de::Error| SceneError::ProceduralToml {
@@ -200,7 +204,8 @@ fn procedural_source(scene_file: &Path, mut table: toml::Table) -> Result<Source
         None => PlaneOrigin::default(),
     };
     let spec: ProceduralSpec = toml::Value::Table(table).try_into().map_err(toml_err(false))?;
-    Ok(generate(&spec, origin)?)
+    let model = generate(&spec, origin)?;
+    Ok((model, ProceduralCity { spec, origin }))
 }
 
 /// How one source's coordinates reach ECEF.
@@ -831,7 +836,7 @@ fn read_file(
     progress: &dyn Progress,
 ) -> Result<(), SceneError> {
     let cfg = geoid.cfg;
-    let (model, fmt) = read_one(scene_file, src, file)?;
+    let (model, fmt, procedural) = read_one(scene_file, src, file)?;
     // The file as the manifest names it: relative to the scene file's folder, as written there.
     let label = match file {
         Some(p) => p.strip_prefix(base).unwrap_or(p).display().to_string(),
@@ -892,6 +897,7 @@ fn read_file(
         attribution: cfg.attribution.clone(),
         heights,
         appearance,
+        procedural,
     });
     out.buildings.append(&mut bs);
     Ok(())

@@ -132,6 +132,52 @@ impl Default for ProceduralSpec {
     }
 }
 
+/// What defines a generated city: the generator's parameters (the seed among them) and where its
+/// centre lies. `prepare` records it in the scene manifest (`sources[].procedural`), and the COCO
+/// files, the dataset manifest and the dataset card carry it on, since a generated city has no
+/// source file whose hash would identify it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProceduralCity {
+    /// The generator's parameters, defaults filled in.
+    pub spec: ProceduralSpec,
+    /// The city centre in [`DEMO_CRS`].
+    pub origin: PlaneOrigin,
+}
+
+impl ProceduralCity {
+    /// One line naming every parameter, as the dataset card prints it: seed, blocks, streets,
+    /// heights, centre. Lengths in metres, the rotation in degrees.
+    pub fn describe(&self) -> String {
+        let p = &self.spec;
+        let avenues = if p.avenue_every == 0 {
+            "no avenues".to_string()
+        } else {
+            format!("avenues {} m wide every {} streets", p.avenue_width_m, p.avenue_every)
+        };
+        let range = |r: [f64; 2]| format!("{}–{} m", r[0], r[1]);
+        format!(
+            "seed {}; {} × {} blocks of {} m, streets {} m wide, {avenues}, grid rotated {}°; ground at {} m; \
+             {} tower blocks, {} plazas; heights: low-rise {}, mid-rise {}, towers {}; centre {} E {} m N {} m",
+            p.seed,
+            p.blocks_x,
+            p.blocks_y,
+            p.block_size_m,
+            p.street_width_m,
+            p.grid_rotation_deg,
+            p.ground_height_m,
+            p.tower_blocks,
+            p.plaza_blocks,
+            range(p.low_rise_m),
+            range(p.mid_rise_m),
+            range(p.tower_m),
+            DEMO_CRS,
+            self.origin.easting_m,
+            self.origin.northing_m,
+        )
+    }
+}
+
 /// The default demo city: 10 × 10 blocks of about 80 m near Tokyo bay, several hundred buildings.
 pub fn default_spec() -> ProceduralSpec {
     ProceduralSpec::default()

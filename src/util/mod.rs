@@ -224,20 +224,50 @@ pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<(), FileError> {
     write_atomic(path, |w| w.write_all(bytes).map_err(|e| FileError::new("writing", path, e)))
 }
 
+/// How [`link_or_copy`] placed a file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Placed {
+    /// `dst` was already `src` (the same inode) or held the same bytes: nothing was written.
+    Kept,
+    /// `dst` is now a hard link to `src` (no space taken).
+    Linked,
+    /// `dst` is now a copy of `src`: the file system refused the link (another file system, EXDEV, or
+    /// one without hard links).
+    Copied,
+}
+
+impl Placed {
+    /// Whether `dst` was (re)written.
+    pub fn written(self) -> bool {
+        self != Placed::Kept
+    }
+}
+
 /// Places the file `src` at `dst`: a hard link where the file system allows one, else a copy, made
 /// under a temporary name and renamed into place (atomic like every other output). A `dst` that is
 /// already `src` (the same inode) or holds the same bytes is kept, so reruns touch nothing. Returns
-/// whether `dst` was (re)written.
+/// how the file was placed.
 ///
 /// # Errors
 /// Reading `src` (a missing `src` included), or writing `dst`, naming the file.
-pub fn link_or_copy(src: &Path, dst: &Path) -> Result<bool, FileError> {
+pub fn link_or_copy(src: &Path, dst: &Path) -> Result<Placed, FileError> {
+    link_or_copy_with(src, dst, &|from, to| fs::hard_link(from, to))
+}
+
+/// [`link_or_copy`] with the link operation given (`link(src, tmp)`), so that tests can make it fail as
+/// a link across file systems does. Any error of `link` leads to a copy: the link is an optimisation,
+/// and whatever refuses it (EXDEV, EPERM on file systems without links, EMLINK) leaves the copy to do.
+fn link_or_copy_with(
+    src: &Path,
+    dst: &Path,
+    link: &dyn Fn(&Path, &Path) -> io::Result<()>,
+) -> Result<Placed, FileError> {
     let src_meta = fs::metadata(src).map_err(|e| FileError::new("reading", src, e))?;
     if let Ok(dst_meta) = fs::metadata(dst) {
         if same_inode(&src_meta, &dst_meta)
             || (dst_meta.len() == src_meta.len() && read_file(dst)? == read_file(src)?)
         {
-            return Ok(false);
+            return Ok(Placed::Kept);
         }
     }
     let dir = match dst.parent() {
@@ -249,9 +279,12 @@ pub fn link_or_copy(src: &Path, dst: &Path) -> Result<bool, FileError> {
     // One temporary name per destination: files of one folder are placed in parallel.
     let tmp = dir.join(format!("{TMP_PREFIX}link-{name}"));
     let _ = fs::remove_file(&tmp);
-    if fs::hard_link(src, &tmp).is_ok() {
-        fs::rename(&tmp, dst).map_err(|e| FileError::new("renaming into place", dst, e))?;
-        return Ok(true);
+    match link(src, &tmp) {
+        Ok(()) => {
+            fs::rename(&tmp, dst).map_err(|e| FileError::new("renaming into place", dst, e))?;
+            return Ok(Placed::Linked);
+        }
+        Err(e) => log::debug!("linking {} to {}: {e}; copying instead", src.display(), dst.display()),
     }
     // Another file system (or one without links): a copy.
     let _ = fs::remove_file(&tmp);
@@ -261,7 +294,7 @@ pub fn link_or_copy(src: &Path, dst: &Path) -> Result<bool, FileError> {
         io::copy(&mut f, w).map_err(|e| FileError::new("copying into", dst, e))?;
         Ok::<(), FileError>(())
     })?;
-    Ok(true)
+    Ok(Placed::Copied)
 }
 
 #[cfg(unix)]
@@ -389,21 +422,62 @@ mod tests {
         let src = dir.path().join("src.png");
         fs::write(&src, b"pixels").unwrap();
         let dst = dir.path().join("out/a/dst.png");
-        assert!(link_or_copy(&src, &dst).unwrap(), "first placement writes");
+        assert_eq!(link_or_copy(&src, &dst).unwrap(), Placed::Linked, "first placement links");
         assert_eq!(fs::read(&dst).unwrap(), b"pixels");
         #[cfg(unix)]
         {
             use std::os::unix::fs::MetadataExt;
             assert_eq!(fs::metadata(&src).unwrap().ino(), fs::metadata(&dst).unwrap().ino(), "a hard link");
         }
-        assert!(!link_or_copy(&src, &dst).unwrap(), "the same file is kept");
+        assert_eq!(link_or_copy(&src, &dst).unwrap(), Placed::Kept, "the same file is kept");
         fs::write(src.with_extension("new"), b"other").unwrap();
         fs::rename(src.with_extension("new"), &src).unwrap();
-        assert!(link_or_copy(&src, &dst).unwrap(), "other bytes are replaced");
+        assert_eq!(link_or_copy(&src, &dst).unwrap(), Placed::Linked, "other bytes are replaced");
         assert_eq!(fs::read(&dst).unwrap(), b"other");
         let names: Vec<_> =
             fs::read_dir(dst.parent().unwrap()).unwrap().map(|e| e.unwrap().file_name()).collect();
         assert_eq!(names, ["dst.png"], "no temporary file left");
         assert!(link_or_copy(&dir.path().join("missing"), &dst).is_err());
+    }
+
+    /// A link that fails as `link(2)` does across file systems (EXDEV, "Invalid cross-device link").
+    #[cfg(unix)]
+    fn cross_device(_from: &Path, _to: &Path) -> io::Result<()> {
+        Err(io::Error::from_raw_os_error(libc::EXDEV))
+    }
+
+    #[cfg(not(unix))]
+    fn cross_device(_from: &Path, _to: &Path) -> io::Result<()> {
+        Err(io::Error::new(io::ErrorKind::CrossesDevices, "cross-device link"))
+    }
+
+    #[test]
+    fn a_refused_link_falls_back_to_a_copy_of_its_own() {
+        let dir = tempfile::tempdir().unwrap();
+        let src = dir.path().join("src.png");
+        let bytes: Vec<u8> = (0..70_000u32).map(|i| (i * 7 % 251) as u8).collect();
+        fs::write(&src, &bytes).unwrap();
+        let dst = dir.path().join("export/images/dst.png");
+        assert_eq!(link_or_copy_with(&src, &dst, &cross_device).unwrap(), Placed::Copied);
+        assert_eq!(fs::read(&dst).unwrap(), bytes, "the copy holds the same bytes");
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::{MetadataExt, PermissionsExt};
+            let (a, b) = (fs::metadata(&src).unwrap(), fs::metadata(&dst).unwrap());
+            assert_ne!((a.dev(), a.ino()), (b.dev(), b.ino()), "a copy, not a link");
+            assert_eq!(a.nlink(), 1, "the source gained no link");
+            assert_eq!(b.permissions().mode() & 0o777, 0o644, "readable like every other output");
+        }
+        let names: Vec<_> =
+            fs::read_dir(dst.parent().unwrap()).unwrap().map(|e| e.unwrap().file_name()).collect();
+        assert_eq!(names, ["dst.png"], "no temporary file left");
+        // A rerun keeps the identical copy (same bytes, another inode), with or without links.
+        assert_eq!(link_or_copy_with(&src, &dst, &cross_device).unwrap(), Placed::Kept);
+        assert_eq!(link_or_copy(&src, &dst).unwrap(), Placed::Kept);
+        // Changed bytes replace the copy, again by copying.
+        fs::write(&src, b"other").unwrap();
+        assert_eq!(link_or_copy_with(&src, &dst, &cross_device).unwrap(), Placed::Copied);
+        assert_eq!(fs::read(&dst).unwrap(), b"other");
+        assert!(Placed::Copied.written() && Placed::Linked.written() && !Placed::Kept.written());
     }
 }

@@ -319,6 +319,46 @@ fn json(path: &Path) -> serde_json::Value {
         .unwrap()
 }
 
+/// Issue 39: a generated city has no file to hash, so `prepare` records the seed and parameters that
+/// define it, and the export carries them on to the COCO files, the manifest and the dataset card.
+#[test]
+fn the_card_of_a_demo_export_names_the_seed_that_defines_its_city() {
+    let dir = demo_with_poses(2);
+    let cwd = dir.path();
+    for args in [
+        &["render-masks", "--area", "demo", "--camera", "small", "--preview", "0"][..],
+        &["export-coco", "--label-only"],
+    ] {
+        let o = crate::util::insgen(cwd, args);
+        assert!(o.status.success(), "{args:?}: {}", crate::util::stderr(&o));
+    }
+    let scene = json(&cwd.join("runs/demo/scene/manifest.json"));
+    crate::util::assert_schema("manifest.schema.json", &scene);
+    let recorded = &scene["sources"][0]["procedural"];
+    // scenes/demo.toml: seed 2026 at EPSG:6677 (-3400 m, -38300 m), the other parameters defaulted.
+    assert_eq!(recorded["spec"]["seed"], 2026, "{recorded}");
+    assert_eq!(recorded["spec"]["blocks_x"], 10, "{recorded}");
+    assert_eq!(recorded["origin"], serde_json::json!({"easting_m": -3400.0, "northing_m": -38300.0}));
+    let coco = json(&cwd.join("runs/coco/instances_train.json"));
+    crate::util::assert_schema("coco_instances.schema.json", &coco);
+    assert_eq!(&coco["info"]["areas"][0]["sources"][0]["procedural"], recorded);
+    let manifest = json(&cwd.join("runs/coco/dataset.json"));
+    crate::util::assert_schema("dataset.schema.json", &manifest);
+    assert_eq!(&manifest["areas"][0]["sources"][0]["procedural"], recorded);
+    let card = std::fs::read_to_string(cwd.join("runs/coco/README.md")).unwrap();
+    assert!(
+        card.contains(
+            "  - `procedural`: procedural (insgen's embedded demo city generator; no source file to hash — \
+             these parameters define the city: seed 2026; 10 × 10 blocks of 80 m, streets 14 m wide, \
+             avenues 30 m wide every 4 streets, grid rotated 17°; ground at 3 m; 5 tower blocks, 2 plazas; \
+             heights: low-rise 6–25 m, mid-rise 25–60 m, towers 80–200 m; centre EPSG:6677 E -3400 m N -38300 m)\n"
+        ),
+        "{card}"
+    );
+    // A label-only export has no photos to load: no Hugging Face front matter.
+    assert!(card.starts_with("# Building-instance dataset"), "{card}");
+}
+
 /// Issue 19: `export-coco --shard` and `eval-loc --shard` write parts that `insgen merge` combines into
 /// the files one process writes — the COCO files, statistics and figures byte for byte; the
 /// localization results and poses in query order, equal but for the wall-clock times, with the summary

@@ -147,6 +147,7 @@ fn write_area(workdir: &Path, spec: &AreaSpec) {
             attribution: Some("3D city model (Project PLATEAU), MLIT, CC BY 4.0".into()),
             heights: None,
             appearance: None,
+            procedural: None,
         }],
         buildings: BUILDINGS as u64,
         triangles: 0,
@@ -389,7 +390,11 @@ fn component_export_agrees_with_pycocotools_and_the_id_maps() {
     let wd = standard_workdir(tmp.path());
     let p = plan(&wd, "coco");
     let (ex, written) = export(&p, &NoProgress).unwrap();
-    assert_eq!(written.len(), 6, "three COCO files, SHA256SUMS, dataset.json, README.md");
+    assert_eq!(
+        written.len(),
+        9,
+        "three COCO files, three Hugging Face metadata files, SHA256SUMS, dataset.json, README.md"
+    );
     assert_eq!(ex.frames_without_masks, 1, "alpha lists one frame it never rendered");
     // alpha's third frame has masks but no RGB frame: it is left out and counted, never listed.
     assert_eq!(ex.frames_without_rgb.len(), 1);

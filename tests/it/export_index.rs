@@ -1,5 +1,6 @@
 //! `index.html` of an export (issue 39): written by the export's report with its figures, relative
-//! links only, byte-identical between runs, and seen by a browser — headless Chromium opens it from
+//! links only, byte-identical between runs and after `insgen stats` rewrote the report of the moved
+//! folder, and seen by a browser — headless Chromium opens it from
 //! `file://` after the export folder was moved away from its work directory, and every image must load
 //! (`naturalWidth > 0`), every link must name a file inside the folder, no resource may come from
 //! anywhere else, and a full-page screenshot is taken (`scripts/index_check.mjs`).
@@ -17,7 +18,7 @@ use insgen::util::NoProgress;
 use serde_json::Value;
 
 use crate::coco_export::{plan, standard_workdir};
-use crate::util::{repo, skip};
+use crate::util::{insgen, repo, skip, stderr};
 
 /// A flight plan for one camera (any picture does: the index copies it).
 fn write_flight_plan(camera_dir: &Path) {
@@ -90,12 +91,24 @@ fn index_html_shows_the_export_in_a_browser_after_the_folder_moved() {
         );
     }
 
-    let Some(chromium) = chromium() else { return };
     // Moved away, and the work directory gone: the folder alone must hold the page.
+    let before: Vec<(String, Vec<u8>)> =
+        names.iter().map(|n| (n.clone(), std::fs::read(p.out_dir.join(n)).unwrap())).collect();
     let moved = tmp.path().join("elsewhere/dataset");
     std::fs::create_dir_all(moved.parent().unwrap()).unwrap();
     std::fs::rename(&p.out_dir, &moved).unwrap();
     std::fs::rename(&wd, tmp.path().join("workdir-gone")).unwrap();
+    // `insgen stats` rewrites the report and the page that shows it, as the export wrote them (the
+    // flight plan kept from the folder, the work directory being gone): nothing changed, so every
+    // file is byte-identical, index.html included.
+    std::fs::remove_file(moved.join("index.html")).unwrap();
+    let o = insgen(tmp.path(), &["stats", "--coco", moved.to_str().unwrap()]);
+    assert!(o.status.success(), "insgen stats: {}", stderr(&o));
+    for (n, bytes) in &before {
+        assert!(&std::fs::read(moved.join(n)).unwrap_or_default() == bytes, "insgen stats changed {n}");
+    }
+
+    let Some(chromium) = chromium() else { return };
     let shot = tmp.path().join("index.png");
     let out = Command::new("node")
         .arg(repo().join("scripts/index_check.mjs"))

@@ -339,19 +339,46 @@ fn a_moved_export_folder_verifies_and_loads_in_every_client() {
         a.ino()
     };
     // A rerun rewrites nothing and writes the same bytes; a stale file is removed.
+    let hf_files = ["images/train/metadata.jsonl", "images/val/metadata.jsonl", "images/test/metadata.jsonl"];
+    let described: Vec<Vec<u8>> = hf_files
+        .iter()
+        .chain(&["README.md", "SHA256SUMS"])
+        .map(|f| std::fs::read(p.out_dir.join(f)).unwrap())
+        .collect();
     std::fs::write(p.out_dir.join("images/train/alpha/cam2/gone.png"), b"stale").unwrap();
     export(&p, &NoProgress).unwrap();
     for (s, bytes) in ["train", "val", "test"].iter().zip(&first) {
         assert!(&std::fs::read(p.out_dir.join(format!("instances_{s}.json"))).unwrap() == bytes, "{s}");
     }
+    for (f, bytes) in hf_files.iter().chain(&["README.md", "SHA256SUMS"]).zip(&described) {
+        assert!(&std::fs::read(p.out_dir.join(f)).unwrap() == bytes, "a rerun changed {f}");
+    }
     #[cfg(unix)]
     assert_eq!(std::os::unix::fs::MetadataExt::ino(&std::fs::metadata(&photo).unwrap()), inode);
     assert!(!p.out_dir.join("images/train/alpha/cam2/gone.png").exists());
+    // export-coco wrote the Hugging Face metadata and the card's front matter naming it; export-hf
+    // rewrites both from the COCO files, byte for byte.
+    let hf_written: Vec<Vec<u8>> =
+        hf_files.iter().chain(&["README.md"]).map(|f| std::fs::read(p.out_dir.join(f)).unwrap()).collect();
+    let card = String::from_utf8(hf_written[3].clone()).unwrap();
+    assert!(
+        card.starts_with("---\n")
+            && card.contains(
+                "configs:\n- config_name: default\n  data_files:\n  - split: train\n    path: images/train/**\n  \
+                 - split: validation\n    path: images/val/**\n  - split: test\n    path: images/test/**\n---\n"
+            ),
+        "{card}"
+    );
+    let sums = std::fs::read_to_string(p.out_dir.join("SHA256SUMS")).unwrap();
+    assert!(hf_files.iter().all(|f| sums.contains(&format!("  {f}\n"))), "{sums}");
     let wd_arg = wd.to_str().unwrap();
     run_ok(tmp.path(), &["--workdir", wd_arg, "export-yolo"]);
     run_ok(tmp.path(), &["--workdir", wd_arg, "export-panoptic"]);
     let out = run_ok(tmp.path(), &["--workdir", wd_arg, "export-hf"]);
     assert!(out.contains("train: 5 rows"), "{out}");
+    for (f, bytes) in hf_files.iter().chain(&["README.md"]).zip(&hf_written) {
+        assert!(&std::fs::read(p.out_dir.join(f)).unwrap() == bytes, "export-hf changed {f}");
+    }
     for split in ["train", "val", "test"] {
         let text = std::fs::read_to_string(p.out_dir.join(format!("images/{split}/metadata.jsonl"))).unwrap();
         for line in text.lines() {
@@ -371,6 +398,72 @@ fn a_moved_export_folder_verifies_and_loads_in_every_client() {
     std::fs::rename(&p.out_dir, &moved).unwrap();
     std::fs::remove_dir_all(&wd).unwrap();
     assert_moved_export_loads(&moved, coco_images);
+}
+
+/// A file system other than the one of `dir` for an export to go to: `/dev/shm` (tmpfs on Linux) when
+/// it exists and `stat` gives it another device than `dir`'s, else `None` with the reason. Where there
+/// is none (macOS, a container whose temporary directory is on that tmpfs) the test cannot fail over
+/// to a copy, so this skips even under `CI=true`: the copy itself is unit-tested with a link that
+/// fails as EXDEV does (`util::tests::a_refused_link_falls_back_to_a_copy_of_its_own`).
+#[cfg(unix)]
+fn other_file_system(dir: &Path) -> Option<tempfile::TempDir> {
+    use std::os::unix::fs::MetadataExt;
+    let shm = Path::new("/dev/shm");
+    let why = match (std::fs::metadata(shm), std::fs::metadata(dir)) {
+        (Ok(s), Ok(d)) if s.is_dir() && s.dev() != d.dev() => match tempfile::tempdir_in(shm) {
+            Ok(t) => return Some(t),
+            Err(e) => format!("/dev/shm is not writable: {e}"),
+        },
+        (Ok(_), Ok(_)) => format!("/dev/shm is on the file system of {}", dir.display()),
+        (Err(e), _) => format!("no /dev/shm: {e}"),
+        (_, Err(e)) => format!("{}: {e}", dir.display()),
+    };
+    eprintln!("skipping: {why} (no second file system to export across)");
+    None
+}
+
+#[test]
+#[cfg(unix)]
+fn an_export_on_another_file_system_holds_copies() {
+    use std::os::unix::fs::MetadataExt;
+    let tmp = tempfile::tempdir().unwrap();
+    let Some(shm) = other_file_system(tmp.path()) else { return };
+    let wd = standard_workdir(tmp.path());
+    let here = plan(&wd, "coco");
+    export(&here, &NoProgress).unwrap();
+    let mut there = plan(&wd, "coco");
+    there.out_dir = shm.path().join("coco");
+    export(&there, &NoProgress).unwrap();
+    // Every photo and ID map is a file of its own there (a hard link cannot cross file systems), with
+    // the work directory's bytes; the COCO files and checksums are those of the export beside it.
+    let sums = std::fs::read_to_string(there.out_dir.join("SHA256SUMS")).unwrap();
+    let mut placed = 0;
+    for rel in image_files(&there.out_dir.join("images"))
+        .into_iter()
+        .chain(image_files(&there.out_dir.join("masks")))
+    {
+        let name = rel.strip_prefix(&there.out_dir).unwrap();
+        let linked_here = here.out_dir.join(name);
+        let (a, b) = (std::fs::metadata(&rel).unwrap(), std::fs::metadata(&linked_here).unwrap());
+        assert_ne!(a.dev(), b.dev(), "{}", name.display());
+        assert_eq!(std::fs::read(&rel).unwrap(), std::fs::read(&linked_here).unwrap(), "{}", name.display());
+        assert!(sums.contains(&format!("  {}\n", name.display())), "{} not in SHA256SUMS", name.display());
+        placed += 1;
+    }
+    assert!(placed > 10, "{placed} files placed");
+    for f in ["instances_train.json", "instances_val.json", "instances_test.json", "SHA256SUMS"] {
+        assert!(
+            std::fs::read(here.out_dir.join(f)).unwrap() == std::fs::read(there.out_dir.join(f)).unwrap(),
+            "{f}"
+        );
+    }
+    let report = insgen::export::verify::verify(&there.out_dir, &NoProgress);
+    assert!(report.problems.is_empty(), "{:#?}", report.problems);
+    // A rerun keeps the copies: same inodes, nothing rewritten.
+    let photo = there.out_dir.join("images/train/alpha/cam2/alpha_f000.png");
+    let inode = std::fs::metadata(&photo).unwrap().ino();
+    export(&there, &NoProgress).unwrap();
+    assert_eq!(std::fs::metadata(&photo).unwrap().ino(), inode);
 }
 
 /// Checks an export folder that was moved away from its work directory (which is gone): `insgen
@@ -427,8 +520,8 @@ pub(crate) fn assert_moved_export_loads(moved: &Path, coco_images: usize) {
     }
     assert_yolo_exact(&py, &yolo_copy.join("data.yaml"), moved);
     assert_panoptic_exact(&py, moved);
-    // Hugging Face datasets loads the moved folder's images with their instances: every split that
-    // has images (`val` is `validation` there).
+    // Hugging Face datasets loads the moved folder by its path alone (the card's front matter names
+    // the splits), images with their instances: every split that has images (`val` is `validation`).
     let Some(py) = python_with(&["datasets", "pycocotools"]) else { return };
     let mut with_images: Vec<&str> = [("train", "train"), ("val", "validation"), ("test", "test")]
         .into_iter()
@@ -441,6 +534,12 @@ pub(crate) fn assert_moved_export_loads(moved: &Path, coco_images: usize) {
     with_images.sort();
     let r = exports_check(&py, &["hf", moved.to_str().unwrap()]);
     assert_eq!(r["loaded_splits"], serde_json::json!(with_images));
+    for split in &with_images {
+        let columns = &r["columns"][split];
+        for c in ["image", "image_id", "objects", "area_name", "camera", "frame"] {
+            assert!(columns.as_array().unwrap().iter().any(|x| x == c), "{split}: no column {c}: {columns}");
+        }
+    }
     for split in ["train", "val", "test"] {
         let s = &r["splits"][split];
         eprintln!("datasets {split}: {} rows, {} objects, {} decoded", s["rows"], s["objects"], s["decoded"]);

@@ -4,9 +4,10 @@
 //! EPSG:25832 (ETRS89 / UTM zone 32N, orthometric heights; no shipped scene uses a UTM zone), in two
 //! sub-folders beside a stray text file and picture. From that folder alone the binary runs
 //! `init` → `inspect` → `prepare` → `sample` → `render-masks` → `render-rgb` (Blender, 3 frames at
-//! 192 × 108) → `export-coco`, `export-yolo`, `export-panoptic`, `export-hf`; the export folder is then
-//! moved elsewhere, the work directory deleted, and the folder checked by `insgen verify` and loaded by
-//! pycocotools, Ultralytics' label rules, panopticapi and `datasets`
+//! 192 × 108) → `export-coco`, `export-yolo`, `export-panoptic` (not `export-hf`: `export-coco`'s folder
+//! is what `datasets` loads); the export folder is then moved elsewhere, the work directory deleted, and
+//! the folder checked by `insgen verify` and loaded by pycocotools, Ultralytics' label rules,
+//! panopticapi and `datasets.load_dataset(<folder>)`
 //! ([`crate::exports::assert_moved_export_loads`], the moved-export test's checks).
 //!
 //! The origin `init` writes is checked against `prepare`'s own default (the same scene without
@@ -200,7 +201,7 @@ fn a_folder_of_utm_cityjson_tiles_becomes_a_dataset_that_moves() {
     run_ok(root, &bpy, &["--no-progress", "render-masks", "--area", "town", "--camera", "tiny"]);
     run_ok(root, &bpy, &["--no-progress", "render-rgb", "--area", "town", "--camera", "tiny"]);
     run_ok(root, &bpy, &["--no-progress", "export-coco"]);
-    for export in ["export-yolo", "export-panoptic", "export-hf"] {
+    for export in ["export-yolo", "export-panoptic"] {
         run_ok(root, &bpy, &["--no-progress", export]);
     }
     let coco = read_json(&root.join("runs/coco/instances_train.json"));
