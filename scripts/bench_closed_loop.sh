@@ -7,7 +7,10 @@
 #
 #   scripts/bench_closed_loop.sh [--size small|full] [--train "A B ..."] [--holdout AREA]
 #       [--families "unet maskrcnn"] [--minutes M] [--steps N] [--device auto|cpu|cuda]
-#       [--queries Q] [--workdir DIR] [--label NAME] [STAGE ...]
+#       [--queries Q] [--workdir DIR] [--label NAME] [--train-rgb "FLAGS"] [STAGE ...]
+#
+# --train-rgb passes extra `render-rgb` flags for the training areas only (e.g. "--no-neighbour-contrast
+# --force"): an A/B of a data fix, in which the held-out photos stay the same.
 #
 # Stages (default: all, in order): data train predict score loc report. Each resumes: the data stages
 # redo only what changed, a trained model is kept unless --retrain. So a dataset made here can be
@@ -26,7 +29,7 @@ ROOT=$(pwd)
 export NODEVICE_SELECT=1
 
 SIZE=small TRAIN="" HOLDOUT="" FAMILIES="unet maskrcnn" MINUTES="" STEPS="" DEVICE=auto QUERIES=""
-WORKDIR="" LABEL="" RETRAIN=0 STAGES=()
+WORKDIR="" LABEL="" RETRAIN=0 TRAIN_RGB="" STAGES=()
 while [ $# -gt 0 ]; do
     case "$1" in
         --size) SIZE=$2; shift 2 ;;
@@ -40,7 +43,8 @@ while [ $# -gt 0 ]; do
         --workdir) WORKDIR=$2; shift 2 ;;
         --label) LABEL=$2; shift 2 ;;
         --retrain) RETRAIN=1; shift ;;
-        -h|--help) sed -n '2,25p' "$0"; exit 0 ;;
+        --train-rgb) TRAIN_RGB=$2; shift 2 ;;
+        -h|--help) sed -n '2,28p' "$0"; exit 0 ;;
         data|train|predict|score|loc|report) STAGES+=("$1"); shift ;;
         *) echo "bench_closed_loop: unknown argument $1 (see --help)" >&2; exit 2 ;;
     esac
@@ -87,7 +91,8 @@ cat > "$W/loop.json.tmp" <<EOF
 {"size": "$SIZE", "label": "$LABEL", "camera": "$CAMERA", "train_areas": "$TRAIN", "holdout": "$HOLDOUT",
  "frames_per_area": $COUNT, "holdout_frames": $HOLD_COUNT, "families": "$FAMILIES", "minutes": "$MINUTES",
  "steps": "${STEPS:-}", "queries": $QUERIES, "width": $WIDTH, "batch": $BATCH, "crop": "$CROP",
- "command": "scripts/bench_closed_loop.sh --size $SIZE --train '$TRAIN' --holdout $HOLDOUT --families '$FAMILIES' --minutes $MINUTES${STEPS:+ --steps $STEPS} --device $DEVICE --queries $QUERIES"}
+ "train_rgb": "$TRAIN_RGB",
+ "command": "scripts/bench_closed_loop.sh --size $SIZE --train '$TRAIN' --holdout $HOLDOUT --families '$FAMILIES' --minutes $MINUTES${STEPS:+ --steps $STEPS} --device $DEVICE --queries $QUERIES${TRAIN_RGB:+ --train-rgb '$TRAIN_RGB'}"}
 EOF
 mv "$W/loop.json.tmp" "$W/loop.json"
 
@@ -101,7 +106,8 @@ if stage_on data; then
         "${B[@]}" -q prepare --area "$a"
         "${B[@]}" -q sample --area "$a" --camera "$cam_file" --count "$n"
         "${B[@]}" -q render-masks --area "$a" --camera "$CAMERA"
-        "${B[@]}" -q render-rgb --area "$a" --camera "$CAMERA"
+        rgb=(); [ "$a" != "$HOLDOUT" ] && [ -n "$TRAIN_RGB" ] && read -r -a rgb <<< "$TRAIN_RGB"
+        "${B[@]}" -q render-rgb --area "$a" --camera "$CAMERA" "${rgb[@]}"
     done
     say "data: export-coco (held out: $HOLDOUT)"
     "${B[@]}" -q export-coco --holdout "$HOLDOUT"

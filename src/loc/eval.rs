@@ -1435,10 +1435,17 @@ pub fn summarise(
             metrics::COVERAGE_BUCKETS,
             &counted(|r| r.covered_frame_cells as usize),
         ));
-        let split: Vec<(f64, f64, f64, f64)> = results
+        let split: Vec<metrics::QueryOutcome> = results
             .iter()
             .filter(|r| r.cost == kind)
-            .map(|r| (r.axial_error_m, r.lateral_error_m, r.translation_error_m, r.rotation_error_deg))
+            .map(|r| metrics::QueryOutcome {
+                axial_m: r.axial_error_m,
+                lateral_m: r.lateral_error_m,
+                translation_m: r.translation_error_m,
+                rotation_deg: r.rotation_error_deg,
+                best_cost: r.best_cost,
+                cost_at_gt: r.cost_at_gt,
+            })
             .collect();
         axis_rows.push(metrics::axis_row(&name, &split));
         boundary_rows.push(BoundaryRow {
@@ -1563,7 +1570,9 @@ pub fn write_outputs(out_dir: &Path, outputs: &Outputs) -> Result<(), EvalError>
          more); {:.0} hypotheses/s.\n\n{}{}\nRecall at (2 m, 2°) by the number of query instances:\n\n{}\n\
          Recall at (2 m, 2°) by how many of the frame's 4 × 4 cells hold buildings (silhouettes crowded into one \
          part of the frame leave the depth along the axis weakly observed):\n\n{}\n\
-         Translation errors along the ground truth's viewing direction (axial) and across it (lateral):\n\n{}\n\
+         Translation errors along the ground truth's viewing direction (axial) and across it (lateral); a \
+         failure the search missed scores below the ground truth's pose (a better optimum was left near the \
+         truth), the others are the cost's (it prefers or ties a pose away from the truth):\n\n{}\n\
          Searches that ended on the boundary of the search volume around the prior ({}). {}\n\n{}",
         out_dir.display(),
         summary.queries,

@@ -122,7 +122,8 @@ pub fn bucket_rows(method: &str, buckets: Buckets, errors: &[(usize, f64, f64)])
         .collect()
 }
 
-/// Where one method's translation errors lie: along the camera's axis or across it.
+/// Where one method's translation errors lie: along the camera's axis or across it, and whether its
+/// failures are the search's or the cost's.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct AxisRow {
     /// The method (`prior` or the cost), as named in the table.
@@ -138,36 +139,77 @@ pub struct AxisRow {
     /// Of those, the ones within 2 m across the axis and 2° in rotation: only the depth along the
     /// axis, which a narrow view constrains least, is off.
     pub failures_along_axis_only: usize,
+    /// Of the failures, the ones whose estimate scores below the ground truth's pose in the same
+    /// terms: the search stopped short of a better optimum near the truth. The others are the cost's:
+    /// it prefers (or ties) a pose away from the truth, and no search would have found the truth.
+    /// Absent in summaries written before it was counted.
+    #[serde(default)]
+    pub failures_search_missed: usize,
 }
 
-/// The [`AxisRow`] of one method from (axial m, lateral m, translation m, rotation °) errors.
-pub fn axis_row(method: &str, errors: &[(f64, f64, f64, f64)]) -> AxisRow {
+/// One query's errors and scores, as the [`AxisRow`] counts them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct QueryOutcome {
+    /// Signed error along the ground truth's viewing direction, metres.
+    pub axial_m: f64,
+    /// Error across it, metres.
+    pub lateral_m: f64,
+    /// Translation error, metres.
+    pub translation_m: f64,
+    /// Rotation error, degrees.
+    pub rotation_deg: f64,
+    /// The estimate's score (higher is better).
+    pub best_cost: f64,
+    /// The ground truth's score in the same terms.
+    pub cost_at_gt: f64,
+}
+
+impl QueryOutcome {
+    /// Whether the query misses (2 m, 2°).
+    fn failed(&self) -> bool {
+        let (t, r) = THRESHOLDS[0];
+        !(self.translation_m < t && self.rotation_deg < r)
+    }
+
+    /// Whether the truth scores better than the estimate (beyond rounding): the search missed.
+    fn search_missed(&self) -> bool {
+        self.cost_at_gt > self.best_cost + SCORE_TIE
+    }
+}
+
+/// Score differences at most this small count as ties (the scores are ratios of pixel counts).
+pub const SCORE_TIE: f64 = 1e-9;
+
+/// The [`AxisRow`] of one method from its queries' outcomes.
+pub fn axis_row(method: &str, outcomes: &[QueryOutcome]) -> AxisRow {
     let (t, r) = THRESHOLDS[0];
-    let failed: Vec<&(f64, f64, f64, f64)> = errors.iter().filter(|e| !(e.2 < t && e.3 < r)).collect();
+    let failed: Vec<&QueryOutcome> = outcomes.iter().filter(|o| o.failed()).collect();
     AxisRow {
         method: method.to_string(),
-        queries: errors.len(),
-        median_abs_axial_m: median_or_nan(&errors.iter().map(|e| e.0.abs()).collect::<Vec<_>>()),
-        median_lateral_m: median_or_nan(&errors.iter().map(|e| e.1).collect::<Vec<_>>()),
+        queries: outcomes.len(),
+        median_abs_axial_m: median_or_nan(&outcomes.iter().map(|o| o.axial_m.abs()).collect::<Vec<_>>()),
+        median_lateral_m: median_or_nan(&outcomes.iter().map(|o| o.lateral_m).collect::<Vec<_>>()),
         failures: failed.len(),
-        failures_along_axis_only: failed.iter().filter(|e| e.1 < t && e.3 < r).count(),
+        failures_along_axis_only: failed.iter().filter(|o| o.lateral_m < t && o.rotation_deg < r).count(),
+        failures_search_missed: failed.iter().filter(|o| o.search_missed()).count(),
     }
 }
 
 /// The axis rows as Markdown.
 pub fn axis_markdown(rows: &[AxisRow]) -> String {
     let mut s = String::from(
-        "| method | queries | median axial, absolute (m) | median lateral (m) | failures at (2 m, 2°) | of which along the axis only |\n|---|---:|---:|---:|---:|---:|\n",
+        "| method | queries | median axial, absolute (m) | median lateral (m) | failures at (2 m, 2°) | of which along the axis only | of which the search missed |\n|---|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         s.push_str(&format!(
-            "| {} | {} | {:.2} | {:.2} | {} | {} |\n",
+            "| {} | {} | {:.2} | {:.2} | {} | {} | {} |\n",
             r.method,
             r.queries,
             r.median_abs_axial_m,
             r.median_lateral_m,
             r.failures,
-            r.failures_along_axis_only
+            r.failures_along_axis_only,
+            r.failures_search_missed
         ));
     }
     s
@@ -262,15 +304,39 @@ mod tests {
 
     #[test]
     fn axis_rows_tell_depth_only_failures_apart() {
-        // (axial, lateral, translation, rotation): a success, a depth-only failure, a lateral failure
-        // and a rotation failure.
-        let e =
-            [(0.1, 0.1, 0.14, 0.01), (-3.0, 0.5, 3.04, 0.02), (0.5, 2.5, 2.55, 0.02), (0.1, 0.1, 0.14, 2.5)];
+        // (axial, lateral, translation, rotation, best, at gt): a success, a depth-only failure the
+        // search missed, a lateral failure the cost prefers, a rotation failure on a tie.
+        let o = |e: (f64, f64, f64, f64), best_cost: f64, cost_at_gt: f64| QueryOutcome {
+            axial_m: e.0,
+            lateral_m: e.1,
+            translation_m: e.2,
+            rotation_deg: e.3,
+            best_cost,
+            cost_at_gt,
+        };
+        let e = [
+            o((0.1, 0.1, 0.14, 0.01), 0.9, 0.95),
+            o((-3.0, 0.5, 3.04, 0.02), 0.8, 0.85),
+            o((0.5, 2.5, 2.55, 0.02), 0.9, 0.85),
+            o((0.1, 0.1, 0.14, 2.5), 0.7, 0.7),
+        ];
         let r = axis_row("m", &e);
-        assert_eq!((r.queries, r.failures, r.failures_along_axis_only), (4, 3, 1));
+        assert_eq!(
+            (r.queries, r.failures, r.failures_along_axis_only, r.failures_search_missed),
+            (4, 3, 1, 1)
+        );
         assert!((r.median_abs_axial_m - 0.3).abs() < 1e-12, "{}", r.median_abs_axial_m);
         assert!((r.median_lateral_m - 0.3).abs() < 1e-12);
-        assert!(axis_markdown(&[r]).contains("| m | 4 | 0.30 | 0.30 | 3 | 1 |"));
+        assert!(axis_markdown(&[r]).contains("| m | 4 | 0.30 | 0.30 | 3 | 1 | 1 |"));
+    }
+
+    #[test]
+    fn axis_rows_read_summaries_without_the_search_count() {
+        let r: AxisRow = serde_json::from_str(
+            r#"{"method":"m","queries":2,"median_abs_axial_m":0.1,"median_lateral_m":0.1,"failures":1,"failures_along_axis_only":1}"#,
+        )
+        .unwrap();
+        assert_eq!(r.failures_search_missed, 0);
     }
 
     #[test]

@@ -195,6 +195,26 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
     assert_eq!(tight_summary["search"]["on_boundary"], "prior");
     let row = &tight_summary["boundary_rows"][0];
     assert_eq!(row["kept_prior"], row["on_search_boundary"], "{row}");
+    // The truths lie outside the 1 m volume, where the oracle masks score best: every failure is one
+    // the search missed (its estimate scores below the truth), none is the cost's.
+    let keep_summary: Value =
+        serde_json::from_slice(&std::fs::read(keep_out.join("summary.json")).unwrap()).unwrap();
+    assert_schema("loc_summary.schema.json", &keep_summary);
+    let axis = &keep_summary["axis_rows"][0];
+    let failures = axis["failures"].as_u64().unwrap();
+    assert!(failures > 0, "{axis}");
+    assert_eq!(axis["failures_search_missed"].as_u64(), Some(failures), "{axis}");
+    let missed_in_results = kept
+        .iter()
+        .filter(|r| {
+            r["translation_error_m"].as_f64().unwrap() >= 2.0
+                || r["rotation_error_deg"].as_f64().unwrap() >= 2.0
+        })
+        .filter(|r| r["cost_at_gt"].as_f64().unwrap() > r["best_cost"].as_f64().unwrap())
+        .count() as u64;
+    assert_eq!(missed_in_results, failures, "the summary counts what results.jsonl shows");
+    let md = std::fs::read_to_string(keep_out.join("summary.md")).unwrap();
+    assert!(md.contains("of which the search missed"), "{md}");
 
     // 2. The ground truth as a segmentation model's COCO results (score 1, compressed RLE); no RGB
     //    frames were rendered, so the export is label-only.
