@@ -7,7 +7,7 @@
 #
 #   scripts/bench_closed_loop.sh [--size small|full] [--train "A B ..."] [--holdout AREA]
 #       [--families "unet maskrcnn"] [--minutes M] [--steps N] [--device auto|cpu|cuda]
-#       [--queries Q] [--workdir DIR] [--label NAME] [--train-rgb "FLAGS"] [STAGE ...]
+#       [--queries Q] [--holdout-frames N] [--workdir DIR] [--label NAME] [--train-rgb "FLAGS"] [STAGE ...]
 #
 # --train-rgb passes extra `render-rgb` flags for the training areas only (e.g. "--no-neighbour-contrast
 # --force"): an A/B of a data fix, in which the held-out photos stay the same.
@@ -29,7 +29,7 @@ ROOT=$(pwd)
 export NODEVICE_SELECT=1
 
 SIZE=small TRAIN="" HOLDOUT="" FAMILIES="unet maskrcnn" MINUTES="" STEPS="" DEVICE=auto QUERIES=""
-WORKDIR="" LABEL="" RETRAIN=0 TRAIN_RGB="" STAGES=()
+WORKDIR="" LABEL="" RETRAIN=0 TRAIN_RGB="" HOLD_FRAMES="" STAGES=()
 while [ $# -gt 0 ]; do
     case "$1" in
         --size) SIZE=$2; shift 2 ;;
@@ -44,6 +44,7 @@ while [ $# -gt 0 ]; do
         --label) LABEL=$2; shift 2 ;;
         --retrain) RETRAIN=1; shift ;;
         --train-rgb) TRAIN_RGB=$2; shift 2 ;;
+        --holdout-frames) HOLD_FRAMES=$2; shift 2 ;;
         -h|--help) sed -n '2,28p' "$0"; exit 0 ;;
         data|train|predict|score|loc|report) STAGES+=("$1"); shift ;;
         *) echo "bench_closed_loop: unknown argument $1 (see --help)" >&2; exit 2 ;;
@@ -51,6 +52,7 @@ while [ $# -gt 0 ]; do
 done
 [ ${#STAGES[@]} -gt 0 ] || STAGES=(data train predict score loc report)
 
+[ -z "$HOLD_FRAMES" ] || [ -n "$QUERIES" ] || QUERIES=$HOLD_FRAMES
 SHARED=../shared/data
 have() { [ -e "$SHARED/$1" ]; }
 case "$SIZE" in
@@ -60,6 +62,11 @@ case "$SIZE" in
            : "${MINUTES:=4.5}" "${QUERIES:=40}" ;;
     *) echo "bench_closed_loop: --size small|full, not $SIZE" >&2; exit 2 ;;
 esac
+# More held-out frames (and as many localization queries unless --queries says otherwise): a model
+# trained once, scored on more of the held-out area.
+if [ -n "$HOLD_FRAMES" ]; then
+    HOLD_COUNT=$HOLD_FRAMES
+fi
 if [ -z "$TRAIN" ]; then
     TRAIN="demo demo-val"
     have nl_denhaag_lod2 && TRAIN+=" denhaag"
@@ -92,7 +99,7 @@ cat > "$W/loop.json.tmp" <<EOF
  "frames_per_area": $COUNT, "holdout_frames": $HOLD_COUNT, "families": "$FAMILIES", "minutes": "$MINUTES",
  "steps": "${STEPS:-}", "queries": $QUERIES, "width": $WIDTH, "batch": $BATCH, "crop": "$CROP",
  "train_rgb": "$TRAIN_RGB",
- "command": "scripts/bench_closed_loop.sh --size $SIZE --train '$TRAIN' --holdout $HOLDOUT --families '$FAMILIES' --minutes $MINUTES${STEPS:+ --steps $STEPS} --device $DEVICE --queries $QUERIES${TRAIN_RGB:+ --train-rgb '$TRAIN_RGB'}"}
+ "command": "scripts/bench_closed_loop.sh --size $SIZE --train '$TRAIN' --holdout $HOLDOUT --families '$FAMILIES' --minutes $MINUTES${STEPS:+ --steps $STEPS} --device $DEVICE --queries $QUERIES${HOLD_FRAMES:+ --holdout-frames $HOLD_FRAMES}${TRAIN_RGB:+ --train-rgb '$TRAIN_RGB'}"}
 EOF
 mv "$W/loop.json.tmp" "$W/loop.json"
 
