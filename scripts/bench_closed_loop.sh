@@ -45,7 +45,7 @@ while [ $# -gt 0 ]; do
         --retrain) RETRAIN=1; shift ;;
         --train-rgb) TRAIN_RGB=$2; shift 2 ;;
         --holdout-frames) HOLD_FRAMES=$2; shift 2 ;;
-        -h|--help) sed -n '2,28p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d'; exit 0 ;;
         data|train|predict|score|loc|report) STAGES+=("$1"); shift ;;
         *) echo "bench_closed_loop: unknown argument $1 (see --help)" >&2; exit 2 ;;
     esac

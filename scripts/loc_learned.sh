@@ -19,6 +19,7 @@
 set -euo pipefail
 . "$(dirname "$0")/loc_common.sh"
 cd "$(dirname "$0")/.."
+case "${1:-}" in -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d'; exit 0 ;; -*) echo "loc_learned: unknown option $1 (see --help)" >&2; exit 2 ;; esac
 W="${1:-target/loc-learned}"
 COUNT=${COUNT:-20}
 AREAS=${AREAS-"demo niiza denhaag delft tokyo"}
