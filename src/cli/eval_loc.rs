@@ -223,10 +223,10 @@ pub struct Args {
     ///
     /// Every stage (coarse grid, particle filter, polish, basins) keeps to a volume centred on the
     /// prior, so that a degenerate cost cannot pull the estimate where the prior says the camera
-    /// cannot be; results.jsonl flags an estimate on its boundary (on_search_boundary). Default: 4
-    /// times the prior's RMS horizontal error, 4·√(σ_e² + σ_n²), plus its horizontal bias, at least 10
-    /// m, from the noise model of <camera dir>/sampling.json (`insgen sample`), else the default
-    /// model (σ = 7, 7, 5 m, yaw 3°: 39.6 m).
+    /// cannot be; results.jsonl flags an estimate on its boundary (on_search_boundary). Default:
+    /// 4.4·max(σ_e, σ_n) plus the prior's horizontal bias, at least 10 m (the radius its error leaves
+    /// as rarely as 4σ in height), from the noise model of <camera dir>/sampling.json (`insgen
+    /// sample`), else the default model (σ = 7, 7, 5 m, yaw 3°: 30.8 m).
     #[arg(long, value_name = "M", value_parser = parse_half_range)]
     pub search_radius_m: Option<f64>,
     /// Search volume: the largest difference from the prior's height, metres [default: 4·σ_u plus
@@ -738,7 +738,11 @@ mod tests {
         let a = parse(&["--search-radius-m", "25", "--search-yaw-deg", "6"]).unwrap();
         let b = search_bounds(&a, &noise, "the default prior noise model").unwrap();
         assert_eq!((b.radius_m, b.height_m, b.yaw_deg), (25.0, 20.0, 6.0));
-        assert!(b.origin.starts_with("--search-radius-m 25, --search-yaw-deg 6; 4σ of"), "{}", b.origin);
+        assert!(
+            b.origin.starts_with("--search-radius-m 25, --search-yaw-deg 6; 4.4σ horizontally"),
+            "{}",
+            b.origin
+        );
         assert!(search_bounds(&parse(&["--search-yaw-deg", "181"]).unwrap(), &noise, "x").is_err());
         for bad in [["--search-height-m", "0"], ["--search-radius-m", "nan"], ["--search-yaw-deg", "inf"]] {
             let e = parse(&bad).unwrap_err().to_string();

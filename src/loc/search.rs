@@ -64,10 +64,19 @@ pub struct SearchBounds {
     pub origin: String,
 }
 
-/// The default half-ranges of [`SearchBounds`] in standard deviations of the prior's noise: the
-/// prior error exceeds 4σ along one axis with a probability of 6·10⁻⁵, and its horizontal error
-/// exceeds 4 × its RMS, 4·√(σ_e² + σ_n²), with exp(−16) ≈ 10⁻⁷ (isotropic, Rayleigh).
+/// The default half-ranges of [`SearchBounds`] along one axis (height, yaw) in standard deviations
+/// of the prior's noise: the prior's error exceeds 4σ there with a probability of 6.3·10⁻⁵
+/// (two-sided, erfc(4/√2)).
 pub const PRIOR_SIGMA_MULTIPLE: f64 = 4.0;
+
+/// The default horizontal radius of [`SearchBounds`] in standard deviations of the prior's noise
+/// along its noisier horizontal axis, chosen so that the horizontal error leaves it as rarely as the
+/// height error leaves 4σ: an isotropic error exceeds r with a probability of exp(−r²/2σ²)
+/// (Rayleigh), so r = σ·√(−2·ln 6.3·10⁻⁵) = 4.40σ; with σ_e ≠ σ_n the larger one bounds it.
+/// (Issue 40: the radius was 4·√(σ_e² + σ_n²), 5.66σ for an isotropic prior, which the prior's
+/// error leaves with a probability of 10⁻⁷; that extra 9 m around a default prior was room for a
+/// degenerate cost to end more than 50 m from the truth, and never held a true pose.)
+pub const HORIZONTAL_SIGMA_MULTIPLE: f64 = 4.40;
 
 /// Floors of the derived [`SearchBounds`] (metres, metres, degrees), so that a nearly exact prior
 /// (σ → 0) still leaves the coarse grid's centre cells and the filter's steps some room.
@@ -79,30 +88,31 @@ pub const BOUNDARY_TOLERANCE: f64 = 0.02;
 
 impl Default for SearchBounds {
     /// Derived from the default prior noise model ([`PriorNoise::default`]: σ = 7, 7, 5 m, 3°):
-    /// 39.6 m, 20 m, 12°.
+    /// 30.8 m, 20 m, 12°.
     fn default() -> Self {
         SearchBounds::from_prior_noise(&PriorNoise::default(), "the default prior noise model")
     }
 }
 
 impl SearchBounds {
-    /// The bounds [`PRIOR_SIGMA_MULTIPLE`] standard deviations wide around the prior, plus the
-    /// model's bias (the prior is off by it on average), at least [`MIN_SEARCH_BOUNDS`]:
-    /// radius = |bias_en| + 4·√(σ_e² + σ_n²), height = |bias_u| + 4·σ_u, yaw = |bias_yaw| + 4·σ_yaw.
+    /// The bounds that hold the prior's error but with a probability of 6.3·10⁻⁵ each
+    /// ([`HORIZONTAL_SIGMA_MULTIPLE`], [`PRIOR_SIGMA_MULTIPLE`]), plus the model's bias (the prior
+    /// is off by it on average), at least [`MIN_SEARCH_BOUNDS`]: radius = |bias_en| + 4.4·max(σ_e,
+    /// σ_n), height = |bias_u| + 4·σ_u, yaw = |bias_yaw| + 4·σ_yaw.
     /// `source` names where the model came from (for [`SearchBounds::origin`]).
     pub fn from_prior_noise(noise: &PriorNoise, source: &str) -> Self {
-        let k = PRIOR_SIGMA_MULTIPLE;
+        let (k, kh) = (PRIOR_SIGMA_MULTIPLE, HORIZONTAL_SIGMA_MULTIPLE);
         let [se, sn, su] = noise.sigma_enu_m.map(|s| if s.is_finite() { s.abs() } else { 0.0 });
         let [be, bn, bu] = noise.bias_enu_m.map(|b| if b.is_finite() { b } else { 0.0 });
         let (sy, by) = (noise.sigma_ypr_deg[0], noise.bias_ypr_deg[0]);
         let (sy, by) = (if sy.is_finite() { sy.abs() } else { 0.0 }, if by.is_finite() { by } else { 0.0 });
         let (min_r, min_h, min_y) = MIN_SEARCH_BOUNDS;
         SearchBounds {
-            radius_m: (be.hypot(bn) + k * se.hypot(sn)).max(min_r),
+            radius_m: (be.hypot(bn) + kh * se.max(sn)).max(min_r),
             height_m: (bu.abs() + k * su).max(min_h),
             yaw_deg: (by.abs() + k * sy).clamp(min_y, 180.0),
             origin: format!(
-                "{k}σ of {source} (σ = {se}, {sn}, {su} m, yaw {sy}°; bias {be}, {bn}, {bu} m, {by}°)"
+                "{kh}σ horizontally, {k}σ in height and yaw of {source} (σ = {se}, {sn}, {su} m, yaw {sy}°; bias {be}, {bn}, {bu} m, {by}°)"
             ),
         }
     }
@@ -491,8 +501,8 @@ pub struct SearchOptions {
 
 /// What a search reports when its best pose ends on the boundary of its volume
 /// ([`Volume::on_boundary`]). There the cost still improves towards poses the prior rules out (with
-/// the default volume, beyond 4σ of the prior's noise, which a true pose reaches with a probability
-/// under 10⁻⁴): the cost is degenerate on this query, and the pose it found says nothing a
+/// the default volume, where the prior's error reaches with a probability of 6.3·10⁻⁵ along each of
+/// the horizontal distance, height and yaw): the cost is degenerate on this query, and the pose it found says nothing a
 /// navigator should act on.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -1578,28 +1588,58 @@ mod tests {
         }
 
         #[test]
-        fn default_bounds_are_4_sigma_of_the_default_prior_noise() {
+        fn default_bounds_come_from_the_default_prior_noise() {
             let b = SearchBounds::default();
-            // 4 × √(7² + 7²) m, 4 × 5 m, 4 × 3° (PriorNoise::default, by hand).
-            assert!((b.radius_m - 4.0 * 98f64.sqrt()).abs() < 1e-9, "{}", b.radius_m);
+            // 4.4 × 7 m, 4 × 5 m, 4 × 3° (PriorNoise::default, by hand).
+            assert!((b.radius_m - 4.4 * 7.0).abs() < 1e-9, "{}", b.radius_m);
             assert_eq!((b.height_m, b.yaw_deg), (20.0, 12.0));
             assert!(b.validate().is_ok());
             // The default coarse grid (corners at √(20² + 20²) = 28.3 m, ±10 m, ±7.5°) lies inside.
             let v = b.around(prior());
             assert!(coarse_grid(&prior(), &CoarseParams::default()).iter().all(|h| v.contains(h)));
-            // A bias widens them; an exact prior gets the floors.
+            // A bias widens them; the noisier horizontal axis sets the radius; an exact prior gets
+            // the floors.
             let biased = PriorNoise {
+                sigma_enu_m: [7.0, 3.0, 5.0],
                 bias_enu_m: [3.0, 4.0, -2.0],
                 bias_ypr_deg: [-1.0, 0.0, 0.0],
                 ..PriorNoise::default()
             };
             let b = SearchBounds::from_prior_noise(&biased, "test");
-            assert!((b.radius_m - 5.0 - 4.0 * 98f64.sqrt()).abs() < 1e-9);
+            assert!((b.radius_m - 5.0 - 4.4 * 7.0).abs() < 1e-9, "{}", b.radius_m);
             assert_eq!((b.height_m, b.yaw_deg), (22.0, 13.0));
+            assert!(b.origin.starts_with("4.4σ horizontally, 4σ in height and yaw of test"), "{}", b.origin);
             let exact =
                 PriorNoise { sigma_enu_m: [0.0; 3], sigma_ypr_deg: [0.0; 3], ..PriorNoise::default() };
             let b = SearchBounds::from_prior_noise(&exact, "test");
             assert_eq!((b.radius_m, b.height_m, b.yaw_deg), MIN_SEARCH_BOUNDS);
+        }
+
+        #[test]
+        fn the_horizontal_radius_holds_the_prior_as_often_as_4_sigma_along_one_axis() {
+            // P(|x| > 4σ) for a normal x, by Simpson's rule over [4, 12] (the rest is < 10⁻³²).
+            let pdf = |x: f64| (-x * x / 2.0).exp() / (2.0 * std::f64::consts::PI).sqrt();
+            let (a, n) = (PRIOR_SIGMA_MULTIPLE, 8000);
+            let h = (12.0 - a) / n as f64;
+            let simpson: f64 = (0..=n)
+                .map(|i| {
+                    let w = if i == 0 || i == n {
+                        1.0
+                    } else if i % 2 == 1 {
+                        4.0
+                    } else {
+                        2.0
+                    };
+                    w * pdf(a + i as f64 * h)
+                })
+                .sum::<f64>()
+                * h
+                / 3.0;
+            let tail = 2.0 * simpson;
+            assert!((tail - 6.334e-5).abs() < 1e-7, "{tail}");
+            // An isotropic horizontal error leaves the radius rσ with probability exp(−r²/2).
+            let r = (-2.0 * tail.ln()).sqrt();
+            assert!((HORIZONTAL_SIGMA_MULTIPLE - r).abs() < 0.005, "{r}");
         }
 
         #[test]
