@@ -95,7 +95,7 @@ impl Default for SearchBounds {
 }
 
 impl SearchBounds {
-    /// The bounds that hold the prior's error but with a probability of 6.3·10⁻⁵ each
+    /// The bounds the prior's error leaves with a probability of 6.3·10⁻⁵ each
     /// ([`HORIZONTAL_SIGMA_MULTIPLE`], [`PRIOR_SIGMA_MULTIPLE`]), plus the model's bias (the prior
     /// is off by it on average), at least [`MIN_SEARCH_BOUNDS`]: radius = |bias_en| + 4.4·max(σ_e,
     /// σ_n), height = |bias_u| + 4·σ_u, yaw = |bias_yaw| + 4·σ_yaw.
@@ -501,9 +501,9 @@ pub struct SearchOptions {
 
 /// What a search reports when its best pose ends on the boundary of its volume
 /// ([`Volume::on_boundary`]). There the cost still improves towards poses the prior rules out (with
-/// the default volume, where the prior's error reaches with a probability of 6.3·10⁻⁵ along each of
-/// the horizontal distance, height and yaw): the cost is degenerate on this query, and the pose it found says nothing a
-/// navigator should act on.
+/// the default volume, poses the prior's error reaches with a probability of 6.3·10⁻⁵ in each of the
+/// horizontal distance, the height and the yaw): the cost is degenerate on this query, and the pose
+/// it found says nothing a navigator should act on.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum OnBoundary {
