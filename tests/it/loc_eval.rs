@@ -122,7 +122,18 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
     assert!(summary["map"]["perturbation"].is_null());
     assert_eq!(summary["search"]["fine"]["beams_mode"]["kind"], "basins");
     // Issue 40: the search volume around the prior is recorded; no estimate ends on its boundary.
-    assert!(summary["search"]["bounds"]["radius_m"].as_f64().unwrap() >= 10.0, "{}", summary["search"]);
+    // By default it comes from the prior noise model sampling.json records: a radius of 4.4σ of the
+    // noisier horizontal axis plus the bias (at least 10 m), 4σ in height and yaw.
+    let sampling: Value = serde_json::from_slice(&std::fs::read(cam.join("sampling.json")).unwrap()).unwrap();
+    let noise = &sampling["config"]["prior"];
+    let n = |key: &str, i: usize| noise[key][i].as_f64().unwrap();
+    let radius_m = (n("bias_enu_m", 0).hypot(n("bias_enu_m", 1))
+        + 4.4 * n("sigma_enu_m", 0).max(n("sigma_enu_m", 1)))
+    .max(10.0);
+    let bounds = &summary["search"]["bounds"];
+    assert!((bounds["radius_m"].as_f64().unwrap() - radius_m).abs() < 1e-9, "{radius_m}: {bounds}");
+    let height_m = (n("bias_enu_m", 2).abs() + 4.0 * n("sigma_enu_m", 2)).max(5.0);
+    assert!((bounds["height_m"].as_f64().unwrap() - height_m).abs() < 1e-9, "{height_m}: {bounds}");
     assert!(oracle.iter().all(|r| r["on_search_boundary"] == false), "{oracle:?}");
     assert_eq!(summary["boundary_rows"][0]["on_search_boundary"], 0, "{}", summary["boundary_rows"]);
     assert_eq!(rows[1]["recall_pct"][0].as_f64().unwrap(), 100.0, "{}", rows[1]);
