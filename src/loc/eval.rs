@@ -1357,7 +1357,8 @@ fn building_share(q: &Query) -> f64 {
 /// Share of the results of cost `kind` within 2 m and 2°.
 fn recall_2m_2deg(runs: &[Localized], kind: CostKind) -> f64 {
     let done: Vec<&QueryResult> = runs.iter().map(|r| &r.result).filter(|r| r.cost == kind).collect();
-    let ok = done.iter().filter(|r| r.translation_error_m < 2.0 && r.rotation_error_deg < 2.0).count();
+    let ok =
+        done.iter().filter(|r| metrics::within_2m_2deg(r.translation_error_m, r.rotation_error_deg)).count();
     ok as f64 / done.len().max(1) as f64
 }
 

@@ -9,6 +9,12 @@ use serde::{Deserialize, Serialize};
 /// The paper's thresholds: (2 m, 2°), (3 m, 3°), (5 m, 5°).
 pub const THRESHOLDS: [(f64, f64); 3] = [(2.0, 2.0), (3.0, 3.0), (5.0, 5.0)];
 
+/// Whether a pose error is within the tightest threshold, (2 m, 2°) (strictly: the paper's recall).
+pub fn within_2m_2deg(translation_m: f64, rotation_deg: f64) -> bool {
+    let (t, r) = THRESHOLDS[0];
+    translation_m < t && rotation_deg < r
+}
+
 /// The median of `values` ([`crate::util::median`]), NaN when there are none: an empty group shows as
 /// NaN in the tables and as `null` in JSON.
 pub fn median_or_nan(values: &[f64]) -> f64 {
@@ -107,7 +113,7 @@ pub fn bucket_rows(method: &str, buckets: Buckets, errors: &[(usize, f64, f64)])
             let lo = buckets.lower[i] as usize;
             let hi = buckets.lower.get(i + 1).map_or(usize::MAX, |&h| h as usize);
             let inside: Vec<&(usize, f64, f64)> = errors.iter().filter(|e| e.0 >= lo && e.0 < hi).collect();
-            let ok = inside.iter().filter(|e| e.1 < THRESHOLDS[0].0 && e.2 < THRESHOLDS[0].1).count();
+            let ok = inside.iter().filter(|e| within_2m_2deg(e.1, e.2)).count();
             BucketRow {
                 method: method.to_string(),
                 bucket: buckets.label(i),
@@ -167,8 +173,7 @@ pub struct QueryOutcome {
 impl QueryOutcome {
     /// Whether the query misses (2 m, 2°).
     fn failed(&self) -> bool {
-        let (t, r) = THRESHOLDS[0];
-        !(self.translation_m < t && self.rotation_deg < r)
+        !within_2m_2deg(self.translation_m, self.rotation_deg)
     }
 
     /// Whether the truth scores better than the estimate (beyond rounding): the search missed.

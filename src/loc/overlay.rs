@@ -12,7 +12,7 @@ use std::path::Path;
 
 use super::cost::Query;
 use super::eval::{EvalError, QueryResult};
-use super::metrics::THRESHOLDS;
+use super::metrics::{within_2m_2deg, THRESHOLDS};
 use crate::camera::{Intrinsics, Pose};
 use crate::render::cpu::Frame;
 use crate::render::{IdScene, View};
@@ -50,7 +50,7 @@ fn captions(r: &QueryResult) -> [String; 3] {
 /// The title: the query, the cost, and success or failure at the tightest threshold.
 fn title(r: &QueryResult) -> (String, bool) {
     let (t_m, r_deg) = THRESHOLDS[0];
-    let ok = r.translation_error_m < t_m && r.rotation_error_deg < r_deg;
+    let ok = within_2m_2deg(r.translation_error_m, r.rotation_error_deg);
     let verdict = if ok {
         format!("✓ success: estimate within {t_m} m and {r_deg}°")
     } else {
