@@ -224,8 +224,10 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
         .filter(|r| r["cost_at_gt"].as_f64().unwrap() > r["best_cost"].as_f64().unwrap())
         .count() as u64;
     assert_eq!(missed_in_results, failures, "the summary counts what results.jsonl shows");
+    let ahead_in_results = kept.iter().filter(|r| r["axial_error_m"].as_f64().unwrap() > 0.0).count() as u64;
+    assert_eq!(axis["estimates_ahead"].as_u64(), Some(ahead_in_results), "{axis}");
     let md = std::fs::read_to_string(keep_out.join("summary.md")).unwrap();
-    assert!(md.contains("of which the search missed"), "{md}");
+    assert!(md.contains("of which the search missed") && md.contains("median axial, signed"), "{md}");
 
     // 2. The ground truth as a segmentation model's COCO results (score 1, compressed RLE); no RGB
     //    frames were rendered, so the export is label-only.
