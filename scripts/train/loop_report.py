@@ -35,15 +35,21 @@ def load(path: Path):
 
 def loc_rows(summary: dict | None, source: str) -> list[str]:
     if not summary:
-        return [f"| {source} | (not run) | | | |"]
+        return [f"| {source} | (not run) | | | | |"]
     rows = []
     groups = {r["group"] for r in summary["rows"]}
+    # The signed depth error (eval-loc's axis rows; absent for the prior and in older summaries): a
+    # median far from 0 with most estimates on one side is a bias of the masks, not noise.
+    axis = {a["method"]: a for a in summary.get("axis_rows", [])}
     for r in summary["rows"]:
         if len(groups) > 1 and r["group"] != "all":
             continue
         rec = r["recall_pct"][0]
         t, q = r["median_translation_m"], r["median_rotation_deg"]
-        rows.append(f"| {source} | {r['method']} | {rec:.1f} % | {fmt(t, 'm')} | {fmt(q, '°')} |")
+        a = axis.get(r["method"], {})
+        signed = a.get("median_axial_m")
+        depth = "–" if signed is None else f"{signed:+.2f} m ({a.get('estimates_ahead', 0)} of {a['queries']})"
+        rows.append(f"| {source} | {r['method']} | {rec:.1f} % | {fmt(t, 'm')} | {fmt(q, '°')} | {depth} |")
     return rows
 
 
@@ -105,7 +111,8 @@ def section(w: Path, bench: Path) -> str:
             f"`{first}`:", ""]
     for mode in ("defaults", "paper"):
         out += [f"**{mode}**{' (`--paper`: the paper search and its pure instance cost)' if mode == 'paper' else ''}",
-                "", "| masks | cost | recall (2 m, 2°) | median error | median rotation |", "|---|---|---:|---:|---:|"]
+                "", "| masks | cost | recall (2 m, 2°) | median error | median rotation |"
+                " median depth error, signed (estimates ahead of the truth) |", "|---|---|---:|---:|---:|---:|"]
         base = w / hold / cam / "loc"
         out += loc_rows(load(base / f"loop-oracle-{mode}" / "summary.json"), "oracle")
         out += loc_rows(load(base / f"loop-{first}-{mode}" / "summary.json"), first)
