@@ -38,9 +38,15 @@ function finish(code, report) {
   if (finished) return;
   finished = true;
   console.log(JSON.stringify(report));
-  // The profile goes once Chromium is gone (it writes into it until then).
+  // The profile goes once Chromium is gone (it writes into it until then). Its helper processes can
+  // outlive it by a moment on a loaded machine and still write there (ENOTEMPTY): retry, and never let
+  // the clean-up of a temporary folder change the verdict already printed.
   const done = () => {
-    fs.rmSync(profile, { recursive: true, force: true });
+    try {
+      fs.rmSync(profile, { recursive: true, force: true, maxRetries: 10, retryDelay: 100 });
+    } catch (e) {
+      process.stderr.write(`index_check: could not remove ${profile}: ${e}\n`);
+    }
     process.exit(code);
   };
   if (exited) return done();
