@@ -2,7 +2,9 @@
 # The closed loop in one command: insgen makes a dataset from named areas and holds one area out
 # entirely; the reference baseline (scripts/train/baseline.py) trains on the rest from scratch,
 # predicts the held-out area, pycocotools scores the masks, and `insgen eval-loc --predictions`
-# localizes with them (instance, semantic, merged; defaults and --paper) next to the oracle masks.
+# localizes with them (instance, semantic, merged; defaults and --paper) next to the oracle masks,
+# once as predicted and once calibrated: the model's mask zoom, measured on the validation split
+# (frames with known poses, never the held-out area), undone by `--prediction-zoom`.
 # Writes this run's section of bench/closed_loop.md and its picture (RGB | truth | prediction).
 #
 #   scripts/bench_closed_loop.sh [--size small|full] [--train "A B ..."] [--holdout AREA]
@@ -138,10 +140,15 @@ for fam in $FAMILIES; do
     if stage_on predict; then
         "$PY" "$BASE" predict --checkpoint "$M/checkpoint.pt" --coco "$W/coco/instances_test.json" \
             --area "$HOLDOUT" --device "$DEVICE" --out "$M/results_$HOLDOUT.json"
+        "$PY" "$BASE" predict --checkpoint "$M/checkpoint.pt" --coco "$W/coco/instances_val.json" \
+            --device "$DEVICE" --out "$M/results_val.json"
     fi
     if stage_on score; then
         "$PY" "$BASE" score --coco "$W/coco/instances_test.json" --results "$M/results_$HOLDOUT.json" \
             --area "$HOLDOUT" --out "$M/score_$HOLDOUT.json" > /dev/null
+        # The calibration: the model's mask zoom on the validation split (known poses; not held out).
+        "$PY" "$BASE" score --coco "$W/coco/instances_val.json" --results "$M/results_val.json" \
+            --out "$M/score_val.json" > /dev/null
         "$PY" "$BASE" sheet --coco "$W/coco/instances_test.json" --results "$M/results_$HOLDOUT.json" \
             --area "$HOLDOUT" --count 4 --out "$M/sheet_$HOLDOUT.png"
     fi
@@ -150,13 +157,18 @@ done
 if stage_on loc; then
     costs=(--cost instance --cost semantic --cost merged)
     results="$W/model/$FIRST/results_$HOLDOUT.json"
+    zoom=$("$PY" -c 'import json, sys; print(json.load(open(sys.argv[1]))["mask_zoom"]["median"] or 1.0)' \
+        "$W/model/$FIRST/score_val.json")
     for mode in defaults paper; do
         extra=(); [ "$mode" = paper ] && extra=(--paper)
-        say "loc: oracle and $FIRST predictions, $mode"
+        say "loc: oracle and $FIRST predictions, $mode (calibrated: --prediction-zoom $zoom)"
         "${B[@]}" -q eval-loc --area "$HOLDOUT" --camera "$CAMERA" --oracle --limit "$QUERIES" \
             "${costs[@]}" "${extra[@]}" --tag "loop-oracle-$mode" --overlays 0
         "${B[@]}" -q eval-loc --area "$HOLDOUT" --camera "$CAMERA" --predictions "$results" \
             --limit "$QUERIES" "${costs[@]}" "${extra[@]}" --tag "loop-$FIRST-$mode" --overlays 2
+        "${B[@]}" -q eval-loc --area "$HOLDOUT" --camera "$CAMERA" --predictions "$results" \
+            --prediction-zoom "$zoom" --limit "$QUERIES" "${costs[@]}" "${extra[@]}" \
+            --tag "loop-$FIRST-$mode-calibrated" --overlays 0
     done
 fi
 

@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Writes one run's section of bench/closed_loop.md from a closed-loop work directory.
 
-Reads `<workdir>/loop.json` (what scripts/bench_closed_loop.sh ran), each family's `model.json` and
-`score_<holdout>.json`, and eval-loc's `summary.json` of the oracle and prediction runs; copies each
+Reads `<workdir>/loop.json` (what scripts/bench_closed_loop.sh ran), each family's `model.json`,
+`score_<holdout>.json` and `score_val.json` (the mask zoom the calibration undoes), and eval-loc's
+`summary.json` of the oracle and prediction runs, as predicted and calibrated; copies each
 family's picture next to the report. The section sits between `<!-- run:LABEL -->` markers, so runs of
 other sizes (the CPU run, a GPU run) stay in the file.
 """
@@ -24,8 +25,12 @@ training), trains the reference baseline (`scripts/train/baseline.py`) from scra
 the held-out frames, scores them with pycocotools (COCOeval segm against insgen's own COCO export) and
 localizes them with `insgen eval-loc --predictions` next to the oracle (ground-truth) masks. Definitions:
 AP/AP50/AP75 are COCOeval's; building IoU is the IoU of the union of predicted masks (score ≥ 0.3)
-with the union of true ones; P/R@0.5 are one-to-one matches at mask IoU ≥ 0.5. Localization recall is
-the share of queries within (2 m, 2°) of the truth; the oracle rows are the upper bound the masks allow.
+with the union of true ones; P/R@0.5 are one-to-one matches at mask IoU ≥ 0.5; mask zoom is the scale
+about the principal point that fits the true masks best to the predicted ones (median over the frames;
+above 1 the masks reach past the buildings, which eval-loc reads as a camera moved forward).
+Localization recall is the share of queries within (2 m, 2°) of the truth; the oracle rows are the upper
+bound the masks allow; the calibrated rows undo the mask zoom measured on the validation split
+(`eval-loc --prediction-zoom`), so no held-out frame informs them.
 """
 
 
@@ -87,16 +92,18 @@ def section(w: Path, bench: Path) -> str:
            f"Reproduce: `{loop['command']}` ({cam}, {loop['frames_per_area']} frames per training area, "
            f"{loop['holdout_frames']} held-out frames, {loop['queries']} localization queries).", "",
            "| family | device | steps | train s | train frames | AP | AP50 | AP75 | building IoU | P@0.5 | R@0.5 |"
-           " predictions / truths |",
-           "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+           " predictions / truths | mask zoom (validation / held out) |",
+           "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     pictures = []
     for fam in loop["families"].split():
         m = load(w / "model" / fam / "model.json") or {}
         s = load(w / "model" / fam / f"score_{hold}.json") or {}
+        v = load(w / "model" / fam / "score_val.json") or {}
+        zooms = " / ".join(str((x.get("mask_zoom") or {}).get("median") or "–") for x in (v, s))
         out.append(f"| {fam} | {m.get('device', '–')} | {m.get('steps', '–')} | {m.get('train_seconds', '–')} | "
                    f"{m.get('frames', '–')} | {s.get('AP', '–')} | {s.get('AP50', '–')} | {s.get('AP75', '–')} | "
                    f"{s.get('building_iou', '–')} | {s.get('precision_50', '–')} | {s.get('recall_50', '–')} | "
-                   f"{s.get('predictions', '–')} / {s.get('annotations', '–')} |")
+                   f"{s.get('predictions', '–')} / {s.get('annotations', '–')} | {zooms} |")
         sheet = w / "model" / fam / f"sheet_{hold}.png"
         if sheet.exists():
             # A JPEG next to the report: the PNG sheet runs to megabytes.
@@ -116,6 +123,10 @@ def section(w: Path, bench: Path) -> str:
         base = w / hold / cam / "loc"
         out += loc_rows(load(base / f"loop-oracle-{mode}" / "summary.json"), "oracle")
         out += loc_rows(load(base / f"loop-{first}-{mode}" / "summary.json"), first)
+        calibrated = load(base / f"loop-{first}-{mode}-calibrated" / "summary.json")
+        if calibrated:
+            zoom = (calibrated.get("source") or {}).get("zoom", 1.0)
+            out += loc_rows(calibrated, f"{first}, calibrated (zoom {zoom} undone)")
         out.append("")
     for fam, name in pictures:
         out += [f"`{fam}` on `{hold}` — RGB | truth | prediction:", "", f"![{fam}]({name})", ""]

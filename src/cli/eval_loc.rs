@@ -11,7 +11,7 @@ use crate::camera::config::PriorNoise;
 use crate::loc::eval::{self, EvalOptions, QueryPoses};
 use crate::loc::map::{MapPerturbation, MapSummary};
 use crate::loc::oracle::{Degradation, SegmenterLike};
-use crate::loc::query::{load_predictions, QuerySource};
+use crate::loc::query::{load_predictions, FramePredictions, QuerySource};
 use crate::loc::search::{
     BeamMode, CoarseParams, FineParams, OnBoundary, PolishCost, Prune, SearchBounds, SearchOptions, Stages,
 };
@@ -103,6 +103,14 @@ pub struct Args {
     /// Ignore predictions scoring below this.
     #[arg(long, value_name = "SCORE", default_value_t = 0.0, requires = "predictions")]
     pub min_score: f64,
+    /// Undo the segmenter's zoom: scale every predicted mask by 1/S about the principal point.
+    ///
+    /// S is how much larger than the buildings the model's masks are, measured on frames whose poses
+    /// are known (the validation split): `baseline.py score` reports it as `mask_zoom.median`. A
+    /// model whose masks bleed 0.25 % past the buildings puts the camera a metre ahead at 400 m,
+    /// which no cost can tell from a single frame. 0.9–1.1; 1 leaves the masks as predicted.
+    #[arg(long, value_name = "S", default_value_t = 1.0, requires = "predictions")]
+    pub prediction_zoom: f64,
     /// LoD-Loc query list (NAME MODEL W H PARAMS[]) instead of <camera dir>/poses.jsonl.
     #[arg(long, value_name = "FILE", requires_all = ["gt_poses", "prior_poses"])]
     pub query_list: Option<PathBuf>,
@@ -558,6 +566,9 @@ fn default_tag(args: &Args, degradation: &Degradation, map: &MapSummary) -> Stri
     } else {
         "degraded"
     });
+    if args.predictions.is_some() && args.prediction_zoom != 1.0 {
+        t.push_str(&format!("-zoom{}", args.prediction_zoom));
+    }
     if args.no_refine {
         t.push_str("-norefine");
     }
@@ -618,13 +629,15 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
                  `insgen export-coco`) and no --coco given",
                 global.workdir.join("coco").display()
             );
-            QuerySource::Predictions(load_predictions(
-                results,
-                &coco_files,
-                &args.area,
-                &args.camera,
-                args.min_score,
-            )?)
+            anyhow::ensure!(
+                crate::loc::oracle::ZOOM_RANGE.contains(&args.prediction_zoom),
+                "--prediction-zoom {}: a segmenter's zoom lies in [{}, {}]",
+                args.prediction_zoom,
+                crate::loc::oracle::ZOOM_RANGE.start(),
+                crate::loc::oracle::ZOOM_RANGE.end()
+            );
+            let preds = load_predictions(results, &coco_files, &args.area, &args.camera, args.min_score)?;
+            QuerySource::Predictions(FramePredictions { zoom: args.prediction_zoom, ..preds })
         }
         None => QuerySource::Oracle {
             masks_dir: args.masks.clone().unwrap_or_else(|| camera_dir.join(crate::layout::MASKS_DIR)),

@@ -922,9 +922,11 @@ pub fn evaluate(
     summary.renderer = (record.kind != RendererKind::Cpu).then_some(record);
     let source = match &opts.source {
         QuerySource::Oracle { degradation, .. } => PartSource::Oracle { degradation: degradation.clone() },
-        QuerySource::Predictions(p) => {
-            PartSource::Predictions { sha256: util::sha256_file(&p.path)?, min_score: p.min_score }
-        }
+        QuerySource::Predictions(p) => PartSource::Predictions {
+            sha256: util::sha256_file(&p.path)?,
+            min_score: p.min_score,
+            zoom: p.zoom,
+        },
     };
     summary.source = Some(source.clone());
     let (jsonl, est) = output_texts(&runs);
@@ -1023,6 +1025,10 @@ pub enum PartSource {
         sha256: String,
         /// Predictions scored below this were ignored.
         min_score: f64,
+        /// `--prediction-zoom`: the masks were scaled by 1/zoom about the principal point (1: as
+        /// predicted; parts written before the option read as 1).
+        #[serde(default = "super::oracle::no_zoom")]
+        zoom: f64,
     },
 }
 
@@ -1486,6 +1492,44 @@ fn bounds_text(b: &search::SearchBounds) -> String {
     )
 }
 
+/// A paragraph naming the methods whose estimates lie systematically ahead of or behind the truth
+/// ([`metrics::depth_biased`]) and what to do about it given the masks' source; empty when none do.
+fn depth_bias_note(rows: &[metrics::AxisRow], source: Option<&PartSource>) -> String {
+    let biased = metrics::depth_biased(rows);
+    let Some(first) = biased.first() else { return String::new() };
+    let list: Vec<String> = biased
+        .iter()
+        .map(|r| {
+            let side = if r.median_axial_m > 0.0 { r.estimates_ahead } else { r.queries - r.estimates_ahead };
+            let dir = if r.median_axial_m > 0.0 { "ahead of" } else { "behind" };
+            format!(
+                "{}: {side} of {} estimates {dir} the truth, median {:+.2} m",
+                r.method, r.queries, r.median_axial_m
+            )
+        })
+        .collect();
+    let (size, dir) = if first.median_axial_m > 0.0 { ("larger", "forward") } else { ("smaller", "back") };
+    let advice = match source {
+        Some(PartSource::Predictions { zoom, .. }) if *zoom == 1.0 => format!(
+            "Masks {size} than the map renders the buildings look like a camera moved {dir}, which no cost can \
+             tell apart in one frame: measure the model's mask zoom on frames whose poses are known \
+             (`baseline.py score` reports `mask_zoom`; any COCO results file) and pass it as \
+             `--prediction-zoom`."
+        ),
+        Some(PartSource::Predictions { zoom, .. }) => format!(
+            "It remains after undoing a mask zoom of {zoom} (`--prediction-zoom`): the model's zoom on these \
+             frames differs from the one measured, or the map's scale does."
+        ),
+        _ if first.median_axial_m > 0.0 => "The masks are larger than the map renders the buildings: masks \
+            dilated or zoomed above 1, or a map whose buildings are smaller than the ones the masks show."
+            .to_string(),
+        _ => "The masks are smaller than the map renders the buildings: a map coarser than the buildings \
+              (LoD1 blocks at their tops, footprints out to the eaves), or masks eroded or zoomed below 1."
+            .to_string(),
+    };
+    format!("**Depth bias.** {}. {advice}\n\n", list.join("; "))
+}
+
 /// What the figures of `summary.md` are worth given where the query masks came from, as a paragraph
 /// (empty when unknown): oracle masks make them an upper bound, predictions are named.
 fn source_note(source: Option<&PartSource>) -> String {
@@ -1509,9 +1553,14 @@ fn source_note(source: Option<&PartSource>) -> String {
             100.0 * d.split_fraction,
             d.false_positives
         ),
-        Some(PartSource::Predictions { sha256, min_score }) => format!(
+        Some(PartSource::Predictions { sha256, min_score, zoom }) => format!(
             "The query masks are a segmentation model's predictions (COCO results file with SHA-256 `{sha256}`, \
-             scores ≥ {min_score}).\n\n"
+             scores ≥ {min_score}){}.\n\n",
+            if *zoom == 1.0 {
+                String::new()
+            } else {
+                format!(", scaled by 1/{zoom} about the principal point to undo the model's measured zoom")
+            }
         ),
         None => String::new(),
     }
@@ -1573,7 +1622,7 @@ pub fn write_outputs(out_dir: &Path, outputs: &Outputs) -> Result<(), EvalError>
          part of the frame leave the depth along the axis weakly observed):\n\n{}\n\
          Translation errors along the ground truth's viewing direction (axial) and across it (lateral); a \
          failure the search missed scores below the ground truth's pose (a better optimum was left near the \
-         truth), the others are the cost's (it prefers or ties a pose away from the truth):\n\n{}\n\
+         truth), the others are the cost's (it prefers or ties a pose away from the truth):\n\n{}\n{}\
          Searches that ended on the boundary of the search volume around the prior ({}). {}\n\n{}",
         out_dir.display(),
         summary.queries,
@@ -1585,6 +1634,7 @@ pub fn write_outputs(out_dir: &Path, outputs: &Outputs) -> Result<(), EvalError>
         metrics::bucket_markdown("query instances", &summary.instance_buckets),
         metrics::bucket_markdown("frame cells with buildings", &summary.coverage_buckets),
         metrics::axis_markdown(&summary.axis_rows),
+        depth_bias_note(&summary.axis_rows, summary.source.as_ref()),
         bounds_text(&summary.search.bounds),
         match summary.search.on_boundary {
             search::OnBoundary::Prior => "There the cost still improves towards poses the prior rules out; the \
@@ -1642,6 +1692,35 @@ mod tests {
             assert_eq!(path, &dir.join(PART_MARKER));
             assert!(e.to_string().ends_with("part.json: not an eval-loc part marker"), "{e}");
         }
+    }
+
+    #[test]
+    fn a_depth_bias_is_reported_with_what_to_do_about_it() {
+        let row = |method: &str, ahead: usize, median: f64| metrics::AxisRow {
+            method: method.to_string(),
+            queries: 40,
+            median_abs_axial_m: median.abs(),
+            median_axial_m: median,
+            estimates_ahead: ahead,
+            median_lateral_m: 0.3,
+            failures: 14,
+            failures_along_axis_only: 9,
+            failures_search_missed: 2,
+        };
+        let rows = [row("prior", 20, 0.1), row("instance", 37, 1.28), row("semantic", 21, 0.05)];
+        let preds = |zoom: f64| PartSource::Predictions { sha256: "0".repeat(64), min_score: 0.0, zoom };
+        let note = depth_bias_note(&rows, Some(&preds(1.0)));
+        assert!(note.contains("instance: 37 of 40 estimates ahead of the truth, median +1.28 m"), "{note}");
+        assert!(note.contains("`--prediction-zoom`") && !note.contains("semantic"), "{note}");
+        assert!(depth_bias_note(&rows, Some(&preds(1.002))).contains("after undoing a mask zoom of 1.002"));
+        let behind = [row("semantic", 8, -0.9)];
+        let oracle = PartSource::Oracle { degradation: Degradation::default() };
+        let note = depth_bias_note(&behind, Some(&oracle));
+        assert!(
+            note.contains("32 of 40 estimates behind the truth") && note.contains("smaller than"),
+            "{note}"
+        );
+        assert_eq!(depth_bias_note(&rows[2..], Some(&preds(1.0))), "", "no bias, no paragraph");
     }
 
     #[test]

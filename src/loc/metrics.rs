@@ -218,6 +218,23 @@ pub fn axis_row(method: &str, outcomes: &[QueryOutcome]) -> AxisRow {
     }
 }
 
+/// Rows (the prior's left out) whose estimates lie on one side of the truth along the axis so often
+/// that chance is unlikely: at least [`BIAS_MIN_QUERIES`] queries, at least three in four on one side
+/// (a sign test's p ≈ 0.04 at 20 queries) and a median signed error of at least
+/// [`BIAS_MIN_AXIAL_M`]. A scale error of the masks against the map's renders does this.
+pub fn depth_biased(rows: &[AxisRow]) -> Vec<&AxisRow> {
+    rows.iter()
+        .filter(|r| r.method != "prior" && r.queries >= BIAS_MIN_QUERIES)
+        .filter(|r| 4 * r.estimates_ahead.max(r.queries - r.estimates_ahead) >= 3 * r.queries)
+        .filter(|r| r.median_axial_m.abs() >= BIAS_MIN_AXIAL_M)
+        .collect()
+}
+
+/// [`depth_biased`]: fewer queries tell too little.
+pub const BIAS_MIN_QUERIES: usize = 20;
+/// [`depth_biased`]: a smaller median depth error is noise at (2 m, 2°).
+pub const BIAS_MIN_AXIAL_M: f64 = 0.5;
+
 /// The axis rows as Markdown.
 pub fn axis_markdown(rows: &[AxisRow]) -> String {
     let mut s = String::from(
@@ -356,6 +373,33 @@ mod tests {
         assert_eq!(r.estimates_ahead, 3);
         assert!((r.median_lateral_m - 0.3).abs() < 1e-12);
         assert!(axis_markdown(&[r]).contains("| m | 4 | 0.30 | +0.10 | 3 | 0.30 | 3 | 1 | 1 |"));
+    }
+
+    #[test]
+    fn a_depth_bias_is_one_sided_large_and_seen_on_enough_queries() {
+        let row = |method: &str, queries: usize, ahead: usize, median: f64| AxisRow {
+            method: method.to_string(),
+            queries,
+            median_abs_axial_m: median.abs(),
+            median_axial_m: median,
+            estimates_ahead: ahead,
+            median_lateral_m: 0.2,
+            failures: 0,
+            failures_along_axis_only: 0,
+            failures_search_missed: 0,
+        };
+        let rows = [
+            row("ahead", 40, 37, 1.28),  // the closed loop's U-Net: flagged
+            row("behind", 40, 10, -0.9), // 30 of 40 behind: flagged
+            row("scatter", 40, 23, 0.02),
+            row("one-sided but small", 40, 38, 0.3),
+            row("large but mixed", 40, 29, 1.0), // 29 of 40 is under three in four
+            row("few queries", 19, 19, 2.0),
+            row("prior", 40, 40, 5.0),
+            row("unknown", 40, 0, f64::NAN),
+        ];
+        let flagged: Vec<&str> = depth_biased(&rows).iter().map(|r| r.method.as_str()).collect();
+        assert_eq!(flagged, ["ahead", "behind"]);
     }
 
     #[test]

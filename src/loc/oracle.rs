@@ -90,12 +90,14 @@ pub struct SegmenterLike {
     pub zoom: f64,
 }
 
-/// [`SegmenterLike::zoom`]'s neutral value (and its default in logs written before it existed).
-fn no_zoom() -> f64 {
+/// [`SegmenterLike::zoom`]'s neutral value (and its default in logs written before it existed; also
+/// the predictions' `--prediction-zoom`).
+pub(crate) fn no_zoom() -> f64 {
     1.0
 }
 
-/// The range [`SegmenterLike::parse`] accepts for `zoom` (a segmenter's scale error is a few per mille).
+/// The range [`SegmenterLike::parse`] accepts for `zoom`, and eval-loc for `--prediction-zoom` (a
+/// segmenter's scale error is a few per mille).
 pub const ZOOM_RANGE: std::ops::RangeInclusive<f64> = 0.9..=1.1;
 
 impl SegmenterLike {

@@ -4,9 +4,10 @@
 //!   ([`super::oracle`]) apply at the mask's own resolution (a segmenter errs in image pixels) before
 //!   the resize;
 //! - **predictions**: a segmentation model's COCO results file (RLE + score at any resolution), each
-//!   mask resized nearest-neighbour to the render resolution; image ids are mapped to frames through
-//!   the COCO instances file(s) that `export-coco` wrote (their `images[]` carry `area_name`, `camera`
-//!   and `frame`).
+//!   mask resized nearest-neighbour to the render resolution, optionally scaled back by the model's
+//!   measured zoom ([`FramePredictions::zoom`]); image ids are mapped to frames through the COCO
+//!   instances file(s) that `export-coco` wrote (their `images[]` carry `area_name`, `camera` and
+//!   `frame`).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -73,6 +74,10 @@ pub struct FramePredictions {
     pub path: PathBuf,
     /// Predictions below this score are ignored.
     pub min_score: f64,
+    /// The segmenter's zoom: how much larger than the buildings its masks are, about the principal
+    /// point, as measured on frames with known poses (`baseline.py score` reports it as `mask_zoom`).
+    /// The masks are scaled by 1/zoom before they are used; 1 leaves them as they are.
+    pub zoom: f64,
 }
 
 /// Where queries come from.
@@ -118,7 +123,7 @@ impl QuerySource {
             }
             QuerySource::Predictions(p) => {
                 let preds = p.by_frame.get(frame).map(Vec::as_slice).unwrap_or(&[]);
-                Ok(ks.iter().map(|k| predictions_query(preds, k, p.min_score)).collect())
+                Ok(ks.iter().map(|k| predictions_query(preds, k, p.min_score, p.zoom)).collect())
             }
         }
     }
@@ -170,10 +175,11 @@ fn oracle_queries(
         .collect())
 }
 
-/// The query made of `preds` (any resolution) resized to `k`; predictions scoring below `min_score`
-/// or vanishing at the target resolution are left out. Box areas are the predictions' own, scaled to
-/// the target resolution.
-pub fn predictions_query(preds: &[Prediction], k: &Intrinsics, min_score: f64) -> Query {
+/// The query made of `preds` (any resolution) resized to `k`, scaled by 1/`zoom` about the principal
+/// point (the segmenter's measured zoom undone; 1: none); predictions scoring below `min_score` or
+/// vanishing at the target resolution are left out. Box areas are the predictions' own, scaled to
+/// the target resolution and by 1/zoom².
+pub fn predictions_query(preds: &[Prediction], k: &Intrinsics, min_score: f64, zoom: f64) -> Query {
     let (tw, th) = (k.width_px, k.height_px);
     let mut instances = Vec::new();
     for p in preds.iter().filter(|p| p.score >= min_score) {
@@ -181,17 +187,42 @@ pub fn predictions_query(preds: &[Prediction], k: &Intrinsics, min_score: f64) -
         if h == 0 || w == 0 {
             continue;
         }
-        let mask = resize_nearest(&p.mask(), w, h, tw, th);
+        let mask = if zoom == 1.0 {
+            resize_nearest(&p.mask(), w, h, tw, th)
+        } else {
+            resize_unzoomed(&p.mask(), [w, h], k, zoom)
+        };
         let pixels: Vec<u32> =
             mask.iter().enumerate().filter(|(_, &m)| m != 0).map(|(i, _)| i as u32).collect();
         if pixels.is_empty() {
             continue;
         }
-        let scale = (tw as f64 / w as f64) * (th as f64 / h as f64);
+        let scale = (tw as f64 / w as f64) * (th as f64 / h as f64) / (zoom * zoom);
         let bbox_area_px = if p.bbox_area_px > 0.0 { p.bbox_area_px * scale } else { bbox_area(&pixels, tw) };
         instances.push(QueryInstance::new(&pixels, p.score, bbox_area_px));
     }
     Query::new(tw, th, instances)
+}
+
+/// Nearest-neighbour resample of a `[w, h]` mask to `k`'s size that also undoes a zoom about the
+/// principal point: target pixel centre x maps to c + (x − c)·zoom in target pixels (c = `k.cx_px`),
+/// then to the source; a centre mapped outside the source is background.
+fn resize_unzoomed(src: &[u8], [w, h]: [u32; 2], k: &Intrinsics, zoom: f64) -> Vec<u8> {
+    let (tw, th) = (k.width_px, k.height_px);
+    let source = |t: u32, c: f64, n: u32, tn: u32| {
+        let s = (c + (t as f64 + 0.5 - c) * zoom) * n as f64 / tn as f64;
+        (s >= 0.0 && s < n as f64).then_some(s as usize)
+    };
+    let xs: Vec<Option<usize>> = (0..tw).map(|x| source(x, k.cx_px, w, tw)).collect();
+    let mut out = vec![0u8; (tw * th) as usize];
+    for y in 0..th {
+        let Some(sy) = source(y, k.cy_px, h, th) else { continue };
+        let row = &src[sy * w as usize..(sy + 1) * w as usize];
+        for (o, sx) in out[(y * tw) as usize..((y + 1) * tw) as usize].iter_mut().zip(&xs) {
+            *o = sx.map_or(0, |sx| row[sx]);
+        }
+    }
+    out
 }
 
 /// The part of a COCO instances file that maps image ids to frames.
@@ -258,7 +289,7 @@ pub fn load_predictions(
             camera: camera.to_string(),
         });
     }
-    Ok(FramePredictions { by_frame, path: results_path.to_path_buf(), min_score })
+    Ok(FramePredictions { by_frame, path: results_path.to_path_buf(), min_score, zoom: 1.0 })
 }
 
 #[cfg(test)]
@@ -291,7 +322,7 @@ mod tests {
         let k = Intrinsics { width_px: 2, height_px: 2, fx_px: 2.0, fy_px: 2.0, cx_px: 1.0, cy_px: 1.0 };
         let mut with_box = pred(&m, 4, 4, 0.9);
         with_box.bbox_area_px = 8.0;
-        let q = predictions_query(&[with_box, pred(&m, 4, 4, 0.2)], &k, 0.5);
+        let q = predictions_query(&[with_box, pred(&m, 4, 4, 0.2)], &k, 0.5, 1.0);
         assert_eq!(q.instances.len(), 1, "the 0.2 prediction is below --min-score");
         assert_eq!(q.instances[0].pixels().collect::<Vec<_>>(), vec![0, 2]);
         assert_eq!(q.instances[0].score, 0.9);
@@ -300,6 +331,45 @@ mod tests {
         // A one-pixel prediction that no target pixel centre samples vanishes.
         let mut dot = vec![0u8; 16];
         dot[0] = 1;
-        assert!(predictions_query(&[pred(&dot, 4, 4, 1.0)], &k, 0.0).instances.is_empty());
+        assert!(predictions_query(&[pred(&dot, 4, 4, 1.0)], &k, 0.0, 1.0).instances.is_empty());
+    }
+
+    #[test]
+    fn a_measured_zoom_is_undone_about_the_principal_point() {
+        // A 200 × 100 prediction (principal point 100, 50) with a 22 × 11 block at x 155..177,
+        // y 61..72: the block of x 150..170, y 60..70 grown by 1.1 about the principal point. Undoing
+        // the zoom samples source x = 100 + (x + 0.5 − 100)·1.1 for target pixel x: x 150..169 map
+        // into 155..177, so the block comes back as 20 × 10 px at x 150..170, y 60..70.
+        let (w, h) = (200u32, 100u32);
+        let mut m = vec![0u8; (w * h) as usize];
+        for y in 61..72 {
+            for x in 155..177 {
+                m[y * w as usize + x] = 1;
+            }
+        }
+        let k =
+            Intrinsics { width_px: w, height_px: h, fx_px: 200.0, fy_px: 200.0, cx_px: 100.0, cy_px: 50.0 };
+        let mut boxed = pred(&m, h, w, 1.0);
+        boxed.bbox_area_px = 242.0;
+        let q = predictions_query(&[boxed], &k, 0.0, 1.1);
+        let px: Vec<u32> = q.instances[0].pixels().collect();
+        let (xs, ys): (Vec<u32>, Vec<u32>) = px.iter().map(|p| (p % w, p / w)).unzip();
+        assert_eq!((xs.iter().min(), xs.iter().max()), (Some(&150), Some(&169)));
+        assert_eq!((ys.iter().min(), ys.iter().max()), (Some(&60), Some(&69)));
+        assert_eq!(px.len(), 20 * 10);
+        // The box area given with the prediction follows: 22 · 11 / 1.1².
+        assert!((q.instances[0].bbox_area_px - 200.0).abs() < 1e-9, "{}", q.instances[0].bbox_area_px);
+        // At half the resolution the principal point is k's (50, 25): the same block, halved.
+        let k2 =
+            Intrinsics { width_px: 100, height_px: 50, fx_px: 100.0, fy_px: 100.0, cx_px: 50.0, cy_px: 25.0 };
+        let q2 = predictions_query(&[pred(&m, h, w, 1.0)], &k2, 0.0, 1.1);
+        let px2: Vec<u32> = q2.instances[0].pixels().collect();
+        assert_eq!(px2.len(), 10 * 5);
+        assert_eq!((px2[0] % 100, px2[0] / 100), (75, 30));
+        // Zoom 1 is the plain resize.
+        assert_eq!(
+            predictions_query(&[pred(&m, h, w, 1.0)], &k, 0.0, 1.0).instances[0].pixels().count(),
+            22 * 11
+        );
     }
 }

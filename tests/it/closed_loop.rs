@@ -331,3 +331,34 @@ fn numpy_rle_equals_pycocotools() {
     assert_eq!(report["masks"], 400);
     assert_eq!(report["mismatches"], serde_json::json!([]), "{report}");
 }
+
+#[test]
+fn score_measures_the_zoom_of_predicted_masks() {
+    // `mask_zoom` is what eval-loc --prediction-zoom undoes: on rectangles scaled by a known factor
+    // about an off-centre principal point it must find that factor (the rasterisation moves each edge
+    // by at most half a pixel, 2·10⁻⁴ of the frame's scale at 240 px from the centre), and exactly 1
+    // for masks equal to the truth.
+    let Some(py) = train_python() else { return };
+    let o = ok(
+        Command::new(&py)
+            .arg(repo().join("scripts/train/zoom_check.py"))
+            .arg("7")
+            .output()
+            .expect("python runs"),
+        "zoom_check.py",
+    );
+    let reports: serde_json::Value = serde_json::from_slice(&o.stdout).expect("zoom_check prints JSON");
+    for (zoom, report) in reports.as_object().expect("one report per zoom") {
+        assert_schema("baseline_score.schema.json", report);
+        let zoom: f64 = zoom.parse().unwrap();
+        let measured = &report["mask_zoom"];
+        assert_eq!(measured["images"], 4, "{report}");
+        let median = measured["median"].as_f64().unwrap();
+        if zoom == 1.0 {
+            assert_eq!(median, 1.0, "{report}");
+        } else {
+            assert!((median - zoom).abs() <= 6e-4, "zoom {zoom} measured as {median}: {report}");
+        }
+    }
+    assert_eq!(reports.as_object().unwrap().len(), 4);
+}

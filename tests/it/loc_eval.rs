@@ -264,6 +264,27 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
         );
     }
 
+    // 2b. --prediction-zoom undoes a segmenter's measured zoom: given the true masks, scaling them by
+    //     1/1.02 about the principal point makes every building look farther away, so every estimate
+    //     lands behind the truth along the camera's axis; the run records the zoom.
+    ok(cwd, &eval_loc(&["--predictions", "preds.json", "--prediction-zoom", "1.02", "--overlays", "0"]));
+    let zoomed_dir = cam.join("loc/predictions-zoom1.02");
+    let zoomed = results(&zoomed_dir.join("results.jsonl"));
+    assert_eq!(zoomed.len(), predicted.len());
+    for r in &zoomed {
+        assert!(r["axial_error_m"].as_f64().unwrap() < -0.5, "shrunk masks, yet not behind: {r}");
+    }
+    let summary: Value =
+        serde_json::from_slice(&std::fs::read(zoomed_dir.join("summary.json")).unwrap()).unwrap();
+    assert_schema("loc_summary.schema.json", &summary);
+    assert_eq!(summary["source"]["zoom"], 1.02, "{}", summary["source"]);
+    let md = std::fs::read_to_string(zoomed_dir.join("summary.md")).unwrap();
+    assert!(md.contains("scaled by 1/1.02 about the principal point"), "{md}");
+    let out =
+        insgen(cwd, &eval_loc(&["--predictions", "preds.json", "--prediction-zoom", "1.5", "--tag", "z"]));
+    assert!(!out.status.success() && stderr(&out).contains("--prediction-zoom 1.5"), "{}", stderr(&out));
+    assert!(!cam.join("loc/z").exists(), "nothing written on error");
+
     // 3. The LoD-Loc lists (intrinsics, ground truth, priors) instead of poses.jsonl: same estimates.
     let lists = |file: &str| -> (String, String) {
         let (mut k, mut p) = (String::new(), String::new());
