@@ -38,7 +38,7 @@ def load(path: Path):
     return json.loads(path.read_text()) if path.exists() else None
 
 
-def loc_rows(summary: dict | None, source: str) -> list[str]:
+def loc_rows(summary: dict | None, source: str, prior: bool = True) -> list[str]:
     if not summary:
         return [f"| {source} | (not run) | | | | |"]
     rows = []
@@ -47,7 +47,7 @@ def loc_rows(summary: dict | None, source: str) -> list[str]:
     # median far from 0 with most estimates on one side is a bias of the masks, not noise.
     axis = {a["method"]: a for a in summary.get("axis_rows", [])}
     for r in summary["rows"]:
-        if len(groups) > 1 and r["group"] != "all":
+        if (len(groups) > 1 and r["group"] != "all") or (not prior and r["method"] == "prior"):
             continue
         rec = r["recall_pct"][0]
         t, q = r["median_translation_m"], r["median_rotation_deg"]
@@ -126,7 +126,7 @@ def section(w: Path, bench: Path) -> str:
         calibrated = load(base / f"loop-{first}-{mode}-calibrated" / "summary.json")
         if calibrated:
             zoom = (calibrated.get("source") or {}).get("zoom", 1.0)
-            out += loc_rows(calibrated, f"{first}, calibrated (zoom {zoom} undone)")
+            out += loc_rows(calibrated, f"{first}, calibrated (zoom {zoom} undone)", prior=False)
         out.append("")
     for fam, name in pictures:
         out += [f"`{fam}` on `{hold}` — RGB | truth | prediction:", "", f"![{fam}]({name})", ""]
