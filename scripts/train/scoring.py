@@ -9,7 +9,7 @@
 - `mask_zoom`: per image, the scale about the principal point that makes the union of the true masks
   fit the union of the predicted ones best (IoU, crowd pixels left out), searched in
   [1 − ZOOM_REACH, 1 + ZOOM_REACH]; median and quartiles over the images where both show buildings.
-  Above 1 the model's masks reach past the buildings' edges away from the image centre, which a
+  Above 1 the model's masks reach past the buildings' edges away from the principal point, which a
   localizer cannot tell from a camera moved forward (0.25 % is a metre at 400 m): measured on frames
   whose poses are known (the validation split), it is what `insgen eval-loc --prediction-zoom` undoes.
 """
