@@ -2,7 +2,7 @@
 # The closed loop in one command: insgen makes a dataset from named areas and holds one area out
 # entirely; the reference baseline (scripts/train/baseline.py) trains on the rest from scratch,
 # predicts the held-out area, pycocotools scores the masks, and `insgen eval-loc --predictions`
-# localizes with them (instance, semantic, merged; defaults and --paper) next to the oracle masks,
+# localizes with them (instance, semantic, merged, grouped; defaults and --paper) next to the oracle masks,
 # once as predicted and once calibrated: the model's mask zoom, measured on the validation split
 # (frames with known poses, never the held-out area), undone by `--prediction-zoom`.
 # Writes this run's section of bench/closed_loop.md and its picture (RGB | truth | prediction).
@@ -155,7 +155,7 @@ for fam in $FAMILIES; do
 done
 
 if stage_on loc; then
-    costs=(--cost instance --cost semantic --cost merged)
+    costs=(--cost instance --cost semantic --cost merged --cost grouped)
     results="$W/model/$FIRST/results_$HOLDOUT.json"
     zoom=$("$PY" -c 'import json, sys; print(json.load(open(sys.argv[1]))["mask_zoom"]["median"] or 1.0)' \
         "$W/model/$FIRST/score_val.json")
