@@ -16,6 +16,7 @@ pub mod morph;
 pub mod oracle;
 pub mod overlay;
 pub mod query;
+pub mod resample;
 pub mod search;
 #[cfg(test)]
 mod sparse_tests;

@@ -584,26 +584,9 @@ impl LabelImage {
     /// Scales the labels by `zoom` about the image centre (nearest pixel centre); a pixel whose source
     /// falls outside the image (zoom below 1, near the edges) becomes background.
     fn zoom(&mut self, zoom: f64) {
-        let (w, h) = (self.w, self.h);
-        let source = |i: usize, n: usize| {
-            let c = n as f64 / 2.0;
-            (c + (i as f64 + 0.5 - c) / zoom - 0.5).round()
-        };
-        let xs: Vec<Option<usize>> = (0..w)
-            .map(|x| Some(source(x, w)).filter(|&s| s >= 0.0 && s < w as f64).map(|s| s as usize))
-            .collect();
-        let mut out = vec![0u32; w * h];
-        for y in 0..h {
-            let sy = source(y, h);
-            if sy < 0.0 || sy >= h as f64 {
-                continue;
-            }
-            let row = &self.lab[sy as usize * w..(sy as usize + 1) * w];
-            for (o, sx) in out[y * w..(y + 1) * w].iter_mut().zip(&xs) {
-                *o = sx.map_or(0, |sx| row[sx]);
-            }
-        }
-        self.lab = out;
+        let size = [self.w as u32, self.h as u32];
+        let centre_px = [self.w as f64 / 2.0, self.h as f64 / 2.0];
+        self.lab = super::resample::resize_scaled(&self.lab, size, size, centre_px, zoom);
     }
 
     /// A false-positive blob at the foot of a building: an ellipse of 0.4–1.2 % of the image width

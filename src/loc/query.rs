@@ -16,6 +16,7 @@ use serde::Deserialize;
 
 use super::cost::{bbox_area, Query, QueryInstance};
 use super::oracle::{self, Degradation};
+use super::resample::{resize_nearest, resize_scaled};
 use crate::camera::Intrinsics;
 use crate::export::results::{read_results, Prediction};
 use crate::label::{label_components, Connectivity};
@@ -92,22 +93,6 @@ pub enum QuerySource {
     },
     /// A segmentation model's predictions.
     Predictions(FramePredictions),
-}
-
-/// Nearest-neighbour resize of a row-major image (sampling the source at the target pixel centres).
-pub fn resize_nearest<T: Copy + Default>(src: &[T], w: u32, h: u32, tw: u32, th: u32) -> Vec<T> {
-    let xs: Vec<usize> =
-        (0..tw).map(|x| (((x as f64 + 0.5) * w as f64 / tw as f64) as u32).min(w - 1) as usize).collect();
-    let mut out = vec![T::default(); (tw * th) as usize];
-    for y in 0..th {
-        let sy = (((y as f64 + 0.5) * h as f64 / th as f64) as u32).min(h - 1) as usize;
-        let src_row = &src[sy * w as usize..(sy + 1) * w as usize];
-        let dst_row = &mut out[(y * tw) as usize..((y + 1) * tw) as usize];
-        for (d, &sx) in dst_row.iter_mut().zip(&xs) {
-            *d = src_row[sx];
-        }
-    }
-    out
 }
 
 impl QuerySource {
@@ -187,11 +172,8 @@ pub fn predictions_query(preds: &[Prediction], k: &Intrinsics, min_score: f64, z
         if h == 0 || w == 0 {
             continue;
         }
-        let mask = if zoom == 1.0 {
-            resize_nearest(&p.mask(), w, h, tw, th)
-        } else {
-            resize_unzoomed(&p.mask(), [w, h], k, zoom)
-        };
+        let centre_px = [k.cx_px, k.cy_px];
+        let mask = resize_scaled(&p.mask(), [w, h], [tw, th], centre_px, 1.0 / zoom);
         let pixels: Vec<u32> =
             mask.iter().enumerate().filter(|(_, &m)| m != 0).map(|(i, _)| i as u32).collect();
         if pixels.is_empty() {
@@ -202,27 +184,6 @@ pub fn predictions_query(preds: &[Prediction], k: &Intrinsics, min_score: f64, z
         instances.push(QueryInstance::new(&pixels, p.score, bbox_area_px));
     }
     Query::new(tw, th, instances)
-}
-
-/// Nearest-neighbour resample of a `[w, h]` mask to `k`'s size that also undoes a zoom about the
-/// principal point: target pixel centre x maps to c + (x − c)·zoom in target pixels (c = `k.cx_px`),
-/// then to the source; a centre mapped outside the source is background.
-fn resize_unzoomed(src: &[u8], [w, h]: [u32; 2], k: &Intrinsics, zoom: f64) -> Vec<u8> {
-    let (tw, th) = (k.width_px, k.height_px);
-    let source = |t: u32, c: f64, n: u32, tn: u32| {
-        let s = (c + (t as f64 + 0.5 - c) * zoom) * n as f64 / tn as f64;
-        (s >= 0.0 && s < n as f64).then_some(s as usize)
-    };
-    let xs: Vec<Option<usize>> = (0..tw).map(|x| source(x, k.cx_px, w, tw)).collect();
-    let mut out = vec![0u8; (tw * th) as usize];
-    for y in 0..th {
-        let Some(sy) = source(y, k.cy_px, h, th) else { continue };
-        let row = &src[sy * w as usize..(sy + 1) * w as usize];
-        for (o, sx) in out[(y * tw) as usize..((y + 1) * tw) as usize].iter_mut().zip(&xs) {
-            *o = sx.map_or(0, |sx| row[sx]);
-        }
-    }
-    out
 }
 
 /// The part of a COCO instances file that maps image ids to frames.
@@ -296,16 +257,6 @@ pub fn load_predictions(
 mod tests {
     use super::*;
     use crate::export::rle::encode;
-
-    #[test]
-    fn nearest_resize_samples_pixel_centres() {
-        // 4×2 → 2×1: target pixel centres map to source x = 1, 3 (row 1).
-        let ids = [1u32, 2, 3, 4, 5, 6, 7, 8];
-        assert_eq!(resize_nearest(&ids, 4, 2, 2, 1), vec![6, 8]);
-        assert_eq!(resize_nearest(&ids, 4, 2, 4, 2), ids.to_vec());
-        // Upsampling repeats pixels.
-        assert_eq!(resize_nearest(&[1u8, 2], 2, 1, 4, 1), vec![1, 1, 2, 2]);
-    }
 
     fn pred(mask: &[u8], h: u32, w: u32, score: f64) -> Prediction {
         Prediction { index: 0, category_id: 1, score, rle: encode(mask, h, w).unwrap(), bbox_area_px: 0.0 }

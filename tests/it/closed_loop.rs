@@ -314,20 +314,21 @@ fn strs(v: &[String]) -> Vec<&str> {
     v.iter().map(String::as_str).collect()
 }
 
+/// Runs the self-check `scripts/train/<name>` with seed 7 and returns the JSON object it prints.
+fn check_script(py: &Path, name: &str) -> serde_json::Value {
+    let o = ok(
+        Command::new(py).arg(repo().join("scripts/train").join(name)).arg("7").output().expect("python runs"),
+        name,
+    );
+    serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{name} does not print JSON: {e}"))
+}
+
 #[test]
 fn numpy_rle_equals_pycocotools() {
     // Training and prediction encode masks without pycocotools (a GPU machine may lack it): the
     // strings, the decoded masks and the boxes must be pycocotools' own.
     let Some(py) = train_python() else { return };
-    let o = ok(
-        Command::new(&py)
-            .arg(repo().join("scripts/train/rle_check.py"))
-            .arg("7")
-            .output()
-            .expect("python runs"),
-        "rle_check.py",
-    );
-    let report: serde_json::Value = serde_json::from_slice(&o.stdout).expect("rle_check prints JSON");
+    let report = check_script(&py, "rle_check.py");
     assert_eq!(report["masks"], 400);
     assert_eq!(report["mismatches"], serde_json::json!([]), "{report}");
 }
@@ -339,15 +340,7 @@ fn score_measures_the_zoom_of_predicted_masks() {
     // by at most half a pixel, 2·10⁻⁴ of the frame's scale at 240 px from the centre), and exactly 1
     // for masks equal to the truth.
     let Some(py) = train_python() else { return };
-    let o = ok(
-        Command::new(&py)
-            .arg(repo().join("scripts/train/zoom_check.py"))
-            .arg("7")
-            .output()
-            .expect("python runs"),
-        "zoom_check.py",
-    );
-    let reports: serde_json::Value = serde_json::from_slice(&o.stdout).expect("zoom_check prints JSON");
+    let reports = check_script(&py, "zoom_check.py");
     for (zoom, report) in reports.as_object().expect("one report per zoom") {
         assert_schema("baseline_score.schema.json", report);
         let zoom: f64 = zoom.parse().unwrap();
