@@ -159,6 +159,9 @@ if stage_on loc; then
     results="$W/model/$FIRST/results_$HOLDOUT.json"
     zoom=$("$PY" -c 'import json, sys; print(json.load(open(sys.argv[1]))["mask_zoom"]["median"] or 1.0)' \
         "$W/model/$FIRST/score_val.json")
+    # Scores that rank the masks on the validation split may weight the instances (area × score).
+    honest=$("$PY" -c 'import json, sys; print(str(json.load(open(sys.argv[1]))["score_honesty"]["honest"]).lower())' \
+        "$W/model/$FIRST/score_val.json")
     for mode in defaults paper; do
         extra=(); [ "$mode" = paper ] && extra=(--paper)
         say "loc: oracle and $FIRST predictions, $mode (calibrated: --prediction-zoom $zoom)"
@@ -169,6 +172,11 @@ if stage_on loc; then
         "${B[@]}" -q eval-loc --area "$HOLDOUT" --camera "$CAMERA" --predictions "$results" \
             --prediction-zoom "$zoom" --limit "$QUERIES" "${costs[@]}" "${extra[@]}" \
             --tag "loop-$FIRST-$mode-calibrated" --overlays 0
+        if [ "$honest" = true ]; then
+            "${B[@]}" -q eval-loc --area "$HOLDOUT" --camera "$CAMERA" --predictions "$results" \
+                --prediction-zoom "$zoom" --limit "$QUERIES" --cost instance --cost grouped "${extra[@]}" \
+                --weighting area-conf --tag "loop-$FIRST-$mode-calibrated-area-conf" --overlays 0
+        fi
     done
 fi
 

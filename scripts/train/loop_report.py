@@ -30,8 +30,19 @@ about the principal point that fits the true masks best to the predicted ones (m
 above 1 the masks reach past the buildings, which eval-loc reads as a camera moved forward).
 Localization recall is the share of queries within (2 m, 2°) of the truth; the oracle rows are the upper
 bound the masks allow; the calibrated rows undo the mask zoom measured on the validation split
-(`eval-loc --prediction-zoom`), so no held-out frame informs them.
+(`eval-loc --prediction-zoom`), so no held-out frame informs them. The score rank correlation is
+`score_honesty`'s: how well the predictions' scores rank their masks (Spearman, against each mask's best
+IoU with a true instance); where the validation split finds them honest, the loop also weights the
+instances by box area × score (`eval-loc --weighting area-conf`).
 """
+
+
+def honesty(score: dict) -> str:
+    """The scores' Spearman correlation with the masks' IoU, marked when `baseline.py score` finds them honest."""
+    h = score.get("score_honesty") or {}
+    if h.get("spearman") is None:
+        return "–"
+    return f"{h['spearman']}{' (honest)' if h.get('honest') else ''}"
 
 
 def load(path: Path):
@@ -92,18 +103,20 @@ def section(w: Path, bench: Path) -> str:
            f"Reproduce: `{loop['command']}` ({cam}, {loop['frames_per_area']} frames per training area, "
            f"{loop['holdout_frames']} held-out frames, {loop['queries']} localization queries).", "",
            "| family | device | steps | train s | train frames | AP | AP50 | AP75 | building IoU | P@0.5 | R@0.5 |"
-           " predictions / truths | mask zoom (validation / held out) |",
-           "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+           " predictions / truths | mask zoom (validation / held out) | score rank correlation (validation / held"
+           " out) |",
+           "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     pictures = []
     for fam in loop["families"].split():
         m = load(w / "model" / fam / "model.json") or {}
         s = load(w / "model" / fam / f"score_{hold}.json") or {}
         v = load(w / "model" / fam / "score_val.json") or {}
         zooms = " / ".join(str((x.get("mask_zoom") or {}).get("median") or "–") for x in (v, s))
+        ranks = " / ".join(honesty(x) for x in (v, s))
         out.append(f"| {fam} | {m.get('device', '–')} | {m.get('steps', '–')} | {m.get('train_seconds', '–')} | "
                    f"{m.get('frames', '–')} | {s.get('AP', '–')} | {s.get('AP50', '–')} | {s.get('AP75', '–')} | "
                    f"{s.get('building_iou', '–')} | {s.get('precision_50', '–')} | {s.get('recall_50', '–')} | "
-                   f"{s.get('predictions', '–')} / {s.get('annotations', '–')} | {zooms} |")
+                   f"{s.get('predictions', '–')} / {s.get('annotations', '–')} | {zooms} | {ranks} |")
         sheet = w / "model" / fam / f"sheet_{hold}.png"
         if sheet.exists():
             # A JPEG next to the report: the PNG sheet runs to megabytes.
@@ -127,6 +140,9 @@ def section(w: Path, bench: Path) -> str:
         if calibrated:
             zoom = (calibrated.get("source") or {}).get("zoom", 1.0)
             out += loc_rows(calibrated, f"{first}, calibrated (zoom {zoom} undone)", prior=False)
+        weighted = load(base / f"loop-{first}-{mode}-calibrated-area-conf" / "summary.json")
+        if weighted:
+            out += loc_rows(weighted, f"{first}, calibrated, instances weighted by area × score", prior=False)
         out.append("")
     for fam, name in pictures:
         out += [f"`{fam}` on `{hold}` — RGB | truth | prediction:", "", f"![{fam}]({name})", ""]

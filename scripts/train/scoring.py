@@ -12,6 +12,11 @@
   Above 1 the model's masks reach past the buildings' edges away from the principal point, which a
   localizer cannot tell from a camera moved forward (0.25 % is a metre at 400 m): measured on frames
   whose poses are known (the validation split), it is what `insgen eval-loc --prediction-zoom` undoes.
+- `score_honesty`: whether a prediction's score says how good its mask is, over every prediction:
+  the Spearman rank correlation of the scores with each mask's best IoU with a true instance, and per
+  band of scores the predictions, their mean best IoU and the share at IoU ≥ 0.5. `honest` when the
+  correlation is at least HONEST_RHO and the mean IoU rises from band to band: then the scores can weight
+  the instances of a localizer's cost (`insgen eval-loc --weighting conf`).
 """
 
 from __future__ import annotations
@@ -26,12 +31,14 @@ from PIL import Image, ImageDraw
 from pycocotools import mask as mask_utils
 from pycocotools.coco import COCO
 from pycocotools.cocoeval import COCOeval
-from scipy import ndimage
+from scipy import ndimage, stats
 
 import data as ds
 
 SCORE_MIN = 0.3  # predictions counted by building_iou, P/R@0.5 and mask_zoom
 ZOOM_REACH = 0.02  # mask_zoom searches 1 ± this (a segmenter's scale error is a few per mille)
+SCORE_BANDS = (0.0, 0.5, 0.7, 0.9, 1.0)  # score_honesty's bands, the last one closed
+HONEST_RHO = 0.3  # score_honesty: the rank correlation from which scores count as honest
 
 
 def load(coco_json: Path, results: Path, areas):
@@ -62,7 +69,39 @@ def score(coco_json: Path, results: Path, areas=None) -> dict:
     else:
         report.update({"AP": 0.0, "AP50": 0.0, "AP75": 0.0})
     report.update(pixel_and_match_scores(gt, img_ids, preds))
+    report["score_honesty"] = score_honesty(gt, img_ids, preds)
     return report
+
+
+def score_honesty(gt: COCO, img_ids: list[int], preds: list[dict]) -> dict:
+    """How well the predictions' scores rank their masks: see the module's docstring."""
+    scores, ious = [], []
+    by_img: dict[int, list[dict]] = {}
+    for p in preds:
+        by_img.setdefault(p["image_id"], []).append(p)
+    for i in img_ids:
+        ps = by_img.get(i, [])
+        if not ps:
+            continue
+        truth = [gt.annToRLE(a) for a in gt.loadAnns(gt.getAnnIds(imgIds=[i])) if not a.get("iscrowd", 0)]
+        best = (np.asarray(mask_utils.iou([p["segmentation"] for p in ps], truth, [0] * len(truth))).max(axis=1)
+                if truth else np.zeros(len(ps)))
+        scores += [float(p["score"]) for p in ps]
+        ious += [float(v) for v in best]
+    s, u = np.asarray(scores), np.asarray(ious)
+    bands = []
+    for k, (lo, hi) in enumerate(zip(SCORE_BANDS, SCORE_BANDS[1:])):
+        inside = (s >= lo) & ((s <= hi) if k == len(SCORE_BANDS) - 2 else (s < hi))
+        n = int(inside.sum())
+        bands.append({"scores": [lo, hi], "predictions": n,
+                      "mean_iou": round(float(u[inside].mean()), 4) if n else None,
+                      "share_iou_50": round(float((u[inside] >= 0.5).mean()), 4) if n else None})
+    rho = None
+    if len(s) >= 3 and np.ptp(s) > 0 and np.ptp(u) > 0:
+        rho = round(float(stats.spearmanr(s, u).statistic), 4)
+    means = [b["mean_iou"] for b in bands if b["mean_iou"] is not None]
+    rising = len(means) >= 2 and all(a <= b for a, b in zip(means, means[1:]))
+    return {"spearman": rho, "bands": bands, "honest": rho is not None and rho >= HONEST_RHO and rising}
 
 
 def pixel_and_match_scores(gt: COCO, img_ids: list[int], preds: list[dict]) -> dict:

@@ -26,6 +26,10 @@ pub enum WeightingArg {
     /// By the instance's bounding-box area (the paper's main tables).
     #[default]
     Area,
+    /// By the product of the two: each instance's box area, trusted as far as its score says. For
+    /// predictions whose scores rank their masks (`baseline.py score`: `score_honesty`); with scores
+    /// all 1 (oracle masks) the same as `area`.
+    AreaConf,
 }
 
 impl From<WeightingArg> for Weighting {
@@ -33,6 +37,7 @@ impl From<WeightingArg> for Weighting {
         match w {
             WeightingArg::Conf => Weighting::Conf,
             WeightingArg::Area => Weighting::Area,
+            WeightingArg::AreaConf => Weighting::AreaConf,
         }
     }
 }
@@ -126,7 +131,8 @@ pub struct Args {
     /// Cost(s) to evaluate; repeat to compare (each gives rows of the table).
     #[arg(long = "cost", value_enum, default_values_t = [CostArg::Instance])]
     pub costs: Vec<CostArg>,
-    /// Instance weighting: by box area (the paper's main tables) or by confidence score.
+    /// Instance weighting: by box area (the paper's main tables), by confidence score, or by both
+    /// (`area-conf`: for a segmenter's predictions whose scores are honest).
     #[arg(long, value_enum, default_value_t = WeightingArg::Area)]
     pub weighting: WeightingArg,
     /// Weight W of the semantic IoU blended into the instance cost, (1 − W)·instance + W·semantic, so
@@ -803,6 +809,14 @@ mod tests {
         assert_eq!(CostKind::from(CostArg::Grouped), CostKind::Grouped);
         let e = parse(&["--segmenter-like", "chain=2"]).unwrap_err().to_string();
         assert!(e.contains("shares lie in [0, 1]"), "{e}");
+    }
+
+    #[test]
+    fn weighting_is_area_by_default_and_area_conf_parses() {
+        assert_eq!(Weighting::from(parse(&[]).unwrap().weighting), Weighting::Area);
+        let a = parse(&["--weighting", "area-conf"]).unwrap();
+        assert_eq!(Weighting::from(a.weighting), Weighting::AreaConf);
+        assert!(parse(&["--weighting", "score"]).is_err());
     }
 
     mod semantic_weight {

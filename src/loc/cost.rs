@@ -77,6 +77,23 @@ pub enum Weighting {
     /// By the instance's bounding-box area (the paper's main tables).
     #[default]
     Area,
+    /// By the product of the two: the paper's area weighting, each instance trusted as far as its
+    /// score says. With a segmenter whose scores rank its masks (`baseline.py score` reports
+    /// `score_honesty`) a large merged or misplaced instance weighs less than a large exact one; with
+    /// scores all 1 (oracle masks) it is [`Weighting::Area`].
+    #[serde(rename = "area-conf")]
+    AreaConf,
+}
+
+impl Weighting {
+    /// How summaries name the weighting: `area`, `conf`, `area × conf`.
+    pub fn label(self) -> &'static str {
+        match self {
+            Weighting::Conf => "conf",
+            Weighting::Area => "area",
+            Weighting::AreaConf => "area × conf",
+        }
+    }
 }
 
 /// Which cost to use.
@@ -342,6 +359,7 @@ fn weight_of(i: &QueryInstance, weighting: Weighting) -> f64 {
     match weighting {
         Weighting::Conf => i.score,
         Weighting::Area => i.bbox_area_px,
+        Weighting::AreaConf => i.bbox_area_px * i.score,
     }
 }
 
@@ -617,6 +635,31 @@ mod tests {
         assert!((area - 0.5 * (d_a + d_b)).abs() < 1e-12, "{area}");
         // Union of query {0,1,6,7}, rendered {1,2,5,6,7}: ∩ = {1,6,7} = 3, ∪ = {0,1,2,5,6,7} = 6.
         assert!((s.semantic_iou(&q, &r) - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn area_conf_weights_by_box_area_times_score() {
+        // Two instances, one matched exactly (Dice 1), one not at all: the cost is the first's share of
+        // the weights, area × score under area-conf.
+        let w = 4u32;
+        let a = QueryInstance::new(&[0, 1, 4, 5], 0.5, 4.0);
+        let b = QueryInstance::new(&[2, 3], 0.9, 2.0);
+        let q = Query::new(w, 2, vec![a, b]);
+        let r = [1, 1, 0, 0, 1, 1, 0, 0];
+        let mut s = Scorer::default();
+        let cost = |s: &mut Scorer, wt| s.instance_cost(&q, &r, 1, wt);
+        assert!((cost(&mut s, Weighting::Area) - 4.0 / 6.0).abs() < 1e-6);
+        assert!((cost(&mut s, Weighting::Conf) - 0.5 / 1.4).abs() < 1e-6);
+        assert!((cost(&mut s, Weighting::AreaConf) - 2.0 / (2.0 + 1.8)).abs() < 1e-6);
+        // Scores all 1: area × conf is the area weighting.
+        let ones =
+            Query::new(w, 2, q.instances.iter().map(|i| QueryInstance { score: 1.0, ..i.clone() }).collect());
+        assert_eq!(
+            s.instance_cost(&ones, &r, 1, Weighting::AreaConf),
+            s.instance_cost(&ones, &r, 1, Weighting::Area)
+        );
+        assert_eq!(Weighting::AreaConf.label(), "area × conf");
+        assert_eq!(serde_json::to_string(&Weighting::AreaConf).unwrap(), "\"area-conf\"");
     }
 
     #[test]

@@ -1414,15 +1414,15 @@ pub fn summarise(
             .collect();
         let name = match kind {
             CostKind::Instance if semantic_weight > 0.0 => {
-                format!("instance ({weighting:?}) + {semantic_weight} semantic").to_lowercase()
+                format!("instance ({}) + {semantic_weight} semantic", weighting.label())
             }
-            CostKind::Instance => format!("instance ({weighting:?})").to_lowercase(),
+            CostKind::Instance => format!("instance ({})", weighting.label()),
             CostKind::Semantic => "semantic IoU (LoD-Loc v2)".to_string(),
             CostKind::Merged => "merged instances".to_string(),
             CostKind::Grouped if semantic_weight > 0.0 => {
-                format!("grouped ({weighting:?}) + {semantic_weight} semantic").to_lowercase()
+                format!("grouped ({}) + {semantic_weight} semantic", weighting.label())
             }
-            CostKind::Grouped => format!("grouped ({weighting:?})").to_lowercase(),
+            CostKind::Grouped => format!("grouped ({})", weighting.label()),
         };
         push_rows(&name, &errs);
         let counted = |count: fn(&QueryResult) -> usize| -> Vec<(usize, f64, f64)> {

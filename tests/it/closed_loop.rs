@@ -324,6 +324,39 @@ fn check_script(py: &Path, name: &str) -> serde_json::Value {
 }
 
 #[test]
+fn score_says_whether_scores_rank_the_masks() {
+    // `score_honesty` decides whether eval-loc --weighting conf may trust the scores: scores that fall
+    // with a mask's shift from its building are honest, the same scores shuffled or all alike are not.
+    let Some(py) = train_python() else { return };
+    let reports = check_script(&py, "honesty_check.py");
+    for report in reports.as_object().expect("one report per file").values() {
+        assert_schema("baseline_score.schema.json", report);
+        let bands = report["score_honesty"]["bands"].as_array().unwrap();
+        let counted: u64 = bands.iter().map(|b| b["predictions"].as_u64().unwrap()).sum();
+        assert_eq!(
+            counted,
+            report["predictions"].as_u64().unwrap(),
+            "every prediction in one band: {report}"
+        );
+    }
+    let honesty = |name: &str| reports[name]["score_honesty"].clone();
+    let honest = honesty("honest");
+    assert_eq!(honest["honest"], true, "{honest}");
+    assert!(honest["spearman"].as_f64().unwrap() > 0.8, "{honest}");
+    let means: Vec<f64> =
+        honest["bands"].as_array().unwrap().iter().filter_map(|b| b["mean_iou"].as_f64()).collect();
+    assert!(means.windows(2).all(|w| w[0] <= w[1]) && means.len() == 4, "{honest}");
+    let shuffled = honesty("shuffled");
+    assert_eq!(shuffled["honest"], false, "{shuffled}");
+    assert!(shuffled["spearman"].as_f64().unwrap().abs() < 0.25, "{shuffled}");
+    let constant = honesty("constant");
+    assert_eq!(
+        (constant["honest"].clone(), constant["spearman"].clone()),
+        (false.into(), serde_json::Value::Null)
+    );
+}
+
+#[test]
 fn numpy_rle_equals_pycocotools() {
     // Training and prediction encode masks without pycocotools (a GPU machine may lack it): the
     // strings, the decoded masks and the boxes must be pycocotools' own.
