@@ -9,8 +9,9 @@
 #
 #   scripts/loc_learned.sh [WORKDIR]
 #   (env: COUNT=20 AREAS="demo niiza denhaag delft tokyo" SEGMENTER=learned MODES="defaults paper pure"
-#    COARSE_AREAS="demo denhaag tokyo" (areas with LoD2 roofs, also localized against LoD1 maps of
-#    themselves) COARSE_MODES="defaults pure"
+#    COARSE_AREAS="denhaag tokyo" (areas with LoD2 roofs, also localized against LoD1 maps of
+#    themselves; not the demo, whose procedural buildings are flat extrusions: its LoD1 map is its own)
+#    COARSE_MODES="defaults pure"
 #    LOOP=runs/closed_loop_small (a closed-loop work directory; copied, never written)
 #    REPORT_ONLY=1 rewrites the report from the runs already in WORKDIR)
 #
@@ -29,7 +30,7 @@ cargo build --release --quiet --bin insgen
 IG="target/release/insgen --no-progress -q --workdir $W"
 COSTS="--cost instance --cost semantic --cost merged --cost grouped"
 MODES=${MODES-"defaults paper pure"}
-COARSE_AREAS=${COARSE_AREAS-"demo denhaag tokyo"}
+COARSE_AREAS=${COARSE_AREAS-"denhaag tokyo"}
 COARSE_MODES=${COARSE_MODES-"defaults pure"}
 # The flags of each mode. pure: eval-loc's search (basins, filter, polish) with the paper's costs, no
 # semantic blend in the filter or the polish, no silhouette offset, the IoU (spill weight 1) in the

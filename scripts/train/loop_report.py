@@ -25,9 +25,10 @@ training), trains the reference baseline (`scripts/train/baseline.py`) from scra
 the held-out frames, scores them with pycocotools (COCOeval segm against insgen's own COCO export) and
 localizes them with `insgen eval-loc --predictions` next to the oracle (ground-truth) masks. Definitions:
 AP/AP50/AP75 are COCOeval's; building IoU is the IoU of the union of predicted masks (score ≥ 0.3)
-with the union of true ones; P/R@0.5 are one-to-one matches at mask IoU ≥ 0.5; mask zoom is the scale
-about the principal point that fits the true masks best to the predicted ones (median over the frames;
-above 1 the masks reach past the buildings, which eval-loc reads as a camera moved forward).
+with the union of true ones; P/R@0.5 are one-to-one matches at mask IoU ≥ 0.5; outline F1 is the
+F-score of the predicted and true building outlines within 1 and 2 px; mask zoom is the scale about the
+principal point that fits the true masks best to the predicted ones (median over the frames; above 1 the
+masks reach past the buildings, which eval-loc reads as a camera moved forward).
 Localization recall is the share of queries within (2 m, 2°) of the truth; the oracle rows are the upper
 bound the masks allow; the calibrated rows undo the mask zoom measured on the validation split
 (`eval-loc --prediction-zoom`), so no held-out frame informs them. The score rank correlation is
@@ -103,9 +104,9 @@ def section(w: Path, bench: Path) -> str:
            f"Reproduce: `{loop['command']}` ({cam}, {loop['frames_per_area']} frames per training area, "
            f"{loop['holdout_frames']} held-out frames, {loop['queries']} localization queries).", "",
            "| family | device | steps | train s | train frames | AP | AP50 | AP75 | building IoU | P@0.5 | R@0.5 |"
-           " predictions / truths | mask zoom (validation / held out) | score rank correlation (validation / held"
-           " out) |",
-           "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+           " predictions / truths | outline F1 (1 / 2 px) | mask zoom (validation / held out) |"
+           " score rank correlation (validation / held out) |",
+           "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     pictures = []
     for fam in loop["families"].split():
         m = load(w / "model" / fam / "model.json") or {}
@@ -113,10 +114,11 @@ def section(w: Path, bench: Path) -> str:
         v = load(w / "model" / fam / "score_val.json") or {}
         zooms = " / ".join(str((x.get("mask_zoom") or {}).get("median") or "–") for x in (v, s))
         ranks = " / ".join(honesty(x) for x in (v, s))
+        outlines = " / ".join(str(v) for v in (s.get("outline_f1") or {"1px": "–", "2px": "–"}).values())
         out.append(f"| {fam} | {m.get('device', '–')} | {m.get('steps', '–')} | {m.get('train_seconds', '–')} | "
                    f"{m.get('frames', '–')} | {s.get('AP', '–')} | {s.get('AP50', '–')} | {s.get('AP75', '–')} | "
                    f"{s.get('building_iou', '–')} | {s.get('precision_50', '–')} | {s.get('recall_50', '–')} | "
-                   f"{s.get('predictions', '–')} / {s.get('annotations', '–')} | {zooms} | {ranks} |")
+                   f"{s.get('predictions', '–')} / {s.get('annotations', '–')} | {outlines} | {zooms} | {ranks} |")
         sheet = w / "model" / fam / f"sheet_{hold}.png"
         if sheet.exists():
             # A JPEG next to the report: the PNG sheet runs to megabytes.

@@ -12,6 +12,13 @@
   Above 1 the model's masks reach past the buildings' edges away from the principal point, which a
   localizer cannot tell from a camera moved forward (0.25 % is a metre at 400 m): measured on frames
   whose poses are known (the validation split), it is what `insgen eval-loc --prediction-zoom` undoes.
+- `outline_f1`: how well the outline of the predicted building pixels (scoring ≥ 0.3) lies on the true
+  one: pixels with a background 4-neighbour inside the image (crowd pixels left out), a pixel of one
+  outline counted as found when the other has a pixel within 1 (`1px`) or 2 px (`2px`, Euclidean); the
+  F-score of those shares, pooled over the images (pixels of the images' own size: compare models at
+  one resolution). A localizer places the buildings by their edges, and
+  AP or the building IoU do not say how well a model draws them (`insgen eval-loc`'s segmenter-like
+  masks report the same measure in their debug log).
 - `score_honesty`: whether a prediction's score says how good its mask is, over every prediction:
   the Spearman rank correlation of the scores with each mask's best IoU with a true instance, and per
   band of scores the predictions, their mean best IoU and the share at IoU ≥ 0.5. `honest` when the
@@ -108,6 +115,7 @@ def pixel_and_match_scores(gt: COCO, img_ids: list[int], preds: list[dict]) -> d
     inter = union = truth_px = valid_px = 0
     tp = n_pred = n_gt = 0
     zooms = []
+    outlines = np.zeros(6, np.int64)  # truth, predicted, truth near (1, 2 px), predicted near (1, 2 px)
     by_img: dict[int, list[dict]] = {}
     for p in preds:
         if p["score"] >= SCORE_MIN:
@@ -132,6 +140,7 @@ def pixel_and_match_scores(gt: COCO, img_ids: list[int], preds: list[dict]) -> d
         n_pred += len(pm)
         n_gt += len(truth)
         tp += greedy_matches(pm, truth)
+        outlines += outline_counts(gu, pu, ~crowd)
         if gu.any() and pu.any():
             k = im.get("intrinsics") or {}
             zooms.append(best_zoom(gu, pu, ~crowd, k.get("cx_px", w / 2), k.get("cy_px", h / 2)))
@@ -140,7 +149,31 @@ def pixel_and_match_scores(gt: COCO, img_ids: list[int], preds: list[dict]) -> d
             "all_building_iou": round(truth_px / valid_px, 4) if valid_px else None,
             "precision_50": round(tp / n_pred, 4) if n_pred else 0.0,
             "recall_50": round(tp / n_gt, 4) if n_gt else 0.0,
-            "mask_zoom": {"median": q[1], "q25": q[0], "q75": q[2], "images": len(zooms)}}
+            "mask_zoom": {"median": q[1], "q25": q[0], "q75": q[2], "images": len(zooms)},
+            "outline_f1": {f"{d}px": f_score(outlines[3 + d], outlines[1], outlines[1 + d], outlines[0])
+                           for d in (1, 2)}}
+
+
+FOUR = ndimage.generate_binary_structure(2, 1)
+NEAR = {d: np.add.outer(np.arange(-d, d + 1) ** 2, np.arange(-d, d + 1) ** 2) <= d * d for d in (1, 2)}
+
+
+def outline_counts(truth: np.ndarray, pred: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Outline pixels of the two masks (pixels with a 4-neighbour inside the image outside the mask) in
+    `valid`, and those of each with one of the other's within 1 and 2 px: see `outline_f1`."""
+    def outline(m):
+        return m & ~ndimage.binary_erosion(m, FOUR, border_value=1) & valid
+    t, p = outline(truth), outline(pred)
+    near = [(a & ndimage.binary_dilation(b, NEAR[d])).sum() for a, b in ((t, p), (p, t)) for d in (1, 2)]
+    return np.array([t.sum(), p.sum(), near[0], near[1], near[2], near[3]], np.int64)
+
+
+def f_score(pred_near: int, pred: int, truth_near: int, truth: int):
+    """F-score of the shares pred_near / pred and truth_near / truth; None without outlines."""
+    if pred == 0 or truth == 0:
+        return None if pred == truth == 0 else 0.0
+    pr, rc = pred_near / pred, truth_near / truth
+    return round(float(2 * pr * rc / (pr + rc)), 4) if pr + rc > 0 else 0.0
 
 
 def best_zoom(truth: np.ndarray, pred: np.ndarray, valid: np.ndarray, cx: float, cy: float) -> float:

@@ -165,9 +165,11 @@ pub struct Args {
     /// merged, large instances split, small ones missed, rims moved ±1 px (at 640 px width), blobs at
     /// the foot of buildings. `learned` (or the flag alone) is the model calibrated to a segmenter on an
     /// unseen city (issue 40); KEY=VALUE pairs override it: chain, max-chain, split-large,
-    /// large-area, miss-small, small-area, rim, blobs, zoom (e.g. `learned,chain=0.4`;
+    /// large-area, miss-small, small-area, rim, blobs, zoom, holes, zoom-sd (e.g. `learned,chain=0.4`;
     /// `learned,zoom=1.0025` also scales the masks about the image centre as the closed loop's U-Net
-    /// does, which the localizer reads as a camera moved along its axis).
+    /// does, which the localizer reads as a camera moved along its axis; `holes=0.15` cuts 15 % of the
+    /// building pixels out in blobs, as a segmenter misses low-contrast roofs; `zoom-sd=0.002` adds a
+    /// per-frame scale error of that deviation).
     #[arg(long, value_name = "learned|KEY=VALUE,…", num_args = 0..=1, default_missing_value = "learned",
           value_parser = parse_segmenter, requires = "oracle")]
     pub segmenter_like: Option<SegmenterLike>,

@@ -88,6 +88,19 @@ pub struct SegmenterLike {
     /// [`SegmenterLike::learned`], which is calibrated to the issue's figures.
     #[serde(default = "no_zoom")]
     pub zoom: f64,
+    /// Share of the building pixels missed in blobs: ellipses of 1.5–5 % of the image width centred on
+    /// building pixels are cut out of the masks (made background) until this share of the building
+    /// pixels is gone, as a segmenter misses low-contrast parts of roofs. The closed loop's CPU U-Net
+    /// misses 14.8 % of held-out Shibuya's building pixels and adds 4.2 % (bench/loc_learned.md). Not
+    /// part of [`SegmenterLike::learned`] (0), whose building IoU is the issue's 0.95.
+    #[serde(default)]
+    pub hole_share: f64,
+    /// Standard deviation of a per-frame scale error: each frame's masks are scaled by `zoom` plus a
+    /// normal draw of this deviation (clamped to [`ZOOM_RANGE`]). A model's zoom varies from frame to
+    /// frame (the closed loop's U-Net on held-out Shibuya: quartiles 1.000–1.0029 about a median of
+    /// 1.0024), which no calibration removes. 0 in [`SegmenterLike::learned`].
+    #[serde(default)]
+    pub zoom_sd: f64,
 }
 
 /// [`SegmenterLike::zoom`]'s neutral value (and its default in logs written before it existed; also
@@ -116,6 +129,8 @@ impl SegmenterLike {
             rim_px_at_640: 1,
             clutter_blobs: 7.0,
             zoom: 1.0,
+            hole_share: 0.0,
+            zoom_sd: 0.0,
         }
     }
 
@@ -150,6 +165,9 @@ impl SegmenterLike {
                 "blobs" => return Err(bad()),
                 "zoom" if ZOOM_RANGE.contains(&num) => m.zoom = num,
                 "zoom" => return Err(bad()),
+                "holes" => m.hole_share = share(num)?,
+                "zoom-sd" if (0.0..=0.05).contains(&num) => m.zoom_sd = num,
+                "zoom-sd" => return Err(bad()),
                 other => return Err(SegmenterSpecError::Key(other.to_string())),
             }
         }
@@ -166,13 +184,13 @@ pub enum SegmenterSpecError {
     /// A key that is no parameter of the segmenter-like degradation (the key as given).
     #[error(
         "unknown key {0:?}: expected one of chain, max-chain, split-large, large-area, miss-small, small-area, \
-         rim, blobs, zoom"
+         rim, blobs, zoom, holes, zoom-sd"
     )]
     Key(String),
     /// A value that is not a number, or out of its key's range.
     #[error(
         "{key}={value}: shares lie in [0, 1], max-chain is a count ≥ 2, rim a count of pixels, blobs ≥ 0, \
-         zoom in [0.9, 1.1]"
+         zoom in [0.9, 1.1], zoom-sd in [0, 0.05]"
     )]
     Value {
         /// The key, as given.
@@ -200,6 +218,19 @@ pub struct Agreement {
     pub predicted_px: u64,
     /// Pixels in both unions.
     pub both_px: u64,
+    /// Outline pixels of the true union (building pixels with a background 4-neighbour; the image's
+    /// border is no outline), and of the degraded union.
+    #[serde(default)]
+    pub truth_outline_px: u64,
+    /// Outline pixels of the degraded union.
+    #[serde(default)]
+    pub predicted_outline_px: u64,
+    /// True outline pixels with a degraded outline pixel within 1 and within 2 px (Euclidean).
+    #[serde(default)]
+    pub truth_outline_near: [u64; 2],
+    /// Degraded outline pixels with a true outline pixel within 1 and within 2 px.
+    #[serde(default)]
+    pub predicted_outline_near: [u64; 2],
 }
 
 impl std::ops::AddAssign for Agreement {
@@ -211,6 +242,12 @@ impl std::ops::AddAssign for Agreement {
         self.truth_px += o.truth_px;
         self.predicted_px += o.predicted_px;
         self.both_px += o.both_px;
+        self.truth_outline_px += o.truth_outline_px;
+        self.predicted_outline_px += o.predicted_outline_px;
+        for k in 0..2 {
+            self.truth_outline_near[k] += o.truth_outline_near[k];
+            self.predicted_outline_near[k] += o.predicted_outline_near[k];
+        }
     }
 }
 
@@ -232,6 +269,59 @@ impl Agreement {
         let union = self.truth_px + self.predicted_px - self.both_px;
         self.both_px as f64 / union.max(1) as f64
     }
+    /// The outlines' F-score within `tolerance_px` (1 or 2): the harmonic mean of the shares of
+    /// degraded and of true outline pixels with an outline pixel of the other within that distance,
+    /// as `baseline.py score` reports a model's (`outline_f1`). How well a localizer can place the
+    /// buildings' edges; the instance counts and the building IoU do not say it. In pixels of the
+    /// masks' own resolution: compare it between masks of one size.
+    pub fn outline_f1(&self, tolerance_px: usize) -> f64 {
+        let k = tolerance_px.clamp(1, 2) - 1;
+        let p = self.predicted_outline_near[k] as f64 / self.predicted_outline_px.max(1) as f64;
+        let r = self.truth_outline_near[k] as f64 / self.truth_outline_px.max(1) as f64;
+        if p + r > 0.0 {
+            2.0 * p * r / (p + r)
+        } else {
+            0.0
+        }
+    }
+}
+
+/// The outline of a `w`-wide mask: its pixels with a 4-neighbour inside the image outside the mask.
+fn outline(mask: &[bool], w: usize) -> Vec<bool> {
+    let h = mask.len() / w.max(1);
+    (0..mask.len())
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            mask[i]
+                && ((x > 0 && !mask[i - 1])
+                    || (x + 1 < w && !mask[i + 1])
+                    || (y > 0 && !mask[i - w])
+                    || (y + 1 < h && !mask[i + w]))
+        })
+        .collect()
+}
+
+/// Pixels of outline `a` with a pixel of outline `b` within 1 and within 2 px (Euclidean).
+fn outline_near(a: &[bool], b: &[bool], w: usize) -> [u64; 2] {
+    let h = a.len() / w.max(1);
+    let mut near = [0u64; 2];
+    for (i, _) in a.iter().enumerate().filter(|(_, &on)| on) {
+        let (x, y) = ((i % w) as i64, (i / w) as i64);
+        let mut best = u64::MAX;
+        for dy in -2i64..=2 {
+            for dx in -2i64..=2 {
+                let d2 = (dx * dx + dy * dy) as u64;
+                let (xx, yy) = (x + dx, y + dy);
+                let inside = xx >= 0 && yy >= 0 && (xx as usize) < w && (yy as usize) < h;
+                if d2 <= 4 && d2 < best && inside && b[yy as usize * w + xx as usize] {
+                    best = d2;
+                }
+            }
+        }
+        near[0] += (best <= 1) as u64;
+        near[1] += (best <= 4) as u64;
+    }
+    near
 }
 
 /// How the instances of `q` agree with the true instances of the label image `truth` (0 = background,
@@ -274,6 +364,13 @@ pub fn agreement(truth: &[u32], n: u32, q: &Query) -> Agreement {
     a.matched_truths = matched_truth.iter().filter(|&&m| m).count() as u64;
     a.predicted_px = union.iter().filter(|&&u| u).count() as u64;
     a.both_px = union.iter().zip(truth).filter(|(&u, &t)| u && t != 0).count() as u64;
+    let w = q.width as usize;
+    let truth_outline = outline(&truth.iter().map(|&t| t != 0).collect::<Vec<_>>(), w);
+    let predicted_outline = outline(&union, w);
+    a.truth_outline_px = truth_outline.iter().filter(|&&o| o).count() as u64;
+    a.predicted_outline_px = predicted_outline.iter().filter(|&&o| o).count() as u64;
+    a.truth_outline_near = outline_near(&truth_outline, &predicted_outline, w);
+    a.predicted_outline_near = outline_near(&predicted_outline, &truth_outline, w);
     a
 }
 
@@ -437,8 +534,17 @@ impl LabelImage {
             let rim_px = ((s.rim_px_at_640 as f64 * self.w as f64 / 640.0).round() as i32).max(1);
             self.move_rims(rim_px, rng);
         }
-        if s.zoom != 1.0 {
-            self.zoom(s.zoom);
+        if s.hole_share > 0.0 {
+            self.punch_holes(s.hole_share, rng);
+        }
+        let zoom = if s.zoom_sd > 0.0 {
+            let z: f64 = rand_distr::Distribution::sample(&rand_distr::StandardNormal, rng);
+            (s.zoom + s.zoom_sd * z).clamp(*ZOOM_RANGE.start(), *ZOOM_RANGE.end())
+        } else {
+            s.zoom
+        };
+        if zoom != 1.0 {
+            self.zoom(zoom);
         }
         let whole = s.clutter_blobs.floor();
         let blobs = whole as u32 + rng.gen_bool((s.clutter_blobs - whole).clamp(0.0, 1.0)) as u32;
@@ -589,6 +695,36 @@ impl LabelImage {
         self.lab = super::resample::resize_scaled(&self.lab, size, size, centre_px, zoom);
     }
 
+    /// Missed building regions: ellipses of 1.5–5 % of the image width (half as tall to as tall),
+    /// each centred on a random building pixel, made background until `share` of the building pixels
+    /// is gone (at most 10 000 ellipses).
+    fn punch_holes(&mut self, share: f64, rng: &mut ChaCha8Rng) {
+        let (w, h) = (self.w, self.h);
+        let building: Vec<usize> = (0..w * h).filter(|&i| self.lab[i] != 0).collect();
+        let target = (share.clamp(0.0, 1.0) * building.len() as f64).round() as usize;
+        let mut removed = 0;
+        for _ in 0..10_000 {
+            if removed >= target || building.is_empty() {
+                break;
+            }
+            let i = building[rng.gen_range(0..building.len())];
+            let (cx, cy) = ((i % w) as f64, (i / w) as f64);
+            let rx = (w as f64 * rng.gen_range(0.015..0.05)).max(1.0);
+            let ry = rx * rng.gen_range(0.5..1.0);
+            let (y0, y1) = ((cy - ry).floor().max(0.0) as usize, ((cy + ry).ceil() as usize).min(h - 1));
+            let (x0, x1) = ((cx - rx).floor().max(0.0) as usize, ((cx + rx).ceil() as usize).min(w - 1));
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let (dx, dy) = ((x as f64 - cx) / rx, (y as f64 - cy) / ry);
+                    if dx * dx + dy * dy <= 1.0 && self.lab[y * w + x] != 0 && removed < target {
+                        self.lab[y * w + x] = 0;
+                        removed += 1;
+                    }
+                }
+            }
+        }
+    }
+
     /// A false-positive blob at the foot of a building: an ellipse of 0.4–1.2 % of the image width
     /// (half as tall to as tall) below a random pixel of a building's lower edge, on background
     /// pixels only; anywhere on the image when no building shows.
@@ -725,6 +861,8 @@ mod tests {
                 rim_px_at_640: 0,
                 clutter_blobs: 0.0,
                 zoom: 1.0,
+                hole_share: 0.0,
+                zoom_sd: 0.0,
             };
             f(&mut s);
             Degradation { segmenter: Some(s), ..Default::default() }
@@ -900,6 +1038,13 @@ mod tests {
             let small = degrade(w, h, &lab, 1, &only(|s| s.zoom = 0.9), 0);
             let xs: Vec<u32> = small.instances[0].pixels().map(|p| p % w).collect();
             assert_eq!((xs.iter().min(), xs.iter().max()), (Some(&145), Some(&162)));
+            // A per-frame zoom error: frames (seeds) get blocks of different sizes, larger and smaller
+            // than the truth's 200 px, and the same seed the same one.
+            let jittered =
+                |seed| degrade(w, h, &lab, 1, &only(|s| s.zoom_sd = 0.05), seed).instances[0].area_px();
+            let areas: Vec<u32> = (0..8).map(jittered).collect();
+            assert!(areas.iter().any(|&a| a > 200) && areas.iter().any(|&a| a < 200), "{areas:?}");
+            assert_eq!(jittered(3), jittered(3));
         }
 
         #[test]
@@ -917,6 +1062,27 @@ mod tests {
             }
             // The truth's pixels keep their instances.
             assert_eq!(q.instances.iter().filter(|i| i.area_px() == 80).count(), 12);
+        }
+
+        #[test]
+        fn holes_remove_the_share_of_building_pixels_and_add_nothing() {
+            let (w, h, lab, n) = street();
+            let building = lab.iter().filter(|&&l| l != 0).count() as f64;
+            let q = degrade(w, h, &lab, n, &only(|s| s.hole_share = 0.2), 3);
+            let kept: Vec<u32> = q.instances.iter().flat_map(|i| i.pixels().collect::<Vec<_>>()).collect();
+            // Exactly the share is gone (to the pixel), and every kept pixel is a building pixel of the
+            // truth, in its own instance.
+            assert_eq!(kept.len() as f64, (building * 0.8).round());
+            assert!(kept.iter().all(|&p| lab[p as usize] != 0));
+            for inst in &q.instances {
+                let first = lab[inst.pixels().next().unwrap() as usize];
+                assert!(inst.pixels().all(|p| lab[p as usize] == first));
+            }
+            assert_eq!(degrade(w, h, &lab, n, &only(|s| s.hole_share = 0.2), 3), q, "seeded");
+            assert_eq!(SegmenterLike::parse("holes=0.15").map(|m| m.hole_share), Ok(0.15));
+            assert!(SegmenterLike::parse("holes=1.5").is_err());
+            assert_eq!(SegmenterLike::parse("zoom-sd=0.002").map(|m| m.zoom_sd), Ok(0.002));
+            assert!(SegmenterLike::parse("zoom-sd=0.5").is_err());
         }
 
         #[test]
@@ -974,5 +1140,31 @@ mod tests {
         // The perfect oracle agrees completely.
         let perfect = agreement(&truth, 2, &degrade(10, 1, &truth, 2, &Degradation::default(), 0));
         assert_eq!((perfect.precision(), perfect.recall(), perfect.building_iou()), (1.0, 1.0, 1.0));
+    }
+
+    #[test]
+    fn outlines_agree_within_their_tolerance() {
+        // A 10 × 10 square in a 20 × 20 image (36 outline pixels), predicted shifted right by k px.
+        let square = |x0: usize| -> Vec<u32> {
+            (0..400)
+                .map(|i| ((x0..x0 + 10).contains(&(i % 20)) && (5..15).contains(&(i / 20))) as u32)
+                .collect()
+        };
+        let truth = square(5);
+        let shifted = |k: usize| agreement(&truth, 1, &Query::from_labels(20, 20, &square(5 + k), &[1.0]));
+        let same = shifted(0);
+        assert_eq!((same.truth_outline_px, same.predicted_outline_px), (36, 36));
+        assert_eq!((same.outline_f1(1), same.outline_f1(2)), (1.0, 1.0));
+        // One pixel off: every outline pixel has one of the other's within 1 px.
+        assert_eq!(shifted(1).outline_f1(1), 1.0);
+        // Three pixels off: the columns miss at 1 px, some still within 2 px only where the rows meet.
+        let far = shifted(3);
+        assert!(far.outline_f1(1) < far.outline_f1(2) && far.outline_f1(2) < 1.0, "{far:?}");
+        // Nothing predicted: no outline agrees.
+        let none = agreement(&truth, 1, &Query::from_labels(20, 20, &[0; 400], &[]));
+        assert_eq!(none.outline_f1(2), 0.0);
+        // The image's border is no outline.
+        let full = agreement(&[1; 400], 1, &Query::from_labels(20, 20, &[1; 400], &[1.0]));
+        assert_eq!((full.truth_outline_px, full.outline_f1(1)), (0, 0.0));
     }
 }

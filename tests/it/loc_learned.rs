@@ -60,6 +60,10 @@ fn segmenter_like_masks_of_shibuya_land_near_a_learned_segmenter() {
     assert!((0.40..=0.60).contains(&p), "{got}");
     assert!((0.40..=0.60).contains(&r), "{got}");
     assert!((0.93..=0.98).contains(&iou), "{got}");
+    // The outlines, in pixels of these 1920-wide masks: each rim is moved by 3 px (1 px at 640) in or
+    // out, or kept, with equal probability, so about a third of the outline stays within 1 or 2 px.
+    let (f1, f2) = (sum.outline_f1(1), sum.outline_f1(2));
+    assert!(0.2 < f1 && f1 <= f2 && f2 < 0.4, "outline F1 {f1:.3} / {f2:.3}: {got}");
 }
 
 #[test]
