@@ -110,4 +110,34 @@ fn eval_loc_localizes_the_demo_with_segmenter_like_masks() {
     assert!(rows.iter().any(|r| r["cost"] == "grouped"));
     let summary: Value = serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
     util::assert_schema("loc_summary.schema.json", &summary);
+
+    // A shard of a run with every segmenter key set writes a part marker its schema accepts (the
+    // degradation's parameters included), and records them.
+    ok(
+        cwd,
+        &[
+            "--no-progress",
+            "eval-loc",
+            "--area",
+            "demo-test",
+            "--camera",
+            "cam2",
+            "--oracle",
+            "--segmenter-like",
+            "learned,holes=0.1,zoom=1.001,zoom-sd=0.001",
+            "--overlays",
+            "0",
+            "--shard",
+            "1/2",
+            "--tag",
+            "sharded",
+        ],
+    );
+    let marker = cwd.join("runs/demo-test/cam2/loc/sharded/parts/1-of-2/part.json");
+    let part: Value = serde_json::from_slice(&std::fs::read(&marker).unwrap()).unwrap();
+    util::assert_schema("part.schema.json", &part);
+    let text = part.to_string();
+    for field in ["\"hole_share\":0.1", "\"zoom\":1.001", "\"zoom_sd\":0.001"] {
+        assert!(text.contains(field), "{field} in {text}");
+    }
 }
