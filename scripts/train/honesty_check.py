@@ -10,15 +10,13 @@ random order) and *constant* (0.9 everywhere). Prints one JSON object: the score
 
 import json
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import scoring  # noqa: E402
-from zoom_check import H, W, raster, rle  # noqa: E402
+from zoom_check import H, W, print_reports, raster, rle  # noqa: E402
 
 
 def write_dataset(root: Path, seed: int) -> None:
@@ -49,16 +47,7 @@ def write_dataset(root: Path, seed: int) -> None:
 
 
 def main() -> int:
-    seed = int(sys.argv[1]) if len(sys.argv) > 1 else 0
-    with tempfile.TemporaryDirectory() as d:
-        root = Path(d)
-        write_dataset(root, seed)
-        names = ("honest", "shuffled", "constant")
-        reports = {n: scoring.score(root / "instances.json", root / f"results_{n}.json") for n in names}
-    for r in reports.values():
-        r["coco"], r["results"] = "instances.json", "results.json"  # not the temporary folder's paths
-    print(json.dumps(reports))
-    return 0
+    return print_reports(write_dataset, ("honest", "shuffled", "constant"))
 
 
 if __name__ == "__main__":

@@ -61,16 +61,23 @@ def write_dataset(root: Path, seed: int) -> None:
         (root / f"results_{z}.json").write_text(json.dumps(r))
 
 
-def main() -> int:
+def print_reports(write, names) -> int:
+    """Writes a dataset with `write(root, seed)` (seed: the first argument, else 0) into a temporary
+    folder, scores its `results_<name>.json` files against its `instances.json` and prints the reports,
+    one per name, as one JSON object (the check scripts' output)."""
     seed = int(sys.argv[1]) if len(sys.argv) > 1 else 0
     with tempfile.TemporaryDirectory() as d:
         root = Path(d)
-        write_dataset(root, seed)
-        reports = {str(z): scoring.score(root / "instances.json", root / f"results_{z}.json") for z in ZOOMS}
+        write(root, seed)
+        reports = {str(n): scoring.score(root / "instances.json", root / f"results_{n}.json") for n in names}
     for r in reports.values():
         r["coco"], r["results"] = "instances.json", "results.json"  # not the temporary folder's paths
     print(json.dumps(reports))
     return 0
+
+
+def main() -> int:
+    return print_reports(write_dataset, ZOOMS)
 
 
 if __name__ == "__main__":

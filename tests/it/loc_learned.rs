@@ -73,9 +73,8 @@ fn eval_loc_localizes_the_demo_with_segmenter_like_masks() {
     ok(cwd, &["prepare", "--area", "demo-test"]);
     ok(cwd, &["sample", "--area", "demo-test", "--camera", "cam2", "--count", "3"]);
     ok(cwd, &["render-masks", "--area", "demo-test", "--camera", "cam2"]);
-    ok(
-        cwd,
-        &[
+    let eval_loc = |extra: &[&str]| {
+        let base = [
             "--no-progress",
             "eval-loc",
             "--area",
@@ -83,17 +82,12 @@ fn eval_loc_localizes_the_demo_with_segmenter_like_masks() {
             "--camera",
             "cam2",
             "--oracle",
-            "--segmenter-like",
-            "--cost",
-            "instance",
-            "--cost",
-            "grouped",
             "--overlays",
             "0",
-            "--tag",
-            "segmenter",
-        ],
-    );
+        ];
+        ok(cwd, &[&base[..], extra].concat())
+    };
+    eval_loc(&["--segmenter-like", "--cost", "instance", "--cost", "grouped", "--tag", "segmenter"]);
     let out = cwd.join("runs/demo-test/cam2/loc/segmenter");
     let rows: Vec<Value> = std::fs::read_to_string(out.join("results.jsonl"))
         .unwrap()
@@ -113,26 +107,14 @@ fn eval_loc_localizes_the_demo_with_segmenter_like_masks() {
 
     // A shard of a run with every segmenter key set writes a part marker its schema accepts (the
     // degradation's parameters included), and records them.
-    ok(
-        cwd,
-        &[
-            "--no-progress",
-            "eval-loc",
-            "--area",
-            "demo-test",
-            "--camera",
-            "cam2",
-            "--oracle",
-            "--segmenter-like",
-            "learned,holes=0.1,zoom=1.001,zoom-sd=0.001",
-            "--overlays",
-            "0",
-            "--shard",
-            "1/2",
-            "--tag",
-            "sharded",
-        ],
-    );
+    eval_loc(&[
+        "--segmenter-like",
+        "learned,holes=0.1,zoom=1.001,zoom-sd=0.001",
+        "--shard",
+        "1/2",
+        "--tag",
+        "sharded",
+    ]);
     let marker = cwd.join("runs/demo-test/cam2/loc/sharded/parts/1-of-2/part.json");
     let part: Value = serde_json::from_slice(&std::fs::read(&marker).unwrap()).unwrap();
     util::assert_schema("part.schema.json", &part);
