@@ -3,7 +3,8 @@
 
 Reads `<workdir>/loop.json` (what scripts/bench_closed_loop.sh ran), each family's `model.json`,
 `score_<holdout>.json` and `score_val.json` (the mask zoom the calibration undoes), and eval-loc's
-`summary.json` of the oracle and prediction runs, as predicted and calibrated; copies each
+`summary.json` of the oracle and prediction runs, as predicted and calibrated (and the calibrated run's
+`results.jsonl`, set against each held-out frame's outline F1, which `scoring.py` computes); copies each
 family's picture next to the report. The section sits between `<!-- run:LABEL -->` markers, so runs of
 other sizes (the CPU run, a GPU run) stay in the file.
 """
@@ -68,6 +69,38 @@ def loc_rows(summary: dict | None, source: str, prior: bool = True) -> list[str]
         depth = "–" if signed is None else f"{signed:+.2f} m ({a.get('estimates_ahead', 0)} of {a['queries']})"
         rows.append(f"| {source} | {r['method']} | {rec:.1f} % | {fmt(t, 'm')} | {fmt(q, '°')} | {depth} |")
     return rows
+
+
+OUTLINE_BANDS = ((0.0, 0.4), (0.4, 0.5), (0.5, 0.6), (0.6, 1.01))
+
+
+def outline_rows(w: Path, loop: dict, first: str) -> list[str]:
+    """Recall of the calibrated held-out queries (defaults) per band of their frame's outline F1 at 1 px."""
+    hold, cam = loop["holdout"], loop["camera"]
+    results = w / hold / cam / "loc" / f"loop-{first}-defaults-calibrated" / "results.jsonl"
+    preds = w / "model" / first / f"results_{hold}.json"
+    if not results.exists() or not preds.exists():
+        return []
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import scoring  # the training environment's; only the report needs it
+
+    f1 = scoring.outline_f1_per_frame(w / "coco" / "instances_test.json", preds, [hold])
+    rows = [json.loads(line) for line in results.read_text().splitlines() if line.strip()]
+    costs = list(dict.fromkeys(r["cost"] for r in rows))
+    out = [f"Recall at (2 m, 2°) of the calibrated queries (defaults) by how well `{first}` drew the frame's "
+           "building outlines (`outline_f1` within 1 px, per frame): where the masks' edges are off, the pose "
+           "is.", "", "| outline F1 | frames | " + " | ".join(costs) + " |", "|---|---:|" + "---:|" * len(costs)]
+    for lo, hi in OUTLINE_BANDS:
+        inside = [r for r in rows if f1.get(r["name"]) is not None and lo <= f1[r["name"]] < hi]
+        frames = len({r["name"] for r in inside})
+        cells = []
+        for c in costs:
+            rs = [r for r in inside if r["cost"] == c]
+            ok = sum(r["translation_error_m"] < 2 and r["rotation_error_deg"] < 2 for r in rs)
+            cells.append(f"{100 * ok / len(rs):.1f} % ({ok} of {len(rs)})" if rs else "–")
+        band = f"< {hi}" if lo == 0 else (f"≥ {lo}" if hi > 1 else f"{lo}–{hi}")
+        out.append(f"| {band} | {frames} | " + " | ".join(cells) + " |")
+    return out + [""]
 
 
 def fmt(v, unit):
@@ -146,6 +179,7 @@ def section(w: Path, bench: Path) -> str:
         if weighted:
             out += loc_rows(weighted, f"{first}, calibrated, instances weighted by area × score", prior=False)
         out.append("")
+    out += outline_rows(w, loop, first)
     for fam, name in pictures:
         out += [f"`{fam}` on `{hold}` — RGB | truth | prediction:", "", f"![{fam}]({name})", ""]
     if (bench / "closed_loop_fix_rooftop.png").exists():

@@ -116,23 +116,11 @@ def pixel_and_match_scores(gt: COCO, img_ids: list[int], preds: list[dict]) -> d
     tp = n_pred = n_gt = 0
     zooms = []
     outlines = np.zeros(6, np.int64)  # truth, predicted, truth near (1, 2 px), predicted near (1, 2 px)
-    by_img: dict[int, list[dict]] = {}
-    for p in preds:
-        if p["score"] >= SCORE_MIN:
-            by_img.setdefault(p["image_id"], []).append(p)
+    by_img = scored_by_image(preds)
     for i in img_ids:
-        anns = gt.loadAnns(gt.getAnnIds(imgIds=[i]))
         im = gt.imgs[i]
         h, w = im["height"], im["width"]
-        crowd = np.zeros((h, w), bool)
-        truth = [gt.annToMask(a).astype(bool) for a in anns if not a.get("iscrowd", 0)]
-        for a in anns:
-            if a.get("iscrowd", 0):
-                crowd |= gt.annToMask(a).astype(bool)
-        ps = sorted(by_img.get(i, []), key=lambda p: -p["score"])
-        pm = [mask_utils.decode(p["segmentation"]).astype(bool) for p in ps]
-        gu = np.logical_or.reduce(truth) if truth else np.zeros((h, w), bool)
-        pu = np.logical_or.reduce(pm) if pm else np.zeros((h, w), bool)
+        truth, crowd, pm, gu, pu = image_masks(gt, i, by_img.get(i, []))
         truth_px += int((gu & ~crowd).sum())
         valid_px += int((~crowd).sum())
         inter += int((gu & pu & ~crowd).sum())
@@ -152,6 +140,45 @@ def pixel_and_match_scores(gt: COCO, img_ids: list[int], preds: list[dict]) -> d
             "mask_zoom": {"median": q[1], "q25": q[0], "q75": q[2], "images": len(zooms)},
             "outline_f1": {f"{d}px": f_score(outlines[3 + d], outlines[1], outlines[1 + d], outlines[0])
                            for d in (1, 2)}}
+
+
+def scored_by_image(preds: list[dict]) -> dict[int, list[dict]]:
+    """The predictions scoring at least SCORE_MIN, per image."""
+    by_img: dict[int, list[dict]] = {}
+    for p in preds:
+        if p["score"] >= SCORE_MIN:
+            by_img.setdefault(p["image_id"], []).append(p)
+    return by_img
+
+
+def image_masks(gt: COCO, i: int, ps: list[dict]):
+    """Image i's true masks (crowd left out), crowd pixels, predicted masks (best score first), and the
+    unions of the true and the predicted ones."""
+    anns = gt.loadAnns(gt.getAnnIds(imgIds=[i]))
+    h, w = gt.imgs[i]["height"], gt.imgs[i]["width"]
+    crowd = np.zeros((h, w), bool)
+    truth = [gt.annToMask(a).astype(bool) for a in anns if not a.get("iscrowd", 0)]
+    for a in anns:
+        if a.get("iscrowd", 0):
+            crowd |= gt.annToMask(a).astype(bool)
+    pm = [mask_utils.decode(p["segmentation"]).astype(bool) for p in sorted(ps, key=lambda p: -p["score"])]
+    gu = np.logical_or.reduce(truth) if truth else np.zeros((h, w), bool)
+    pu = np.logical_or.reduce(pm) if pm else np.zeros((h, w), bool)
+    return truth, crowd, pm, gu, pu
+
+
+def outline_f1_per_frame(coco_json: Path, results: Path, areas=None) -> dict[str, float | None]:
+    """Each image's `outline_f1` within 1 px, by frame name (the image's `frame`, else its file's stem):
+    what the closed loop's report sets against each frame's localization."""
+    gt, img_ids, preds = load(coco_json, results, areas)
+    by_img = scored_by_image(preds)
+    out = {}
+    for i in img_ids:
+        _, crowd, _, gu, pu = image_masks(gt, i, by_img.get(i, []))
+        o = outline_counts(gu, pu, ~crowd)
+        im = gt.imgs[i]
+        out[im.get("frame") or Path(im["file_name"]).stem] = f_score(o[4], o[1], o[2], o[0])
+    return out
 
 
 FOUR = ndimage.generate_binary_structure(2, 1)
