@@ -218,8 +218,8 @@ pub struct Agreement {
     pub predicted_px: u64,
     /// Pixels in both unions.
     pub both_px: u64,
-    /// Outline pixels of the true union (building pixels with a background 4-neighbour; the image's
-    /// border is no outline), and of the degraded union.
+    /// Outline pixels of the true union: building pixels with a background 4-neighbour (the image's
+    /// border is no outline).
     #[serde(default)]
     pub truth_outline_px: u64,
     /// Outline pixels of the degraded union.
