@@ -157,11 +157,10 @@ done
 if stage_on loc; then
     costs=(--cost instance --cost semantic --cost merged --cost grouped)
     results="$W/model/$FIRST/results_$HOLDOUT.json"
-    zoom=$("$PY" -c 'import json, sys; print(json.load(open(sys.argv[1]))["mask_zoom"]["median"] or 1.0)' \
-        "$W/model/$FIRST/score_val.json")
-    # Scores that rank the masks on the validation split may weight the instances (area × score).
-    honest=$("$PY" -c 'import json, sys; print(str(json.load(open(sys.argv[1]))["score_honesty"]["honest"]).lower())' \
-        "$W/model/$FIRST/score_val.json")
+    # From the validation split: the mask zoom to undo, and whether the scores rank the masks well
+    # enough to weight the instances by them (area × score).
+    read -r zoom honest < <("$PY" -c 'import json, sys; s = json.load(open(sys.argv[1]))
+print(s["mask_zoom"]["median"] or 1.0, str(s["score_honesty"]["honest"]).lower())' "$W/model/$FIRST/score_val.json")
     for mode in defaults paper; do
         extra=(); [ "$mode" = paper ] && extra=(--paper)
         say "loc: oracle and $FIRST predictions, $mode (calibrated: --prediction-zoom $zoom)"

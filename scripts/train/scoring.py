@@ -138,8 +138,7 @@ def pixel_and_match_scores(gt: COCO, img_ids: list[int], preds: list[dict]) -> d
             "precision_50": round(tp / n_pred, 4) if n_pred else 0.0,
             "recall_50": round(tp / n_gt, 4) if n_gt else 0.0,
             "mask_zoom": {"median": q[1], "q25": q[0], "q75": q[2], "images": len(zooms)},
-            "outline_f1": {f"{d}px": f_score(outlines[3 + d], outlines[1], outlines[1 + d], outlines[0])
-                           for d in (1, 2)}}
+            "outline_f1": {f"{d}px": outline_f1(outlines, d) for d in (1, 2)}}
 
 
 def scored_by_image(preds: list[dict]) -> dict[int, list[dict]]:
@@ -175,9 +174,8 @@ def outline_f1_per_frame(coco_json: Path, results: Path, areas=None) -> dict[str
     out = {}
     for i in img_ids:
         _, crowd, _, gu, pu = image_masks(gt, i, by_img.get(i, []))
-        o = outline_counts(gu, pu, ~crowd)
         im = gt.imgs[i]
-        out[im.get("frame") or Path(im["file_name"]).stem] = f_score(o[4], o[1], o[2], o[0])
+        out[im.get("frame") or Path(im["file_name"]).stem] = outline_f1(outline_counts(gu, pu, ~crowd), 1)
     return out
 
 
@@ -195,11 +193,13 @@ def outline_counts(truth: np.ndarray, pred: np.ndarray, valid: np.ndarray) -> np
     return np.array([t.sum(), p.sum(), near[0], near[1], near[2], near[3]], np.int64)
 
 
-def f_score(pred_near: int, pred: int, truth_near: int, truth: int):
-    """F-score of the shares pred_near / pred and truth_near / truth; None without outlines."""
+def outline_f1(counts: np.ndarray, tolerance_px: int):
+    """The F-score within `tolerance_px` (1 or 2) of `outline_counts`' counts (summed over images or
+    not): of the shares of predicted and of true outline pixels found; None without outlines."""
+    truth, pred = counts[0], counts[1]
     if pred == 0 or truth == 0:
         return None if pred == truth == 0 else 0.0
-    pr, rc = pred_near / pred, truth_near / truth
+    rc, pr = counts[1 + tolerance_px] / truth, counts[3 + tolerance_px] / pred
     return round(float(2 * pr * rc / (pr + rc)), 4) if pr + rc > 0 else 0.0
 
 
