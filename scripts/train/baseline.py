@@ -11,7 +11,7 @@
   score    --coco FILE.json --results RESULTS.json [--area NAME] [--out SCORE.json]
            pycocotools COCOeval (segm: AP, AP50, AP75), building-pixel IoU, precision/recall at IoU 0.5
   sheet    --coco FILE.json --results RESULTS.json --out SHEET.png [--area NAME] [--count N]
-           rows of RGB | truth | prediction
+           rows of RGB | truth | prediction | building pixels missed (red) and extra (blue)
   pack     --coco DIR --out DIR [--quality Q]
            a compact, self-contained copy of an export (JPEG photos, annotations as they are) to train
            on another machine, e.g. a GPU machine that takes a few tens of MB

@@ -35,7 +35,10 @@ bound the masks allow; the calibrated rows undo the mask zoom measured on the va
 (`eval-loc --prediction-zoom`), so no held-out frame informs them. The score rank correlation is
 `score_honesty`'s: how well the predictions' scores rank their masks (Spearman, against each mask's best
 IoU with a true instance); where the validation split finds them honest, the loop also weights the
-instances by box area × score (`eval-loc --weighting area-conf`).
+instances by box area × score (`eval-loc --weighting area-conf`). The loop's photos are rendered from
+the map, so the map is as detailed as what they show; there the grouped cost keeps its groups in the
+polish's second pass (`--polish-semantic-weight 0`) rather than the union's outline, the default made
+for maps coarser than the photos (bench/loc_learned.md).
 """
 
 
@@ -178,6 +181,10 @@ def section(w: Path, bench: Path) -> str:
         weighted = load(base / f"loop-{first}-{mode}-calibrated-area-conf" / "summary.json")
         if weighted:
             out += loc_rows(weighted, f"{first}, calibrated, instances weighted by area × score", prior=False)
+        kept = load(base / f"loop-{first}-{mode}-calibrated-groups-kept" / "summary.json")
+        if kept:
+            out += loc_rows(kept, f"{first}, calibrated, groups kept in the polish (`--polish-semantic-weight 0`)",
+                            prior=False)
         out.append("")
     out += outline_rows(w, loop, first)
     for fam, name in pictures:

@@ -293,18 +293,36 @@ def sheet(coco_json: Path, results: Path, out: Path, areas=None, count: int = 6,
         truth = [gt.annToMask(a).astype(bool) for a in gt.loadAnns(gt.getAnnIds(imgIds=[i]))]
         ps = sorted((p for p in preds if p["image_id"] == i and p["score"] >= min_score), key=lambda p: p["score"])
         pm = [mask_utils.decode(p["segmentation"]).astype(bool) for p in ps]
-        row = np.concatenate([rgb, np.full((rgb.shape[0], 4, 3), 255, np.uint8), paint(truth, rgb),
-                              np.full((rgb.shape[0], 4, 3), 255, np.uint8), paint(pm, rgb)], axis=1)
-        label = f"{im.get('area_name', '')}/{im.get('frame', i)}: {len(truth)} true, {len(pm)} predicted"
+        errors, missed, extra = building_errors(truth, pm, rgb)
+        gap = np.full((rgb.shape[0], 4, 3), 255, np.uint8)
+        row = np.concatenate([rgb, gap, paint(truth, rgb), gap, paint(pm, rgb), gap, errors], axis=1)
+        label = (f"{im.get('area_name', '')}/{im.get('frame', i)}: {len(truth)} true, {len(pm)} predicted; "
+                 f"building px missed {100 * missed:.0f} %, extra {100 * extra:.0f} %")
         rows.append(caption(row, label))
     w = max(r.shape[1] for r in rows)
     head = caption(np.zeros((0, w, 3), np.uint8), "RGB | truth (annotations) | prediction (score >= "
-                   f"{min_score}); each instance one colour, outlines white")
+                   f"{min_score}); each instance one colour, outlines white | building pixels: both grey, "
+                   "missed red, extra blue")
     pic = np.concatenate([head] + rows, axis=0)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + ".tmp.png")
     Image.fromarray(pic).save(tmp)
     tmp.replace(out)
+
+
+def building_errors(truth: list, predicted: list, rgb: np.ndarray):
+    """The photo darkened, with the building pixels both masks hold grey, those only the truth holds
+    (missed) red and those only the prediction holds (extra) blue; and the missed and extra pixels as
+    shares of the true building pixels."""
+    shape = rgb.shape[:2]
+    t = np.logical_or.reduce(truth) if truth else np.zeros(shape, bool)
+    p = np.logical_or.reduce(predicted) if predicted else np.zeros(shape, bool)
+    out = rgb // 2
+    out[t & p] = (200, 200, 200)
+    out[t & ~p] = (255, 60, 60)
+    out[~t & p] = (60, 120, 255)
+    n = max(int(t.sum()), 1)
+    return out, float((t & ~p).sum()) / n, float((~t & p).sum()) / n
 
 
 def caption(row: np.ndarray, text: str) -> np.ndarray:

@@ -185,7 +185,9 @@ pub struct Args {
     /// Weight of the semantic IoU in the instance cost during the polish's second pass, after a first
     /// pass in the filter's cost: within the basin the instances chose, the union's outline does not
     /// depend on the map's occlusion order, which a coarse map gets wrong [default: 1]. Setting it to
-    /// --semantic-weight (and --silhouette-offset 0) leaves one pass.
+    /// --semantic-weight (and --silhouette-offset 0) leaves one pass. 0 keeps the grouped cost's
+    /// per-building structure: the better polish for learned masks where the photos show what the map
+    /// shows (insgen's own renders of the LoD models), the worse against LoD1 blocks.
     #[arg(long, value_name = "W", value_parser = parse_unit_fraction)]
     pub polish_semantic_weight: Option<f64>,
     /// Largest silhouette offset in pixels fitted before the polish's second pass: the rendered

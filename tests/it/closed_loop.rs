@@ -357,6 +357,39 @@ fn score_says_whether_scores_rank_the_masks() {
 }
 
 #[test]
+fn the_sheet_marks_missed_and_extra_building_pixels() {
+    // `baseline.py sheet`'s last panel: a 10 × 10 true building whose prediction misses its bottom
+    // two rows (a facade) and spills one column to the right.
+    let Some(py) = train_python() else { return };
+    let code = r#"
+import json, sys
+import numpy as np
+sys.path.insert(0, sys.argv[1])
+import scoring
+truth, pred = np.zeros((20, 20), bool), np.zeros((20, 20), bool)
+truth[5:15, 5:15] = True
+pred[5:13, 5:16] = True
+rgb = np.full((20, 20, 3), 100, np.uint8)
+pic, missed, extra = scoring.building_errors([truth], [pred], rgb)
+print(json.dumps({"missed": missed, "extra": extra, "both": pic[6, 6].tolist(),
+                  "miss": pic[14, 6].tolist(), "spill": pic[6, 15].tolist(), "ground": pic[0, 0].tolist(),
+                  "none": scoring.building_errors([], [], rgb)[1:]}))
+"#;
+    let o = ok(
+        Command::new(&py).args(["-c", code]).arg(repo().join("scripts/train")).output().expect("python runs"),
+        "building_errors",
+    );
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["missed"].as_f64().unwrap(), 0.2, "{v}");
+    assert_eq!(v["extra"].as_f64().unwrap(), 0.08, "{v}");
+    assert_eq!(v["both"], serde_json::json!([200, 200, 200]));
+    assert_eq!(v["miss"], serde_json::json!([255, 60, 60]));
+    assert_eq!(v["spill"], serde_json::json!([60, 120, 255]));
+    assert_eq!(v["ground"], serde_json::json!([50, 50, 50]), "the photo darkened elsewhere");
+    assert_eq!(v["none"], serde_json::json!([0.0, 0.0]), "no building: nothing missed");
+}
+
+#[test]
 fn numpy_rle_equals_pycocotools() {
     // Training and prediction encode masks without pycocotools (a GPU machine may lack it): the
     // strings, the decoded masks and the boxes must be pycocotools' own.
