@@ -27,8 +27,14 @@ MODES=${MODES:-"defaults groups-kept pure"}
 PY="${INSGEN_TRAIN_PYTHON:-$ROOT/.venv-train/bin/python}"
 [ -f "$LOOP/loop.json" ] || { echo "loc_fresh_holdout: $LOOP/loop.json: not a closed-loop work directory" >&2; exit 2; }
 [ -x "$PY" ] || { echo "loc_fresh_holdout: $PY: no training interpreter (run scripts/setup_train.sh)" >&2; exit 2; }
-read -r HOLDOUT CAMERA FIRST < <("$PY" -c 'import json, sys; l = json.load(open(sys.argv[1]))
-print(l["holdout"], l["camera"], l["families"].split()[0])' "$LOOP/loop.json")
+info=$("$PY" -c 'import json, sys
+try:
+    l = json.load(open(sys.argv[1]))
+    print(l["holdout"], l["camera"], l["families"].split()[0])
+except (OSError, ValueError, KeyError, IndexError, AttributeError) as e:
+    sys.exit(f"loc_fresh_holdout: {sys.argv[1]}: not a closed loop'"'"'s loop.json ({type(e).__name__}: {e})")' \
+    "$LOOP/loop.json") || exit 2
+read -r HOLDOUT CAMERA FIRST <<< "$info"
 M="$LOOP/model/$FIRST"
 for f in checkpoint.pt score_val.json; do
     [ -f "$M/$f" ] || { echo "loc_fresh_holdout: $M/$f missing (run the loop's train and score stages)" >&2; exit 2; }
