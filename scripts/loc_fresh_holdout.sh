@@ -83,12 +83,11 @@ import json, sys
 from pathlib import Path
 sys.path.insert(0, "scripts/train")
 import scoring  # noqa: E402
-from loop_report import OUTLINE_BANDS  # noqa: E402
+from loop_report import OUTLINE_BANDS, by_outline_band, localized  # noqa: E402
 
 w, hold, cam, loop, zoom, modes = Path(sys.argv[1]), sys.argv[2], sys.argv[3], sys.argv[4], sys.argv[5], sys.argv[6:]
 score = json.loads((w / f"score_{hold}.json").read_text())
 f1 = scoring.outline_f1_per_frame(w / "coco" / "instances_test.json", w / f"results_{hold}.json", [hold])
-ok = lambda r: r["translation_error_m"] < 2 and r["rotation_error_deg"] < 2
 print(f"# Fresh held-out frames: {loop} on {hold}/{cam}\n")
 print(f"{score['images']} frames; AP50 {score['AP50']:.3f}, building IoU {score['building_iou']:.3f}, outline F1 "
       f"{score['outline_f1']['1px']:.2f} / {score['outline_f1']['2px']:.2f} (1 / 2 px); mask zoom undone {zoom} "
@@ -99,14 +98,12 @@ print("|---|---|---:|---:|" + "---:|" * len(OUTLINE_BANDS))
 for mode in modes:
     rows = [json.loads(l) for l in (w / hold / cam / "loc" / f"fresh-{mode}" / "results.jsonl").read_text().splitlines()
             if l.strip()]
-    for cost in dict.fromkeys(r["cost"] for r in rows):
+    costs, bands = by_outline_band(rows, f1)
+    for cost in costs:
         rs = [r for r in rows if r["cost"] == cost]
-        bands = []
-        for lo, hi in OUTLINE_BANDS:
-            inside = [r for r in rs if f1.get(r["name"]) is not None and lo <= f1[r["name"]] < hi]
-            bands.append(f"{sum(map(ok, inside))} of {len(inside)}")
-        print(f"| {mode} | {cost} | {100 * sum(map(ok, rs)) / len(rs):.1f} % | "
-              f"{max(r['translation_error_m'] for r in rs):.1f} | " + " | ".join(bands) + " |")
+        cells = [f"{counts[cost][0]} of {counts[cost][1]}" for _, _, _, counts in bands]
+        print(f"| {mode} | {cost} | {100 * sum(map(localized, rs)) / len(rs):.1f} % | "
+              f"{max(r['translation_error_m'] for r in rs):.1f} | " + " | ".join(cells) + " |")
 EOF
 mv "$W/fresh_report.md.tmp" "$W/fresh_report.md"
 cat "$W/fresh_report.md"

@@ -77,6 +77,26 @@ def loc_rows(summary: dict | None, source: str, prior: bool = True) -> list[str]
 OUTLINE_BANDS = ((0.0, 0.4), (0.4, 0.5), (0.5, 0.6), (0.6, 1.01))
 
 
+def localized(r: dict) -> bool:
+    """Whether an eval-loc result lies within (2 m, 2°) of the truth."""
+    return r["translation_error_m"] < 2 and r["rotation_error_deg"] < 2
+
+
+def by_outline_band(rows: list[dict], f1: dict) -> tuple[list[str], list[tuple]]:
+    """eval-loc's results per band of their frame's outline F1 (`f1`, by frame name; OUTLINE_BANDS): the
+    costs, and per band (lo, hi, frames, {cost: (localized, queries)})."""
+    costs = list(dict.fromkeys(r["cost"] for r in rows))
+    bands = []
+    for lo, hi in OUTLINE_BANDS:
+        inside = [r for r in rows if f1.get(r["name"]) is not None and lo <= f1[r["name"]] < hi]
+        counts = {}
+        for c in costs:
+            rs = [r for r in inside if r["cost"] == c]
+            counts[c] = (sum(map(localized, rs)), len(rs))
+        bands.append((lo, hi, len({r["name"] for r in inside}), counts))
+    return costs, bands
+
+
 def outline_rows(w: Path, loop: dict, first: str) -> list[str]:
     """Recall of the calibrated held-out queries (defaults) per band of their frame's outline F1 at 1 px."""
     hold, cam = loop["holdout"], loop["camera"]
@@ -89,18 +109,12 @@ def outline_rows(w: Path, loop: dict, first: str) -> list[str]:
 
     f1 = scoring.outline_f1_per_frame(w / "coco" / "instances_test.json", preds, [hold])
     rows = [json.loads(line) for line in results.read_text().splitlines() if line.strip()]
-    costs = list(dict.fromkeys(r["cost"] for r in rows))
+    costs, bands = by_outline_band(rows, f1)
     out = [f"Recall at (2 m, 2°) of the calibrated queries (defaults) by how well `{first}` drew the frame's "
            "building outlines (`outline_f1` within 1 px, per frame): where the masks' edges are off, the pose "
            "is.", "", "| outline F1 | frames | " + " | ".join(costs) + " |", "|---|---:|" + "---:|" * len(costs)]
-    for lo, hi in OUTLINE_BANDS:
-        inside = [r for r in rows if f1.get(r["name"]) is not None and lo <= f1[r["name"]] < hi]
-        frames = len({r["name"] for r in inside})
-        cells = []
-        for c in costs:
-            rs = [r for r in inside if r["cost"] == c]
-            ok = sum(r["translation_error_m"] < 2 and r["rotation_error_deg"] < 2 for r in rs)
-            cells.append(f"{100 * ok / len(rs):.1f} % ({ok} of {len(rs)})" if rs else "–")
+    for lo, hi, frames, counts in bands:
+        cells = [f"{100 * ok / n:.1f} % ({ok} of {n})" if n else "–" for ok, n in counts.values()]
         band = f"< {hi}" if lo == 0 else (f"≥ {lo}" if hi > 1 else f"{lo}–{hi}")
         out.append(f"| {band} | {frames} | " + " | ".join(cells) + " |")
     return out + [""]
