@@ -9,7 +9,11 @@
 #
 #   scripts/bench_closed_loop.sh [--size small|full] [--train "A B ..."] [--holdout AREA]
 #       [--families "unet maskrcnn"] [--minutes M] [--steps N] [--device auto|cpu|cuda]
-#       [--queries Q] [--holdout-frames N] [--workdir DIR] [--label NAME] [--train-rgb "FLAGS"] [STAGE ...]
+#       [--queries Q] [--holdout-frames N] [--frames N] [--workdir DIR] [--label NAME]
+#       [--train-rgb "FLAGS"] [STAGE ...]
+#
+# --frames sets the frames sampled per training area (the size's default otherwise): a data-scaling
+# point at the same steps, with the same held-out frames.
 #
 # --train-rgb passes extra `render-rgb` flags for the training areas only (e.g. "--no-neighbour-contrast
 # --force"): an A/B of a data fix, in which the held-out photos stay the same.
@@ -31,7 +35,7 @@ ROOT=$(pwd)
 export NODEVICE_SELECT=1
 
 SIZE=small TRAIN="" HOLDOUT="" FAMILIES="unet maskrcnn" MINUTES="" STEPS="" DEVICE=auto QUERIES=""
-WORKDIR="" LABEL="" RETRAIN=0 TRAIN_RGB="" HOLD_FRAMES="" STAGES=()
+WORKDIR="" LABEL="" RETRAIN=0 TRAIN_RGB="" HOLD_FRAMES="" FRAMES="" STAGES=()
 while [ $# -gt 0 ]; do
     case "$1" in
         --size) SIZE=$2; shift 2 ;;
@@ -47,6 +51,7 @@ while [ $# -gt 0 ]; do
         --retrain) RETRAIN=1; shift ;;
         --train-rgb) TRAIN_RGB=$2; shift 2 ;;
         --holdout-frames) HOLD_FRAMES=$2; shift 2 ;;
+        --frames) FRAMES=$2; shift 2 ;;
         -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d'; exit 0 ;;
         data|train|predict|score|loc|report) STAGES+=("$1"); shift ;;
         *) echo "bench_closed_loop: unknown argument $1 (see --help)" >&2; exit 2 ;;
@@ -69,6 +74,14 @@ esac
 if [ -n "$HOLD_FRAMES" ]; then
     HOLD_COUNT=$HOLD_FRAMES
 fi
+if [ -n "$FRAMES" ]; then
+    COUNT=$FRAMES
+fi
+for n in "$COUNT" "$HOLD_COUNT"; do
+    case "$n" in
+        ''|*[!0-9]*|0) echo "bench_closed_loop: --frames and --holdout-frames take a positive count, not '$n'" >&2; exit 2 ;;
+    esac
+done
 if [ -z "$TRAIN" ]; then
     TRAIN="demo demo-val"
     have nl_denhaag_lod2 && TRAIN+=" denhaag"
@@ -101,7 +114,7 @@ cat > "$W/loop.json.tmp" <<EOF
  "frames_per_area": $COUNT, "holdout_frames": $HOLD_COUNT, "families": "$FAMILIES", "minutes": "$MINUTES",
  "steps": "${STEPS:-}", "queries": $QUERIES, "width": $WIDTH, "batch": $BATCH, "crop": "$CROP",
  "train_rgb": "$TRAIN_RGB",
- "command": "scripts/bench_closed_loop.sh --size $SIZE --train '$TRAIN' --holdout $HOLDOUT --families '$FAMILIES' --minutes $MINUTES${STEPS:+ --steps $STEPS} --device $DEVICE --queries $QUERIES${HOLD_FRAMES:+ --holdout-frames $HOLD_FRAMES}${TRAIN_RGB:+ --train-rgb '$TRAIN_RGB'}"}
+ "command": "scripts/bench_closed_loop.sh --size $SIZE --train '$TRAIN' --holdout $HOLDOUT --families '$FAMILIES' --minutes $MINUTES${STEPS:+ --steps $STEPS} --device $DEVICE --queries $QUERIES${HOLD_FRAMES:+ --holdout-frames $HOLD_FRAMES}${FRAMES:+ --frames $FRAMES}${TRAIN_RGB:+ --train-rgb '$TRAIN_RGB'}"}
 EOF
 mv "$W/loop.json.tmp" "$W/loop.json"
 

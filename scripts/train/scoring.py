@@ -290,10 +290,10 @@ def sheet(coco_json: Path, results: Path, out: Path, areas=None, count: int = 6,
     for i in dict.fromkeys(picks):
         im = gt.imgs[i]
         rgb = np.asarray(Image.open(root / im["file_name"]).convert("RGB"))
-        truth = [gt.annToMask(a).astype(bool) for a in gt.loadAnns(gt.getAnnIds(imgIds=[i]))]
-        ps = sorted((p for p in preds if p["image_id"] == i and p["score"] >= min_score), key=lambda p: p["score"])
-        pm = [mask_utils.decode(p["segmentation"]).astype(bool) for p in ps]
-        errors, missed, extra = building_errors(truth, pm, rgb)
+        ps = [p for p in preds if p["image_id"] == i and p["score"] >= min_score]
+        truth, crowd, pm, _, _ = image_masks(gt, i, ps)
+        pm.reverse()  # the best score painted last, on top
+        errors, missed, extra = building_errors(truth, pm, rgb, crowd)
         gap = np.full((rgb.shape[0], 4, 3), 255, np.uint8)
         row = np.concatenate([rgb, gap, paint(truth, rgb), gap, paint(pm, rgb), gap, errors], axis=1)
         label = (f"{im.get('area_name', '')}/{im.get('frame', i)}: {len(truth)} true, {len(pm)} predicted; "
@@ -302,7 +302,7 @@ def sheet(coco_json: Path, results: Path, out: Path, areas=None, count: int = 6,
     w = max(r.shape[1] for r in rows)
     head = caption(np.zeros((0, w, 3), np.uint8), "RGB | truth (annotations) | prediction (score >= "
                    f"{min_score}); each instance one colour, outlines white | building pixels: both grey, "
-                   "missed red, extra blue")
+                   "missed red, extra blue, crowd regions (not counted) dark")
     pic = np.concatenate([head] + rows, axis=0)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + ".tmp.png")
@@ -310,19 +310,22 @@ def sheet(coco_json: Path, results: Path, out: Path, areas=None, count: int = 6,
     tmp.replace(out)
 
 
-def building_errors(truth: list, predicted: list, rgb: np.ndarray):
+def building_errors(truth: list, predicted: list, rgb: np.ndarray, ignore: np.ndarray | None = None):
     """The photo darkened, with the building pixels both masks hold grey, those only the truth holds
     (missed) red and those only the prediction holds (extra) blue; and the missed and extra pixels as
-    shares of the true building pixels."""
+    shares of the true building pixels. Pixels under `ignore` (crowd annotations: regions the labels
+    leave open) count neither way and are drawn darker still."""
     shape = rgb.shape[:2]
     t = np.logical_or.reduce(truth) if truth else np.zeros(shape, bool)
     p = np.logical_or.reduce(predicted) if predicted else np.zeros(shape, bool)
+    keep = ~ignore if ignore is not None else np.ones(shape, bool)
     out = rgb // 2
-    out[t & p] = (200, 200, 200)
-    out[t & ~p] = (255, 60, 60)
-    out[~t & p] = (60, 120, 255)
-    n = max(int(t.sum()), 1)
-    return out, float((t & ~p).sum()) / n, float((~t & p).sum()) / n
+    out[t & p & keep] = (200, 200, 200)
+    out[t & ~p & keep] = (255, 60, 60)
+    out[~t & p & keep] = (60, 120, 255)
+    out[~keep] = rgb[~keep] // 5
+    n = max(int((t & keep).sum()), 1)
+    return out, float((t & ~p & keep).sum()) / n, float((~t & p & keep).sum()) / n
 
 
 def caption(row: np.ndarray, text: str) -> np.ndarray:

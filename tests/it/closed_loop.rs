@@ -374,12 +374,20 @@ pic, missed, extra = scoring.building_errors([truth], [pred], rgb)
 print(json.dumps({"missed": missed, "extra": extra, "both": pic[6, 6].tolist(),
                   "miss": pic[14, 6].tolist(), "spill": pic[6, 15].tolist(), "ground": pic[0, 0].tolist(),
                   "none": scoring.building_errors([], [], rgb)[1:]}))
+# A crowd region over half the missed facade and the spilled column: counted neither way.
+crowd = np.zeros((20, 20), bool)
+crowd[13:15, 5:10] = True
+crowd[:, 15] = True
+pic, missed, extra = scoring.building_errors([truth], [pred], rgb, crowd)
+print(json.dumps({"missed": missed, "extra": extra, "crowd": pic[14, 6].tolist(), "miss": pic[14, 12].tolist()}))
 "#;
     let o = ok(
         Command::new(&py).args(["-c", code]).arg(repo().join("scripts/train")).output().expect("python runs"),
         "building_errors",
     );
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let out = String::from_utf8(o.stdout).unwrap();
+    let (v, c) = out.trim().split_once('\n').expect("two lines");
+    let v: serde_json::Value = serde_json::from_str(v).unwrap();
     assert_eq!(v["missed"].as_f64().unwrap(), 0.2, "{v}");
     assert_eq!(v["extra"].as_f64().unwrap(), 0.08, "{v}");
     assert_eq!(v["both"], serde_json::json!([200, 200, 200]));
@@ -387,6 +395,11 @@ print(json.dumps({"missed": missed, "extra": extra, "both": pic[6, 6].tolist(),
     assert_eq!(v["spill"], serde_json::json!([60, 120, 255]));
     assert_eq!(v["ground"], serde_json::json!([50, 50, 50]), "the photo darkened elsewhere");
     assert_eq!(v["none"], serde_json::json!([0.0, 0.0]), "no building: nothing missed");
+    let c: serde_json::Value = serde_json::from_str(c).unwrap();
+    assert_eq!(c["missed"].as_f64().unwrap(), 10.0 / 90.0, "10 of the 90 counted true pixels: {c}");
+    assert_eq!(c["extra"].as_f64().unwrap(), 0.0, "the spill lies in the crowd region: {c}");
+    assert_eq!(c["crowd"], serde_json::json!([20, 20, 20]), "crowd drawn darker");
+    assert_eq!(c["miss"], serde_json::json!([255, 60, 60]));
 }
 
 #[test]
