@@ -10,7 +10,12 @@
 #   scripts/bench_closed_loop.sh [--size small|full] [--train "A B ..."] [--holdout AREA]
 #       [--families "unet maskrcnn"] [--minutes M] [--steps N] [--device auto|cpu|cuda]
 #       [--queries Q] [--holdout-frames N] [--frames N] [--workdir DIR] [--label NAME]
-#       [--train-rgb "FLAGS"] [STAGE ...]
+#       [--train-rgb "FLAGS"] [--calibrate AREA] [STAGE ...]
+#
+# --calibrate measures the model's mask zoom on AREA instead of the validation split: an area neither
+# trained on nor held out, whose frames the model has never seen (e.g. delft). A model can draw the
+# edges of the frames it was trained on exactly and still bleed past them on a city it has not seen
+# (bench/closed_loop.md, "More frames, more steps"), which the validation split cannot measure.
 #
 # --frames sets the frames sampled per training area (the size's default otherwise): a data-scaling
 # point at the same steps, with the same held-out frames.
@@ -35,7 +40,7 @@ ROOT=$(pwd)
 export NODEVICE_SELECT=1
 
 SIZE=small TRAIN="" HOLDOUT="" FAMILIES="unet maskrcnn" MINUTES="" STEPS="" DEVICE=auto QUERIES=""
-WORKDIR="" LABEL="" RETRAIN=0 TRAIN_RGB="" HOLD_FRAMES="" FRAMES="" STAGES=()
+WORKDIR="" LABEL="" RETRAIN=0 TRAIN_RGB="" HOLD_FRAMES="" FRAMES="" CAL="" STAGES=()
 while [ $# -gt 0 ]; do
     case "$1" in
         --size) SIZE=$2; shift 2 ;;
@@ -52,6 +57,7 @@ while [ $# -gt 0 ]; do
         --train-rgb) TRAIN_RGB=$2; shift 2 ;;
         --holdout-frames) HOLD_FRAMES=$2; shift 2 ;;
         --frames) FRAMES=$2; shift 2 ;;
+        --calibrate) CAL=$2; shift 2 ;;
         -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d'; exit 0 ;;
         data|train|predict|score|loc|report) STAGES+=("$1"); shift ;;
         *) echo "bench_closed_loop: unknown argument $1 (see --help)" >&2; exit 2 ;;
@@ -93,7 +99,9 @@ if [ -z "$HOLDOUT" ]; then
 fi
 for a in $TRAIN; do
     [ "$a" != "$HOLDOUT" ] || { echo "bench_closed_loop: $a is both trained on and held out" >&2; exit 2; }
+    [ "$a" != "$CAL" ] || { echo "bench_closed_loop: $a is both trained on and the calibration area" >&2; exit 2; }
 done
+[ "$CAL" != "$HOLDOUT" ] || { echo "bench_closed_loop: $CAL is both held out and the calibration area" >&2; exit 2; }
 : "${WORKDIR:=runs/closed_loop_$SIZE}"
 : "${LABEL:=$SIZE}"
 W=$WORKDIR
@@ -113,8 +121,8 @@ cat > "$W/loop.json.tmp" <<EOF
 {"size": "$SIZE", "label": "$LABEL", "camera": "$CAMERA", "train_areas": "$TRAIN", "holdout": "$HOLDOUT",
  "frames_per_area": $COUNT, "holdout_frames": $HOLD_COUNT, "families": "$FAMILIES", "minutes": "$MINUTES",
  "steps": "${STEPS:-}", "queries": $QUERIES, "width": $WIDTH, "batch": $BATCH, "crop": "$CROP",
- "train_rgb": "$TRAIN_RGB",
- "command": "scripts/bench_closed_loop.sh --size $SIZE --train '$TRAIN' --holdout $HOLDOUT --families '$FAMILIES' --minutes $MINUTES${STEPS:+ --steps $STEPS} --device $DEVICE --queries $QUERIES${HOLD_FRAMES:+ --holdout-frames $HOLD_FRAMES}${FRAMES:+ --frames $FRAMES}${TRAIN_RGB:+ --train-rgb '$TRAIN_RGB'}"}
+ "train_rgb": "$TRAIN_RGB", "calibration": "${CAL:-val}",
+ "command": "scripts/bench_closed_loop.sh --size $SIZE --train '$TRAIN' --holdout $HOLDOUT --families '$FAMILIES' --minutes $MINUTES${STEPS:+ --steps $STEPS} --device $DEVICE --queries $QUERIES${HOLD_FRAMES:+ --holdout-frames $HOLD_FRAMES}${FRAMES:+ --frames $FRAMES}${TRAIN_RGB:+ --train-rgb '$TRAIN_RGB'}${CAL:+ --calibrate $CAL}"}
 EOF
 mv "$W/loop.json.tmp" "$W/loop.json"
 
@@ -133,7 +141,19 @@ if stage_on data; then
     done
     say "data: export-coco (held out: $HOLDOUT)"
     "${B[@]}" -q export-coco --holdout "$HOLDOUT"
+    if [ -n "$CAL" ]; then
+        # The calibration area in a work directory of its own, so that no split of the loop holds it.
+        say "data: calibration area $CAL ($HOLD_COUNT frames of $CAMERA)"
+        C=("$INSGEN" --workdir "$W/calibration" --no-progress --log-every 20 -q)
+        "${C[@]}" prepare --area "$CAL"
+        "${C[@]}" sample --area "$CAL" --camera "$cam_file" --count "$HOLD_COUNT"
+        "${C[@]}" render-masks --area "$CAL" --camera "$CAMERA"
+        "${C[@]}" render-rgb --area "$CAL" --camera "$CAMERA"
+        "${C[@]}" export-coco --holdout "$CAL"
+    fi
 fi
+# The frames the mask zoom is measured on: the calibration area's, else the validation split's.
+if [ -n "$CAL" ]; then CAL_COCO="$W/calibration/coco/instances_test.json"; else CAL_COCO="$W/coco/instances_val.json"; fi
 
 for fam in $FAMILIES; do
     M="$W/model/$fam"
@@ -155,6 +175,10 @@ for fam in $FAMILIES; do
             --area "$HOLDOUT" --device "$DEVICE" --out "$M/results_$HOLDOUT.json"
         "$PY" "$BASE" predict --checkpoint "$M/checkpoint.pt" --coco "$W/coco/instances_val.json" \
             --device "$DEVICE" --out "$M/results_val.json"
+        if [ -n "$CAL" ]; then
+            "$PY" "$BASE" predict --checkpoint "$M/checkpoint.pt" --coco "$CAL_COCO" \
+                --device "$DEVICE" --out "$M/results_calibration.json"
+        fi
     fi
     if stage_on score; then
         "$PY" "$BASE" score --coco "$W/coco/instances_test.json" --results "$M/results_$HOLDOUT.json" \
@@ -162,6 +186,10 @@ for fam in $FAMILIES; do
         # The calibration: the model's mask zoom on the validation split (known poses; not held out).
         "$PY" "$BASE" score --coco "$W/coco/instances_val.json" --results "$M/results_val.json" \
             --out "$M/score_val.json" > /dev/null
+        if [ -n "$CAL" ]; then
+            "$PY" "$BASE" score --coco "$CAL_COCO" --results "$M/results_calibration.json" \
+                --out "$M/score_calibration.json" > /dev/null
+        fi
         "$PY" "$BASE" sheet --coco "$W/coco/instances_test.json" --results "$M/results_$HOLDOUT.json" \
             --area "$HOLDOUT" --count 4 --out "$M/sheet_$HOLDOUT.png"
     fi
@@ -170,10 +198,13 @@ done
 if stage_on loc; then
     costs=(--cost instance --cost semantic --cost merged --cost grouped)
     results="$W/model/$FIRST/results_$HOLDOUT.json"
-    # From the validation split: the mask zoom to undo, and whether the scores rank the masks well
-    # enough to weight the instances by them (area × score).
-    read -r zoom honest < <("$PY" -c 'import json, sys; s = json.load(open(sys.argv[1]))
-print(s["mask_zoom"]["median"] or 1.0, str(s["score_honesty"]["honest"]).lower())' "$W/model/$FIRST/score_val.json")
+    # The mask zoom to undo, from the calibration frames (the calibration area's, else the validation
+    # split's), and from the validation split whether the scores rank the masks well enough to weight
+    # the instances by them (area × score).
+    zoom_score="$W/model/$FIRST/score_val.json"
+    [ -z "$CAL" ] || zoom_score="$W/model/$FIRST/score_calibration.json"
+    read -r zoom honest < <("$PY" -c 'import json, sys; z, s = (json.load(open(f)) for f in sys.argv[1:])
+print(z["mask_zoom"]["median"] or 1.0, str(s["score_honesty"]["honest"]).lower())' "$zoom_score" "$W/model/$FIRST/score_val.json")
     for mode in defaults paper; do
         extra=(); [ "$mode" = paper ] && extra=(--paper)
         say "loc: oracle and $FIRST predictions, $mode (calibrated: --prediction-zoom $zoom)"

@@ -31,8 +31,9 @@ F-score of the predicted and true building outlines within 1 and 2 px; mask zoom
 principal point that fits the true masks best to the predicted ones (median over the frames; above 1 the
 masks reach past the buildings, which eval-loc reads as a camera moved forward).
 Localization recall is the share of queries within (2 m, 2°) of the truth; the oracle rows are the upper
-bound the masks allow; the calibrated rows undo the mask zoom measured on the validation split
-(`eval-loc --prediction-zoom`), so no held-out frame informs them. The score rank correlation is
+bound the masks allow; the calibrated rows undo the mask zoom measured on the validation split, or on
+a calibration area neither trained on nor held out where the run names one (`--calibrate`;
+`eval-loc --prediction-zoom`), so no held-out frame informs them. The score rank correlation is
 `score_honesty`'s: how well the predictions' scores rank their masks (Spearman, against each mask's best
 IoU with a true instance); where the validation split finds them honest, the loop also weights the
 instances by box area × score (`eval-loc --weighting area-conf`). The loop's photos are rendered from
@@ -150,11 +151,13 @@ def section(w: Path, bench: Path) -> str:
     if loop is None:
         sys.exit(f"loop_report: {w}/loop.json missing (run scripts/bench_closed_loop.sh first)")
     hold, cam, label = loop["holdout"], loop["camera"], loop["label"]
+    cal = loop.get("calibration") if loop.get("calibration", "val") != "val" else None
     out = [f"<!-- run:{label} -->", f"## Run `{label}`: held out `{hold}`, trained on {loop['train_areas']}", "",
            f"Reproduce: `{loop['command']}` ({cam}, {loop['frames_per_area']} frames per training area, "
            f"{loop['holdout_frames']} held-out frames, {loop['queries']} localization queries).", "",
            "| family | device | steps | train s | train frames | AP | AP50 | AP75 | building IoU | P@0.5 | R@0.5 |"
-           " predictions / truths | outline F1 (1 / 2 px) | mask zoom (validation / held out) |"
+           " predictions / truths | outline F1 (1 / 2 px) | mask zoom (validation / held out"
+           f"{' / calibration area ' + cal if cal else ''}) |"
            " score rank correlation (validation / held out) |",
            "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     pictures = []
@@ -162,7 +165,8 @@ def section(w: Path, bench: Path) -> str:
         m = load(w / "model" / fam / "model.json") or {}
         s = load(w / "model" / fam / f"score_{hold}.json") or {}
         v = load(w / "model" / fam / "score_val.json") or {}
-        zooms = " / ".join(str((x.get("mask_zoom") or {}).get("median") or "–") for x in (v, s))
+        c = load(w / "model" / fam / "score_calibration.json") or {} if cal else None
+        zooms = " / ".join(str((x.get("mask_zoom") or {}).get("median") or "–") for x in (v, s, c) if x is not None)
         ranks = " / ".join(honesty(x) for x in (v, s))
         outlines = " / ".join(str(v) for v in (s.get("outline_f1") or {"1px": "–", "2px": "–"}).values())
         out.append(f"| {fam} | {m.get('device', '–')} | {m.get('steps', '–')} | {m.get('train_seconds', '–')} | "
