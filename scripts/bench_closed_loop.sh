@@ -152,8 +152,10 @@ if stage_on data; then
         "${C[@]}" export-coco --holdout "$CAL"
     fi
 fi
-# The frames the mask zoom is measured on: the calibration area's, else the validation split's.
-if [ -n "$CAL" ]; then CAL_COCO="$W/calibration/coco/instances_test.json"; else CAL_COCO="$W/coco/instances_val.json"; fi
+# The frames the mask zoom is measured on: the calibration area's (score_calibration.json), else the
+# validation split's (score_val.json).
+CAL_COCO="$W/calibration/coco/instances_test.json"
+ZOOM_FROM=val; [ -z "$CAL" ] || ZOOM_FROM=calibration
 
 for fam in $FAMILIES; do
     M="$W/model/$fam"
@@ -201,10 +203,9 @@ if stage_on loc; then
     # The mask zoom to undo, from the calibration frames (the calibration area's, else the validation
     # split's), and from the validation split whether the scores rank the masks well enough to weight
     # the instances by them (area × score).
-    zoom_score="$W/model/$FIRST/score_val.json"
-    [ -z "$CAL" ] || zoom_score="$W/model/$FIRST/score_calibration.json"
     read -r zoom honest < <("$PY" -c 'import json, sys; z, s = (json.load(open(f)) for f in sys.argv[1:])
-print(z["mask_zoom"]["median"] or 1.0, str(s["score_honesty"]["honest"]).lower())' "$zoom_score" "$W/model/$FIRST/score_val.json")
+print(z["mask_zoom"]["median"] or 1.0, str(s["score_honesty"]["honest"]).lower())' \
+        "$W/model/$FIRST/score_$ZOOM_FROM.json" "$W/model/$FIRST/score_val.json")
     for mode in defaults paper; do
         extra=(); [ "$mode" = paper ] && extra=(--paper)
         say "loc: oracle and $FIRST predictions, $mode (calibrated: --prediction-zoom $zoom)"

@@ -151,7 +151,7 @@ def section(w: Path, bench: Path) -> str:
     if loop is None:
         sys.exit(f"loop_report: {w}/loop.json missing (run scripts/bench_closed_loop.sh first)")
     hold, cam, label = loop["holdout"], loop["camera"], loop["label"]
-    cal = loop.get("calibration") if loop.get("calibration", "val") != "val" else None
+    cal = None if loop.get("calibration", "val") == "val" else loop["calibration"]
     out = [f"<!-- run:{label} -->", f"## Run `{label}`: held out `{hold}`, trained on {loop['train_areas']}", "",
            f"Reproduce: `{loop['command']}` ({cam}, {loop['frames_per_area']} frames per training area, "
            f"{loop['holdout_frames']} held-out frames, {loop['queries']} localization queries).", "",

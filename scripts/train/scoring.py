@@ -316,16 +316,16 @@ def building_errors(truth: list, predicted: list, rgb: np.ndarray, ignore: np.nd
     shares of the true building pixels. Pixels under `ignore` (crowd annotations: regions the labels
     leave open) count neither way and are drawn darker still."""
     shape = rgb.shape[:2]
-    t = np.logical_or.reduce(truth) if truth else np.zeros(shape, bool)
-    p = np.logical_or.reduce(predicted) if predicted else np.zeros(shape, bool)
     keep = ~ignore if ignore is not None else np.ones(shape, bool)
+    t = (np.logical_or.reduce(truth) if truth else np.zeros(shape, bool)) & keep
+    p = (np.logical_or.reduce(predicted) if predicted else np.zeros(shape, bool)) & keep
     out = rgb // 2
-    out[t & p & keep] = (200, 200, 200)
-    out[t & ~p & keep] = (255, 60, 60)
-    out[~t & p & keep] = (60, 120, 255)
+    out[t & p] = (200, 200, 200)
+    out[t & ~p] = (255, 60, 60)
+    out[~t & p] = (60, 120, 255)
     out[~keep] = rgb[~keep] // 5
-    n = max(int((t & keep).sum()), 1)
-    return out, float((t & ~p & keep).sum()) / n, float((~t & p & keep).sum()) / n
+    n = max(int(t.sum()), 1)
+    return out, float((t & ~p).sum()) / n, float((~t & p).sum()) / n
 
 
 def caption(row: np.ndarray, text: str) -> np.ndarray:
