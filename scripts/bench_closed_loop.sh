@@ -3,8 +3,8 @@
 # entirely; the reference baseline (scripts/train/baseline.py) trains on the rest from scratch,
 # predicts the held-out area, pycocotools scores the masks, and `insgen eval-loc --predictions`
 # localizes with them (instance, semantic, merged, grouped; defaults and --paper) next to the oracle masks,
-# once as predicted and once calibrated: the model's mask zoom, measured on the validation split
-# (frames with known poses, never the held-out area), undone by `--prediction-zoom`.
+# once as predicted and once calibrated: the model's mask zoom, measured on a calibration area (frames
+# with known poses, neither trained on nor held out; --calibrate), undone by `--prediction-zoom`.
 # Writes this run's section of bench/closed_loop.md and its picture (RGB | truth | prediction).
 #
 #   scripts/bench_closed_loop.sh [--size small|full] [--train "A B ..."] [--holdout AREA]
@@ -12,10 +12,12 @@
 #       [--queries Q] [--holdout-frames N] [--frames N] [--workdir DIR] [--label NAME]
 #       [--train-rgb "FLAGS"] [--calibrate AREA] [STAGE ...]
 #
-# --calibrate measures the model's mask zoom on AREA instead of the validation split: an area neither
-# trained on nor held out, whose frames the model has never seen (e.g. delft). A model can draw the
-# edges of the frames it was trained on exactly and still bleed past them on a city it has not seen
-# (bench/closed_loop.md, "More frames, more steps"), which the validation split cannot measure.
+# --calibrate AREA measures the model's mask zoom on AREA: an area neither trained on nor held out,
+# whose frames the model has never seen. A model can draw the edges of the frames it was trained on
+# exactly and still bleed past them on a city it has not seen (bench/closed_loop.md, "More frames, more
+# steps"), which the validation split (trained on) cannot measure. The default is delft when the shared
+# data has it and it is neither trained on nor held out, else the validation split; `--calibrate val`
+# asks for the validation split.
 #
 # --frames sets the frames sampled per training area (the size's default otherwise): a data-scaling
 # point at the same steps, with the same held-out frames.
@@ -32,8 +34,8 @@
 #   full  (a GPU): cam2 at 640×360, 60 frames per training area, 40 held-out frames, 4.5 minutes of
 #         training, U-Net width 32, batch 16
 #
-# Training areas default to the procedural districts plus every shared real city found in
-# ../shared/data; the held-out area defaults to Shibuya (tokyo) when present, else demo-test.
+# Training areas default to the procedural districts plus Den Haag and Niiza when ../shared/data has
+# them; the held-out area defaults to Shibuya (tokyo) when present, else demo-test; Delft calibrates.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$(pwd)
@@ -92,7 +94,6 @@ if [ -z "$TRAIN" ]; then
     TRAIN="demo demo-val"
     have nl_denhaag_lod2 && TRAIN+=" denhaag"
     have jp_niiza_plateau_lod1 && TRAIN+=" niiza"
-    [ "$SIZE" = full ] && have nl_delft_lod1 && TRAIN+=" delft"
 fi
 if [ -z "$HOLDOUT" ]; then
     if have jp_tokyo_shibuya_plateau_3dtiles/tileset.json; then HOLDOUT=tokyo; else HOLDOUT=demo-test; fi
@@ -101,6 +102,11 @@ for a in $TRAIN; do
     [ "$a" != "$HOLDOUT" ] || { echo "bench_closed_loop: $a is both trained on and held out" >&2; exit 2; }
     [ "$a" != "$CAL" ] || { echo "bench_closed_loop: $a is both trained on and the calibration area" >&2; exit 2; }
 done
+if [ -z "$CAL" ]; then
+    CAL=val
+    if have nl_delft_lod1 && [ "$HOLDOUT" != delft ] && ! [[ " $TRAIN " == *" delft "* ]]; then CAL=delft; fi
+fi
+[ "$CAL" != val ] || CAL=""
 [ "$CAL" != "$HOLDOUT" ] || { echo "bench_closed_loop: $CAL is both held out and the calibration area" >&2; exit 2; }
 : "${WORKDIR:=runs/closed_loop_$SIZE}"
 : "${LABEL:=$SIZE}"
@@ -122,7 +128,7 @@ cat > "$W/loop.json.tmp" <<EOF
  "frames_per_area": $COUNT, "holdout_frames": $HOLD_COUNT, "families": "$FAMILIES", "minutes": "$MINUTES",
  "steps": "${STEPS:-}", "queries": $QUERIES, "width": $WIDTH, "batch": $BATCH, "crop": "$CROP",
  "train_rgb": "$TRAIN_RGB", "calibration": "${CAL:-val}",
- "command": "scripts/bench_closed_loop.sh --size $SIZE --train '$TRAIN' --holdout $HOLDOUT --families '$FAMILIES' --minutes $MINUTES${STEPS:+ --steps $STEPS} --device $DEVICE --queries $QUERIES${HOLD_FRAMES:+ --holdout-frames $HOLD_FRAMES}${FRAMES:+ --frames $FRAMES}${TRAIN_RGB:+ --train-rgb '$TRAIN_RGB'}${CAL:+ --calibrate $CAL}"}
+ "command": "scripts/bench_closed_loop.sh --size $SIZE --train '$TRAIN' --holdout $HOLDOUT --families '$FAMILIES' --minutes $MINUTES${STEPS:+ --steps $STEPS} --device $DEVICE --queries $QUERIES${HOLD_FRAMES:+ --holdout-frames $HOLD_FRAMES}${FRAMES:+ --frames $FRAMES}${TRAIN_RGB:+ --train-rgb '$TRAIN_RGB'} --calibrate ${CAL:-val}"}
 EOF
 mv "$W/loop.json.tmp" "$W/loop.json"
 

@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # The GPU half of the closed loop, for a machine that has torch and a GPU but neither Blender nor
 # pycocotools, and takes a few tens of MB (a lent device): train each family on a packed export
-# (`baseline.py pack`) and predict the held-out area. Writes OUT/model/<family>/{model.json,
-# train_log.jsonl, results_<holdout>.json} (no checkpoint: it is larger than such machines hand back).
-# Bring OUT/model into the closed loop's work directory, then run here
+# (`baseline.py pack`) and predict the frames the loop scores: the held-out area, the validation split,
+# and the calibration area when the pack has one (PACK/calibration, packed from the loop's
+# calibration/coco). Writes OUT/model/<family>/{model.json, train_log.jsonl, results_<holdout>.json,
+# results_val.json[, results_calibration.json]} (no checkpoint: it is larger than such machines hand
+# back). Bring OUT/model into the closed loop's work directory, then run here
 # `scripts/bench_closed_loop.sh --size full score loc report`.
 #
 #   scripts/train/device_run.sh PACK OUT HOLDOUT [MINUTES] [FAMILIES]
@@ -21,5 +23,13 @@ for fam in $FAMILIES; do
         --minutes "$MINUTES" --batch "$batch" --width 32 --crop 352x640 --log-every 20 --checkpoint-every 100000
     "$PY" "$BASE" predict --checkpoint "$M/checkpoint.pt" --coco "$PACK/instances_test.json" --area "$HOLDOUT" \
         --device "$DEVICE" --out "$M/results_$HOLDOUT.json"
+    if [ -f "$PACK/instances_val.json" ]; then
+        "$PY" "$BASE" predict --checkpoint "$M/checkpoint.pt" --coco "$PACK/instances_val.json" \
+            --device "$DEVICE" --out "$M/results_val.json"
+    fi
+    if [ -f "$PACK/calibration/instances_test.json" ]; then
+        "$PY" "$BASE" predict --checkpoint "$M/checkpoint.pt" --coco "$PACK/calibration/instances_test.json" \
+            --device "$DEVICE" --out "$M/results_calibration.json"
+    fi
     rm -f "$M/checkpoint.pt"
 done

@@ -240,6 +240,57 @@ fn baseline_trains_predicts_and_its_masks_are_scored_and_localized() {
         "{methods:?}"
     );
     seeded_and_strict(&py, dir);
+    packed_for_a_device(&py, dir);
+}
+
+/// The GPU half of the loop as a lent device runs it, here on the CPU: `baseline.py pack` makes a
+/// self-contained copy of the export (and of a calibration area's, here the held-out split standing in),
+/// and `scripts/train/device_run.sh` trains on it and predicts every file the loop's `score` stage
+/// reads — the held-out, validation and calibration frames — and hands back no checkpoint.
+fn packed_for_a_device(py: &Path, dir: &Path) {
+    let pack =
+        |args: &[&str]| ok(baseline(py, dir, &[&["pack", "--coco", "runs/coco"], args].concat()), "pack");
+    pack(&["--out", "pack"]);
+    pack(&["--split", "test", "--out", "pack/calibration"]);
+    // The demo export has no validation split; the packed test split stands in for it.
+    std::fs::copy(dir.join("pack/instances_test.json"), dir.join("pack/instances_val.json")).unwrap();
+    let test = json(&dir.join("pack/instances_test.json"));
+    for im in test["images"].as_array().unwrap() {
+        let photo = dir.join("pack").join(im["file_name"].as_str().unwrap());
+        assert!(photo.is_file(), "{} is not in the pack", photo.display());
+        assert!(im.get("mask_file").is_none(), "the pack carries ID maps");
+    }
+    let o = Command::new("bash")
+        .arg(repo().join("scripts/train/device_run.sh"))
+        .args(["pack", "device", "demo-test", "0.02", "unet"])
+        .current_dir(dir)
+        .env("PYTHON", py)
+        .env("DEVICE", "cpu")
+        .output()
+        .expect("bash runs");
+    ok(o, "device_run.sh");
+    let m = dir.join("device/model/unet");
+    assert_schema("baseline_model.schema.json", &json(&m.join("model.json")));
+    assert!(!m.join("checkpoint.pt").exists(), "the device run handed back its checkpoint");
+    for name in ["results_demo-test.json", "results_val.json", "results_calibration.json"] {
+        let results = json(&m.join(name));
+        assert_schema("coco_results.schema.json", &results);
+        // Scored here, against the loop's own export, as `... score loc report` does: the pack keeps
+        // the image ids.
+        let o = baseline(
+            py,
+            dir,
+            &[
+                "score",
+                "--coco",
+                "runs/coco/instances_test.json",
+                "--results",
+                &m.join(name).to_string_lossy(),
+            ],
+        );
+        let score: serde_json::Value = serde_json::from_slice(&ok(o, name).stdout).unwrap();
+        assert_eq!(score["images"], test["images"].as_array().unwrap().len(), "{name}: {score}");
+    }
 }
 
 /// The same seed and steps give the same weights; bad input is an error naming the file, nothing written.
