@@ -10,7 +10,7 @@
 #   scripts/bench_closed_loop.sh [--size small|full] [--train "A B ..."] [--holdout AREA]
 #       [--families "unet maskrcnn"] [--minutes M] [--steps N] [--device auto|cpu|cuda]
 #       [--queries Q] [--holdout-frames N] [--frames N] [--workdir DIR] [--label NAME]
-#       [--train-rgb "FLAGS"] [--calibrate AREA] [STAGE ...]
+#       [--train-rgb "FLAGS"] [--calibrate AREA|val] [STAGE ...]
 #
 # --calibrate AREA measures the model's mask zoom on AREA: an area neither trained on nor held out,
 # whose frames the model has never seen. A model can draw the edges of the frames it was trained on
