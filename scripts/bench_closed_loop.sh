@@ -15,9 +15,10 @@
 # --calibrate AREA measures the model's mask zoom on AREA: an area neither trained on nor held out,
 # whose frames the model has never seen. A model can draw the edges of the frames it was trained on
 # exactly and still bleed past them on a city it has not seen (bench/closed_loop.md, "More frames, more
-# steps"), which the validation split (trained on) cannot measure. The default is delft when the shared
-# data has it and it is neither trained on nor held out, else the validation split; `--calibrate val`
-# asks for the validation split.
+# steps"), which the validation split (trained on) cannot measure, and how far it bleeds depends on the
+# city. The default is an area like the held-out one that the shared data has and that is neither
+# trained on nor held out: komaba (PLATEAU, next to Shibuya) for tokyo, else delft; else the validation
+# split, which `--calibrate val` asks for.
 #
 # --frames sets the frames sampled per training area (the size's default otherwise): a data-scaling
 # point at the same steps, with the same held-out frames.
@@ -35,7 +36,8 @@
 #         training, U-Net width 32, batch 16
 #
 # Training areas default to the procedural districts plus Den Haag and Niiza when ../shared/data has
-# them; the held-out area defaults to Shibuya (tokyo) when present, else demo-test; Delft calibrates.
+# them (and Delft for --size full); the held-out area defaults to Shibuya (tokyo) when present, else
+# demo-test; Komaba or Delft calibrates (--calibrate).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$(pwd)
@@ -94,6 +96,7 @@ if [ -z "$TRAIN" ]; then
     TRAIN="demo demo-val"
     have nl_denhaag_lod2 && TRAIN+=" denhaag"
     have jp_niiza_plateau_lod1 && TRAIN+=" niiza"
+    [ "$SIZE" = full ] && have nl_delft_lod1 && TRAIN+=" delft"
 fi
 if [ -z "$HOLDOUT" ]; then
     if have jp_tokyo_shibuya_plateau_3dtiles/tileset.json; then HOLDOUT=tokyo; else HOLDOUT=demo-test; fi
@@ -103,8 +106,18 @@ for a in $TRAIN; do
     [ "$a" != "$CAL" ] || { echo "bench_closed_loop: $a is both trained on and the calibration area" >&2; exit 2; }
 done
 if [ -z "$CAL" ]; then
+    # A calibration area like the held-out one, since how far a model's masks bleed depends on the city
+    # (bench/closed_loop.md, "Three thousand more steps"): Komaba (PLATEAU tiles next to Shibuya) for
+    # Shibuya, else Delft; an area that is trained on or held out is never one.
     CAL=val
-    if have nl_delft_lod1 && [ "$HOLDOUT" != delft ] && ! [[ " $TRAIN " == *" delft "* ]]; then CAL=delft; fi
+    candidates="delft komaba"; [ "$HOLDOUT" = tokyo ] && candidates="komaba delft"
+    for c in $candidates; do
+        case $c in
+            delft) have nl_delft_lod1 || continue ;;
+            komaba) have jp_tokyo_shibuya_plateau_3dtiles/tileset_komaba_neighbors.json || continue ;;
+        esac
+        if [ "$HOLDOUT" != "$c" ] && ! [[ " $TRAIN " == *" $c "* ]]; then CAL=$c; break; fi
+    done
 fi
 [ "$CAL" != val ] || CAL=""
 [ "$CAL" != "$HOLDOUT" ] || { echo "bench_closed_loop: $CAL is both held out and the calibration area" >&2; exit 2; }
