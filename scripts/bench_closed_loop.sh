@@ -108,8 +108,8 @@ done
 if [ -z "$CAL" ]; then
     # A calibration area like the held-out one, since how far a model's masks bleed depends on the city
     # (bench/closed_loop.md, "Three thousand more steps"): Komaba (PLATEAU tiles next to Shibuya) for
-    # Shibuya, else Delft; an area that is trained on or held out is never one.
-    CAL=val
+    # Shibuya, else Delft; an area that is trained on or held out is never one. None found: the
+    # validation split.
     candidates="delft komaba"; [ "$HOLDOUT" = tokyo ] && candidates="komaba delft"
     for c in $candidates; do
         case $c in
@@ -204,7 +204,7 @@ for fam in $FAMILIES; do
     if stage_on score; then
         "$PY" "$BASE" score --coco "$W/coco/instances_test.json" --results "$M/results_$HOLDOUT.json" \
             --area "$HOLDOUT" --out "$M/score_$HOLDOUT.json" > /dev/null
-        # The calibration: the model's mask zoom on the validation split (known poses; not held out).
+        # The validation split: the scores' honesty, and the mask zoom where no calibration area is run.
         "$PY" "$BASE" score --coco "$W/coco/instances_val.json" --results "$M/results_val.json" \
             --out "$M/score_val.json" > /dev/null
         if [ -n "$CAL" ]; then
