@@ -23,13 +23,11 @@ for fam in $FAMILIES; do
         --minutes "$MINUTES" --batch "$batch" --width 32 --crop 352x640 --log-every 20 --checkpoint-every 100000
     "$PY" "$BASE" predict --checkpoint "$M/checkpoint.pt" --coco "$PACK/instances_test.json" --area "$HOLDOUT" \
         --device "$DEVICE" --out "$M/results_$HOLDOUT.json"
-    if [ -f "$PACK/instances_val.json" ]; then
-        "$PY" "$BASE" predict --checkpoint "$M/checkpoint.pt" --coco "$PACK/instances_val.json" \
-            --device "$DEVICE" --out "$M/results_val.json"
-    fi
-    if [ -f "$PACK/calibration/instances_test.json" ]; then
-        "$PY" "$BASE" predict --checkpoint "$M/checkpoint.pt" --coco "$PACK/calibration/instances_test.json" \
-            --device "$DEVICE" --out "$M/results_calibration.json"
-    fi
+    # The validation split and the calibration area, where the pack has them (COCO file:results file).
+    for pair in instances_val.json:results_val.json calibration/instances_test.json:results_calibration.json; do
+        [ -f "$PACK/${pair%%:*}" ] || continue
+        "$PY" "$BASE" predict --checkpoint "$M/checkpoint.pt" --coco "$PACK/${pair%%:*}" \
+            --device "$DEVICE" --out "$M/${pair#*:}"
+    done
     rm -f "$M/checkpoint.pt"
 done
