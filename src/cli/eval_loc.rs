@@ -230,13 +230,16 @@ pub struct Args {
     /// silhouette edges, by resampling).
     #[arg(long)]
     pub no_yaw_fan: bool,
-    /// Coarse grid in x and y: ±RANGE metres in steps of STEP [default: 20/5].
+    /// Coarse grid in x and y: ±RANGE metres in steps of STEP [default: 2.5σ of the prior noise model
+    /// (its noisier horizontal axis, plus its bias) in whole steps of 5 m; 20/5 for the default model].
     #[arg(long, value_name = "RANGE/STEP", value_parser = parse_range_step)]
     pub coarse_xy: Option<(f64, f64)>,
-    /// Coarse grid in z: ±RANGE metres in steps of STEP [default: 10/5].
+    /// Coarse grid in z: ±RANGE metres in steps of STEP [default: 2σ of the prior noise model's height
+    /// (plus its bias) in whole steps of 5 m; 10/5 for the default model].
     #[arg(long, value_name = "RANGE/STEP", value_parser = parse_range_step)]
     pub coarse_z: Option<(f64, f64)>,
-    /// Coarse grid in yaw: ±RANGE degrees in steps of STEP [default: 7.5/2.5].
+    /// Coarse grid in yaw: ±RANGE degrees in steps of STEP [default: 2.5σ of the prior noise model's
+    /// yaw (plus its bias) in whole steps of 2.5°; 7.5/2.5 for the default model].
     #[arg(long, value_name = "RANGE/STEP", value_parser = parse_range_step)]
     pub coarse_yaw: Option<(f64, f64)>,
     /// Search volume: the largest horizontal distance of the camera centre from the prior's, metres.
@@ -455,13 +458,14 @@ fn parse_prune(s: &str) -> Result<PruneFlag, String> {
 }
 
 /// The search's stages and parameters from the flags: the defaults, or the paper's with `--paper`,
-/// with each given flag applied on top, and the search volume `bounds`.
-fn search_options(args: &Args, bounds: SearchBounds) -> SearchOptions {
+/// with each given flag applied on top, the search volume `bounds` and the coarse grid derived from
+/// the prior noise model `noise` ([`CoarseParams::from_prior_noise`]) where no `--coarse-*` flag
+/// replaces it.
+fn search_options(args: &Args, bounds: SearchBounds, noise: &PriorNoise) -> SearchOptions {
     SearchOptions {
-        bounds,
         on_boundary: if args.keep_boundary_estimates { OnBoundary::Keep } else { OnBoundary::Prior },
         coarse: {
-            let d = CoarseParams::default();
+            let d = CoarseParams::from_prior_noise(noise, &bounds);
             let (xy_range_m, xy_step_m) = args.coarse_xy.unwrap_or((d.xy_range_m, d.xy_step_m));
             let (z_range_m, z_step_m) = args.coarse_z.unwrap_or((d.z_range_m, d.z_step_m));
             let (yaw_range_deg, yaw_step_deg) = args.coarse_yaw.unwrap_or((d.yaw_range_deg, d.yaw_step_deg));
@@ -500,6 +504,7 @@ fn search_options(args: &Args, bounds: SearchBounds) -> SearchOptions {
             // Both off: nothing but the prior is scored (the coarse stage over the prior alone).
             (true, true) => Stages::PriorOnly,
         },
+        bounds,
     }
 }
 
@@ -670,7 +675,7 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         weighting: args.weighting.into(),
         semantic_weight: semantic_weight(args),
         source,
-        search: search_options(args, bounds),
+        search: search_options(args, bounds, &noise),
         seed: args.seed,
         render_width_px: args.render_width,
         coarse_width_px: args.coarse_width.unwrap_or(if args.paper { 320 } else { 160 }),
@@ -683,6 +688,18 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     let resolved = crate::render::resolve(args.renderer, Workload::Hypotheses)
         .context("setting up the renderer of the hypotheses (`--renderer cpu` needs no GPU)")?;
     log::info!("eval-loc renders its hypotheses with {} ({})", resolved.renderer.record(), resolved.reason);
+    let (b, c) = (&opts.search.bounds, &opts.search.coarse);
+    log::info!(
+        "search volume ±{:.1} m, ±{:.1} m, ±{:.1}° about the prior ({}); coarse grid ±{} m, ±{} m, ±{}°: {} cells",
+        b.radius_m,
+        b.height_m,
+        b.yaw_deg,
+        b.origin,
+        c.xy_range_m,
+        c.z_range_m,
+        c.yaw_range_deg,
+        c.cells()
+    );
     let printer = global.printer();
     let summary = eval::evaluate(&scene, &opts, &*resolved.renderer, &printer.progress())
         .with_context(|| format!("evaluating localization on {}/{}", args.area, args.camera))?;
@@ -776,9 +793,35 @@ mod tests {
     }
 
     #[test]
+    fn coarse_grid_from_the_prior_noise_unless_flags_give_it() {
+        let loose = PriorNoise {
+            sigma_enu_m: [14.0, 14.0, 10.0],
+            sigma_ypr_deg: [6.0, 0.02, 0.02],
+            ..PriorNoise::default()
+        };
+        let grid = |extra: &[&str], noise: &PriorNoise| {
+            let a = parse(extra).unwrap();
+            let c = search_options(&a, search_bounds(&a, noise, "test").unwrap(), noise).coarse;
+            (c.xy_range_m, c.xy_step_m, c.z_range_m, c.z_step_m, c.yaw_range_deg, c.yaw_step_deg)
+        };
+        assert_eq!(grid(&[], &PriorNoise::default()), (20.0, 5.0, 10.0, 5.0, 7.5, 2.5));
+        assert_eq!(grid(&["--paper"], &PriorNoise::default()), (20.0, 5.0, 10.0, 5.0, 7.5, 2.5));
+        assert_eq!(grid(&[], &loose), (35.0, 5.0, 20.0, 5.0, 15.0, 2.5));
+        // Narrower search flags cap it; --coarse-* flags replace it.
+        assert_eq!(grid(&["--search-yaw-deg", "5"], &loose), (35.0, 5.0, 20.0, 5.0, 5.0, 2.5));
+        assert_eq!(
+            grid(&["--coarse-xy", "10/2", "--coarse-yaw", "3/1"], &loose),
+            (10.0, 2.0, 20.0, 5.0, 3.0, 1.0)
+        );
+    }
+
+    #[test]
     fn beam_flags_apply_over_defaults_and_paper() {
-        let beams =
-            |extra: &[&str]| search_options(&parse(extra).unwrap(), SearchBounds::default()).fine.beams_mode;
+        let beams = |extra: &[&str]| {
+            search_options(&parse(extra).unwrap(), SearchBounds::default(), &PriorNoise::default())
+                .fine
+                .beams_mode
+        };
         assert_eq!(beams(&[]), FineParams::default().beams_mode);
         assert_eq!(
             beams(&["--basins", "6", "--prune", "5/3"]),

@@ -1492,6 +1492,21 @@ fn bounds_text(b: &search::SearchBounds) -> String {
     )
 }
 
+/// The coarse grid in words, for `summary.md`.
+fn coarse_text(c: &search::CoarseParams) -> String {
+    format!(
+        "±{} m east and north, ±{} m in height in steps of {} and {} m, ±{}° in yaw in steps of {}°: {} cells \
+         before those outside the volume are left out",
+        c.xy_range_m,
+        c.z_range_m,
+        c.xy_step_m,
+        c.z_step_m,
+        c.yaw_range_deg,
+        c.yaw_step_deg,
+        c.cells()
+    )
+}
+
 /// A paragraph naming the methods whose estimates lie systematically ahead of or behind the truth
 /// ([`metrics::depth_biased`]) and what to do about it given the masks' source; empty when none do.
 fn depth_bias_note(rows: &[metrics::AxisRow], source: Option<&PartSource>) -> String {
@@ -1623,7 +1638,8 @@ pub fn write_outputs(out_dir: &Path, outputs: &Outputs) -> Result<(), EvalError>
          Translation errors along the ground truth's viewing direction (axial) and across it (lateral); a \
          failure the search missed scores below the ground truth's pose (a better optimum was left near the \
          truth), the others are the cost's (it prefers or ties a pose away from the truth):\n\n{}\n{}\
-         Searches that ended on the boundary of the search volume around the prior ({}). {}\n\n{}",
+         Searches that ended on the boundary of the search volume around the prior ({}; the coarse grid {}). \
+         {}\n\n{}",
         out_dir.display(),
         summary.queries,
         summary.median_seconds_per_query,
@@ -1636,6 +1652,7 @@ pub fn write_outputs(out_dir: &Path, outputs: &Outputs) -> Result<(), EvalError>
         metrics::axis_markdown(&summary.axis_rows),
         depth_bias_note(&summary.axis_rows, summary.source.as_ref()),
         bounds_text(&summary.search.bounds),
+        coarse_text(&summary.search.coarse),
         match summary.search.on_boundary {
             search::OnBoundary::Prior => "There the cost still improves towards poses the prior rules out; the \
                                           prior is reported instead of the pose found:",

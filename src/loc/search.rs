@@ -289,18 +289,59 @@ pub struct CoarseParams {
     pub yaw_step_deg: f64,
 }
 
+/// The coarse grid's steps (east/north and height in metres, yaw in degrees): they follow the costs'
+/// basins, whose width is set by the image (a step of 5 m moves a cam2 view's buildings by a few
+/// pixels at the coarse width), not by the prior.
+pub const COARSE_STEPS: (f64, f64, f64) = (5.0, 5.0, 2.5);
+
+/// The coarse grid's half-ranges in standard deviations of the prior's noise (east/north, along its
+/// noisier axis; height; yaw): the grid holds the truth's cell for all but about 1 % of priors, and the
+/// particle filter and polish, which keep to the wider [`SearchBounds`], reach the rest.
+pub const COARSE_SIGMA_MULTIPLES: (f64, f64, f64) = (2.5, 2.0, 2.5);
+
 impl Default for CoarseParams {
-    /// Covers the default prior noise model (σ = 7 m east/north, 5 m up, 3° yaw) to about 2.5σ
-    /// horizontally and in yaw, 2σ vertically: 9 × 9 × 5 × 7 = 2835 hypotheses.
+    /// Derived from the default prior noise model (σ = 7 m east/north, 5 m up, 3° yaw; see
+    /// [`CoarseParams::from_prior_noise`]): ±20 m, ±10 m in steps of 5 m, ±7.5° in steps of 2.5°,
+    /// 9 × 9 × 5 × 7 = 2835 hypotheses.
     fn default() -> Self {
+        CoarseParams::from_prior_noise(&PriorNoise::default(), &SearchBounds::default())
+    }
+}
+
+impl CoarseParams {
+    /// The coarse grid for priors with the noise model `noise`: each half-range covers the model's bias
+    /// plus [`COARSE_SIGMA_MULTIPLES`] of its σ, rounded up to whole [`COARSE_STEPS`] (at least one
+    /// step, so every axis has three values), and reaches no further than `bounds` (rounded up to a
+    /// whole step: the cells outside the volume are left out anyway). A prior twice as noisy gets a
+    /// grid twice as wide, with four times the cells in east and north.
+    pub fn from_prior_noise(noise: &PriorNoise, bounds: &SearchBounds) -> Self {
+        let (kxy, kz, kyaw) = COARSE_SIGMA_MULTIPLES;
+        let (sxy, sz, syaw) = COARSE_STEPS;
+        let finite = |x: f64| if x.is_finite() { x.abs() } else { 0.0 };
+        let [se, sn, su] = noise.sigma_enu_m.map(finite);
+        let [be, bn, bu] = noise.bias_enu_m.map(finite);
+        let (sy, by) = (finite(noise.sigma_ypr_deg[0]), finite(noise.bias_ypr_deg[0]));
+        // Whole steps covering `cover`, at least one, at most those covering `bound`; the small
+        // tolerance keeps a cover of exactly k steps (2.5 × 3° = 7.5°) at k.
+        let range = |cover: f64, bound: f64, step: f64| {
+            let whole = |x: f64| (x / step - 1e-9).ceil().max(1.0);
+            whole(cover).min(whole(bound)) * step
+        };
         CoarseParams {
-            xy_range_m: 20.0,
-            xy_step_m: 5.0,
-            z_range_m: 10.0,
-            z_step_m: 5.0,
-            yaw_range_deg: 7.5,
-            yaw_step_deg: 2.5,
+            xy_range_m: range(be.hypot(bn) + kxy * se.max(sn), bounds.radius_m, sxy),
+            xy_step_m: sxy,
+            z_range_m: range(bu + kz * su, bounds.height_m, sz),
+            z_step_m: sz,
+            yaw_range_deg: range(by + kyaw * sy, bounds.yaw_deg, syaw),
+            yaw_step_deg: syaw,
         }
+    }
+
+    /// The number of hypotheses of [`coarse_grid`] (before the cells outside the volume are left out).
+    pub fn cells(&self) -> usize {
+        steps(self.xy_range_m, self.xy_step_m).len().pow(2)
+            * steps(self.z_range_m, self.z_step_m).len()
+            * steps(self.yaw_range_deg, self.yaw_step_deg).len()
     }
 }
 
@@ -1613,6 +1654,51 @@ mod tests {
                 PriorNoise { sigma_enu_m: [0.0; 3], sigma_ypr_deg: [0.0; 3], ..PriorNoise::default() };
             let b = SearchBounds::from_prior_noise(&exact, "test");
             assert_eq!((b.radius_m, b.height_m, b.yaw_deg), MIN_SEARCH_BOUNDS);
+        }
+
+        #[test]
+        fn the_coarse_grid_scales_with_the_prior_noise_in_whole_steps() {
+            let range = |p: &CoarseParams| {
+                (p.xy_range_m, p.xy_step_m, p.z_range_m, p.z_step_m, p.yaw_range_deg, p.yaw_step_deg)
+            };
+            // The default model (σ = 7, 7, 5 m, 3°): 2.5 × 7 = 17.5 → 20 m, 2 × 5 = 10 m, 2.5 × 3 = 7.5°.
+            let d = CoarseParams::default();
+            assert_eq!(range(&d), (20.0, 5.0, 10.0, 5.0, 7.5, 2.5));
+            assert_eq!((d.cells(), coarse_grid(&prior(), &d).len()), (2835, 2835));
+            // Twice as noisy: 35 m, 20 m, 15° (inside its own bounds: 61.6 m, 40 m, 24°).
+            let loose = PriorNoise {
+                sigma_enu_m: [14.0, 9.0, 10.0],
+                sigma_ypr_deg: [6.0, 0.02, 0.02],
+                ..PriorNoise::default()
+            };
+            let lb = SearchBounds::from_prior_noise(&loose, "test");
+            let l = CoarseParams::from_prior_noise(&loose, &lb);
+            assert_eq!(range(&l), (35.0, 5.0, 20.0, 5.0, 15.0, 2.5));
+            assert_eq!(l.cells(), 15 * 15 * 9 * 13);
+            // A bias widens the grid by its size (3-4-5 m east/north, 2 m down, 1° in yaw).
+            let biased = PriorNoise {
+                bias_enu_m: [3.0, -4.0, -2.0],
+                bias_ypr_deg: [1.0, 0.0, 0.0],
+                ..PriorNoise::default()
+            };
+            let b = CoarseParams::from_prior_noise(&biased, &SearchBounds::from_prior_noise(&biased, "test"));
+            assert_eq!(range(&b), (25.0, 5.0, 15.0, 5.0, 10.0, 2.5));
+            // A nearly exact prior (or one with NaNs) still gets one step each way.
+            for sigma in [0.3, f64::NAN] {
+                let tight = PriorNoise {
+                    sigma_enu_m: [sigma; 3],
+                    sigma_ypr_deg: [sigma; 3],
+                    ..PriorNoise::default()
+                };
+                let t =
+                    CoarseParams::from_prior_noise(&tight, &SearchBounds::from_prior_noise(&tight, "test"));
+                assert_eq!(range(&t), (5.0, 5.0, 5.0, 5.0, 2.5, 2.5), "σ {sigma}");
+                assert_eq!(t.cells(), 81);
+            }
+            // Narrower bounds (the --search-* flags) cap the grid at whole steps covering them.
+            let narrow = SearchBounds { radius_m: 12.0, height_m: 5.0, yaw_deg: 4.0, origin: "flags".into() };
+            let n = CoarseParams::from_prior_noise(&PriorNoise::default(), &narrow);
+            assert_eq!(range(&n), (15.0, 5.0, 5.0, 5.0, 5.0, 2.5));
         }
 
         #[test]

@@ -134,11 +134,31 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
     assert!((bounds["radius_m"].as_f64().unwrap() - radius_m).abs() < 1e-9, "{radius_m}: {bounds}");
     let height_m = (n("bias_enu_m", 2).abs() + 4.0 * n("sigma_enu_m", 2)).max(5.0);
     assert!((bounds["height_m"].as_f64().unwrap() - height_m).abs() < 1e-9, "{height_m}: {bounds}");
+    // The coarse grid comes from the same model: the bias plus 2.5σ east/north and in yaw, 2σ in
+    // height, in whole steps of 5 m and 2.5° (at least one, no further than the volume).
+    let whole = |cover: f64, bound: f64, step: f64| {
+        ((cover / step - 1e-9).ceil().max(1.0)).min((bound / step - 1e-9).ceil().max(1.0)) * step
+    };
+    let coarse = &summary["search"]["coarse"];
+    let xy_m = whole(
+        n("bias_enu_m", 0).hypot(n("bias_enu_m", 1)) + 2.5 * n("sigma_enu_m", 0).max(n("sigma_enu_m", 1)),
+        radius_m,
+        5.0,
+    );
+    let z_m = whole(n("bias_enu_m", 2).abs() + 2.0 * n("sigma_enu_m", 2), height_m, 5.0);
+    let yaw_deg = whole(
+        n("bias_ypr_deg", 0).abs() + 2.5 * n("sigma_ypr_deg", 0),
+        bounds["yaw_deg"].as_f64().unwrap(),
+        2.5,
+    );
+    let got = ["xy_range_m", "z_range_m", "yaw_range_deg"].map(|k| coarse[k].as_f64().unwrap());
+    assert_eq!(got, [xy_m, z_m, yaw_deg], "{coarse}");
     assert!(oracle.iter().all(|r| r["on_search_boundary"] == false), "{oracle:?}");
     assert_eq!(summary["boundary_rows"][0]["on_search_boundary"], 0, "{}", summary["boundary_rows"]);
     assert_eq!(rows[1]["recall_pct"][0].as_f64().unwrap(), 100.0, "{}", rows[1]);
     let md = std::fs::read_to_string(out.join("summary.md")).unwrap();
     assert!(md.contains("| prior |") && md.contains("| frame cells with buildings |"), "{md}");
+    assert!(md.contains(&format!("the coarse grid ±{xy_m} m east and north")), "{md}");
     assert!(!md.lines().any(|l| l.starts_with("    ")), "no line of prose indented into a code block:\n{md}");
     // est_poses: NAME qw qx qy qz tx ty tz, unit quaternions.
     let est = std::fs::read_to_string(out.join("est_poses_instance.txt")).unwrap();
