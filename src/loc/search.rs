@@ -1701,6 +1701,44 @@ mod tests {
             assert_eq!(range(&n), (15.0, 5.0, 5.0, 5.0, 5.0, 2.5));
         }
 
+        /// A broad decoy at the prior and the truth's narrow basin 30 m east of it, at the default
+        /// height and yaw.
+        struct FarTruth;
+
+        impl Evaluate for FarTruth {
+            type Error = std::convert::Infallible;
+            fn evaluate(&mut self, hyps: &[Hypothesis]) -> Result<Vec<f64>, Self::Error> {
+                let bump = |h: &Hypothesis, x: f64, width_m: f64| {
+                    let d2 =
+                        (h.centre_m[0] - x).powi(2) + h.centre_m[1].powi(2) + (h.centre_m[2] - 200.0).powi(2);
+                    (-d2 / (2.0 * width_m * width_m) - h.yaw_deg * h.yaw_deg / 20.0).exp()
+                };
+                Ok(hyps.iter().map(|h| (0.6 * bump(h, 0.0, 6.0)).max(bump(h, 30.0, 2.5))).collect())
+            }
+        }
+
+        #[test]
+        fn a_noisy_priors_grid_reaches_the_truth_the_fixed_grid_missed() {
+            // σ = 14 m east/north: a truth 30 m off is a 2.1σ error, inside the derived grid (±35 m)
+            // and the volume (61.6 m), outside the grid the default model gives (±20 m).
+            let loose = PriorNoise {
+                sigma_enu_m: [14.0, 14.0, 10.0],
+                sigma_ypr_deg: [6.0, 0.02, 0.02],
+                ..PriorNoise::default()
+            };
+            let bounds = SearchBounds::from_prior_noise(&loose, "test");
+            let prior = Hypothesis { centre_m: DVec3::new(0.0, 0.0, 200.0), yaw_deg: 0.0 };
+            let run = |coarse: CoarseParams| {
+                let opts = SearchOptions { coarse, bounds: bounds.clone(), ..Default::default() };
+                search(&mut FarTruth, &mut FarTruth, prior, &opts, 5, None).unwrap()
+            };
+            let fixed = run(CoarseParams::default());
+            assert!(fixed.best.centre_m[0].abs() < 3.0, "the decoy: {:?}", fixed.best);
+            let derived = run(CoarseParams::from_prior_noise(&loose, &bounds));
+            assert!((derived.best.centre_m[0] - 30.0).abs() < 0.5, "the truth: {:?}", derived.best);
+            assert!(derived.best_score > 0.95 && !derived.on_boundary, "{derived:?}");
+        }
+
         #[test]
         fn the_horizontal_radius_holds_the_prior_as_often_as_4_sigma_along_one_axis() {
             // P(|x| > 4σ) for a normal x, by Simpson's rule over [4, 12] (the rest is < 10⁻³²).
