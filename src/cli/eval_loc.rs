@@ -700,6 +700,16 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         c.yaw_range_deg,
         c.cells()
     );
+    let default_cells = CoarseParams::default().cells();
+    if c.cells() > 10 * default_cells {
+        log::warn!(
+            "the coarse grid has {} cells, {:.0}× the default prior noise model's {default_cells}: the prior's \
+             uncertainty sets its range; larger steps (--coarse-xy RANGE/STEP, --coarse-z, --coarse-yaw) make it \
+             faster at the risk of stepping over narrow basins",
+            c.cells(),
+            c.cells() as f64 / default_cells as f64
+        );
+    }
     let printer = global.printer();
     let summary = eval::evaluate(&scene, &opts, &*resolved.renderer, &printer.progress())
         .with_context(|| format!("evaluating localization on {}/{}", args.area, args.camera))?;
