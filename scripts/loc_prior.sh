@@ -76,6 +76,7 @@ print(
 )
 print("| prior σ (m, m, m, °) | grid | coarse cells | cost | " + " | ".join(["recall per area", "all", "largest error m", "median s/query"]) + " |")
 print("|---|---|---:|---|---|---:|---:|---:|")
+found = {}
 for entry in priors:
     name, sigma = entry.split(":")
     for tag in ["fixed", "derived"]:
@@ -102,6 +103,18 @@ for entry in priors:
                 f"| {sigma} ({name}) | {tag} | {cells} | {cost} | {', '.join(areas)} | "
                 f"{100 * hits / len(rs):.1f} ({len(rs)}) | {worst:.1f} | {statistics.median(secs):.2f} |"
             )
+            found.setdefault(name, {}).setdefault(tag, []).append((cost, 100 * hits / len(rs), worst))
+        if secs:
+            found[name][tag + "_s"] = statistics.median(secs)
+print("\n## Derived against fixed, per prior\n")
+for name, f in found.items():
+    if "fixed" not in f or "derived" not in f:
+        continue
+    pairs = ", ".join(
+        f"{c} {a:.1f} % (largest error {wa:.1f} m) against {b:.1f} % ({wb:.1f} m)"
+        for (c, b, wb), (_, a, wa) in zip(f["fixed"], f["derived"])
+    )
+    print(f"- *{name}*: {pairs}; {f['derived_s'] / f['fixed_s']:.2f}× the fixed grid's median time per query.")
 EOF
 mv bench/loc_prior.md.tmp bench/loc_prior.md
 echo "wrote bench/loc_prior.md"
