@@ -14,6 +14,7 @@ use crate::loc::oracle::{Degradation, SegmenterLike};
 use crate::loc::query::{load_predictions, FramePredictions, QuerySource};
 use crate::loc::search::{
     BeamMode, CoarseParams, FineParams, OnBoundary, PolishCost, Prune, SearchBounds, SearchOptions, Stages,
+    MAX_COARSE_CELLS,
 };
 use crate::render::{RendererChoice, Workload};
 use crate::scene::PreparedScene;
@@ -407,6 +408,47 @@ fn search_bounds(args: &Args, noise: &PriorNoise, source: &str) -> anyhow::Resul
     Ok(b)
 }
 
+/// Logs the search volume and the coarse grid, warns when the grid is over 10× the default model's,
+/// and refuses one over [`MAX_COARSE_CELLS`].
+fn check_search(search: &SearchOptions) -> anyhow::Result<()> {
+    let (b, c) = (&search.bounds, &search.coarse);
+    let (cells, default_cells) = (c.cells(), CoarseParams::default().cells());
+    log::info!(
+        "search volume ±{:.1} m, ±{:.1} m, ±{:.1}° about the prior ({}); coarse grid ±{} m, ±{} m, ±{}°: {cells} cells",
+        b.radius_m,
+        b.height_m,
+        b.yaw_deg,
+        b.origin,
+        c.xy_range_m,
+        c.z_range_m,
+        c.yaw_range_deg,
+    );
+    let advice =
+        "larger steps (--coarse-xy RANGE/STEP, --coarse-z, --coarse-yaw) make it faster at the risk of \
+                  stepping over narrow basins";
+    anyhow::ensure!(
+        cells <= MAX_COARSE_CELLS,
+        "the coarse grid would have {cells} cells (±{} m, ±{} m, ±{}° in steps of {} m, {} m, {}°), more than the \
+         {MAX_COARSE_CELLS} eval-loc scores per query: is the prior noise model in sampling.json ({}) what the \
+         priors hold? Else {advice}",
+        c.xy_range_m,
+        c.z_range_m,
+        c.yaw_range_deg,
+        c.xy_step_m,
+        c.z_step_m,
+        c.yaw_step_deg,
+        b.origin
+    );
+    if cells > 10 * default_cells {
+        log::warn!(
+            "the coarse grid has {cells} cells, {:.0}× the default prior noise model's {default_cells}: the prior's \
+             uncertainty sets its range; {advice}",
+            cells as f64 / default_cells as f64
+        );
+    }
+    Ok(())
+}
+
 /// Parses `AFTER/KEEP` (an early judgement of the basins) or `off`.
 /// The semantic IoU's weight in the instance cost: as given, else 0 with `--paper` (the paper's pure
 /// instance cost), else [`DEFAULT_SEMANTIC_WEIGHT`].
@@ -685,31 +727,10 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         map,
         shard: super::resolve_shard(args.shard)?,
     };
+    check_search(&opts.search)?;
     let resolved = crate::render::resolve(args.renderer, Workload::Hypotheses)
         .context("setting up the renderer of the hypotheses (`--renderer cpu` needs no GPU)")?;
     log::info!("eval-loc renders its hypotheses with {} ({})", resolved.renderer.record(), resolved.reason);
-    let (b, c) = (&opts.search.bounds, &opts.search.coarse);
-    log::info!(
-        "search volume ±{:.1} m, ±{:.1} m, ±{:.1}° about the prior ({}); coarse grid ±{} m, ±{} m, ±{}°: {} cells",
-        b.radius_m,
-        b.height_m,
-        b.yaw_deg,
-        b.origin,
-        c.xy_range_m,
-        c.z_range_m,
-        c.yaw_range_deg,
-        c.cells()
-    );
-    let default_cells = CoarseParams::default().cells();
-    if c.cells() > 10 * default_cells {
-        log::warn!(
-            "the coarse grid has {} cells, {:.0}× the default prior noise model's {default_cells}: the prior's \
-             uncertainty sets its range; larger steps (--coarse-xy RANGE/STEP, --coarse-z, --coarse-yaw) make it \
-             faster at the risk of stepping over narrow basins",
-            c.cells(),
-            c.cells() as f64 / default_cells as f64
-        );
-    }
     let printer = global.printer();
     let summary = eval::evaluate(&scene, &opts, &*resolved.renderer, &printer.progress())
         .with_context(|| format!("evaluating localization on {}/{}", args.area, args.camera))?;
@@ -823,6 +844,16 @@ mod tests {
             grid(&["--coarse-xy", "10/2", "--coarse-yaw", "3/1"], &loose),
             (10.0, 2.0, 20.0, 5.0, 3.0, 1.0)
         );
+        // A grid too large to score is refused, naming its size and the way out.
+        let options = |extra: &[&str], noise: &PriorNoise| {
+            let a = parse(extra).unwrap();
+            search_options(&a, search_bounds(&a, noise, "test").unwrap(), noise)
+        };
+        assert!(check_search(&options(&[], &loose)).is_ok());
+        let lost = PriorNoise { sigma_enu_m: [500.0, 500.0, 50.0], ..PriorNoise::default() };
+        let e = check_search(&options(&[], &lost)).unwrap_err().to_string();
+        assert!(e.contains("would have") && e.contains("--coarse-xy RANGE/STEP"), "{e}");
+        assert!(check_search(&options(&["--coarse-xy", "1250/50", "--coarse-z", "100/25"], &lost)).is_ok());
     }
 
     #[test]

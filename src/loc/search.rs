@@ -337,13 +337,27 @@ impl CoarseParams {
         }
     }
 
-    /// The number of hypotheses of [`coarse_grid`] (before the cells outside the volume are left out).
-    pub fn cells(&self) -> usize {
-        steps(self.xy_range_m, self.xy_step_m).len().pow(2)
-            * steps(self.z_range_m, self.z_step_m).len()
-            * steps(self.yaw_range_deg, self.yaw_step_deg).len()
+    /// The number of hypotheses of [`coarse_grid`] (before the cells outside the volume are left out),
+    /// counted without building it (saturating at `u64::MAX`).
+    pub fn cells(&self) -> u64 {
+        let n = |range: f64, step: f64| {
+            if step <= 0.0 || range <= 0.0 {
+                1.0
+            } else {
+                2.0 * (range / step).round() + 1.0
+            }
+        };
+        // `as` saturates; NaN (never from validated flags) counts 0.
+        (n(self.xy_range_m, self.xy_step_m).powi(2)
+            * n(self.z_range_m, self.z_step_m)
+            * n(self.yaw_range_deg, self.yaw_step_deg)) as u64
     }
 }
+
+/// The most coarse cells eval-loc scores per query (350× the default model's 2835): a prior noise
+/// model or `--coarse-*` flags asking for more are refused with the sizes, rather than allocating
+/// and rendering for hours.
+pub const MAX_COARSE_CELLS: u64 = 1_000_000;
 
 /// The particle-filter refinement (paper / public code values as defaults).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -1665,6 +1679,12 @@ mod tests {
             let d = CoarseParams::default();
             assert_eq!(range(&d), (20.0, 5.0, 10.0, 5.0, 7.5, 2.5));
             assert_eq!((d.cells(), coarse_grid(&prior(), &d).len()), (2835, 2835));
+            let l = CoarseParams { xy_range_m: 35.0, z_range_m: 0.0, yaw_range_deg: 15.0, ..d.clone() };
+            assert_eq!(l.cells(), coarse_grid(&prior(), &l).len() as u64);
+            // Counted, not built: a prior without any position (σ = 10⁹ m) is no allocation.
+            let huge = PriorNoise { sigma_enu_m: [1e9; 3], ..PriorNoise::default() };
+            let h = CoarseParams::from_prior_noise(&huge, &SearchBounds::from_prior_noise(&huge, "test"));
+            assert!(h.cells() > MAX_COARSE_CELLS, "{}", h.cells());
             // Twice as noisy: 35 m, 20 m, 15° (inside its own bounds: 61.6 m, 40 m, 24°).
             let loose = PriorNoise {
                 sigma_enu_m: [14.0, 9.0, 10.0],
