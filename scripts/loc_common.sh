@@ -14,3 +14,16 @@ prepare_or_skip() {
     exit 1
   fi
 }
+
+# copy_scene AREA DIR: scenes/AREA.toml into DIR, the shared data's relative paths made absolute, for a
+# benchmark that appends its own [sampling] tables; a scene file with [sampling] tables of its own is
+# refused (they would clash).
+copy_scene() {
+  local a=$1 dir=$2 shared
+  shared=$(realpath ../shared 2>/dev/null || echo ../shared)
+  sed "s#\.\./\.\./shared#$shared#" "scenes/$a.toml" > "$dir/$a.toml"
+  if grep -q '^\[sampling' "$dir/$a.toml"; then
+    echo "scenes/$a.toml has [sampling] tables of its own; this benchmark writes its own" >&2
+    exit 1
+  fi
+}

@@ -30,7 +30,6 @@ PY=${INSGEN_PYTHON:-.venv/bin/python}
 cargo build --release --quiet --bin insgen
 mkdir -p "$W"
 W=$(realpath "$W")
-SHARED=$(realpath ../shared 2>/dev/null || echo ../shared)
 E="eval-loc --camera cam2 --oracle --overlays 0 --cost instance --cost semantic"
 
 if [ "${REPORT_ONLY:-0}" != 1 ]; then
@@ -41,11 +40,7 @@ if [ "${REPORT_ONLY:-0}" != 1 ]; then
     mkdir -p "$P/scenes"
     IG="target/release/insgen --no-progress -q --workdir $P --scenes $P/scenes"
     for a in $AREAS; do
-      sed "s#\.\./\.\./shared#$SHARED#" "scenes/$a.toml" > "$P/scenes/$a.toml"
-      if grep -q '^\[sampling' "$P/scenes/$a.toml"; then
-        echo "scenes/$a.toml has its own [sampling] tables; this benchmark sets the prior's" >&2
-        exit 1
-      fi
+      copy_scene "$a" "$P/scenes"
       printf '\n[sampling.prior]\nsigma_enu_m = [%s, %s, %s]\nsigma_ypr_deg = [%s, 0.02, 0.02]\n' \
         "$se" "$sn" "$su" "$syaw" >> "$P/scenes/$a.toml"
       prepare_or_skip "$IG" "$P" "$a" || continue

@@ -38,17 +38,12 @@ PY=${INSGEN_PYTHON:-.venv/bin/python}
 cargo build --release --quiet --bin insgen
 mkdir -p "$W/scenes"
 W=$(realpath "$W")
-SHARED=$(realpath ../shared 2>/dev/null || echo ../shared)
 IG="nice -n 10 target/release/insgen --no-progress -q --workdir $W --scenes $W/scenes"
 E="eval-loc --oracle --overlays 0"
 
 # The census scene files: the repository's, shared paths made absolute, every view kept.
 for a in $AREAS; do
-  sed "s#\.\./\.\./shared#$SHARED#" "scenes/$a.toml" > "$W/scenes/$a.toml"
-  if grep -q '^\[sampling\]' "$W/scenes/$a.toml"; then
-    echo "scenes/$a.toml has its own [sampling] table; the census needs its own" >&2
-    exit 1
-  fi
+  copy_scene "$a" "$W/scenes"
   printf '\n[sampling]\nmin_visible_buildings = 1\nmax_building_fraction = 1.0\n' >> "$W/scenes/$a.toml"
 done
 # The cam2 body under another name, for the sparse set.

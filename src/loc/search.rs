@@ -1527,14 +1527,15 @@ mod tests {
         fine: bool,
     }
 
+    /// A Gaussian bump of the cost around (x, 0, 200) m and yaw 0, `width_m` wide.
+    fn bump(h: &Hypothesis, x: f64, width_m: f64) -> f64 {
+        let d2 = (h.centre_m[0] - x).powi(2) + h.centre_m[1].powi(2) + (h.centre_m[2] - 200.0).powi(2);
+        (-d2 / (2.0 * width_m * width_m) - h.yaw_deg * h.yaw_deg / 20.0).exp()
+    }
+
     impl Evaluate for TwoBasins {
         type Error = std::convert::Infallible;
         fn evaluate(&mut self, hyps: &[Hypothesis]) -> Result<Vec<f64>, Self::Error> {
-            let bump = |h: &Hypothesis, x: f64, width_m: f64| {
-                let d2 =
-                    (h.centre_m[0] - x).powi(2) + h.centre_m[1].powi(2) + (h.centre_m[2] - 200.0).powi(2);
-                (-d2 / (2.0 * width_m * width_m) - h.yaw_deg * h.yaw_deg / 20.0).exp()
-            };
             let true_height = if self.fine { 1.0 } else { 0.8 };
             Ok(hyps
                 .iter()
@@ -1728,11 +1729,6 @@ mod tests {
         impl Evaluate for FarTruth {
             type Error = std::convert::Infallible;
             fn evaluate(&mut self, hyps: &[Hypothesis]) -> Result<Vec<f64>, Self::Error> {
-                let bump = |h: &Hypothesis, x: f64, width_m: f64| {
-                    let d2 =
-                        (h.centre_m[0] - x).powi(2) + h.centre_m[1].powi(2) + (h.centre_m[2] - 200.0).powi(2);
-                    (-d2 / (2.0 * width_m * width_m) - h.yaw_deg * h.yaw_deg / 20.0).exp()
-                };
                 Ok(hyps.iter().map(|h| (0.6 * bump(h, 0.0, 6.0)).max(bump(h, 30.0, 2.5))).collect())
             }
         }
