@@ -414,14 +414,12 @@ fn check_search(search: &SearchOptions) -> anyhow::Result<()> {
     let (b, c) = (&search.bounds, &search.coarse);
     let (cells, default_cells) = (c.cells(), CoarseParams::default().cells());
     log::info!(
-        "search volume ±{:.1} m, ±{:.1} m, ±{:.1}° about the prior ({}); coarse grid ±{} m, ±{} m, ±{}°: {cells} cells",
+        "search volume ±{:.1} m, ±{:.1} m, ±{:.1}° about the prior ({}); coarse grid {}",
         b.radius_m,
         b.height_m,
         b.yaw_deg,
         b.origin,
-        c.xy_range_m,
-        c.z_range_m,
-        c.yaw_range_deg,
+        c.describe()
     );
     let advice =
         "larger steps (--coarse-xy RANGE/STEP, --coarse-z, --coarse-yaw) make it faster at the risk of \
@@ -830,9 +828,12 @@ mod tests {
             sigma_ypr_deg: [6.0, 0.02, 0.02],
             ..PriorNoise::default()
         };
-        let grid = |extra: &[&str], noise: &PriorNoise| {
+        let options = |extra: &[&str], noise: &PriorNoise| {
             let a = parse(extra).unwrap();
-            let c = search_options(&a, search_bounds(&a, noise, "test").unwrap(), noise).coarse;
+            search_options(&a, search_bounds(&a, noise, "test").unwrap(), noise)
+        };
+        let grid = |extra: &[&str], noise: &PriorNoise| {
+            let c = options(extra, noise).coarse;
             (c.xy_range_m, c.xy_step_m, c.z_range_m, c.z_step_m, c.yaw_range_deg, c.yaw_step_deg)
         };
         assert_eq!(grid(&[], &PriorNoise::default()), (20.0, 5.0, 10.0, 5.0, 7.5, 2.5));
@@ -845,10 +846,6 @@ mod tests {
             (10.0, 2.0, 20.0, 5.0, 3.0, 1.0)
         );
         // A grid too large to score is refused, naming its size and the way out.
-        let options = |extra: &[&str], noise: &PriorNoise| {
-            let a = parse(extra).unwrap();
-            search_options(&a, search_bounds(&a, noise, "test").unwrap(), noise)
-        };
         assert!(check_search(&options(&[], &loose)).is_ok());
         let lost = PriorNoise { sigma_enu_m: [500.0, 500.0, 50.0], ..PriorNoise::default() };
         let e = check_search(&options(&[], &lost)).unwrap_err().to_string();

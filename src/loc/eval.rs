@@ -1492,21 +1492,6 @@ fn bounds_text(b: &search::SearchBounds) -> String {
     )
 }
 
-/// The coarse grid in words, for `summary.md`.
-fn coarse_text(c: &search::CoarseParams) -> String {
-    format!(
-        "±{} m east and north, ±{} m in height in steps of {} and {} m, ±{}° in yaw in steps of {}°: {} cells \
-         before those outside the volume are left out",
-        c.xy_range_m,
-        c.z_range_m,
-        c.xy_step_m,
-        c.z_step_m,
-        c.yaw_range_deg,
-        c.yaw_step_deg,
-        c.cells()
-    )
-}
-
 /// A paragraph naming the methods whose estimates lie systematically ahead of or behind the truth
 /// ([`metrics::depth_biased`]) and what to do about it given the masks' source; empty when none do.
 fn depth_bias_note(rows: &[metrics::AxisRow], source: Option<&PartSource>) -> String {
@@ -1652,7 +1637,7 @@ pub fn write_outputs(out_dir: &Path, outputs: &Outputs) -> Result<(), EvalError>
         metrics::axis_markdown(&summary.axis_rows),
         depth_bias_note(&summary.axis_rows, summary.source.as_ref()),
         bounds_text(&summary.search.bounds),
-        coarse_text(&summary.search.coarse),
+        summary.search.coarse.describe(),
         match summary.search.on_boundary {
             search::OnBoundary::Prior => "There the cost still improves towards poses the prior rules out; the \
                                           prior is reported instead of the pose found:",

@@ -341,17 +341,26 @@ impl CoarseParams {
     /// The number of hypotheses of [`coarse_grid`] (before the cells outside the volume are left out),
     /// counted without building it (saturating at `u64::MAX`).
     pub fn cells(&self) -> u64 {
-        let n = |range: f64, step: f64| {
-            if step <= 0.0 || range <= 0.0 {
-                1.0
-            } else {
-                2.0 * (range / step).round() + 1.0
-            }
-        };
+        let n = |range: f64, step: f64| 2.0 * half_steps(range, step) + 1.0;
         // `as` saturates; NaN (never from validated flags) counts 0.
         (n(self.xy_range_m, self.xy_step_m).powi(2)
             * n(self.z_range_m, self.z_step_m)
             * n(self.yaw_range_deg, self.yaw_step_deg)) as u64
+    }
+
+    /// The grid in words (for `summary.md` and the log).
+    pub fn describe(&self) -> String {
+        format!(
+            "±{} m east and north, ±{} m in height in steps of {} and {} m, ±{}° in yaw in steps of {}°: {} cells \
+             before those outside the volume are left out",
+            self.xy_range_m,
+            self.z_range_m,
+            self.xy_step_m,
+            self.z_step_m,
+            self.yaw_range_deg,
+            self.yaw_step_deg,
+            self.cells()
+        )
     }
 }
 
@@ -640,11 +649,17 @@ enum Stage {
     Polish,
 }
 
-fn steps(range: f64, step: f64) -> Vec<f64> {
+/// Steps on each side of 0 along one axis of the coarse grid: none for a non-positive range or step.
+fn half_steps(range: f64, step: f64) -> f64 {
     if step <= 0.0 || range <= 0.0 {
-        return vec![0.0];
+        0.0
+    } else {
+        (range / step).round()
     }
-    let n = (range / step).round() as i64;
+}
+
+fn steps(range: f64, step: f64) -> Vec<f64> {
+    let n = half_steps(range, step) as i64;
     (-n..=n).map(|i| i as f64 * step).collect()
 }
 
