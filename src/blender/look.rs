@@ -15,6 +15,8 @@
 use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
+use crate::util::fnv1a_seeded;
+
 pub use super::error::{EffectsError, LookError};
 
 /// Whether frames vary.
@@ -298,15 +300,10 @@ pub fn solar_position_deg(latitude_deg: f64, day_of_year: u32, solar_time_h: f64
     (az.to_degrees().rem_euclid(360.0), el.to_degrees())
 }
 
-/// Stable 64-bit FNV-1a of a frame name (the frame's contribution to its look seed).
-fn fnv1a(s: &str) -> u64 {
-    s.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3))
-}
-
 impl FrameLook {
     /// Seed of the sensor noise of frame `name` (independent of the draws of [`FrameLook::draw`]).
     pub fn noise_seed(look_seed: u64, name: &str) -> u64 {
-        look_seed.rotate_left(29) ^ fnv1a(name) ^ 0x006e_6f69_7365_u64
+        look_seed.rotate_left(29) ^ fnv1a_seeded(0, name) ^ 0x006e_6f69_7365_u64
     }
 
     /// The look of frame `name` under `ranges` and `look_seed` (the plan's seed of the sun and materials).
@@ -318,7 +315,8 @@ impl FrameLook {
         if ranges.style == LookStyle::Plain {
             return Ok(FrameLook::plain(look_seed));
         }
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(look_seed ^ fnv1a(name).rotate_left(17));
+        let mut rng =
+            rand_chacha::ChaCha8Rng::seed_from_u64(look_seed ^ fnv1a_seeded(0, name).rotate_left(17));
         let sun = draw_sun(&ranges.sun, &mut rng)?;
         let sky = draw_sky(&ranges.sky_weights, &mut rng);
         // Sun weaker through a longer air path at low elevation, and through haze and cloud.

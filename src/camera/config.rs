@@ -181,7 +181,9 @@ pub struct IrregularConfig {
 ///
 /// The defaults give median prior errors of about 9.7 m and 2.0° (measured over 20 000 draws; see
 /// `camera::prior`), inside the range of public UAV benchmarks (UAVD4L-LoD, the paper's Tokyo set:
-/// medians 6–18 m and 0.9–4°).
+/// medians 6–18 m and 0.9–4°). Each frame draws its errors from a generator keyed by the run's seed
+/// and the frame's name (`camera::prior::prior_rng`), independent of the other frames, areas and
+/// cameras.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PriorNoise {

@@ -2,8 +2,12 @@
 //!
 //! For every ground-truth pose the prior is: centre + bias_enu + N(0, diag(σ_e², σ_n², σ_u²)), and
 //! yaw/pitch/roll + bias_ypr + N(0, diag(σ_yaw², σ_pitch², σ_roll²)) rebuilt with
-//! [`Pose::from_ypr_deg`]. Draws come from a ChaCha8 stream of their own (stream
-//! [`PRIOR_STREAM`] of the run's seed), so changing the noise model never changes the poses.
+//! [`Pose::from_ypr_deg`]. Each frame draws from a ChaCha8 generator of its own, keyed by the run's
+//! seed and the frame's name ([`prior_rng`], stream [`PRIOR_STREAM`]): changing the noise model never
+//! changes the poses, and the frames of different areas and cameras sampled with one seed get
+//! independent prior errors (before 2026-12-06 one stream ran over the frames in order, so frame i of
+//! every area sampled with the same seed started from the same error, and tables pooled over areas
+//! held fewer independent priors than queries).
 //!
 //! With the default model (σ = 7, 7, 5 m; yaw 3°, pitch and roll 0.02°) the median prior errors are
 //! about 9.7 m and 2.0° (measured: see the test `default_noise_medians`), inside the range of the
@@ -18,7 +22,7 @@ use rand_distr::StandardNormal;
 use super::config::PriorNoise;
 use super::{Pose, PoseRecord};
 use crate::geo::EnuFrame;
-use crate::util::median;
+use crate::util::{fnv1a_seeded, median};
 
 /// ChaCha8 stream used for prior noise (stream 0 is the pose sampler's).
 pub const PRIOR_STREAM: u64 = 1;
@@ -39,6 +43,15 @@ pub fn perturb_pose<R: Rng>(pose: &Pose, noise: &PriorNoise, rng: &mut R) -> Pos
     Pose::from_ypr_deg(yaw, pitch, roll, centre_m)
 }
 
+/// The generator of frame `name`'s prior noise under the run's `seed`: keyed by both, so that a
+/// frame's prior depends neither on the frames sampled before it nor on the other areas and cameras
+/// of the run.
+pub fn prior_rng(seed: u64, name: &str) -> ChaCha8Rng {
+    let mut rng = ChaCha8Rng::seed_from_u64(fnv1a_seeded(seed, name));
+    rng.set_stream(PRIOR_STREAM);
+    rng
+}
+
 /// The prior record of every ground-truth record, in the same order and with the same names.
 /// `ground_enu_m` is the area's ground level (for `height_above_ground_m`).
 pub fn make_priors(
@@ -48,12 +61,10 @@ pub fn make_priors(
     enu: &EnuFrame,
     ground_enu_m: f64,
 ) -> Vec<PoseRecord> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    rng.set_stream(PRIOR_STREAM);
     poses
         .iter()
         .map(|r| {
-            let noisy = perturb_pose(&r.pose(), noise, &mut rng);
+            let noisy = perturb_pose(&r.pose(), noise, &mut prior_rng(seed, &r.name));
             PoseRecord::new(
                 r.name.clone(),
                 &r.area,
@@ -106,6 +117,42 @@ mod tests {
         // (the median of |N(0, 3°)|; pitch and roll add < 0.01°).
         assert!((9.4..10.1).contains(&mt), "median translation {mt} m");
         assert!((1.9..2.1).contains(&mr), "median rotation {mr}°");
+    }
+
+    #[test]
+    fn each_frame_draws_its_own_prior_error() {
+        let enu = EnuFrame::new(crate::geo::Geodetic { lat_deg: 35.66, lon_deg: 139.70, h_m: 40.0 });
+        let k = crate::camera::Intrinsics::from_hfov(640, 360, 25.0);
+        let record = |area: &str, index: u32| {
+            let pose = Pose::from_ypr_deg(30.0, 45.0, 0.0, [10.0 * index as f64, 0.0, 300.0]);
+            let name = format!("{area}_cam2_{index:05}_0000");
+            PoseRecord::new(
+                name,
+                area,
+                "cam2",
+                crate::camera::Trajectory::Grid,
+                0,
+                index,
+                k,
+                &pose,
+                &enu,
+                0.0,
+            )
+        };
+        let noise = PriorNoise::default();
+        let errors = |records: &[PoseRecord], seed: u64| -> Vec<glam::DVec3> {
+            let priors = make_priors(records, &noise, seed, &enu, 0.0);
+            records.iter().zip(&priors).map(|(t, p)| t.pose().centre_m - p.pose().centre_m).collect()
+        };
+        let demo: Vec<PoseRecord> = (0..4).map(|i| record("demo", i)).collect();
+        let tokyo: Vec<PoseRecord> = (0..4).map(|i| record("tokyo", i)).collect();
+        // Frame i of two areas sampled with one seed: different prior errors.
+        let (d, t) = (errors(&demo, 1), errors(&tokyo, 1));
+        assert!(d.iter().zip(&t).all(|(a, b)| a != b), "{d:?} vs {t:?}");
+        // A frame's prior does not depend on the frames before it, and the seed changes it.
+        assert_eq!(errors(&demo[2..], 1), d[2..].to_vec());
+        assert_eq!(errors(&demo, 1), d);
+        assert!(errors(&demo, 2).iter().zip(&d).all(|(a, b)| a != b));
     }
 
     #[test]

@@ -25,8 +25,10 @@
 //!   `min_covered_cells` > 0, the rays hitting buildings must also spread over that many cells of the
 //!   frame's 4 × 4 grid; each pose records its count (`covered_frame_cells`).
 //!
-//! Randomness: one ChaCha8 generator seeded with the run's seed (stream 0) drives the sampler; the
-//! priors use stream [`super::prior::PRIOR_STREAM`]. Same inputs and seed → identical outputs.
+//! Randomness: one ChaCha8 generator seeded with the run's seed (stream 0) drives the sampler; each
+//! frame's prior draws from a generator keyed by the seed and the frame's name
+//! ([`super::prior::prior_rng`]), so areas sampled with one seed get independent prior errors. Same
+//! inputs and seed → identical outputs.
 
 use std::path::{Path, PathBuf};
 

@@ -43,7 +43,8 @@ pub struct Args {
     /// Number of poses [default: the strategy's natural coverage].
     #[arg(long, value_name = "N")]
     pub count: Option<usize>,
-    /// Random seed; the same seed gives byte-identical files.
+    /// Random seed; the same seed gives byte-identical files. Each frame's prior error is drawn from
+    /// the seed and the frame's name, so areas sampled with one seed get independent priors.
     #[arg(long, value_name = "SEED", default_value_t = 0)]
     pub seed: u64,
     /// Strategy: grid, regular or irregular [default: the camera's].

@@ -760,12 +760,7 @@ pub fn look_at_ground(pose: &Pose, ground_m: f64) -> Option<DVec3> {
 
 fn frame_seed(seed: u64, name: &str) -> u64 {
     // FNV-1a of the frame name mixed with the run seed: stable across runs and platforms.
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325 ^ seed;
-    for b in name.bytes() {
-        h ^= b as u64;
-        h = h.wrapping_mul(0x100_0000_01b3);
-    }
-    h
+    crate::util::fnv1a_seeded(seed, name)
 }
 
 fn group_of(t: Trajectory) -> &'static str {
