@@ -45,7 +45,9 @@ pub fn perturb_pose<R: Rng>(pose: &Pose, noise: &PriorNoise, rng: &mut R) -> Pos
 
 /// The generator of frame `name`'s prior noise under the run's `seed`: keyed by both, so that a
 /// frame's prior depends neither on the frames sampled before it nor on the other areas and cameras
-/// of the run.
+/// of the run. eval-loc keys its per-frame draws (the oracle's degradations, the particle filter) the
+/// same way on stream 0; [`PRIOR_STREAM`] keeps the prior's draws apart from them when the two seeds
+/// are equal.
 pub fn prior_rng(seed: u64, name: &str) -> ChaCha8Rng {
     let mut rng = ChaCha8Rng::seed_from_u64(fnv1a_seeded(seed, name));
     rng.set_stream(PRIOR_STREAM);
