@@ -203,6 +203,12 @@ pub struct Args {
     /// than a query pixel it leaves uncovered; 1 is the IoU [default: 0.3].
     #[arg(long, value_name = "λ", value_parser = parse_unit_fraction)]
     pub polish_spill_weight: Option<f64>,
+    /// In the polish's second pass, leave the pixels next to the render's outline (a pixel wide on
+    /// each side) out of the union's overlap: masks a pixel fatter or thinner than the buildings, each
+    /// instance its own way (a segmenter's rims), then move no camera along its axis. Off by default:
+    /// measured so far only on segmenter-like masks against the exact map (bench/loc_learned.md)
+    #[arg(long)]
+    pub polish_outline_band: bool,
     /// The paper's search exactly: its coarse grid, rendered at 320 px, and particle filter (40
     /// iterations, 2 beams × (2 kept + 2 × 12 perturbations) ranked jointly across beams), no
     /// distinct basins, no polish. Other search flags given with it still apply.
@@ -461,6 +467,7 @@ fn polish_cost(args: &Args) -> PolishCost {
         semantic_weight: args.polish_semantic_weight.unwrap_or(d.semantic_weight),
         max_silhouette_offset_px: args.silhouette_offset.unwrap_or(d.max_silhouette_offset_px),
         spill_weight: args.polish_spill_weight.unwrap_or(d.spill_weight),
+        outline_band: args.polish_outline_band,
     }
 }
 
@@ -790,11 +797,14 @@ mod tests {
             PolishCost {
                 semantic_weight: 0.5,
                 max_silhouette_offset_px: 0,
-                spill_weight: DEFAULT_SPILL_WEIGHT
+                spill_weight: DEFAULT_SPILL_WEIGHT,
+                outline_band: false,
             }
         );
         let a = parse(&["--polish-spill-weight", "1"]).unwrap();
         assert_eq!(polish_cost(&a), PolishCost { spill_weight: 1.0, ..PolishCost::default() });
+        let a = parse(&["--polish-outline-band"]).unwrap();
+        assert_eq!(polish_cost(&a), PolishCost { outline_band: true, ..PolishCost::default() });
         for bad in [["--polish-semantic-weight", "2"], ["--polish-spill-weight", "1.5"]] {
             let e = parse(&bad).unwrap_err().to_string();
             assert!(e.contains("expected a number in [0, 1]"), "{e}");

@@ -59,12 +59,16 @@ pub struct Blend {
     /// Weight λ of the rendered building pixels outside the query's union in the semantic term,
     /// |Q ∩ R| / (|Q| + λ·|R \ Q|) ([`Scorer::semantic_overlap`]); 1 is the IoU.
     pub spill_weight: f64,
+    /// Whether the semantic term leaves out the pixels next to the render's outline
+    /// ([`Scorer::banded_overlap`]).
+    #[serde(default)]
+    pub outline_band: bool,
 }
 
 impl Blend {
     /// Weight `w` of the semantic IoU (spill weight 1).
     pub fn semantic(w: f64) -> Blend {
-        Blend { semantic_weight: w, spill_weight: 1.0 }
+        Blend { semantic_weight: w, spill_weight: 1.0, outline_band: false }
     }
 }
 
@@ -283,6 +287,8 @@ pub struct Scorer {
     row: Vec<u32>,
     touched: Vec<u32>,
     render_area: Vec<u32>,
+    /// The query's union as a mask ([`Scorer::banded_overlap`]).
+    in_query: Vec<bool>,
     /// The grouped cost's buffers ([`Scorer::grouped_instance_cost`]).
     groups: GroupBuffers,
 }
@@ -533,6 +539,56 @@ impl Scorer {
         }
     }
 
+    /// [`Scorer::semantic_overlap`] without the pixels next to the outline of the render R: those with a
+    /// 4-neighbour on the other side of it, a pixel wide inside and outside R. A segmenter's masks
+    /// are a pixel fatter or thinner than the building, each instance its own way (the rim offset of
+    /// [`super::oracle::SegmenterLike`]); those pixels then lie in the band and move no camera, while
+    /// an outline displaced by two pixels or more (a camera a few metres off along its axis, at the
+    /// frame's edge) still counts. The exact outline scores 1.
+    pub fn banded_overlap(&mut self, q: &Query, rendered: &[u32], spill_weight: f64) -> f64 {
+        let (w, h) = (q.width as usize, q.height as usize);
+        debug_assert_eq!(rendered.len(), w * h);
+        self.in_query.clear();
+        self.in_query.resize(w * h, false);
+        for &[a, b] in &q.union {
+            self.in_query[a as usize..b as usize].fill(true);
+        }
+        let r = |i: usize| rendered[i] != 0;
+        let (mut query_px, mut inter, mut spill) = (0u64, 0u64, 0u64);
+        for y in 0..h {
+            for x in 0..w {
+                let i = y * w + x;
+                let c = r(i);
+                let band = (x > 0 && r(i - 1) != c)
+                    || (x + 1 < w && r(i + 1) != c)
+                    || (y > 0 && r(i - w) != c)
+                    || (y + 1 < h && r(i + w) != c);
+                if !band {
+                    let inq = self.in_query[i];
+                    query_px += inq as u64;
+                    inter += (inq && c) as u64;
+                    spill += (!inq && c) as u64;
+                }
+            }
+        }
+        let denominator = query_px as f64 + spill_weight * spill as f64;
+        if denominator <= 0.0 {
+            0.0
+        } else {
+            inter as f64 / denominator
+        }
+    }
+
+    /// The semantic term of `blend`: [`Scorer::semantic_overlap`] with its spill weight, banded
+    /// ([`Scorer::banded_overlap`]) when it says so.
+    fn union_term(&mut self, q: &Query, rendered: &[u32], blend: Blend) -> f64 {
+        if blend.outline_band {
+            self.banded_overlap(q, rendered, blend.spill_weight)
+        } else {
+            self.semantic_overlap(q, rendered, blend.spill_weight)
+        }
+    }
+
     /// The blended instance cost (1 − w)·instance + w·semantic, in [0, 1], with w and the semantic
     /// term's spill weight from `blend` ([`Scorer::semantic_overlap`]); w = 0 is the paper's pure
     /// instance cost (and skips the semantic pass), 1 the semantic term alone (and skips the instance
@@ -562,7 +618,7 @@ impl Scorer {
         let w = blend.semantic_weight;
         if w == 1.0 {
             // The union's outline alone (the polish's second pass by default): no instance pass.
-            return self.semantic_overlap(q, rendered, blend.spill_weight);
+            return self.union_term(q, rendered, blend);
         }
         let instance = if grouped {
             self.grouped_instance_cost(q, rendered, k_max, weighting)
@@ -572,7 +628,7 @@ impl Scorer {
         if w == 0.0 {
             return instance;
         }
-        (1.0 - w) * instance + w * self.semantic_overlap(q, rendered, blend.spill_weight)
+        (1.0 - w) * instance + w * self.union_term(q, rendered, blend)
     }
 
     /// The cost of `kind` (the merged ablation expects `q` already merged with [`Query::merged`]).
@@ -592,7 +648,7 @@ impl Scorer {
             CostKind::Instance => self.blended(false, q, rendered, k_max, weighting, blend),
             CostKind::Grouped => self.blended(true, q, rendered, k_max, weighting, blend),
             CostKind::Merged => self.instance_cost(q, rendered, k_max, weighting),
-            CostKind::Semantic => self.semantic_overlap(q, rendered, blend.spill_weight),
+            CostKind::Semantic => self.union_term(q, rendered, blend),
         }
     }
 }
@@ -1010,19 +1066,55 @@ mod tests {
                 assert!((s.semantic_overlap(&q, &smaller, lambda) - 2.0 / 3.0).abs() < 1e-12);
                 assert_eq!(s.semantic_overlap(&q, &exact, lambda), 1.0);
             }
-            let tversky = Blend { semantic_weight: 1.0, spill_weight: 0.3 };
+            let tversky = Blend { semantic_weight: 1.0, spill_weight: 0.3, outline_band: false };
             assert_eq!(
                 s.blended_cost(&q, &larger, 1, Weighting::Area, tversky),
                 s.semantic_overlap(&q, &larger, 0.3)
             );
             assert_eq!(s.cost(CostKind::Semantic, &q, &larger, 1, Weighting::Area, tversky), 3.0 / 3.3);
-            let pure = Blend { semantic_weight: 0.0, spill_weight: 0.3 };
+            let pure = Blend { semantic_weight: 0.0, spill_weight: 0.3, outline_band: false };
             assert_eq!(
                 s.blended_cost(&q, &larger, 1, Weighting::Area, pure),
                 s.instance_cost(&q, &larger, 1, Weighting::Area)
             );
             // Nothing rendered and nothing queried: 0.
             assert_eq!(s.semantic_overlap(&Query::new(6, 1, Vec::new()), &[0; 6], 0.3), 0.0);
+        }
+
+        #[test]
+        fn the_outline_band_ignores_a_one_pixel_rim_but_not_a_two_pixel_shift() {
+            // A 6 × 4 building rendered in a 12 × 10 frame; queries: the same building, one pixel
+            // fatter on every side (4-neighbourhood), one pixel thinner, and shifted two pixels right.
+            let (w, h) = (12usize, 10usize);
+            let rect = |x0: usize, x1: usize, y0: usize, y1: usize| -> Vec<u32> {
+                (0..w * h)
+                    .map(|i| ((x0..x1).contains(&(i % w)) && (y0..y1).contains(&(i / w))) as u32)
+                    .collect()
+            };
+            let render = rect(3, 9, 3, 7);
+            let query = |labels: &[u32]| Query::from_labels(w as u32, h as u32, labels, &[1.0]);
+            let mut fatter = rect(2, 10, 3, 7);
+            for (i, v) in rect(3, 9, 2, 8).into_iter().enumerate() {
+                fatter[i] |= v;
+            }
+            let (exact, thinner, shifted) =
+                (query(&render), query(&rect(4, 8, 4, 6)), query(&rect(5, 11, 3, 7)));
+            let fatter = query(&fatter);
+            let mut s = Scorer::default();
+            for lambda in [1.0, 0.3] {
+                assert_eq!(s.banded_overlap(&exact, &render, lambda), 1.0);
+                assert_eq!(s.banded_overlap(&fatter, &render, lambda), 1.0, "λ {lambda}");
+                assert_eq!(s.banded_overlap(&thinner, &render, lambda), 1.0, "λ {lambda}");
+                assert!(s.semantic_overlap(&fatter, &render, lambda) < 0.9);
+                assert!(s.semantic_overlap(&thinner, &render, lambda) < 0.9);
+                // Two pixels off: the column beyond the band on each side counts.
+                assert!(s.banded_overlap(&shifted, &render, lambda) < 0.9, "λ {lambda}");
+            }
+            // Through the blend: the band only when it says so.
+            let banded = Blend { semantic_weight: 1.0, spill_weight: 0.3, outline_band: true };
+            assert_eq!(s.cost(CostKind::Semantic, &fatter, &render, 1, Weighting::Area, banded), 1.0);
+            let plain = Blend { outline_band: false, ..banded };
+            assert!(s.cost(CostKind::Semantic, &fatter, &render, 1, Weighting::Area, plain) < 0.9);
         }
 
         #[test]

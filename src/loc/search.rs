@@ -427,6 +427,11 @@ pub struct PolishCost {
     /// and the IoU trades that spill for uncovered query pixels by moving the camera back. With λ < 1
     /// spill is weaker evidence than a query pixel left uncovered; the exact outline still scores 1.
     pub spill_weight: f64,
+    /// Whether the semantic term of the second pass leaves out the pixels next to the render's
+    /// outline (`eval-loc --polish-outline-band`; [`crate::loc::cost::Scorer::banded_overlap`]): a
+    /// segmenter's rim, a pixel in or out per instance, then moves no depth. Off by default until
+    /// measured against maps coarser than the buildings and real masks (bench/loc_learned.md).
+    pub outline_band: bool,
 }
 
 /// The default [`PolishCost::spill_weight`] (issue 15: measured on Den Haag and Shibuya against
@@ -435,7 +440,12 @@ pub const DEFAULT_SPILL_WEIGHT: f64 = 0.3;
 
 impl Default for PolishCost {
     fn default() -> Self {
-        PolishCost { semantic_weight: 1.0, max_silhouette_offset_px: 2, spill_weight: DEFAULT_SPILL_WEIGHT }
+        PolishCost {
+            semantic_weight: 1.0,
+            max_silhouette_offset_px: 2,
+            spill_weight: DEFAULT_SPILL_WEIGHT,
+            outline_band: false,
+        }
     }
 }
 
@@ -1369,8 +1379,12 @@ mod tests {
         assert!(dist(&entered, &target) < 0.1, "entered {:?}", entered.centre_m);
         assert!(dist(&best, &polish_target) < 0.1, "ended {:?}", best.centre_m);
         // Unchanged cost (the evaluator says so): one pass, the filter's optimum stands.
-        let (best, _) =
-            run(PolishCost { semantic_weight: 0.5, max_silhouette_offset_px: 0, spill_weight: 1.0 });
+        let (best, _) = run(PolishCost {
+            semantic_weight: 0.5,
+            max_silhouette_offset_px: 0,
+            spill_weight: 1.0,
+            outline_band: false,
+        });
         assert!(dist(&best, &target) < 0.1, "ended {:?}", best.centre_m);
     }
 
