@@ -287,8 +287,6 @@ pub struct Scorer {
     row: Vec<u32>,
     touched: Vec<u32>,
     render_area: Vec<u32>,
-    /// The query's union as a mask ([`Scorer::banded_overlap`]).
-    in_query: Vec<bool>,
     /// The grouped cost's buffers ([`Scorer::grouped_instance_cost`]).
     groups: GroupBuffers,
 }
@@ -548,11 +546,8 @@ impl Scorer {
     pub fn banded_overlap(&mut self, q: &Query, rendered: &[u32], spill_weight: f64) -> f64 {
         let (w, h) = (q.width as usize, q.height as usize);
         debug_assert_eq!(rendered.len(), w * h);
-        self.in_query.clear();
-        self.in_query.resize(w * h, false);
-        for &[a, b] in &q.union {
-            self.in_query[a as usize..b as usize].fill(true);
-        }
+        // The union's runs are ascending: a cursor tells whether pixel i (visited in order) is in it.
+        let mut runs = q.union.iter().peekable();
         let r = |i: usize| rendered[i] != 0;
         let (mut query_px, mut inter, mut spill) = (0u64, 0u64, 0u64);
         for y in 0..h {
@@ -563,8 +558,9 @@ impl Scorer {
                     || (x + 1 < w && r(i + 1) != c)
                     || (y > 0 && r(i - w) != c)
                     || (y + 1 < h && r(i + w) != c);
+                while runs.next_if(|&&[_, end]| end as usize <= i).is_some() {}
                 if !band {
-                    let inq = self.in_query[i];
+                    let inq = runs.peek().is_some_and(|&&[start, _]| start as usize <= i);
                     query_px += inq as u64;
                     inter += (inq && c) as u64;
                     spill += (!inq && c) as u64;

@@ -429,8 +429,9 @@ pub struct PolishCost {
     pub spill_weight: f64,
     /// Whether the semantic term of the second pass leaves out the pixels next to the render's
     /// outline (`eval-loc --polish-outline-band`; [`crate::loc::cost::Scorer::banded_overlap`]): a
-    /// segmenter's rim, a pixel in or out per instance, then moves no depth. Off by default until
-    /// measured against maps coarser than the buildings and real masks (bench/loc_learned.md).
+    /// segmenter's rim, a pixel in or out per instance, then moves no depth. Off by default: against
+    /// maps coarser than the buildings (LoD1 blocks spilling over the query's outline) it loses
+    /// (bench/loc_learned.md); not yet measured with a real model's masks.
     pub outline_band: bool,
 }
 
