@@ -206,8 +206,9 @@ pub struct Args {
     /// In the polish's second pass, leave the pixels next to the render's outline (a pixel wide on
     /// each side) out of the union's overlap: masks a pixel fatter or thinner than the buildings, each
     /// instance its own way (a segmenter's rims), then move no camera along its axis. Off by default:
-    /// it helps against a map as detailed as the buildings and loses against LoD1 blocks, which
-    /// spill over the query's outline (bench/loc_learned.md)
+    /// it helps such masks against a map as detailed as the buildings, loses against LoD1 blocks
+    /// (which spill over the query's outline), costs exact masks precision, and gained nothing with
+    /// a real U-Net's masks, whose outlines are off by more than a pixel (bench/loc_learned.md)
     #[arg(long)]
     pub polish_outline_band: bool,
     /// The paper's search exactly: its coarse grid, rendered at 320 px, and particle filter (40

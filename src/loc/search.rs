@@ -430,8 +430,9 @@ pub struct PolishCost {
     /// Whether the semantic term of the second pass leaves out the pixels next to the render's
     /// outline (`eval-loc --polish-outline-band`; [`crate::loc::cost::Scorer::banded_overlap`]): a
     /// segmenter's rim, a pixel in or out per instance, then moves no depth. Off by default: against
-    /// maps coarser than the buildings (LoD1 blocks spilling over the query's outline) it loses
-    /// (bench/loc_learned.md); not yet measured with a real model's masks.
+    /// maps coarser than the buildings (LoD1 blocks spilling over the query's outline) it loses, with
+    /// exact masks it costs precision, and with a real model's masks, whose outlines are off by more
+    /// than a pixel, it gains nothing (bench/loc_learned.md).
     pub outline_band: bool,
 }
 
