@@ -550,21 +550,13 @@ impl Scorer {
         let mut runs = q.union.iter().peekable();
         let r = |i: usize| rendered[i] != 0;
         let (mut query_px, mut inter, mut spill) = (0u64, 0u64, 0u64);
-        for y in 0..h {
-            for x in 0..w {
-                let i = y * w + x;
-                let c = r(i);
-                let band = (x > 0 && r(i - 1) != c)
-                    || (x + 1 < w && r(i + 1) != c)
-                    || (y > 0 && r(i - w) != c)
-                    || (y + 1 < h && r(i + w) != c);
-                while runs.next_if(|&&[_, end]| end as usize <= i).is_some() {}
-                if !band {
-                    let inq = runs.peek().is_some_and(|&&[start, _]| start as usize <= i);
-                    query_px += inq as u64;
-                    inter += (inq && c) as u64;
-                    spill += (!inq && c) as u64;
-                }
+        for i in 0..w * h {
+            while runs.next_if(|&&[_, end]| end as usize <= i).is_some() {}
+            if !super::morph::on_outline(i, w, h, r) {
+                let (inq, c) = (runs.peek().is_some_and(|&&[start, _]| start as usize <= i), r(i));
+                query_px += inq as u64;
+                inter += (inq && c) as u64;
+                spill += (!inq && c) as u64;
             }
         }
         let denominator = query_px as f64 + spill_weight * spill as f64;

@@ -9,6 +9,18 @@
 //! instead of O(pixels · r²): the localizer applies it to every rendered hypothesis when it estimates a
 //! silhouette offset ([`super::eval`]), the oracle to its query masks ([`super::oracle`]).
 
+/// Whether pixel `i` of a `w` × `h` image (row-major) lies on an outline of what `key` tells apart:
+/// it has a 4-neighbour inside the image whose key differs from its own. The cost's outline band
+/// (`key`: building or not), the degraded masks' outlines and the overlays' instance edges.
+#[inline]
+pub fn on_outline<T: PartialEq>(i: usize, w: usize, h: usize, key: impl Fn(usize) -> T) -> bool {
+    let (x, y, k) = (i % w, i / w, key(i));
+    (x > 0 && key(i - 1) != k)
+        || (x + 1 < w && key(i + 1) != k)
+        || (y > 0 && key(i - w) != k)
+        || (y + 1 < h && key(i + w) != k)
+}
+
 /// Erodes (`k` < 0) or dilates (`k` > 0) each instance of `labels` (`w` × `h`, row-major) by |k|
 /// pixels into `out` (resized to fit); `k` = 0 copies. `scratch` is reused between calls.
 pub fn morph_into(labels: &[u32], w: usize, h: usize, k: i32, scratch: &mut Vec<u32>, out: &mut Vec<u32>) {

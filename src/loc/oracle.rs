@@ -289,16 +289,7 @@ impl Agreement {
 /// The outline of a `w`-wide mask: its pixels with a 4-neighbour inside the image outside the mask.
 fn outline(mask: &[bool], w: usize) -> Vec<bool> {
     let h = mask.len() / w.max(1);
-    (0..mask.len())
-        .map(|i| {
-            let (x, y) = (i % w, i / w);
-            mask[i]
-                && ((x > 0 && !mask[i - 1])
-                    || (x + 1 < w && !mask[i + 1])
-                    || (y > 0 && !mask[i - w])
-                    || (y + 1 < h && !mask[i + w]))
-        })
-        .collect()
+    (0..mask.len()).map(|i| mask[i] && super::morph::on_outline(i, w, h, |j| mask[j])).collect()
 }
 
 /// Pixels of outline `a` with a pixel of outline `b` within 1 and within 2 px (Euclidean).

@@ -89,12 +89,7 @@ pub fn draw_overlay(
         for y in 0..h {
             for x in 0..w {
                 let i = y * w + x;
-                let l = qlab[i];
-                let edge = l != 0
-                    && ((x > 0 && qlab[i - 1] != l)
-                        || (x + 1 < w && qlab[i + 1] != l)
-                        || (y > 0 && qlab[i - w] != l)
-                        || (y + 1 < h && qlab[i + w] != l));
+                let edge = qlab[i] != 0 && super::morph::on_outline(i, w, h, |j| qlab[j]);
                 let c = if edge { WHITE } else { palette(frame.ids[i]) };
                 img.put(x0 + x as i64, HEADER_PX + y as i64, c);
             }
