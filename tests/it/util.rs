@@ -174,6 +174,27 @@ pub fn prepare_repo_scene(name: &str, dir: &Path) -> insgen::scene::PreparedScen
 
 pub use insgen::util::error_chain;
 
+/// The relative paths of the regular files below `root`, read while another process may be
+/// writing there: a file or folder renamed or removed between the listing and the look is skipped,
+/// not a panic (polling a live export must not race its temporary files).
+pub fn live_paths(root: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let mut stack = vec![root.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        let Ok(entries) = std::fs::read_dir(&d) else { continue };
+        for e in entries.flatten() {
+            let p = e.path();
+            match e.file_type() {
+                Ok(t) if t.is_dir() => stack.push(p),
+                Ok(_) => out.push(p.strip_prefix(root).unwrap().to_path_buf()),
+                Err(_) => {}
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
 /// Every regular file below `root` (relative path → bytes), for comparing whole output trees.
 pub fn tree(root: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
     let mut out = std::collections::BTreeMap::new();
