@@ -47,6 +47,17 @@ FINDINGS = """
   query, for the cost's owner to weigh. Raising the union outline's weight in the filter
   (`--semantic-weight 1`) made the LoD1 failures worse. The ground/sky boundary does not exist in cam2
   views (pitch 0° or 45°, 12.5° half field of view: the horizon is never in the frame).
+- **LoD1 against sparse views: the blocks' heights per building, not one scale (2026-12-06)**. The 55
+  views of Shibuya's grids at seeds 1–3 that the *default* sampler keeps and whose ray census sees at
+  most 7 buildings (the cam2-sparse body; oracle masks, instance cost, default search): against LoD1
+  blocks at each building's top **74.5 %** (41), at the 70th percentile of its roof heights (3DBAG's
+  LoD1.2) **92.7 %** (51), at the median 87.3 % (48). The top's 14 misses are 4–23 m off, 11 of them
+  the cost's, 10 of them behind the truth along the axis (the camera moved back to shrink blocks too
+  tall). A height scale fitted with the pose was the candidate fix; its stand-in (a throwaway build),
+  every vertex of the LoD1 map lowered towards its building's bottom by one factor, loses: × 0.9 61.8 %, × 0.8 58.2 %. What
+  is wrong is per building — a podium extruded to its tower's top, a stadium's curved roof as one block
+  filling the frame — which one factor cannot absorb, so nothing was built. LoD1 at the top is the
+  worst case of a real LoD1 map.
 - **Targets.** Oracle masks on the views the new defaults keep: 100 % on every area, the unseen ones
   (komaba, yokosuka, reported-on) included (target ≥ 99 %). LoD2 queries against the LoD1 map: 89.7 %
   of the views the old defaults keep, 93.2 % of those the new ones keep, pooled over Shibuya, Den Haag
