@@ -43,6 +43,17 @@ impl From<WeightingArg> for Weighting {
     }
 }
 
+/// `--polish-rim-tolerance`: when the polish's second pass frees the rims ([`PolishCost::rim_tolerance`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum RimToleranceArg {
+    /// On when the map is the area's own, unperturbed scene.
+    Auto,
+    /// Always.
+    On,
+    /// Never: every rim as rendered.
+    Off,
+}
+
 /// `--cost`: which cost to use ([`CostKind`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum CostArg {
@@ -203,14 +214,15 @@ pub struct Args {
     /// than a query pixel it leaves uncovered; 1 is the IoU [default: 0.3].
     #[arg(long, value_name = "λ", value_parser = parse_unit_fraction)]
     pub polish_spill_weight: Option<f64>,
-    /// In the polish's second pass, leave the pixels next to the render's outline (a pixel wide on
-    /// each side) out of the union's overlap: masks a pixel fatter or thinner than the buildings, each
-    /// instance its own way (a segmenter's rims), then move no camera along its axis. Off by default:
-    /// it helps such masks against a map as detailed as the buildings, loses against LoD1 blocks
-    /// (which spill over the query's outline), costs exact masks precision, and gained nothing with
-    /// a real U-Net's masks, whose outlines are off by more than a pixel (bench/loc_learned.md)
-    #[arg(long)]
-    pub polish_outline_band: bool,
+    /// In the polish's second pass, let every rendered building's rim move by a pixel, in or out,
+    /// each building its own way: instances a pixel fatter or thinner than their buildings (a
+    /// segmenter's rims) then move no camera along its axis, while a building displaced by a pixel
+    /// still counts. auto: on when the map is the area's own scene, the one the masks are labelled
+    /// from; off with --map-area or a map perturbation (--map-lod1 …), where the map is coarser
+    /// than the buildings and the pixel it frees is the one that measured the misfit
+    /// (bench/loc_learned.md)
+    #[arg(long, value_enum, value_name = "WHEN", default_value_t = RimToleranceArg::Auto)]
+    pub polish_rim_tolerance: RimToleranceArg,
     /// The paper's search exactly: its coarse grid, rendered at 320 px, and particle filter (40
     /// iterations, 2 beams × (2 kept + 2 × 12 perturbations) ranked jointly across beams), no
     /// distinct basins, no polish. Other search flags given with it still apply.
@@ -462,14 +474,27 @@ fn semantic_weight(args: &Args) -> f64 {
     args.semantic_weight.unwrap_or(if args.paper { 0.0 } else { DEFAULT_SEMANTIC_WEIGHT })
 }
 
-/// The polish's cost: the defaults ([`PolishCost::default`]) where no flag is given.
-fn polish_cost(args: &Args) -> PolishCost {
+/// The polish's cost: the defaults ([`PolishCost::default`]) where no flag is given, the rims freed
+/// as `rim_tolerance` says ([`rim_tolerance`]).
+fn polish_cost(args: &Args, rim_tolerance: bool) -> PolishCost {
     let d = PolishCost::default();
     PolishCost {
         semantic_weight: args.polish_semantic_weight.unwrap_or(d.semantic_weight),
         max_silhouette_offset_px: args.silhouette_offset.unwrap_or(d.max_silhouette_offset_px),
         spill_weight: args.polish_spill_weight.unwrap_or(d.spill_weight),
-        outline_band: args.polish_outline_band,
+        rim_tolerance,
+    }
+}
+
+/// Whether the polish's second pass frees the rims (`--polish-rim-tolerance`), and why: under `auto`
+/// only against the area's own, unperturbed scene, the model the masks' labels were rendered from.
+fn rim_tolerance(args: &Args, map: &MapSummary) -> (bool, &'static str) {
+    match args.polish_rim_tolerance {
+        RimToleranceArg::On => (true, "--polish-rim-tolerance on"),
+        RimToleranceArg::Off => (false, "--polish-rim-tolerance off"),
+        RimToleranceArg::Auto if map.area != args.area => (false, "the map is another area's (--map-area)"),
+        RimToleranceArg::Auto if map.perturbation.is_some() => (false, "the map is perturbed (--map-*)"),
+        RimToleranceArg::Auto => (true, "the map is the area's own scene, which the masks are labelled from"),
     }
 }
 
@@ -510,7 +535,12 @@ fn parse_prune(s: &str) -> Result<PruneFlag, String> {
 /// with each given flag applied on top, the search volume `bounds` and the coarse grid derived from
 /// the prior noise model `noise` ([`CoarseParams::from_prior_noise`]) where no `--coarse-*` flag
 /// replaces it.
-fn search_options(args: &Args, bounds: SearchBounds, noise: &PriorNoise) -> SearchOptions {
+fn search_options(
+    args: &Args,
+    bounds: SearchBounds,
+    noise: &PriorNoise,
+    rim_tolerance: bool,
+) -> SearchOptions {
     SearchOptions {
         on_boundary: if args.keep_boundary_estimates { OnBoundary::Keep } else { OnBoundary::Prior },
         coarse: {
@@ -542,7 +572,7 @@ fn search_options(args: &Args, bounds: SearchBounds, noise: &PriorNoise) -> Sear
                 lowres_iterations: args.lowres_iterations,
                 polish: base.polish && !args.no_polish,
                 beams_mode,
-                polish_cost: polish_cost(args),
+                polish_cost: polish_cost(args, rim_tolerance),
                 ..base
             }
         },
@@ -717,6 +747,8 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     let out_dir = args.out.clone().unwrap_or_else(|| camera_dir.join("loc").join(&tag));
     let (noise, noise_source) = prior_noise(&camera_dir, &queries)?;
     let bounds = search_bounds(args, &noise, &noise_source)?;
+    let (rims, why) = rim_tolerance(args, &map);
+    log::info!("the polish's second pass {} the rims: {why}", if rims { "frees" } else { "keeps" });
     let opts = EvalOptions {
         queries,
         out_dir: out_dir.clone(),
@@ -724,7 +756,7 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         weighting: args.weighting.into(),
         semantic_weight: semantic_weight(args),
         source,
-        search: search_options(args, bounds, &noise),
+        search: search_options(args, bounds, &noise, rims),
         seed: args.seed,
         render_width_px: args.render_width,
         coarse_width_px: args.coarse_width.unwrap_or(if args.paper { 320 } else { 160 }),
@@ -792,25 +824,41 @@ mod tests {
 
     #[test]
     fn polish_cost_defaults_and_flags() {
-        assert_eq!(polish_cost(&parse(&[]).unwrap()), PolishCost::default());
+        assert_eq!(polish_cost(&parse(&[]).unwrap(), true), PolishCost::default());
         let a = parse(&["--polish-semantic-weight", "0.5", "--silhouette-offset", "0"]).unwrap();
         assert_eq!(
-            polish_cost(&a),
+            polish_cost(&a, false),
             PolishCost {
                 semantic_weight: 0.5,
                 max_silhouette_offset_px: 0,
                 spill_weight: DEFAULT_SPILL_WEIGHT,
-                outline_band: false,
+                rim_tolerance: false,
             }
         );
         let a = parse(&["--polish-spill-weight", "1"]).unwrap();
-        assert_eq!(polish_cost(&a), PolishCost { spill_weight: 1.0, ..PolishCost::default() });
-        let a = parse(&["--polish-outline-band"]).unwrap();
-        assert_eq!(polish_cost(&a), PolishCost { outline_band: true, ..PolishCost::default() });
+        assert_eq!(polish_cost(&a, true), PolishCost { spill_weight: 1.0, ..PolishCost::default() });
         for bad in [["--polish-semantic-weight", "2"], ["--polish-spill-weight", "1.5"]] {
             let e = parse(&bad).unwrap_err().to_string();
             assert!(e.contains("expected a number in [0, 1]"), "{e}");
         }
+    }
+
+    #[test]
+    fn rims_are_freed_against_the_areas_own_scene_only() {
+        let own = MapSummary { area: "denhaag".into(), perturbation: None, changes: None };
+        let lod1 = MapSummary {
+            perturbation: Some(MapPerturbation { lod1: true, ..Default::default() }),
+            ..own.clone()
+        };
+        let other = MapSummary { area: "delft".into(), ..own.clone() };
+        let auto = parse(&[]).unwrap();
+        assert_eq!(auto.polish_rim_tolerance, RimToleranceArg::Auto);
+        assert!(rim_tolerance(&auto, &own).0);
+        assert!(!rim_tolerance(&auto, &lod1).0);
+        assert!(!rim_tolerance(&auto, &other).0);
+        assert!(rim_tolerance(&parse(&["--polish-rim-tolerance", "on"]).unwrap(), &lod1).0);
+        assert!(!rim_tolerance(&parse(&["--polish-rim-tolerance", "off"]).unwrap(), &own).0);
+        assert!(parse(&["--polish-rim-tolerance", "yes"]).is_err());
     }
 
     #[test]
@@ -842,7 +890,7 @@ mod tests {
         };
         let options = |extra: &[&str], noise: &PriorNoise| {
             let a = parse(extra).unwrap();
-            search_options(&a, search_bounds(&a, noise, "test").unwrap(), noise)
+            search_options(&a, search_bounds(&a, noise, "test").unwrap(), noise, true)
         };
         let grid = |extra: &[&str], noise: &PriorNoise| {
             let c = options(extra, noise).coarse;
@@ -868,7 +916,7 @@ mod tests {
     #[test]
     fn beam_flags_apply_over_defaults_and_paper() {
         let beams = |extra: &[&str]| {
-            search_options(&parse(extra).unwrap(), SearchBounds::default(), &PriorNoise::default())
+            search_options(&parse(extra).unwrap(), SearchBounds::default(), &PriorNoise::default(), true)
                 .fine
                 .beams_mode
         };

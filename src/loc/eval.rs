@@ -687,8 +687,8 @@ impl<S: IdScene + ?Sized> Evaluate for Evaluator<'_, S> {
     /// cost, the merged ablation stays the paper's) and fits the silhouette offset at `at`: every offset
     /// in ±`max_silhouette_offset_px` is scored on one render there with the symmetric IoU (spill
     /// weight 1: a boundary bias of the masks is measured without the preference for larger renders)
-    /// and the best kept, the smallest |offset| on ties. Then takes the polish's spill weight and
-    /// outline band (both the instance and the semantic cost).
+    /// and the best kept, the smallest |offset| on ties. Then takes the polish's spill weight and rim
+    /// tolerance (both the instance and the semantic cost).
     fn enter_polish(&mut self, at: &Hypothesis, cost: &PolishCost) -> Result<(u64, bool), Self::Error> {
         let before = (self.blend, self.silhouette_offset_px);
         if matches!(self.kind, CostKind::Instance | CostKind::Grouped) {
@@ -714,7 +714,7 @@ impl<S: IdScene + ?Sized> Evaluate for Evaluator<'_, S> {
         self.silhouette_offset_px = best.1;
         if self.kind != CostKind::Merged {
             self.blend.spill_weight = cost.spill_weight;
-            self.blend.outline_band = cost.outline_band;
+            self.blend.rim_tolerance = cost.rim_tolerance;
         }
         Ok((offsets.len() as u64, (self.blend, self.silhouette_offset_px) != before))
     }
@@ -1834,13 +1834,18 @@ mod tests {
             (ev.silhouette_offset_px, scored, changed, ev.blend)
         };
         let polish =
-            Blend { semantic_weight: 1.0, spill_weight: search::DEFAULT_SPILL_WEIGHT, outline_band: false };
+            Blend { semantic_weight: 1.0, spill_weight: search::DEFAULT_SPILL_WEIGHT, rim_tolerance: true };
         // Masks 2 px thinner or 1 px fatter than the silhouettes: the offset found is theirs (fitted
         // with the IoU: with the default spill weight, dilating the render would look cheaper).
         assert_eq!(fit(-2, PolishCost::default()), (-2, 5, true, polish));
         assert_eq!(fit(1, PolishCost::default()), (1, 5, true, polish));
         // Exact masks, and the filter's terms: nothing changes, so no second pass.
-        let same = PolishCost { spill_weight: 1.0, semantic_weight: 0.5, ..PolishCost::default() };
+        let same = PolishCost {
+            spill_weight: 1.0,
+            semantic_weight: 0.5,
+            rim_tolerance: false,
+            ..PolishCost::default()
+        };
         assert_eq!(fit(0, same), (0, 5, false, Blend::semantic(0.5)));
         // No offsets allowed: only the terms change.
         let none = PolishCost { max_silhouette_offset_px: 0, ..PolishCost::default() };

@@ -10,8 +10,8 @@
 //! silhouette offset ([`super::eval`]), the oracle to its query masks ([`super::oracle`]).
 
 /// Whether pixel `i` of a `w` × `h` image (row-major) lies on an outline of what `key` tells apart:
-/// it has a 4-neighbour inside the image whose key differs from its own. The cost's outline band
-/// (`key`: building or not), the degraded masks' outlines and the overlays' instance edges.
+/// it has a 4-neighbour inside the image whose key differs from its own: the degraded masks'
+/// outlines and the overlays' instance edges.
 #[inline]
 pub fn on_outline<T: PartialEq>(i: usize, w: usize, h: usize, key: impl Fn(usize) -> T) -> bool {
     let (x, y, k) = (i % w, i / w, key(i));

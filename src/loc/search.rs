@@ -427,13 +427,15 @@ pub struct PolishCost {
     /// and the IoU trades that spill for uncovered query pixels by moving the camera back. With λ < 1
     /// spill is weaker evidence than a query pixel left uncovered; the exact outline still scores 1.
     pub spill_weight: f64,
-    /// Whether the semantic term of the second pass leaves out the pixels next to the render's
-    /// outline (`eval-loc --polish-outline-band`; [`crate::loc::cost::Scorer::banded_overlap`]): a
-    /// segmenter's rim, a pixel in or out per instance, then moves no depth. Off by default: against
-    /// maps coarser than the buildings (LoD1 blocks spilling over the query's outline) it loses, with
-    /// exact masks it costs precision, and with a real model's masks, whose outlines are off by more
-    /// than a pixel, it gains nothing (bench/loc_learned.md).
-    pub outline_band: bool,
+    /// Whether the semantic term of the second pass lets every rendered building's rim move by a
+    /// pixel, in or out, each building its own way ([`crate::loc::cost::Scorer::rim_tolerant_overlap`]):
+    /// a segmenter's instance a pixel fatter or thinner than its building then moves no camera along
+    /// its axis, while a building displaced by a pixel still counts. It assumes the map's outlines are
+    /// those the masks were labelled from (a segmenter trained on this map's renders, or the oracle's
+    /// masks): against a map coarser than the query's buildings (LoD1 blocks spilling over the
+    /// outline by a pixel or more) the pixel it frees is the one that measured the misfit, and it
+    /// loses; `eval-loc` turns it off there (`--polish-rim-tolerance`, bench/loc_learned.md).
+    pub rim_tolerance: bool,
 }
 
 /// The default [`PolishCost::spill_weight`] (issue 15: measured on Den Haag and Shibuya against
@@ -446,7 +448,7 @@ impl Default for PolishCost {
             semantic_weight: 1.0,
             max_silhouette_offset_px: 2,
             spill_weight: DEFAULT_SPILL_WEIGHT,
-            outline_band: false,
+            rim_tolerance: true,
         }
     }
 }
@@ -1385,7 +1387,7 @@ mod tests {
             semantic_weight: 0.5,
             max_silhouette_offset_px: 0,
             spill_weight: 1.0,
-            outline_band: false,
+            rim_tolerance: false,
         });
         assert!(dist(&best, &target) < 0.1, "ended {:?}", best.centre_m);
     }
