@@ -617,42 +617,38 @@ impl Scorer {
         let (w, h) = (q.width as usize, q.height as usize);
         debug_assert_eq!(rendered.len(), w * h);
         let n = k_max as usize + 1;
-        let id = |i: usize| rendered[i] as usize;
+        // IDs above k_max count as background, like the other costs'.
+        let id = |v: u32| if (v as usize) < n { v as usize } else { 0 };
         let rims = &mut self.rims;
         rims.clear();
         rims.resize(n, RimCounts::default());
         // The union's runs are ascending: a cursor tells whether pixel i (visited in order) is in it.
         let mut runs = q.union.iter().peekable();
         let mut query_px = 0u64;
-        for i in 0..w * h {
-            while runs.next_if(|&&[_, end]| end as usize <= i).is_some() {}
-            let inq = runs.peek().is_some_and(|&&[start, _]| start as usize <= i);
-            query_px += inq as u64;
-            let side = (!inq) as usize;
-            let (x, y) = (i % w, i / w);
-            let neighbours = [
-                (x > 0, i.wrapping_sub(1)),
-                (x + 1 < w, i + 1),
-                (y > 0, i.wrapping_sub(w)),
-                (y + 1 < h, i + w),
-            ];
-            let k = id(i);
-            if k >= n {
-                // An ID above k_max counts as background, like the other costs'; it has no rim.
-            } else if k != 0 {
-                rims[k].rendered[side] += 1;
-                if neighbours.iter().any(|&(inside, j)| inside && (id(j) == 0 || id(j) >= n)) {
-                    rims[k].eroded[side] += 1;
+        for y in 0..h {
+            let row = &rendered[y * w..(y + 1) * w];
+            for x in 0..w {
+                let i = y * w + x;
+                while runs.next_if(|&&[_, end]| end as usize <= i).is_some() {}
+                let inq = runs.peek().is_some_and(|&&[start, _]| start as usize <= i);
+                query_px += inq as u64;
+                let side = (!inq) as usize;
+                let k = id(row[x]);
+                // The 4-neighbours inside the image; one outside stands for the pixel itself.
+                let at = |j: usize| id(rendered[j]);
+                let l = if x > 0 { id(row[x - 1]) } else { k };
+                let r = if x + 1 < w { id(row[x + 1]) } else { k };
+                let u = if y > 0 { at(i - w) } else { k };
+                let d = if y + 1 < h { at(i + w) } else { k };
+                if k != 0 {
+                    rims[k].rendered[side] += 1;
+                    if l == 0 || r == 0 || u == 0 || d == 0 {
+                        rims[k].eroded[side] += 1;
+                    }
+                } else if (l | r | u | d) != 0 {
+                    let owner = [l, r, u, d].into_iter().filter(|&v| v != 0).min().unwrap_or(0);
+                    rims[owner].dilated[side] += 1;
                 }
-                continue;
-            }
-            let owner = neighbours
-                .iter()
-                .filter(|&&(inside, j)| inside && id(j) != 0 && id(j) < n)
-                .map(|&(_, j)| id(j))
-                .min();
-            if let Some(o) = owner {
-                rims[o].dilated[side] += 1;
             }
         }
         query_px
