@@ -593,15 +593,14 @@ impl Scorer {
             for r in rims {
                 let gain = |c: [u64; 2]| c[0] as f64 - best * spill_weight * c[1] as f64;
                 let (erode, dilate) = (-gain(r.eroded), gain(r.dilated));
-                let take = |sum: &mut [f64; 2], c: [u64; 2], sign: f64| {
-                    sum[0] += sign * c[0] as f64;
-                    sum[1] += sign * c[1] as f64;
-                };
-                if dilate > 0.0 && dilate >= erode {
-                    take(&mut sum, r.dilated, 1.0);
+                let change = if dilate > 0.0 && dilate >= erode {
+                    as_f64(r.dilated)
                 } else if erode > 0.0 {
-                    take(&mut sum, r.eroded, -1.0);
-                }
+                    as_f64(r.eroded).map(|v| -v)
+                } else {
+                    continue;
+                };
+                sum = [sum[0] + change[0], sum[1] + change[1]];
             }
             let next = ratio(sum);
             if next <= best {
@@ -635,11 +634,10 @@ impl Scorer {
                 let side = (!inq) as usize;
                 let k = id(row[x]);
                 // The 4-neighbours inside the image; one outside stands for the pixel itself.
-                let at = |j: usize| id(rendered[j]);
                 let l = if x > 0 { id(row[x - 1]) } else { k };
                 let r = if x + 1 < w { id(row[x + 1]) } else { k };
-                let u = if y > 0 { at(i - w) } else { k };
-                let d = if y + 1 < h { at(i + w) } else { k };
+                let u = if y > 0 { id(rendered[i - w]) } else { k };
+                let d = if y + 1 < h { id(rendered[i + w]) } else { k };
                 if k != 0 {
                     rims[k].rendered[side] += 1;
                     if l == 0 || r == 0 || u == 0 || d == 0 {
