@@ -427,8 +427,10 @@ pub struct PolishCost {
     /// and the IoU trades that spill for uncovered query pixels by moving the camera back. With λ < 1
     /// spill is weaker evidence than a query pixel left uncovered; the exact outline still scores 1.
     pub spill_weight: f64,
-    /// Whether the semantic term of the second pass lets every rendered building's rim move by a
-    /// pixel, in or out, each building its own way ([`crate::loc::cost::Scorer::rim_tolerant_overlap`]):
+    /// Whether the second pass lets every rendered building's rim move by a pixel, in or out, each
+    /// building its own way: in the semantic term ([`crate::loc::cost::Scorer::rim_tolerant_overlap`])
+    /// and, per query instance, in the instance cost's best-match Dice
+    /// ([`crate::loc::cost::Scorer::rim_tolerant_instance_cost`]; the grouped cost keeps its rims):
     /// a segmenter's instance a pixel fatter or thinner than its building then moves no camera along
     /// its axis, while a building displaced by a pixel still counts. It assumes the map's outlines are
     /// those the masks were labelled from (a segmenter trained on this map's renders, or the oracle's

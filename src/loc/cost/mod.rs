@@ -33,6 +33,9 @@
 
 use serde::{Deserialize, Serialize};
 
+mod rims;
+use rims::{InstanceRims, RimCounts};
+
 /// ε in the Dice denominator.
 pub const DICE_EPS: f64 = 1e-6;
 
@@ -59,8 +62,9 @@ pub struct Blend {
     /// Weight λ of the rendered building pixels outside the query's union in the semantic term,
     /// |Q ∩ R| / (|Q| + λ·|R \ Q|) ([`Scorer::semantic_overlap`]); 1 is the IoU.
     pub spill_weight: f64,
-    /// Whether the semantic term lets every rendered building's rim move by a pixel
-    /// ([`Scorer::rim_tolerant_overlap`]).
+    /// Whether every rendered building's rim may move by a pixel: in the semantic term
+    /// ([`Scorer::rim_tolerant_overlap`]) and in the instance cost's best-match Dice
+    /// ([`Scorer::rim_tolerant_instance_cost`]); the grouped cost and the merged ablation keep theirs.
     #[serde(default)]
     pub rim_tolerance: bool,
 }
@@ -291,17 +295,8 @@ pub struct Scorer {
     groups: GroupBuffers,
     /// Per rendered building, the pixels [`Scorer::rim_tolerant_overlap`] counts ([`RimCounts`]).
     rims: Vec<RimCounts>,
-}
-
-/// One rendered building's pixels for [`Scorer::rim_tolerant_overlap`], each as (inside the query's
-/// union, outside it): as rendered, those its erosion by a pixel removes (on the background's
-/// 4-neighbourhood), and those its dilation by a pixel adds (background pixels with it as their
-/// lowest-ID 4-neighbour).
-#[derive(Debug, Default, Clone, Copy)]
-struct RimCounts {
-    rendered: [u64; 2],
-    eroded: [u64; 2],
-    dilated: [u64; 2],
+    /// The buffers of [`Scorer::rim_tolerant_instance_cost`].
+    instance_rims: InstanceRims,
 }
 
 /// Buffers of [`Scorer::grouped_instance_cost`]: per rendered building, the query instances lying
@@ -367,10 +362,6 @@ fn for_each_run(ids: &[u32], mut f: impl FnMut(u32, u32)) {
     }
     f(cur, run);
 }
-
-/// Rounds of Dinkelbach's iteration in [`Scorer::rim_tolerant_overlap`] at most (it converges in two
-/// or three: each round's choices are optimal for the ratio reached so far).
-const MAX_RIM_ROUNDS: usize = 16;
 
 /// Pixels compared at once by [`for_each_run`].
 const BLOCK: usize = 16;
@@ -554,104 +545,6 @@ impl Scorer {
         }
     }
 
-    /// [`Scorer::semantic_overlap`] with every rendered building's rim free to move by a pixel: each
-    /// building is taken as rendered, eroded by a pixel where it meets the background, or dilated by
-    /// a pixel into the background around it (a background pixel next to several buildings belongs
-    /// to the lowest ID's ring), whichever set of choices makes the overlap largest. The choices are
-    /// independent, so Dinkelbach's iteration for a ratio of sums finds that set exactly in a few
-    /// rounds of per-building decisions.
-    ///
-    /// A segmenter's instance a pixel fatter or thinner than its building, each its own way, is then
-    /// explained by that building's rim instead of by a camera moved along its axis, while a building
-    /// displaced by a pixel is not (dilating it covers the query on one side but spills on the
-    /// other), so the outlines' positions, and with them the depth, still count. The exact render
-    /// scores 1. `k_max` is the largest rendered ID (larger ones count as background).
-    pub fn rim_tolerant_overlap(
-        &mut self,
-        q: &Query,
-        rendered: &[u32],
-        k_max: u32,
-        spill_weight: f64,
-    ) -> f64 {
-        let query_px = self.count_rims(q, rendered, k_max);
-        let rims = &self.rims;
-        let total = rims.iter().fold([0u64; 2], |t, r| [t[0] + r.rendered[0], t[1] + r.rendered[1]]);
-        let ratio = |[inter, spill]: [f64; 2]| {
-            let d = query_px as f64 + spill_weight * spill;
-            if d <= 0.0 {
-                0.0
-            } else {
-                inter / d
-            }
-        };
-        let as_f64 = |c: [u64; 2]| [c[0] as f64, c[1] as f64];
-        let mut best = ratio(as_f64(total));
-        // Dinkelbach: with θ the best ratio so far, each building takes the choice that adds most
-        // to inter − θ·λ·spill; the ratio of the choices is ≥ θ, equal only at the optimum.
-        for _ in 0..MAX_RIM_ROUNDS {
-            let mut sum = as_f64(total);
-            for r in rims {
-                let gain = |c: [u64; 2]| c[0] as f64 - best * spill_weight * c[1] as f64;
-                let (erode, dilate) = (-gain(r.eroded), gain(r.dilated));
-                let change = if dilate > 0.0 && dilate >= erode {
-                    as_f64(r.dilated)
-                } else if erode > 0.0 {
-                    as_f64(r.eroded).map(|v| -v)
-                } else {
-                    continue;
-                };
-                sum = [sum[0] + change[0], sum[1] + change[1]];
-            }
-            let next = ratio(sum);
-            if next <= best {
-                break;
-            }
-            best = next;
-        }
-        best
-    }
-
-    /// Fills [`Scorer::rims`] for `rendered` against the union of `q`; returns |Q|.
-    fn count_rims(&mut self, q: &Query, rendered: &[u32], k_max: u32) -> u64 {
-        let (w, h) = (q.width as usize, q.height as usize);
-        debug_assert_eq!(rendered.len(), w * h);
-        let n = k_max as usize + 1;
-        // IDs above k_max count as background, like the other costs'.
-        let id = |v: u32| if (v as usize) < n { v as usize } else { 0 };
-        let rims = &mut self.rims;
-        rims.clear();
-        rims.resize(n, RimCounts::default());
-        // The union's runs are ascending: a cursor tells whether pixel i (visited in order) is in it.
-        let mut runs = q.union.iter().peekable();
-        let mut query_px = 0u64;
-        for y in 0..h {
-            let row = &rendered[y * w..(y + 1) * w];
-            for x in 0..w {
-                let i = y * w + x;
-                while runs.next_if(|&&[_, end]| end as usize <= i).is_some() {}
-                let inq = runs.peek().is_some_and(|&&[start, _]| start as usize <= i);
-                query_px += inq as u64;
-                let side = (!inq) as usize;
-                let k = id(row[x]);
-                // The 4-neighbours inside the image; one outside stands for the pixel itself.
-                let l = if x > 0 { id(row[x - 1]) } else { k };
-                let r = if x + 1 < w { id(row[x + 1]) } else { k };
-                let u = if y > 0 { id(rendered[i - w]) } else { k };
-                let d = if y + 1 < h { id(rendered[i + w]) } else { k };
-                if k != 0 {
-                    rims[k].rendered[side] += 1;
-                    if l == 0 || r == 0 || u == 0 || d == 0 {
-                        rims[k].eroded[side] += 1;
-                    }
-                } else if (l | r | u | d) != 0 {
-                    let owner = [l, r, u, d].into_iter().filter(|&v| v != 0).min().unwrap_or(0);
-                    rims[owner].dilated[side] += 1;
-                }
-            }
-        }
-        query_px
-    }
-
     /// The semantic term of `blend`: [`Scorer::semantic_overlap`] with its spill weight, with the
     /// rims free ([`Scorer::rim_tolerant_overlap`]) when it says so.
     fn union_term(&mut self, q: &Query, rendered: &[u32], k_max: u32, blend: Blend) -> f64 {
@@ -663,9 +556,9 @@ impl Scorer {
     }
 
     /// The blended instance cost (1 − w)·instance + w·semantic, in [0, 1], with w and the semantic
-    /// term's spill weight from `blend` ([`Scorer::semantic_overlap`]); w = 0 is the paper's pure
-    /// instance cost (and skips the semantic pass), 1 the semantic term alone (and skips the instance
-    /// pass).
+    /// term's spill weight and rim tolerance from `blend` ([`Scorer::semantic_overlap`]); w = 0 is the
+    /// pure instance cost (and skips the semantic pass; without the rim tolerance, the paper's), 1 the
+    /// semantic term alone (and skips the instance pass).
     pub fn blended_cost(
         &mut self,
         q: &Query,
@@ -678,7 +571,8 @@ impl Scorer {
     }
 
     /// [`Scorer::blended_cost`] with the instance term of [`Scorer::grouped_instance_cost`] when
-    /// `grouped`, else of [`Scorer::instance_cost`].
+    /// `grouped`, else of [`Scorer::instance_cost`] ([`Scorer::rim_tolerant_instance_cost`] with the
+    /// rim tolerance).
     fn blended(
         &mut self,
         grouped: bool,
@@ -695,6 +589,8 @@ impl Scorer {
         }
         let instance = if grouped {
             self.grouped_instance_cost(q, rendered, k_max, weighting)
+        } else if blend.rim_tolerance {
+            self.rim_tolerant_instance_cost(q, rendered, k_max, weighting)
         } else {
             self.instance_cost(q, rendered, k_max, weighting)
         };
@@ -1152,135 +1048,6 @@ mod tests {
             );
             // Nothing rendered and nothing queried: 0.
             assert_eq!(s.semantic_overlap(&Query::new(6, 1, Vec::new()), &[0; 6], 0.3), 0.0);
-        }
-
-        /// A `w`-wide label image: `ids[k]` painted over `rects[k]` = (x0, x1, y0, y1), in order.
-        fn paint(w: usize, h: usize, rects: &[(usize, usize, usize, usize)], ids: &[u32]) -> Vec<u32> {
-            let mut out = vec![0u32; w * h];
-            for (&(x0, x1, y0, y1), &id) in rects.iter().zip(ids) {
-                for y in y0..y1.min(h) {
-                    for x in x0..x1.min(w) {
-                        out[y * w + x] = id;
-                    }
-                }
-            }
-            out
-        }
-
-        #[test]
-        fn the_rim_tolerance_explains_rims_a_pixel_off_but_not_a_shift() {
-            // Two buildings in a 20 × 12 frame; the query's instances: A a pixel fatter on every side
-            // (4-neighbourhood), B a pixel thinner, as a segmenter's rims; then both moved a pixel.
-            let (w, h) = (20usize, 12usize);
-            let (a, b) = ((2, 6, 2, 6), (10, 16, 3, 8));
-            let render = paint(w, h, &[a, b], &[1, 2]);
-            let query = |labels: Vec<u32>| Query::from_labels(w as u32, h as u32, &labels, &[1.0, 1.0]);
-            let rims = query(paint(w, h, &[(1, 7, 2, 6), (2, 6, 1, 7), (11, 15, 4, 7)], &[1, 1, 2]));
-            let exact = query(render.clone());
-            let shifted = query(paint(w, h, &[(3, 7, 2, 6), (11, 17, 3, 8)], &[1, 2]));
-            let mut s = Scorer::default();
-            for lambda in [1.0, 0.3] {
-                assert_eq!(s.rim_tolerant_overlap(&exact, &render, 2, lambda), 1.0);
-                assert_eq!(s.rim_tolerant_overlap(&rims, &render, 2, lambda), 1.0, "λ {lambda}");
-                assert!(s.semantic_overlap(&rims, &render, lambda) < 0.9);
-                // A pixel sideways: no building's rim explains it (a dilation covers the column it
-                // left uncovered and spills on three sides). With the IoU no choice beats the render
-                // as it is; with cheap spill the dilations score better, but far from 1.
-                let moved = s.rim_tolerant_overlap(&shifted, &render, 2, lambda);
-                if lambda == 1.0 {
-                    assert_eq!(moved, s.semantic_overlap(&shifted, &render, lambda));
-                }
-                assert!(moved < 0.85, "λ {lambda}: {moved}");
-            }
-            // Through the blend: the rims move only when it says so.
-            let free = Blend { semantic_weight: 1.0, spill_weight: 0.3, rim_tolerance: true };
-            assert_eq!(s.cost(CostKind::Semantic, &rims, &render, 2, Weighting::Area, free), 1.0);
-            let fixed = Blend { rim_tolerance: false, ..free };
-            assert!(s.cost(CostKind::Semantic, &rims, &render, 2, Weighting::Area, fixed) < 0.9);
-        }
-
-        /// The overlap of [`Scorer::rim_tolerant_overlap`] by its definition: every building's
-        /// choice (−1 eroded, 0 as rendered, +1 dilated) tried, the image changed accordingly.
-        fn rims_by_brute_force(q: &Query, rendered: &[u32], k_max: u32, lambda: f64) -> f64 {
-            let (w, h) = (q.width as usize, q.height as usize);
-            let building = |i: usize| rendered[i] != 0 && rendered[i] <= k_max;
-            let neighbours = |i: usize| {
-                let (x, y) = (i % w, i / w);
-                [
-                    (x > 0, i.wrapping_sub(1)),
-                    (x + 1 < w, i + 1),
-                    (y > 0, i.wrapping_sub(w)),
-                    (y + 1 < h, i + w),
-                ]
-                .into_iter()
-                .filter_map(|(inside, j)| inside.then_some(j))
-                .collect::<Vec<_>>()
-            };
-            let mut inq = vec![false; w * h];
-            for &[a, b] in &q.union {
-                inq[a as usize..b as usize].fill(true);
-            }
-            let query_px = inq.iter().filter(|&&v| v).count() as f64;
-            let mut best = 0.0f64;
-            for code in 0..3usize.pow(k_max) {
-                let choice = |k: u32| (code / 3usize.pow(k - 1)) % 3; // 0 kept, 1 eroded, 2 dilated
-                let (mut inter, mut spill) = (0.0, 0.0);
-                for i in 0..w * h {
-                    let covered = if building(i) {
-                        !(choice(rendered[i]) == 1 && neighbours(i).iter().any(|&j| !building(j)))
-                    } else {
-                        let owner =
-                            neighbours(i).into_iter().filter(|&j| building(j)).map(|j| rendered[j]).min();
-                        owner.is_some_and(|k| choice(k) == 2)
-                    };
-                    if covered {
-                        if inq[i] {
-                            inter += 1.0;
-                        } else {
-                            spill += 1.0;
-                        }
-                    }
-                }
-                let d = query_px + lambda * spill;
-                best = best.max(if d > 0.0 { inter / d } else { 0.0 });
-            }
-            best
-        }
-
-        #[test]
-        fn the_rim_tolerance_finds_the_best_choice_of_every_building() {
-            // Random 9 × 7 frames of up to four overlapping or touching boxes against random query
-            // boxes: the Dinkelbach rounds reach the best of the 3^K choices.
-            let mut seed = 0x5eed_u64;
-            let mut next = |n: usize| {
-                seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                (seed >> 33) as usize % n
-            };
-            let (w, h) = (9usize, 7usize);
-            let boxes =
-                |count: usize, next: &mut dyn FnMut(usize) -> usize| -> Vec<(usize, usize, usize, usize)> {
-                    (0..count)
-                        .map(|_| {
-                            let (x0, y0) = (next(w), next(h));
-                            (x0, x0 + 1 + next(4), y0, y0 + 1 + next(4))
-                        })
-                        .collect()
-                };
-            let mut s = Scorer::default();
-            for case in 0..300 {
-                let k = 1 + case % 4;
-                let ids: Vec<u32> = (1..=k as u32).collect();
-                let render = paint(w, h, &boxes(k, &mut next), &ids);
-                let query_boxes = boxes(1 + next(3), &mut next);
-                let labels = paint(w, h, &query_boxes, &vec![1; query_boxes.len()]);
-                let q = Query::from_labels(w as u32, h as u32, &labels, &[1.0]);
-                for lambda in [1.0, 0.3] {
-                    let fast = s.rim_tolerant_overlap(&q, &render, k as u32, lambda);
-                    let slow = rims_by_brute_force(&q, &render, k as u32, lambda);
-                    assert!((fast - slow).abs() < 1e-12, "case {case}, λ {lambda}: {fast} vs {slow}");
-                    assert!(fast >= s.semantic_overlap(&q, &render, lambda) - 1e-12);
-                }
-            }
         }
 
         #[test]
