@@ -241,12 +241,12 @@ print(z["mask_zoom"]["median"] or 1.0, str(s["score_honesty"]["honest"]).lower()
                 --weighting area-conf --tag "loop-$FIRST-$mode-calibrated-area-conf" --overlays 0
         fi
     done
-    # The loop's photos are rendered from the map itself, so the map is as detailed as what they show:
-    # there the grouped cost keeps its groups in the polish (bench/loc_learned.md; against coarser maps
-    # the union's outline, the default, is the safer polish).
+    # The loop's photos are rendered from the map itself, so the defaults keep the buildings in the
+    # polish's second pass; for comparison, the union's outline there (the default against coarser
+    # maps; bench/loc_learned.md).
     "${B[@]}" -q eval-loc --area "$HOLDOUT" --camera "$CAMERA" --predictions "$results" \
-        --prediction-zoom "$zoom" --limit "$QUERIES" --cost grouped --polish-semantic-weight 0 \
-        --tag "loop-$FIRST-defaults-calibrated-groups-kept" --overlays 0
+        --prediction-zoom "$zoom" --limit "$QUERIES" --cost instance --cost grouped --polish-semantic-weight 1 \
+        --tag "loop-$FIRST-defaults-calibrated-union-polish" --overlays 0
 fi
 
 if stage_on report; then

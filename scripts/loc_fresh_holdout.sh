@@ -9,10 +9,11 @@
 # missed and extra building pixels (WORKDIR/sheet.png).
 #
 #   scripts/loc_fresh_holdout.sh LOOP_DIR [WORKDIR]
-#   (env: COUNT=80 SEED=1 MODES="defaults groups-kept pure")
+#   (env: COUNT=80 SEED=1 MODES="defaults union pure")
 #
-# Modes: defaults; groups-kept (the grouped cost keeps its groups in the polish, --polish-semantic-weight
-# 0: for maps as detailed as the photos, as here); pure (the paper's costs under eval-loc's search);
+# Modes: defaults; union (the polish's second pass on the union's outline, --polish-semantic-weight 1:
+# the default against maps coarser than the photos, where the defaults here keep the buildings);
+# pure (the paper's costs under eval-loc's search);
 # paper (--paper). bench/loc_learned.md has the first run (small-long-40, 80 frames).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -23,7 +24,7 @@ LOOP=$1
 W=${2:-$LOOP-fresh}
 COUNT=${COUNT:-80}
 SEED=${SEED:-1}
-MODES=${MODES:-"defaults groups-kept pure"}
+MODES=${MODES:-"defaults union pure"}
 PY="${INSGEN_TRAIN_PYTHON:-$ROOT/.venv-train/bin/python}"
 [ -f "$LOOP/loop.json" ] || { echo "loc_fresh_holdout: $LOOP/loop.json: not a closed-loop work directory" >&2; exit 2; }
 [ -x "$PY" ] || { echo "loc_fresh_holdout: $PY: no training interpreter (run scripts/setup_train.sh)" >&2; exit 2; }
@@ -46,10 +47,10 @@ say() { printf '[fresh %s] %s\n' "$(date -u +%H:%M:%S)" "$*" >&2; }
 mode_flags() {
     case "$1" in
         defaults) ;;
-        groups-kept) echo --polish-semantic-weight 0 ;;
+        union) echo --polish-semantic-weight 1 ;;
         pure) echo --semantic-weight 0 --polish-semantic-weight 0 --silhouette-offset 0 --polish-spill-weight 1 ;;
         paper) echo --paper ;;
-        *) echo "loc_fresh_holdout: unknown mode $1 (defaults groups-kept pure paper)" >&2; return 2 ;;
+        *) echo "loc_fresh_holdout: unknown mode $1 (defaults union pure paper)" >&2; return 2 ;;
     esac
 }
 for mode in $MODES; do mode_flags "$mode" > /dev/null; done

@@ -199,10 +199,10 @@ def section(w: Path, bench: Path) -> str:
         weighted = load(base / f"loop-{first}-{mode}-calibrated-area-conf" / "summary.json")
         if weighted:
             out += loc_rows(weighted, f"{first}, calibrated, instances weighted by area × score", prior=False)
-        kept = load(base / f"loop-{first}-{mode}-calibrated-groups-kept" / "summary.json")
-        if kept:
-            out += loc_rows(kept, f"{first}, calibrated, groups kept in the polish (`--polish-semantic-weight 0`)",
-                            prior=False)
+        union = load(base / f"loop-{first}-{mode}-calibrated-union-polish" / "summary.json")
+        if union:
+            out += loc_rows(union, f"{first}, calibrated, the union's outline in the polish "
+                            "(`--polish-semantic-weight 1`, the default against coarser maps)", prior=False)
         out.append("")
     out += outline_rows(w, loop, first)
     for fam, name in pictures:

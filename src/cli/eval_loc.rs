@@ -195,11 +195,13 @@ pub struct Args {
     #[arg(long)]
     pub no_polish: bool,
     /// Weight of the semantic IoU in the instance cost during the polish's second pass, after a first
-    /// pass in the filter's cost: within the basin the instances chose, the union's outline does not
-    /// depend on the map's occlusion order, which a coarse map gets wrong [default: 1]. Setting it to
-    /// --semantic-weight (and --silhouette-offset 0) leaves one pass. 0 keeps the grouped cost's
-    /// per-building structure: the better polish for learned masks where the photos show what the map
-    /// shows (insgen's own renders of the LoD models), the worse against LoD1 blocks.
+    /// pass in the filter's cost [default: 0 against the area's own scene, which the masks are
+    /// labelled from; 1 with --map-area or a map perturbation]. 0 keeps the per-building terms (the
+    /// instance cost's with the rims freed, the grouped cost's groups): the better polish for learned
+    /// masks where the photos show what the map shows. 1 scores the union's outline alone, which does
+    /// not depend on the map's occlusion order: the better polish against a map coarser than the
+    /// buildings (LoD1 blocks). Setting it to --semantic-weight (and --silhouette-offset 0) leaves one
+    /// pass.
     #[arg(long, value_name = "W", value_parser = parse_unit_fraction)]
     pub polish_semantic_weight: Option<f64>,
     /// Largest silhouette offset in pixels fitted before the polish's second pass: the rendered
@@ -475,27 +477,31 @@ fn semantic_weight(args: &Args) -> f64 {
     args.semantic_weight.unwrap_or(if args.paper { 0.0 } else { DEFAULT_SEMANTIC_WEIGHT })
 }
 
-/// The polish's cost: the defaults ([`PolishCost::default`]) where no flag is given, the rims freed
-/// as `rim_tolerance` says ([`rim_tolerance`]).
-fn polish_cost(args: &Args, rim_tolerance: bool) -> PolishCost {
-    let d = PolishCost::default();
+/// The polish's cost: eval-loc's for the map ([`PolishCost::for_map`]) where no flag is given, each
+/// given flag on top (`--polish-rim-tolerance auto` follows the map).
+fn polish_cost(args: &Args, label_source: bool) -> PolishCost {
+    let d = PolishCost::for_map(label_source);
     PolishCost {
         semantic_weight: args.polish_semantic_weight.unwrap_or(d.semantic_weight),
         max_silhouette_offset_px: args.silhouette_offset.unwrap_or(d.max_silhouette_offset_px),
         spill_weight: args.polish_spill_weight.unwrap_or(d.spill_weight),
-        rim_tolerance,
+        rim_tolerance: match args.polish_rim_tolerance {
+            RimToleranceArg::On => true,
+            RimToleranceArg::Off => false,
+            RimToleranceArg::Auto => d.rim_tolerance,
+        },
     }
 }
 
-/// Whether the polish's second pass frees the rims (`--polish-rim-tolerance`), and why: under `auto`
-/// only against the area's own, unperturbed scene, the model the masks' labels were rendered from.
-fn rim_tolerance(args: &Args, map: &MapSummary) -> (bool, &'static str) {
-    match args.polish_rim_tolerance {
-        RimToleranceArg::On => (true, "--polish-rim-tolerance on"),
-        RimToleranceArg::Off => (false, "--polish-rim-tolerance off"),
-        RimToleranceArg::Auto if map.area != args.area => (false, "the map is another area's (--map-area)"),
-        RimToleranceArg::Auto if map.perturbation.is_some() => (false, "the map is perturbed (--map-*)"),
-        RimToleranceArg::Auto => (true, "the map is the area's own scene, which the masks are labelled from"),
+/// Whether the map is the model the query masks are labelled from, and why: the area's own,
+/// unperturbed scene is; another area's model (`--map-area`) or a perturbed one (`--map-*`) is not.
+fn map_is_label_source(args: &Args, map: &MapSummary) -> (bool, &'static str) {
+    if map.area != args.area {
+        (false, "the map is another area's (--map-area)")
+    } else if map.perturbation.is_some() {
+        (false, "the map is perturbed (--map-*)")
+    } else {
+        (true, "the map is the area's own scene, which the masks are labelled from")
     }
 }
 
@@ -540,7 +546,7 @@ fn search_options(
     args: &Args,
     bounds: SearchBounds,
     noise: &PriorNoise,
-    rim_tolerance: bool,
+    label_source: bool,
 ) -> SearchOptions {
     SearchOptions {
         on_boundary: if args.keep_boundary_estimates { OnBoundary::Keep } else { OnBoundary::Prior },
@@ -573,7 +579,7 @@ fn search_options(
                 lowres_iterations: args.lowres_iterations,
                 polish: base.polish && !args.no_polish,
                 beams_mode,
-                polish_cost: polish_cost(args, rim_tolerance),
+                polish_cost: polish_cost(args, label_source),
                 ..base
             }
         },
@@ -748,8 +754,13 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
     let out_dir = args.out.clone().unwrap_or_else(|| camera_dir.join("loc").join(&tag));
     let (noise, noise_source) = prior_noise(&camera_dir, &queries)?;
     let bounds = search_bounds(args, &noise, &noise_source)?;
-    let (rims, why) = rim_tolerance(args, &map);
-    log::info!("the polish's second pass {} the rims: {why}", if rims { "frees" } else { "keeps" });
+    let (label_source, why) = map_is_label_source(args, &map);
+    let polish = polish_cost(args, label_source);
+    log::info!(
+        "{why}: the polish's second pass weighs the union's outline by {} and {} the rims",
+        polish.semantic_weight,
+        if polish.rim_tolerance { "frees" } else { "keeps" }
+    );
     let opts = EvalOptions {
         queries,
         out_dir: out_dir.clone(),
@@ -757,7 +768,7 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         weighting: args.weighting.into(),
         semantic_weight: semantic_weight(args),
         source,
-        search: search_options(args, bounds, &noise, rims),
+        search: search_options(args, bounds, &noise, label_source),
         seed: args.seed,
         render_width_px: args.render_width,
         coarse_width_px: args.coarse_width.unwrap_or(if args.paper { 320 } else { 160 }),
@@ -825,19 +836,21 @@ mod tests {
 
     #[test]
     fn polish_cost_defaults_and_flags() {
-        assert_eq!(polish_cost(&parse(&[]).unwrap(), true), PolishCost::default());
+        let none = parse(&[]).unwrap();
+        assert_eq!(polish_cost(&none, true), PolishCost::for_map(true));
+        assert_eq!(polish_cost(&none, false), PolishCost::for_map(false));
         let a = parse(&["--polish-semantic-weight", "0.5", "--silhouette-offset", "0"]).unwrap();
         assert_eq!(
-            polish_cost(&a, false),
+            polish_cost(&a, true),
             PolishCost {
                 semantic_weight: 0.5,
                 max_silhouette_offset_px: 0,
                 spill_weight: DEFAULT_SPILL_WEIGHT,
-                rim_tolerance: false,
+                rim_tolerance: true,
             }
         );
         let a = parse(&["--polish-spill-weight", "1"]).unwrap();
-        assert_eq!(polish_cost(&a, true), PolishCost { spill_weight: 1.0, ..PolishCost::default() });
+        assert_eq!(polish_cost(&a, false), PolishCost { spill_weight: 1.0, ..PolishCost::for_map(false) });
         for bad in [["--polish-semantic-weight", "2"], ["--polish-spill-weight", "1.5"]] {
             let e = parse(&bad).unwrap_err().to_string();
             assert!(e.contains("expected a number in [0, 1]"), "{e}");
@@ -845,7 +858,7 @@ mod tests {
     }
 
     #[test]
-    fn rims_are_freed_against_the_areas_own_scene_only() {
+    fn the_polish_keeps_the_buildings_and_frees_the_rims_against_the_areas_own_scene_only() {
         let own = MapSummary { area: "denhaag".into(), perturbation: None, changes: None };
         let lod1 = MapSummary {
             perturbation: Some(MapPerturbation { lod1: true, ..Default::default() }),
@@ -854,11 +867,18 @@ mod tests {
         let other = MapSummary { area: "delft".into(), ..own.clone() };
         let auto = parse(&[]).unwrap();
         assert_eq!(auto.polish_rim_tolerance, RimToleranceArg::Auto);
-        assert!(rim_tolerance(&auto, &own).0);
-        assert!(!rim_tolerance(&auto, &lod1).0);
-        assert!(!rim_tolerance(&auto, &other).0);
-        assert!(rim_tolerance(&parse(&["--polish-rim-tolerance", "on"]).unwrap(), &lod1).0);
-        assert!(!rim_tolerance(&parse(&["--polish-rim-tolerance", "off"]).unwrap(), &own).0);
+        assert!(map_is_label_source(&auto, &own).0);
+        assert!(!map_is_label_source(&auto, &lod1).0);
+        assert!(!map_is_label_source(&auto, &other).0);
+        let own_cost = PolishCost::for_map(true);
+        assert_eq!((own_cost.semantic_weight, own_cost.rim_tolerance), (0.0, true));
+        let coarser = PolishCost::for_map(false);
+        assert_eq!((coarser.semantic_weight, coarser.rim_tolerance), (1.0, false));
+        // The flags override the map's choice, each on its own.
+        let on = parse(&["--polish-rim-tolerance", "on"]).unwrap();
+        assert_eq!(polish_cost(&on, false), PolishCost { rim_tolerance: true, ..coarser });
+        let off = parse(&["--polish-rim-tolerance", "off"]).unwrap();
+        assert_eq!(polish_cost(&off, true), PolishCost { rim_tolerance: false, ..own_cost });
         assert!(parse(&["--polish-rim-tolerance", "yes"]).is_err());
     }
 
