@@ -541,12 +541,12 @@ fn parse_prune(s: &str) -> Result<PruneFlag, String> {
 /// The search's stages and parameters from the flags: the defaults, or the paper's with `--paper`,
 /// with each given flag applied on top, the search volume `bounds` and the coarse grid derived from
 /// the prior noise model `noise` ([`CoarseParams::from_prior_noise`]) where no `--coarse-*` flag
-/// replaces it.
+/// replaces it, and the polish's cost ([`polish_cost`]).
 fn search_options(
     args: &Args,
     bounds: SearchBounds,
     noise: &PriorNoise,
-    label_source: bool,
+    polish_cost: PolishCost,
 ) -> SearchOptions {
     SearchOptions {
         on_boundary: if args.keep_boundary_estimates { OnBoundary::Keep } else { OnBoundary::Prior },
@@ -579,7 +579,7 @@ fn search_options(
                 lowres_iterations: args.lowres_iterations,
                 polish: base.polish && !args.no_polish,
                 beams_mode,
-                polish_cost: polish_cost(args, label_source),
+                polish_cost,
                 ..base
             }
         },
@@ -768,7 +768,7 @@ pub fn run(args: &Args, global: &Global) -> anyhow::Result<()> {
         weighting: args.weighting.into(),
         semantic_weight: semantic_weight(args),
         source,
-        search: search_options(args, bounds, &noise, label_source),
+        search: search_options(args, bounds, &noise, polish),
         seed: args.seed,
         render_width_px: args.render_width,
         coarse_width_px: args.coarse_width.unwrap_or(if args.paper { 320 } else { 160 }),
@@ -911,7 +911,7 @@ mod tests {
         };
         let options = |extra: &[&str], noise: &PriorNoise| {
             let a = parse(extra).unwrap();
-            search_options(&a, search_bounds(&a, noise, "test").unwrap(), noise, true)
+            search_options(&a, search_bounds(&a, noise, "test").unwrap(), noise, polish_cost(&a, true))
         };
         let grid = |extra: &[&str], noise: &PriorNoise| {
             let c = options(extra, noise).coarse;
@@ -937,7 +937,8 @@ mod tests {
     #[test]
     fn beam_flags_apply_over_defaults_and_paper() {
         let beams = |extra: &[&str]| {
-            search_options(&parse(extra).unwrap(), SearchBounds::default(), &PriorNoise::default(), true)
+            let a = parse(extra).unwrap();
+            search_options(&a, SearchBounds::default(), &PriorNoise::default(), polish_cost(&a, true))
                 .fine
                 .beams_mode
         };

@@ -327,6 +327,15 @@ mod tests {
     use super::*;
     use crate::loc::cost::{Blend, CostKind, Weighting};
 
+    /// A seeded stream of draws below `n` (a linear congruential generator: the random-frame tests
+    /// need no more).
+    fn draws(mut seed: u64) -> impl FnMut(usize) -> usize {
+        move |n| {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 33) as usize % n
+        }
+    }
+
     /// A `w`-wide label image: `ids[k]` painted over `rects[k]` = (x0, x1, y0, y1), in order.
     fn paint(w: usize, h: usize, rects: &[(usize, usize, usize, usize)], ids: &[u32]) -> Vec<u32> {
         let mut out = vec![0u32; w * h];
@@ -418,11 +427,7 @@ mod tests {
     fn the_rim_tolerance_finds_the_best_choice_of_every_building() {
         // Random 9 × 7 frames of up to four overlapping or touching boxes against random query
         // boxes: the Dinkelbach rounds reach the best of the 3^K choices.
-        let mut seed = 0x5eed_u64;
-        let mut next = |n: usize| {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 33) as usize % n
-        };
+        let mut next = draws(0x5eed);
         let (w, h) = (9usize, 7usize);
         let boxes =
             |count: usize, next: &mut dyn FnMut(usize) -> usize| -> Vec<(usize, usize, usize, usize)> {
@@ -519,11 +524,7 @@ mod tests {
         // up to three random (overlapping) query instances: 9 × 7 frames of small boxes, and every
         // other case 45 × 20 frames of boxes up to 24 px wide (interiors and open background that
         // the classification skips a block at a time).
-        let mut seed = 0x0b5e_u64;
-        let mut next = |n: usize| {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 33) as usize % n
-        };
+        let mut next = draws(0x0b5e);
         let mut s = Scorer::default();
         for case in 0..300 {
             let (w, h, size) = if case % 2 == 0 { (9usize, 7usize, 4) } else { (45, 20, 24) };
