@@ -54,6 +54,15 @@ pub enum RimToleranceArg {
     Off,
 }
 
+/// A switch given as `on` or `off`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Toggle {
+    /// On.
+    On,
+    /// Off.
+    Off,
+}
+
 /// `--cost`: which cost to use ([`CostKind`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum CostArg {
@@ -243,6 +252,11 @@ pub struct Args {
     /// with the best KEEP, or `off` [default: 5/2; --paper: off].
     #[arg(long, value_name = "AFTER/KEEP|off", value_parser = parse_prune)]
     pub prune: Option<PruneFlag>,
+    /// Refine the prior's own basin as one more beam where no basin's cell is its grid neighbour
+    /// [default: on; --paper: off]. The prior is where the camera most likely is; a cost that is
+    /// noisy at the coarse width can rank the truth's cells below the basins elsewhere.
+    #[arg(long, value_enum, value_name = "on|off")]
+    pub prior_basin: Option<Toggle>,
     /// Width of the fine-stage renders in pixels.
     #[arg(long, value_name = "PX", default_value_t = 640)]
     pub render_width: u32,
@@ -559,19 +573,24 @@ fn search_options(
         },
         fine: {
             let base = if args.paper { FineParams::paper() } else { FineParams::default() };
-            let beams_mode = match (base.beams_mode, args.basins, args.survivors, args.prune) {
-                (BeamMode::Basins { count, survivors, prune }, b, s, p) => BeamMode::Basins {
-                    count: b.unwrap_or(count),
-                    survivors: s.unwrap_or(survivors),
-                    prune: p.map_or(prune, |PruneFlag(p)| p),
-                },
-                (BeamMode::Joint, None, None, None) => BeamMode::Joint,
+            let prior_flag = args.prior_basin.map(|t| t == Toggle::On);
+            let beams_mode = match (base.beams_mode, args.basins, args.survivors, args.prune, prior_flag) {
+                (BeamMode::Basins { count, survivors, prune, prior_basin }, b, s, p, pb) => {
+                    BeamMode::Basins {
+                        count: b.unwrap_or(count),
+                        survivors: s.unwrap_or(survivors),
+                        prune: p.map_or(prune, |PruneFlag(p)| p),
+                        prior_basin: pb.unwrap_or(prior_basin),
+                    }
+                }
+                (BeamMode::Joint, None, None, None, None) => BeamMode::Joint,
                 // --paper with basin flags: the paper's filter, beams as asked (no early judgement
-                // unless asked).
-                (BeamMode::Joint, b, s, p) => BeamMode::Basins {
+                // and no prior basin unless asked).
+                (BeamMode::Joint, b, s, p, pb) => BeamMode::Basins {
                     count: b.unwrap_or(4),
                     survivors: s.unwrap_or(1),
                     prune: p.and_then(|PruneFlag(p)| p),
+                    prior_basin: pb.unwrap_or(false),
                 },
             };
             FineParams {
@@ -945,20 +964,34 @@ mod tests {
         assert_eq!(beams(&[]), FineParams::default().beams_mode);
         assert_eq!(
             beams(&["--basins", "6", "--prune", "5/3"]),
-            BeamMode::Basins { count: 6, survivors: 1, prune: Some(Prune { after_iterations: 5, keep: 3 }) }
+            BeamMode::Basins {
+                count: 6,
+                survivors: 1,
+                prune: Some(Prune { after_iterations: 5, keep: 3 }),
+                prior_basin: true
+            }
         );
         assert_eq!(
-            beams(&["--prune", "off", "--survivors", "2"]),
-            BeamMode::Basins { count: 4, survivors: 2, prune: None }
+            beams(&["--prune", "off", "--survivors", "2", "--prior-basin", "off"]),
+            BeamMode::Basins { count: 4, survivors: 2, prune: None, prior_basin: false }
         );
         assert_eq!(beams(&["--paper"]), BeamMode::Joint);
         assert_eq!(
             beams(&["--paper", "--basins", "3"]),
-            BeamMode::Basins { count: 3, survivors: 1, prune: None }
+            BeamMode::Basins { count: 3, survivors: 1, prune: None, prior_basin: false }
         );
         assert_eq!(
             beams(&["--paper", "--prune", "4/2"]),
-            BeamMode::Basins { count: 4, survivors: 1, prune: Some(Prune { after_iterations: 4, keep: 2 }) }
+            BeamMode::Basins {
+                count: 4,
+                survivors: 1,
+                prune: Some(Prune { after_iterations: 4, keep: 2 }),
+                prior_basin: false
+            }
+        );
+        assert_eq!(
+            beams(&["--paper", "--prior-basin", "on"]),
+            BeamMode::Basins { count: 4, survivors: 1, prune: None, prior_basin: true }
         );
         for bad in ["5", "5/0", "x/2", "on"] {
             let e = parse(&["--prune", bad]).unwrap_err().to_string();

@@ -491,7 +491,8 @@ pub enum BeamMode {
     /// each seed a beam of `keep_per_beam` poses, refined separately at the coarse resolution; at the
     /// switch to the fine resolution the `survivors` beams whose best pose scores highest there go on.
     /// With `prune`, the beams are judged at the fine resolution once before the switch as well, and
-    /// only the best [`Prune::keep`] go on at the coarse resolution.
+    /// only the best [`Prune::keep`] go on at the coarse resolution. With `prior_basin`, the prior's
+    /// own cell seeds one more beam where none of the `count` is its grid neighbour.
     Basins {
         /// Basins (beams) seeded from the coarse grid.
         count: u32,
@@ -500,6 +501,12 @@ pub enum BeamMode {
         /// An early judgement of the beams, if any.
         #[serde(default)]
         prune: Option<Prune>,
+        /// Whether the prior's basin is always refined: the prior is where the camera most likely
+        /// is, and a cost whose coarse renders are noisy (the paper's best-match Dice at 160 px) can
+        /// rank the truth's cells below `count` others there. A record without it is a search from
+        /// before it existed, which had none.
+        #[serde(default)]
+        prior_basin: bool,
     },
 }
 
@@ -537,7 +544,12 @@ impl Default for FineParams {
             gamma: 0.3,
             lowres_iterations: None,
             polish: true,
-            beams_mode: BeamMode::Basins { count: 4, survivors: 1, prune: Some(DEFAULT_PRUNE) },
+            beams_mode: BeamMode::Basins {
+                count: 4,
+                survivors: 1,
+                prune: Some(DEFAULT_PRUNE),
+                prior_basin: true,
+            },
             polish_cost: PolishCost::default(),
         }
     }
@@ -773,8 +785,9 @@ pub fn search<E: Evaluate>(
                 }
                 filter.particle_filter(coarse_eval, eval, pool, keep)?[0]
             }
-            BeamMode::Basins { count, survivors, prune } => {
-                filter.basins(coarse_eval, eval, &ranked, coarse, (count, survivors, prune))?
+            BeamMode::Basins { count, survivors, prune, prior_basin } => {
+                let prior_cell = prior_basin.then_some(prior);
+                filter.basins(coarse_eval, eval, &ranked, coarse, (count, survivors, prune), prior_cell)?
             }
         };
         if fine.polish {
@@ -862,7 +875,8 @@ impl Filter<'_> {
     /// [`BeamMode::Basins`] with its (count, survivors, prune): each distinct basin of the coarse
     /// grid's `ranked` cells refined on its own at the coarse resolution, from its own cell plus the
     /// grid neighbours that follow it in the ranking; judged at the fine resolution (early with
-    /// `prune`, then at the switch); the survivors refined on there. Returns the best pose.
+    /// `prune`, then at the switch); the survivors refined on there. `prior_cell`, if any, seeds one
+    /// more beam where no basin's cell is its grid neighbour. Returns the best pose.
     fn basins<E: Evaluate>(
         &mut self,
         coarse_eval: &mut E,
@@ -870,9 +884,15 @@ impl Filter<'_> {
         ranked: &[(Hypothesis, f64)],
         coarse: &CoarseParams,
         (count, survivors, prune): (u32, u32, Option<Prune>),
+        prior_cell: Option<Hypothesis>,
     ) -> Result<(Hypothesis, f64), E::Error> {
         let keep = self.fine.keep_per_beam.max(1) as usize;
-        let seeds = distinct_basins(ranked, coarse, count.max(1) as usize);
+        let mut seeds = distinct_basins(ranked, coarse, count.max(1) as usize);
+        if let Some(p) = prior_cell {
+            if !seeds.iter().any(|s| neighbours(s, &p, coarse)) {
+                seeds.push(p);
+            }
+        }
         let n_iter = self.fine.iterations.max(1);
         let lowres = self.fine.lowres_iterations();
         let mut beams: Vec<Pool> = seeds
@@ -1585,8 +1605,85 @@ mod tests {
 
     /// A Gaussian bump of the cost around (x, 0, 200) m and yaw 0, `width_m` wide.
     fn bump(h: &Hypothesis, x: f64, width_m: f64) -> f64 {
-        let d2 = (h.centre_m[0] - x).powi(2) + h.centre_m[1].powi(2) + (h.centre_m[2] - 200.0).powi(2);
+        bump_at(h, x, 0.0, width_m)
+    }
+
+    /// A Gaussian bump of the cost around (x, y, 200) m and yaw 0, `width_m` wide.
+    fn bump_at(h: &Hypothesis, x: f64, y: f64, width_m: f64) -> f64 {
+        let d2 = (h.centre_m[0] - x).powi(2) + (h.centre_m[1] - y).powi(2) + (h.centre_m[2] - 200.0).powi(2);
         (-d2 / (2.0 * width_m * width_m) - h.yaw_deg * h.yaw_deg / 20.0).exp()
+    }
+
+    /// Four wide decoys 21 m from the prior that score 0.9 at both resolutions, and the truth's narrow
+    /// basin at the prior, which scores 0.6 at the coarse resolution (below all four) and 1.0 at the
+    /// fine one: a cost whose coarse renders are noisy.
+    struct DecoysAroundThePrior {
+        fine: bool,
+    }
+
+    impl Evaluate for DecoysAroundThePrior {
+        type Error = std::convert::Infallible;
+        fn evaluate(&mut self, hyps: &[Hypothesis]) -> Result<Vec<f64>, Self::Error> {
+            let truth = if self.fine { 1.0 } else { 0.6 };
+            let decoys = [(15.0, 15.0), (-15.0, 15.0), (15.0, -15.0), (-15.0, -15.0)];
+            Ok(hyps
+                .iter()
+                .map(|h| {
+                    let decoy = decoys.iter().map(|&(x, y)| 0.9 * bump_at(h, x, y, 6.0)).fold(0.0, f64::max);
+                    decoy.max(truth * bump_at(h, 0.0, 0.0, 1.5))
+                })
+                .collect())
+        }
+    }
+
+    fn with_prior_basin(prior_basin: bool) -> SearchOptions {
+        let beams_mode = BeamMode::Basins { count: 4, survivors: 1, prune: Some(DEFAULT_PRUNE), prior_basin };
+        SearchOptions { fine: FineParams { beams_mode, ..FineParams::default() }, ..Default::default() }
+    }
+
+    #[test]
+    fn the_prior_basin_is_refined_where_the_coarse_ranking_misses_it() {
+        let prior = Hypothesis { centre_m: DVec3::new(0.0, 0.0, 200.0), yaw_deg: 0.0 };
+        let run = |prior_basin: bool| {
+            let (mut coarse, mut fine) =
+                (DecoysAroundThePrior { fine: false }, DecoysAroundThePrior { fine: true });
+            search(&mut coarse, &mut fine, prior, &with_prior_basin(prior_basin), 3, None).unwrap()
+        };
+        // The coarse grid's four best basins are the decoys; without the prior's, the truth is lost.
+        let without = run(false);
+        assert!(without.coarse_best.centre_m.distance(prior.centre_m) > 20.0, "{:?}", without.coarse_best);
+        assert!(without.best.centre_m.distance(prior.centre_m) > 15.0, "{:?}", without.best);
+        assert!(without.best_score < 0.95, "{}", without.best_score);
+        // With it, the fine resolution judges the prior's basin best.
+        let with = run(true);
+        assert_eq!(with.coarse_best, without.coarse_best);
+        assert!(with.best.centre_m.distance(prior.centre_m) < 0.5, "{:?}", with.best);
+        assert!(with.best_score > 0.95 && !with.on_boundary, "{with:?}");
+        assert!(with.hypotheses_scored > without.hypotheses_scored);
+    }
+
+    #[test]
+    fn a_prior_already_next_to_a_basin_adds_no_beam() {
+        // The truth's wide basin at the prior wins at both resolutions: the prior's cell is the first
+        // basin's, and the search is the same bit for bit with or without the flag.
+        struct AtThePrior;
+        impl Evaluate for AtThePrior {
+            type Error = std::convert::Infallible;
+            fn evaluate(&mut self, hyps: &[Hypothesis]) -> Result<Vec<f64>, Self::Error> {
+                Ok(hyps
+                    .iter()
+                    .map(|h| bump_at(h, 1.0, -1.0, 6.0).max(0.8 * bump_at(h, -15.0, 15.0, 3.0)))
+                    .collect())
+            }
+        }
+        let prior = Hypothesis { centre_m: DVec3::new(0.0, 0.0, 200.0), yaw_deg: 0.0 };
+        // Timings aside (the stages' seconds).
+        let run = |b: bool| {
+            let r = search(&mut AtThePrior, &mut AtThePrior, prior, &with_prior_basin(b), 3, None).unwrap();
+            (r.best, r.best_score, r.hypotheses_scored)
+        };
+        assert_eq!(run(true), run(false));
+        assert!(run(true).0.centre_m.distance(DVec3::new(1.0, -1.0, 200.0)) < 0.2, "{:?}", run(true));
     }
 
     impl Evaluate for TwoBasins {
@@ -1623,7 +1720,7 @@ mod tests {
         let prior = Hypothesis { centre_m: DVec3::new(0.0, 0.0, 200.0), yaw_deg: 0.0 };
         let run = |prune: Option<Prune>| {
             let fine = FineParams {
-                beams_mode: BeamMode::Basins { count: 4, survivors: 1, prune },
+                beams_mode: BeamMode::Basins { count: 4, survivors: 1, prune, prior_basin: false },
                 ..FineParams::default()
             };
             let opts = SearchOptions { fine, ..Default::default() };

@@ -121,6 +121,7 @@ fn eval_loc_localizes_the_held_out_district_from_every_input_kind() {
     assert_eq!(summary["map"]["area"], "demo-test");
     assert!(summary["map"]["perturbation"].is_null());
     assert_eq!(summary["search"]["fine"]["beams_mode"]["kind"], "basins");
+    assert_eq!(summary["search"]["fine"]["beams_mode"]["prior_basin"], true);
     // Issue 40: the search volume around the prior is recorded; no estimate ends on its boundary.
     // By default it comes from the prior noise model sampling.json records: a radius of 4.4σ of the
     // noisier horizontal axis plus the bias (at least 10 m), 4σ in height and yaw.
