@@ -242,7 +242,8 @@ pub struct Args {
     pub paper: bool,
     /// Distinct coarse basins (best coarse cells that are no grid neighbour of a better one) refined
     /// as separate beams at the coarse width; at the switch to the render width the best --survivors
-    /// go on. 1 keeps only the best cell's basin [default: 4; --paper: the paper's joint beams].
+    /// go on. 1 keeps only the best cell's basin (and the prior's, with --prior-basin on) [default: 4;
+    /// --paper: the paper's joint beams].
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub basins: Option<u32>,
     /// Basins refined on at the render width [default: 1].
