@@ -51,11 +51,21 @@ pub(super) struct InstanceRims {
     touched: Vec<u32>,
 }
 
+/// The building ID of a rendered value: IDs ≥ `k1` read as background (0).
+#[inline]
+fn building_id(v: u32, k1: usize) -> usize {
+    if (v as usize) < k1 {
+        v as usize
+    } else {
+        0
+    }
+}
+
 /// The IDs of the 4-neighbours of pixel `i` of a `w` × `h` frame (IDs ≥ `k1` read as background; a
 /// neighbour outside the frame reads as the pixel itself).
 #[inline]
 fn neighbour_ids(rendered: &[u32], w: usize, h: usize, i: usize, k1: usize) -> [usize; 4] {
-    let id = |v: u32| if (v as usize) < k1 { v as usize } else { 0 };
+    let id = |v: u32| building_id(v, k1);
     let (x, y, k) = (i % w, i / w, id(rendered[i]));
     [
         if x > 0 { id(rendered[i - 1]) } else { k },
@@ -85,7 +95,6 @@ impl InstanceRims {
         self.totals.resize(k1, [0, 0]);
         self.row.clear();
         self.row.resize(k1, [0, 0]);
-        let id = |v: u32| if (v as usize) < k1 { v as usize } else { 0 };
         let totals = &mut self.totals;
         for (y, classes) in self.class.chunks_exact_mut(w).enumerate() {
             let row = &rendered[y * w..(y + 1) * w];
@@ -108,13 +117,8 @@ impl InstanceRims {
                         continue;
                     }
                 }
-                let k = id(row[x]);
-                let around = [
-                    if x > 0 { id(row[x - 1]) } else { k },
-                    if x + 1 < w { id(row[x + 1]) } else { k },
-                    id(up[x]),
-                    id(down[x]),
-                ];
+                let k = building_id(row[x], k1);
+                let around = neighbour_ids(rendered, w, h, y * w + x, k1);
                 if k != 0 {
                     if around.iter().any(|&n| n != k) {
                         classes[x] = INNER;
