@@ -430,7 +430,9 @@ pub struct PolishCost {
     /// Whether the second pass lets every rendered building's rim move by a pixel, in or out, each
     /// building its own way: in the semantic term ([`crate::loc::cost::Scorer::rim_tolerant_overlap`])
     /// and, per query instance, in the instance cost's best-match Dice
-    /// ([`crate::loc::cost::Scorer::rim_tolerant_instance_cost`]; the grouped cost keeps its rims):
+    /// ([`crate::loc::cost::Scorer::rim_tolerant_instance_cost`]) and, per query instance and set of
+    /// buildings, in the grouped cost's union Dice
+    /// ([`crate::loc::cost::Scorer::rim_tolerant_grouped_instance_cost`]):
     /// a segmenter's instance a pixel fatter or thinner than its building then moves no camera along
     /// its axis, while a building displaced by a pixel still counts. It assumes the map's outlines are
     /// those the masks were labelled from (a segmenter trained on this map's renders, or the oracle's
@@ -792,20 +794,25 @@ pub fn search<E: Evaluate>(
         };
         if fine.polish {
             let started = Instant::now();
-            // First to the optimum of the filter's cost, then, if the polish's cost differs, to its
-            // optimum from there (the first pass makes the fit of the silhouette offset and the
-            // second start as good as the filter's cost can).
-            let (b, sc, mut n) = polish(eval, best, best_score, pivot_m, 1.0, &volume)?;
+            // First a simplex to the optimum of the filter's cost (it makes the fit of the
+            // silhouette offset and the second pass's start as good as the filter's cost can), then,
+            // if the polish's cost differs, a whole polish to its optimum from there; where it does
+            // not, the moves finish the first pass. The moves of a first pass that a second one
+            // follows would only sharpen an optimum the second pass leaves (issue 40: 20 % of the
+            // polish's hypotheses, the same recall).
+            let (b, sc, mut n) = simplex(eval, best, best_score, SIMPLEX_EVALUATIONS, 1.0, &volume)?;
             (best, best_score) = (b, sc);
             let (fitted, changed) = eval.enter_polish(&best, &fine.polish_cost)?;
             n += fitted;
-            if changed {
+            let (b, sc, n2) = if changed {
                 best_score = eval.evaluate(&[best])?[0];
-                let (b, sc, n2) =
-                    polish(eval, best, best_score, pivot_m, SECOND_PASS_SIMPLEX_SCALE, &volume)?;
-                (best, best_score) = (b, sc);
-                n += n2 + 1;
-            }
+                n += 1;
+                polish(eval, best, best_score, pivot_m, SECOND_PASS_SIMPLEX_SCALE, &volume)?
+            } else {
+                descend(eval, best, best_score, pivot_m, &volume)?
+            };
+            (best, best_score) = (b, sc);
+            n += n2;
             counter.charge(Stage::Polish, n, started.elapsed().as_secs_f64());
         }
     }
@@ -1265,14 +1272,30 @@ pub const POLISH_MOVES_PER_LEVEL: u32 = 10;
 /// Whatever the evaluator returns.
 pub fn polish<E: Evaluate>(
     eval: &mut E,
-    mut best: Hypothesis,
-    mut best_score: f64,
+    best: Hypothesis,
+    best_score: f64,
     pivot_m: Option<DVec3>,
     simplex_scale: f64,
     volume: &Volume,
 ) -> Result<(Hypothesis, f64, u64), E::Error> {
-    let (b, sc, mut scored) = simplex(eval, best, best_score, SIMPLEX_EVALUATIONS, simplex_scale, volume)?;
-    (best, best_score) = (b, sc);
+    let (b, sc, scored) = simplex(eval, best, best_score, SIMPLEX_EVALUATIONS, simplex_scale, volume)?;
+    let (b, sc, moved) = descend(eval, b, sc, pivot_m, volume)?;
+    Ok((b, sc, scored + moved))
+}
+
+/// The moves of [`polish`] from `best` (scoring `best_score`): returns the best, its score and the
+/// hypotheses scored.
+///
+/// # Errors
+/// Whatever the evaluator returns.
+pub fn descend<E: Evaluate>(
+    eval: &mut E,
+    mut best: Hypothesis,
+    mut best_score: f64,
+    pivot_m: Option<DVec3>,
+    volume: &Volume,
+) -> Result<(Hypothesis, f64, u64), E::Error> {
+    let mut scored = 0u64;
     let (mut step_m, mut step_deg) = POLISH_START_STEP;
     // Index of the strictly best score above `floor` (ties keep the current pose: deterministic, no
     // drifting on plateaus).

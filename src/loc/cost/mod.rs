@@ -14,7 +14,8 @@
 //!   the share of them the query instance covers: [`Scorer::grouped_instance_cost`]); query instances
 //!   that are pieces of one rendered building (a split) are scored together, as that building's Dice with
 //!   the union of its pieces, times [`SPLIT_FACTOR`] (a mild penalty: a render that needs no grouping
-//!   stays better); blended with the semantic IoU like the instance cost;
+//!   stays better); blended with the semantic IoU like the instance cost; in the polish's second pass
+//!   with every building's rim free to move by a pixel ([`Scorer::rim_tolerant_grouped_instance_cost`]);
 //! - the blended instance cost (1 − w)·c + w·IoU_sem (w = [`DEFAULT_SEMANTIC_WEIGHT`] by default, 0 with
 //!   `--paper`): against a map coarser than the query's buildings (an LoD1 map for LoD2 queries), taller
 //!   blocks hide more of the buildings behind them, so the per-instance boundaries move while the union's
@@ -315,6 +316,8 @@ struct GroupBuffers {
     per_instance: Vec<(f64, u32)>,
     /// One row's (|M_q^j ∩ M_hyp^k|, |M_hyp^k|) pairs, sorted by coverage.
     pairs: Vec<(u32, u32)>,
+    /// One row's choices per building with the rims free ([`Scorer::rim_tolerant_grouped_instance_cost`]).
+    choices: Vec<rims::Choices>,
 }
 
 /// Adds the length of every run of equal values in `ids` to `counts[value]`; values ≥ `counts.len()`
@@ -417,9 +420,19 @@ impl Scorer {
         k_max: u32,
         weighting: Weighting,
     ) -> f64 {
+        self.grouped(q, rendered, k_max, weighting, false)
+    }
+
+    /// [`Scorer::grouped_instance_cost`], its union Dice with the rims free when `rims`
+    /// ([`Scorer::rim_tolerant_grouped_instance_cost`]).
+    fn grouped(&mut self, q: &Query, rendered: &[u32], k_max: u32, weighting: Weighting, rims: bool) -> f64 {
         debug_assert_eq!(rendered.len(), (q.width * q.height) as usize);
         let Some(total_w) = self.start(q, rendered, k_max, weighting) else { return 0.0 };
+        let (w, h) = (q.width as usize, q.height as usize);
         let k1 = self.render_area.len();
+        if rims {
+            self.instance_rims.classify(rendered, w, h, k1);
+        }
         let g = &mut self.groups;
         for v in [&mut g.inside_px, &mut g.inside_area_px, &mut g.inside_count] {
             v.clear();
@@ -430,26 +443,18 @@ impl Scorer {
         for inst in &q.instances {
             self.fill_row(inst, rendered);
             let qa = inst.area_px();
+            // The building holding most of the instance as rendered (the first on ties).
+            let inside = self.touched.iter().fold((0u32, 0u32), |best, &k| {
+                let h = self.row[k as usize];
+                if h > best.1 {
+                    (k, h)
+                } else {
+                    best
+                }
+            });
+            let best =
+                if rims { self.rim_tolerant_union_dice(inst, rendered, w, h) } else { self.union_dice(qa) };
             let g = &mut self.groups;
-            g.pairs.clear();
-            let mut inside = (0u32, 0u32);
-            for &k in self.touched.iter() {
-                let h = std::mem::take(&mut self.row[k as usize]);
-                g.pairs.push((h, self.render_area[k as usize]));
-                if h > inside.1 {
-                    inside = (k, h);
-                }
-            }
-            // Descending coverage h / r, compared exactly as h_a · r_b against h_b · r_a.
-            g.pairs.sort_unstable_by(|a, b| (b.0 as u64 * a.1 as u64).cmp(&(a.0 as u64 * b.1 as u64)));
-            let (mut inter, mut union, mut best) = (0u64, qa as u64, 0.0f64);
-            for &(h, r) in &g.pairs {
-                let d = 2.0 * (inter + h as u64) as f64 / ((union + r as u64) as f64 + DICE_EPS);
-                if d <= best {
-                    break;
-                }
-                (inter, union, best) = (inter + h as u64, union + r as u64, d);
-            }
             let (k, h) = inside;
             let k = if h as f64 > INSIDE_SHARE * qa as f64 {
                 if g.inside_count[k as usize] == 0 {
@@ -482,6 +487,29 @@ impl Scorer {
             (g.inside_px[k], g.inside_area_px[k], g.inside_count[k]) = (0, 0, 0);
         }
         c
+    }
+
+    /// The union Dice of a query instance of `query_px` pixels as rendered, from the row
+    /// [`Scorer::fill_row`] filled for it (which it resets): the best union of rendered instances is a
+    /// prefix of them sorted by the share of each the instance covers.
+    fn union_dice(&mut self, query_px: u32) -> f64 {
+        let g = &mut self.groups;
+        g.pairs.clear();
+        for &k in self.touched.iter() {
+            let h = std::mem::take(&mut self.row[k as usize]);
+            g.pairs.push((h, self.render_area[k as usize]));
+        }
+        // Descending coverage h / r, compared exactly as h_a · r_b against h_b · r_a.
+        g.pairs.sort_unstable_by(|a, b| (b.0 as u64 * a.1 as u64).cmp(&(a.0 as u64 * b.1 as u64)));
+        let (mut inter, mut union, mut best) = (0u64, query_px as u64, 0.0f64);
+        for &(h, r) in &g.pairs {
+            let d = 2.0 * (inter + h as u64) as f64 / ((union + r as u64) as f64 + DICE_EPS);
+            if d <= best {
+                break;
+            }
+            (inter, union, best) = (inter + h as u64, union + r as u64, d);
+        }
+        best
     }
 
     /// Counts the rendered instances' areas and clears the row for a cost pass over `q`; the total
@@ -588,7 +616,7 @@ impl Scorer {
             return self.union_term(q, rendered, k_max, blend);
         }
         let instance = if grouped {
-            self.grouped_instance_cost(q, rendered, k_max, weighting)
+            self.grouped(q, rendered, k_max, weighting, blend.rim_tolerance)
         } else if blend.rim_tolerance {
             self.rim_tolerant_instance_cost(q, rendered, k_max, weighting)
         } else {
