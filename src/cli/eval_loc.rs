@@ -226,8 +226,9 @@ pub struct Args {
     #[arg(long, value_name = "λ", value_parser = parse_unit_fraction)]
     pub polish_spill_weight: Option<f64>,
     /// In the polish's second pass, let every rendered building's rim move by a pixel, in or out,
-    /// each building its own way (in the union's outline, and per query instance in the instance
-    /// cost's best-match Dice): instances a pixel fatter or thinner than their buildings (a
+    /// each building its own way (in the union's outline, per query instance in the instance cost's
+    /// best-match Dice, and per building of the union that the grouped cost matches to an instance):
+    /// instances a pixel fatter or thinner than their buildings (a
     /// segmenter's rims) then move no camera along its axis, while a building displaced by a pixel
     /// still counts. auto: on when the map is the area's own scene, the one the masks are labelled
     /// from; off with --map-area or a map perturbation (--map-lod1 …), where the map is coarser
