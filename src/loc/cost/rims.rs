@@ -250,32 +250,11 @@ impl Scorer {
         let mut c = 0.0;
         for inst in &q.instances {
             self.fill_row(inst, rendered);
-            let rims = &mut self.instance_rims;
-            rims.fill_row(inst, rendered, w, h);
             let qa = inst.area_px() as f64;
             let mut best = 0.0f64;
-            // The buildings the instance overlaps as rendered, then those only a dilation reaches.
-            for &k in &self.touched {
-                let k = k as usize;
-                best = best.max(rim_tolerant_dice(
-                    qa,
-                    self.row[k],
-                    self.render_area[k],
-                    rims.row[k],
-                    rims.totals[k],
-                ));
-            }
-            for &k in &rims.touched {
-                let k = k as usize;
-                if self.row[k] == 0 {
-                    best =
-                        best.max(rim_tolerant_dice(qa, 0, self.render_area[k], rims.row[k], rims.totals[k]));
-                }
-                rims.row[k] = [0; 3];
-            }
-            for &k in &self.touched {
-                self.row[k as usize] = 0;
-            }
+            self.for_each_rim_pair(inst, rendered, w, h, |inter, area, inside, rims| {
+                best = best.max(rim_tolerant_dice(qa, inter, area, inside, rims));
+            });
             c += weight_of(inst, weighting) / total_w * best;
         }
         c
@@ -312,36 +291,51 @@ impl Scorer {
         w: usize,
         h: usize,
     ) -> f64 {
-        let rims = &mut self.instance_rims;
-        rims.fill_row(inst, rendered, w, h);
         let qa = inst.area_px() as f64;
-        let choices = &mut self.groups.choices;
+        let mut choices = std::mem::take(&mut self.groups.choices);
         choices.clear();
         let mut single = 0.0f64;
-        let mut add = |inter: u32, area: u32, inside: [u32; 3], rims: [u32; 3]| {
+        self.for_each_rim_pair(inst, rendered, w, h, |inter, area, inside, rims| {
             single = single.max(rim_tolerant_dice(qa, inter, area, inside, rims));
             choices.push([
                 (inter, area),
                 (inter - inside[0], area - rims[0]),
                 (inter + inside[2], area + rims[2]),
             ]);
-        };
-        // The buildings the instance overlaps as rendered, then those only a dilation reaches.
+        });
+        let best = best_union_dice(qa, &choices, single);
+        self.groups.choices = choices;
+        best
+    }
+
+    /// Calls `f(inter, area, inside, rims)` with [`rim_tolerant_dice`]'s terms for every rendered
+    /// building that `inst` overlaps as rendered, then for every one only a dilation reaches (`inter`
+    /// 0), from the row [`Scorer::fill_row`] filled for it and the classes of the `w` × `h` frame
+    /// ([`InstanceRims::classify`]); resets both rows.
+    fn for_each_rim_pair(
+        &mut self,
+        inst: &QueryInstance,
+        rendered: &[u32],
+        w: usize,
+        h: usize,
+        mut f: impl FnMut(u32, u32, [u32; 3], [u32; 3]),
+    ) {
+        let rims = &mut self.instance_rims;
+        rims.fill_row(inst, rendered, w, h);
         for &k in &self.touched {
             let k = k as usize;
-            add(self.row[k], self.render_area[k], rims.row[k], rims.totals[k]);
+            f(self.row[k], self.render_area[k], rims.row[k], rims.totals[k]);
         }
         for &k in &rims.touched {
             let k = k as usize;
             if self.row[k] == 0 {
-                add(0, self.render_area[k], rims.row[k], rims.totals[k]);
+                f(0, self.render_area[k], rims.row[k], rims.totals[k]);
             }
             rims.row[k] = [0; 3];
         }
         for &k in &self.touched {
             self.row[k as usize] = 0;
         }
-        best_union_dice(qa, choices, single)
     }
 
     /// [`Scorer::semantic_overlap`] with every rendered building's rim free to move by a pixel: each
