@@ -13,7 +13,10 @@
 //! compound CRSs spelled as two codes (`urn:ogc:def:crs,crs:EPSG::6668,crs:EPSG::6695`,
 //! `http://www.opengis.net/def/crs-compound?1=…/EPSG/0/28992&2=…/EPSG/0/5709`). Only the EPSG authority
 //! is supported; every code in PROJ's `proj.db` that is geographic, projected, geocentric or compound
-//! (horizontal + vertical) works.
+//! (horizontal + vertical) works. One other register is translated to EPSG codes: the AdV names of
+//! German CityGML (`urn:adv:crs:ETRS89_UTM32*DE_DHHN2016_NH` = EPSG:25832 + EPSG:7837; the ETRS89
+//! UTM zones 31–33 and latitude/longitude, DHDN Gauss-Krüger zones 2–5 and latitude/longitude, the
+//! DHHN2016, DHHN92, DHHN12, DHHN85 and SNN76 heights).
 //!
 //! # Heights
 //! [`Crs::heights`] decides what the third coordinate is; the rule is:
@@ -270,6 +273,8 @@ fn parse_codes(name: &str) -> Result<Vec<u32>, CrsError> {
         l.strip_prefix("urn:ogc:def:crs:").or_else(|| l.strip_prefix("urn:x-ogc:def:crs:"))
     {
         vec![urn_code(rest)?]
+    } else if let Some(rest) = l.strip_prefix("urn:adv:crs:") {
+        adv_codes(rest)?
     } else if let Some(rest) = l.strip_prefix("epsg:") {
         vec![epsg_code(rest.trim_start_matches(':'))?]
     } else if l.bytes().all(|b| b.is_ascii_digit()) {
@@ -281,6 +286,41 @@ fn parse_codes(name: &str) -> Result<Vec<u32>, CrsError> {
         1 | 2 => Ok(codes),
         n => Err(CrsError::ComponentCount(n)),
     }
+}
+
+/// The names of the AdV CRS register (Germany's surveying authorities: the LoD2 CityGML every state
+/// publishes, ALKIS) that insgen knows, lower-cased, with their EPSG codes: horizontal systems, then
+/// height systems.
+const ADV_NAMES: [(&str, u32); 14] = [
+    ("etrs89_utm31", 25831),
+    ("etrs89_utm32", 25832),
+    ("etrs89_utm33", 25833),
+    ("etrs89_lat-lon", 4258),
+    ("de_dhdn_3gk2", 31466),
+    ("de_dhdn_3gk3", 31467),
+    ("de_dhdn_3gk4", 31468),
+    ("de_dhdn_3gk5", 31469),
+    ("de_dhdn_lat-lon", 4314),
+    ("de_dhhn2016_nh", 7837),
+    ("de_dhhn92_nh", 5783),
+    ("de_dhhn12_noh", 7699),
+    ("de_dhhn85_noh", 5784),
+    ("de_snn76_nh", 5785),
+];
+
+/// The part of an AdV name after `urn:adv:crs:` (lower-cased) → its codes: `ETRS89_UTM32` → 25832,
+/// `ETRS89_UTM32*DE_DHHN2016_NH` → 25832 + 7837. A third part names the quasigeoid the heights were
+/// reduced with (`*GCG2016`); it is not a CRS, and PROJ chooses the height system's own
+/// transformation, so it is ignored.
+fn adv_codes(rest: &str) -> Result<Vec<u32>, CrsError> {
+    let code = |part: &str| {
+        ADV_NAMES
+            .iter()
+            .find(|(name, _)| *name == part.trim())
+            .map(|&(_, code)| code)
+            .ok_or_else(|| CrsError::AdvName(part.trim().to_uppercase()))
+    };
+    rest.split('*').take(2).map(code).collect()
 }
 
 /// "EPSG:<version>:<code>" (version may be empty) → code.
@@ -801,6 +841,11 @@ mod tests {
                      &2=http://www.opengis.net/def/crs/EPSG/0/5709",
                     vec![28992, 5709],
                 ),
+                ("urn:adv:crs:ETRS89_UTM32*DE_DHHN2016_NH", vec![25832, 7837]),
+                ("urn:adv:crs:ETRS89_UTM33*DE_DHHN92_NH", vec![25833, 5783]),
+                ("urn:adv:crs:ETRS89_UTM32*DE_DHHN2016_NH*GCG2016", vec![25832, 7837]),
+                ("URN:ADV:CRS:DE_DHDN_3GK3*DE_DHHN12_NOH", vec![31467, 7699]),
+                ("urn:adv:crs:ETRS89_UTM32", vec![25832]),
                 (
                     "http://www.opengis.net/def/crs-compound?2=http://www.opengis.net/def/crs/EPSG/0/5709\
                      &1=http://www.opengis.net/def/crs/EPSG/0/28992",
@@ -827,6 +872,9 @@ mod tests {
                 ("http://example.com/crs/4326", "not an OGC CRS URL"),
                 ("urn:ogc:def:crs,crs:EPSG::6668,crs:EPSG::6695,crs:EPSG::5703", "1 or 2 components"),
                 ("urn:ogc:def:crs,EPSG::6668", "does not start with crs:"),
+                ("urn:adv:crs:ETRS89_UTM99*DE_DHHN2016_NH", "AdV name \"ETRS89_UTM99\""),
+                ("urn:adv:crs:ETRS89_UTM32*DE_NOWHERE_NH", "AdV name \"DE_NOWHERE_NH\""),
+                ("urn:adv:crs:", "AdV name \"\""),
             ] {
                 let e = parse_codes(s).expect_err(s).to_string();
                 assert!(e.contains(why), "{s:?}: {e}");
@@ -861,6 +909,26 @@ mod tests {
             assert_eq!(a.epsg, None);
             assert_eq!(a.id(), "EPSG:6668+6695");
             assert_eq!(a.heights(), HeightKind::Orthometric);
+        }
+
+        /// German CityGML's AdV name is the compound of its two EPSG codes: the same CRS, the same
+        /// positions, orthometric heights.
+        #[test]
+        fn an_adv_name_is_its_epsg_compound() {
+            let adv = Crs::parse("urn:adv:crs:ETRS89_UTM32*DE_DHHN2016_NH").unwrap();
+            let epsg = Crs::parse("urn:ogc:def:crs,crs:EPSG::25832,crs:EPSG::7837").unwrap();
+            assert_eq!(adv, Crs { given: adv.given.clone(), ..epsg });
+            assert_eq!(adv.id(), "EPSG:25832+7837");
+            assert_eq!((adv.kind, adv.heights()), (CrsKind::Projected2D, HeightKind::Orthometric));
+            // A point in Munich (E 691 000 m, N 5 334 000 m, 520 m above sea level).
+            let p = [691_000.0, 5_334_000.0, 520.0];
+            let (a, b) = (adv.transform().unwrap(), Crs::from_epsg(25832).unwrap().transform().unwrap());
+            let axes = AxisConvention::Authority;
+            let (ga, gb) = (a.to_geodetic(p, axes).unwrap(), b.to_geodetic(p, axes).unwrap());
+            assert_eq!(ga, gb);
+            // pyproj 3.7 (EPSG:25832 → 4326): 48.130570417°, 11.567052874°.
+            assert!((ga.lat_deg - 48.130_570_417).abs() < 1e-8, "{ga:?}");
+            assert!((ga.lon_deg - 11.567_052_874).abs() < 1e-8, "{ga:?}");
         }
 
         #[test]

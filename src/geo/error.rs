@@ -79,6 +79,13 @@ pub enum CrsError {
     /// An authority other than EPSG (upper-cased as given).
     #[error("authority {0:?} is not supported (only EPSG codes are)")]
     Authority(String),
+    /// A part of an AdV name (`urn:adv:crs:…`) insgen does not know (upper-cased as given).
+    #[error(
+        "AdV name {0:?} is not one insgen knows (ETRS89_UTM31..33, ETRS89_Lat-Lon, DE_DHDN_3GK2..5, \
+         DE_DHDN_Lat-Lon; heights DE_DHHN2016_NH, DE_DHHN92_NH, DE_DHHN12_NOH, DE_DHHN85_NOH, DE_SNN76_NH); \
+         give its EPSG codes, e.g. urn:ogc:def:crs,crs:EPSG::25832,crs:EPSG::7837"
+    )]
+    AdvName(String),
     /// A URN without a code.
     #[error("URN has no code; {EXPECTED}")]
     UrnWithoutCode,

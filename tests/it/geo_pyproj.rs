@@ -93,10 +93,11 @@ pub fn run_reference_json(py: &Path, request: &serde_json::Value) -> serde_json:
 }
 
 /// The EPSG codes under test: geographic 2D/3D, geocentric, compound, all 19 Japan Plane Rectangular
-/// CSs, Dutch, Swiss and Chinese projected CRSs, a feet-based CRS, ETRS89 3D/geocentric, and UTM
+/// CSs, Dutch, Swiss and Chinese projected CRSs, a feet-based CRS, ETRS89 3D/geocentric and UTM 32N/33N
+/// (German CityGML's AdV names resolve to them), and UTM
 /// zones (every 7th north and south, the antimeridian zones, 54N, 31N, 33S).
 fn codes() -> Vec<u32> {
-    let mut c = vec![4326, 4979, 6697, 4978, 28992, 7415, 2056, 4547, 2230, 4937, 4936];
+    let mut c = vec![4326, 4979, 6697, 4978, 28992, 7415, 2056, 4547, 2230, 4937, 4936, 25832, 25833];
     c.extend(6669..=6687);
     for z in (1..=60).step_by(7).chain([31, 33, 54, 60]) {
         c.push(32600 + z);

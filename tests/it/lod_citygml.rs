@@ -144,6 +144,66 @@ mod fixtures {
     }
 }
 
+/// German state LoD2 tiles name their CRS in the AdV register (`urn:adv:crs:ETRS89_UTM32*DE_DHHN2016_NH`),
+/// not by EPSG code: a hand-made tile in that style reads and prepares as its EPSG compound does.
+mod adv_crs {
+    use super::*;
+    use crate::util::insgen;
+
+    const ADV: &str = "urn:adv:crs:ETRS89_UTM32*DE_DHHN2016_NH";
+
+    #[test]
+    fn a_german_tile_reads_with_its_adv_name() {
+        let m = read(&fixture("adv_utm32_dhhn2016.gml"), None).unwrap();
+        let ids: Vec<&str> = m.buildings.iter().map(|b| b.source_id.as_str()).collect();
+        assert_eq!(ids, ["DEXX_LOD2_gable", "DEXX_LOD2_part"], "the BuildingPart folds into its building");
+        assert_eq!(m.frame, Frame::Crs { name: Some(ADV.into()), axes: AxisConvention::Authority });
+        let gable = building(&m, "DEXX_LOD2_gable");
+        assert_eq!((gable.lod.as_str(), polys(gable).len()), ("2", 7), "ground, 4 walls, 2 roof planes");
+        assert_eq!(polys(building(&m, "DEXX_LOD2_part")).len(), 6);
+        let crs = ::insgen::geo::Crs::parse(ADV).unwrap();
+        assert_eq!((crs.horizontal_epsg, crs.vertical_epsg), (25832, Some(7837)));
+    }
+
+    /// Prepared as it is and with the EPSG compound given in the scene file: the same buildings at the
+    /// same places, and the manifest names the CRS by its EPSG codes.
+    #[test]
+    fn prepare_places_it_as_its_epsg_compound() {
+        let src = fixture("adv_utm32_dhhn2016.gml");
+        let scene = |crs: &str| {
+            format!(
+                "name = \"de\"\n\n[[sources]]\npath = \"{}\"\n{crs}\n\n[geoid]\nmodel = \"constant\"\n\
+                 undulation_m = 47.0\n",
+                src.display()
+            )
+        };
+        let prepared = |crs: &str| {
+            let dir = crate::util::scratch_with_scenes(&[("de", scene(crs))]);
+            let out = insgen(dir.path(), &["--workdir", "runs", "prepare", "--area", "de"]);
+            assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+            let read = |f: &str| -> serde_json::Value {
+                serde_json::from_slice(&std::fs::read(dir.path().join("runs/de/scene").join(f)).unwrap())
+                    .unwrap()
+            };
+            (read("manifest.json"), read("buildings.json"))
+        };
+        let (manifest, buildings) = prepared("");
+        let chain = manifest["sources"][0]["crs_chain"].as_str().unwrap();
+        assert!(chain.contains("EPSG:25832+7837"), "{chain}");
+        // Origin at the buildings' centre: lat 48.1306°, lon 11.5672° (inspect; pyproj agrees to 1e-8°).
+        let origin = &manifest["origin"];
+        assert!((origin["lat_deg"].as_f64().unwrap() - 48.1306).abs() < 1e-3, "{origin}");
+        assert!((origin["lon_deg"].as_f64().unwrap() - 11.5672).abs() < 1e-3, "{origin}");
+        let (_, explicit) = prepared("crs = \"urn:ogc:def:crs,crs:EPSG::25832,crs:EPSG::7837\"");
+        assert_eq!(buildings, explicit);
+        // The gable's ridge stands 11 m above its ground, whatever the frame.
+        let gable =
+            buildings.as_array().unwrap().iter().find(|b| b["source_id"] == "DEXX_LOD2_gable").unwrap();
+        let up = |i: usize| gable[["bbox_min_enu_m", "bbox_max_enu_m"][i]][2].as_f64().unwrap();
+        assert!((up(1) - up(0) - 11.0).abs() < 0.01, "{gable}");
+    }
+}
+
 /// Each bad file gives an error that names the file and the reason; none panics.
 mod bad_input {
     use super::*;
