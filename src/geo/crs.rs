@@ -11,8 +11,8 @@
 //! `urn:ogc:def:crs:EPSG:6.12:4979`, `urn:x-ogc:def:crs:EPSG:…`), OGC URLs
 //! (`http(s)://www.opengis.net/def/crs/EPSG/0/6697`, `http://www.opengis.net/gml/srs/epsg.xml#6697`) and
 //! compound CRSs spelled as two codes (`urn:ogc:def:crs,crs:EPSG::6668,crs:EPSG::6695`,
-//! `http://www.opengis.net/def/crs-compound?1=…/EPSG/0/28992&2=…/EPSG/0/5709`). Only the EPSG authority
-//! is supported; every code in PROJ's `proj.db` that is geographic, projected, geocentric or compound
+//! `http://www.opengis.net/def/crs-compound?1=…/EPSG/0/28992&2=…/EPSG/0/5709`, PROJ's `EPSG:6668+6695`).
+//! Only the EPSG authority is supported; every code in PROJ's `proj.db` that is geographic, projected, geocentric or compound
 //! (horizontal + vertical) works. One other register is translated to EPSG codes: the AdV names of
 //! German CityGML (`urn:adv:crs:ETRS89_UTM32*DE_DHHN2016_NH` = EPSG:25832 + EPSG:7837; the ETRS89
 //! UTM zones 31–33 and latitude/longitude, DHDN Gauss-Krüger zones 2–5 and latitude/longitude, the
@@ -276,9 +276,10 @@ fn parse_codes(name: &str) -> Result<Vec<u32>, CrsError> {
     } else if let Some(rest) = l.strip_prefix("urn:adv:crs:") {
         adv_codes(rest)?
     } else if let Some(rest) = l.strip_prefix("epsg:") {
-        vec![epsg_code(rest.trim_start_matches(':'))?]
-    } else if l.bytes().all(|b| b.is_ascii_digit()) {
-        vec![epsg_code(&l)?]
+        // "EPSG:25832+7837" (PROJ's and GDAL's compound spelling, and [`Crs::id`]'s) is two codes.
+        rest.trim_start_matches(':').split('+').map(epsg_code).collect::<Result<Vec<_>, _>>()?
+    } else if l.bytes().all(|b| b.is_ascii_digit() || b == b'+') {
+        l.split('+').map(epsg_code).collect::<Result<Vec<_>, _>>()?
     } else {
         return Err(CrsError::NotRecognised);
     };
@@ -846,6 +847,9 @@ mod tests {
                 ("urn:adv:crs:ETRS89_UTM32*DE_DHHN2016_NH*GCG2016", vec![25832, 7837]),
                 ("URN:ADV:CRS:DE_DHDN_3GK3*DE_DHHN12_NOH", vec![31467, 7699]),
                 ("urn:adv:crs:ETRS89_UTM32", vec![25832]),
+                ("EPSG:25832+7837", vec![25832, 7837]),
+                ("epsg:6668+6695", vec![6668, 6695]),
+                ("6668+6695", vec![6668, 6695]),
                 (
                     "http://www.opengis.net/def/crs-compound?2=http://www.opengis.net/def/crs/EPSG/0/5709\
                      &1=http://www.opengis.net/def/crs/EPSG/0/28992",
@@ -875,6 +879,8 @@ mod tests {
                 ("urn:adv:crs:ETRS89_UTM99*DE_DHHN2016_NH", "AdV name \"ETRS89_UTM99\""),
                 ("urn:adv:crs:ETRS89_UTM32*DE_NOWHERE_NH", "AdV name \"DE_NOWHERE_NH\""),
                 ("urn:adv:crs:", "AdV name \"\""),
+                ("EPSG:25832+", "not a positive integer"),
+                ("EPSG:6668+6695+5703", "1 or 2 components"),
             ] {
                 let e = parse_codes(s).expect_err(s).to_string();
                 assert!(e.contains(why), "{s:?}: {e}");
@@ -908,6 +914,9 @@ mod tests {
             assert_eq!(a.axes, b.axes);
             assert_eq!(a.epsg, None);
             assert_eq!(a.id(), "EPSG:6668+6695");
+            // The id it prints reads back as the same CRS.
+            let again = Crs::parse(&a.id()).unwrap();
+            assert_eq!(again, Crs { given: again.given.clone(), ..a.clone() });
             assert_eq!(a.heights(), HeightKind::Orthometric);
         }
 
@@ -990,7 +999,7 @@ mod tests {
                 "unknown or unsupported CRS \"garbage\" (set an explicit `crs = \"EPSG:NNNN\"` for this \
                  source in the scene file): not a recognised CRS name; expected an EPSG code such as \
                  EPSG:6697, urn:ogc:def:crs:EPSG::6697, http://www.opengis.net/def/crs/EPSG/0/6697 or a \
-                 compound urn:ogc:def:crs,crs:EPSG::6668,crs:EPSG::6695"
+                 compound urn:ogc:def:crs,crs:EPSG::6668,crs:EPSG::6695 or EPSG:6668+6695"
             );
         }
     }

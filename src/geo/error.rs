@@ -52,7 +52,7 @@ pub enum GeoError {
 /// The spellings of a CRS name insgen accepts, for error messages.
 pub(crate) const EXPECTED: &str = "expected an EPSG code such as EPSG:6697, urn:ogc:def:crs:EPSG::6697, \
                                    http://www.opengis.net/def/crs/EPSG/0/6697 or a compound \
-                                   urn:ogc:def:crs,crs:EPSG::6668,crs:EPSG::6695";
+                                   urn:ogc:def:crs,crs:EPSG::6668,crs:EPSG::6695 or EPSG:6668+6695";
 
 /// Why a CRS name was refused: it is not a recognised spelling (the offending part is quoted), PROJ does
 /// not know it, or it is of a kind that cannot be placed on the globe.
