@@ -289,6 +289,24 @@ fn parse_codes(name: &str) -> Result<Vec<u32>, CrsError> {
     }
 }
 
+/// Why a UTM easting PROJ refused may still be right: German and other European files often write it
+/// with the zone number in front (32 691 000 m for 691 000 m in zone 32), which the plain UTM CRS
+/// cannot take. `None` unless the CRS `name` is a UTM zone and the first coordinate carries that
+/// zone's number in its millions.
+fn zone_prefix_hint(name: &str, point: [f64; 3]) -> Option<String> {
+    let digits: String = name.split("UTM zone ").nth(1)?.chars().take_while(char::is_ascii_digit).collect();
+    let zone: f64 = digits.parse().ok()?;
+    let easting = point[0];
+    ((easting / 1e6).floor() == zone && zone >= 1.0).then(|| {
+        format!(
+            "the easting {easting} looks like UTM zone {zone} with the zone number in front ({} m): such \
+             files need the zone's zE-N CRS (ETRS89: EPSG:5649, EPSG:4647, EPSG:5650 for zones 31, 32, 33; \
+             e.g. crs = \"EPSG:4647+7837\" with DHHN2016 heights)",
+            easting - zone * 1e6
+        )
+    })
+}
+
 /// The names of the AdV CRS register (Germany's surveying authorities: the LoD2 CityGML every state
 /// publishes, ALKIS) that insgen knows, lower-cased, with their EPSG codes: horizontal systems, then
 /// height systems.
@@ -635,7 +653,11 @@ impl CrsTransform {
     }
 
     fn transform_error(&self, point: [f64; 3], why: impl Into<String>) -> GeoError {
-        GeoError::Transform { crs: self.crs.describe(), point, why: why.into() }
+        let mut why = why.into();
+        if let Some(hint) = zone_prefix_hint(&self.crs.name, point) {
+            why = format!("{why}; {hint}");
+        }
+        GeoError::Transform { crs: self.crs.describe(), point, why }
     }
 
     /// Converts a source point to WGS84 latitude/longitude; the height is passed through as given
@@ -1129,6 +1151,29 @@ mod tests {
             for (p, m) in pts.iter().zip(&many) {
                 assert_eq!(*m, t.to_geodetic(*p, AxisConvention::EastNorth).unwrap());
             }
+        }
+
+        /// An easting with the zone number in front (as German ALKIS and some CityGML write it) is
+        /// refused by the plain UTM CRS with a hint, and its zE-N CRS places it where the plain CRS
+        /// places the easting without the prefix.
+        #[test]
+        fn a_zone_prefixed_easting_gets_a_hint_and_its_ze_n_crs_takes_it() {
+            let utm = Crs::parse("EPSG:25832+7837").unwrap().transform().unwrap();
+            let e =
+                utm.to_geodetic([32_691_000.0, 5_334_000.0, 520.0], AxisConvention::Authority).unwrap_err();
+            let msg = e.to_string();
+            assert!(msg.contains("zone number in front (691000 m)") && msg.contains("EPSG:4647"), "{msg}");
+            let ze_n = Crs::parse("EPSG:4647+7837").unwrap().transform().unwrap();
+            let axes = AxisConvention::Authority;
+            let a = ze_n.to_geodetic([32_691_000.0, 5_334_000.0, 520.0], axes).unwrap();
+            let b = utm.to_geodetic([691_000.0, 5_334_000.0, 520.0], axes).unwrap();
+            assert!(
+                (a.lat_deg - b.lat_deg).abs() < 1e-9 && (a.lon_deg - b.lon_deg).abs() < 1e-9,
+                "{a:?} {b:?}"
+            );
+            // Other failures get no such hint.
+            let e = utm.to_geodetic([f64::NAN, 5_334_000.0, 0.0], axes).unwrap_err();
+            assert!(!e.to_string().contains("zone number"), "{e}");
         }
 
         #[test]
