@@ -12,11 +12,11 @@
 //! (`http(s)://www.opengis.net/def/crs/EPSG/0/6697`, `http://www.opengis.net/gml/srs/epsg.xml#6697`) and
 //! compound CRSs spelled as two codes (`urn:ogc:def:crs,crs:EPSG::6668,crs:EPSG::6695`,
 //! `http://www.opengis.net/def/crs-compound?1=…/EPSG/0/28992&2=…/EPSG/0/5709`, PROJ's `EPSG:6668+6695`).
-//! Only the EPSG authority is supported; every code in PROJ's `proj.db` that is geographic, projected, geocentric or compound
-//! (horizontal + vertical) works. One other register is translated to EPSG codes: the AdV names of
-//! German CityGML (`urn:adv:crs:ETRS89_UTM32*DE_DHHN2016_NH` = EPSG:25832 + EPSG:7837; the ETRS89
-//! UTM zones 31–33 and latitude/longitude, DHDN Gauss-Krüger zones 2–5 and latitude/longitude, the
-//! DHHN2016, DHHN92, DHHN12, DHHN85 and SNN76 heights).
+//! Only the EPSG authority is supported; every code in PROJ's `proj.db` that is geographic, projected,
+//! geocentric or compound (horizontal + vertical) works. One other register is translated to EPSG
+//! codes: the AdV names of German CityGML (`urn:adv:crs:ETRS89_UTM32*DE_DHHN2016_NH` = EPSG:25832 +
+//! EPSG:7837; the ETRS89 UTM zones 31–33 and latitude/longitude, DHDN Gauss-Krüger zones 2–5 and
+//! latitude/longitude, the DHHN2016, DHHN92, DHHN12, DHHN85 and SNN76 heights).
 //!
 //! # Heights
 //! [`Crs::heights`] decides what the third coordinate is; the rule is:
